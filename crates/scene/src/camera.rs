@@ -1,0 +1,267 @@
+//! Cameras: pose in f64, reversed-Z projection with an infinite far plane.
+
+use crate::{Error, Frustum, Plane, Result};
+use glam::{DMat3, DMat4, DQuat, DVec3, DVec4};
+
+/// A pinhole camera.
+///
+/// Right-handed; the camera looks down its local −z with +y up. The projection
+/// is reversed Z with an infinite far plane: depth = near / view distance, so
+/// 1 at the near plane and 0 at infinity; clip w = view distance.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Camera {
+    /// Centre of projection in world space (f64: scenes may sit far from the origin).
+    pub position: DVec3,
+    /// Rotation from view space to world space (`world_from_view` without translation).
+    pub orientation: DQuat,
+    /// Vertical field of view in radians, in (0, π).
+    pub fov_y: f64,
+    /// Width / height of the viewport.
+    pub aspect: f64,
+    /// Distance of the near plane, > 0.
+    pub near: f64,
+}
+
+/// A camera placement independent of the viewport: where it stands and looks.
+/// [`LookAt::camera`] turns it into a [`Camera`] once the aspect is known.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct LookAt {
+    /// Eye position.
+    pub eye: DVec3,
+    /// A point the camera looks at.
+    pub target: DVec3,
+    /// Approximate up direction.
+    pub up: DVec3,
+    /// Vertical field of view in degrees.
+    pub fov_y_deg: f64,
+    /// Near-plane distance.
+    pub near: f64,
+}
+
+impl LookAt {
+    /// The camera for a viewport of the given aspect (width / height).
+    ///
+    /// # Errors
+    /// [`Error::InvalidCamera`] naming the field when eye = target, up is
+    /// parallel to the view direction, the fov is outside (0°, 180°), or near or
+    /// aspect is not positive and finite.
+    pub fn camera(&self, aspect: f64) -> Result<Camera> {
+        Camera::look_at(
+            self.eye,
+            self.target,
+            self.up,
+            self.fov_y_deg.to_radians(),
+            aspect,
+            self.near,
+        )
+    }
+}
+
+fn cam_err(field: &'static str, message: &str) -> Error {
+    Error::InvalidCamera {
+        field,
+        message: message.to_string(),
+    }
+}
+
+impl Camera {
+    /// A camera at `eye` looking at `target`.
+    ///
+    /// # Errors
+    /// See [`LookAt::camera`].
+    pub fn look_at(
+        eye: DVec3,
+        target: DVec3,
+        up: DVec3,
+        fov_y: f64,
+        aspect: f64,
+        near: f64,
+    ) -> Result<Camera> {
+        if !eye.is_finite() {
+            return Err(cam_err("eye", "must be finite"));
+        }
+        if !target.is_finite() {
+            return Err(cam_err("target", "must be finite"));
+        }
+        let forward = target - eye;
+        if forward.length_squared() == 0.0 || !forward.is_finite() {
+            return Err(cam_err("target", "must differ from the eye"));
+        }
+        let f = forward.normalize();
+        let side = f.cross(up);
+        if !side.is_finite() || side.length() < 1e-12 * up.length().max(1e-300) || side.length() == 0.0
+        {
+            return Err(cam_err("up", "must be finite and not parallel to the view direction"));
+        }
+        let x = side.normalize();
+        let y = x.cross(f);
+        let rot = DMat3::from_cols(x, y, -f);
+        let cam = Camera {
+            position: eye,
+            orientation: DQuat::from_mat3(&rot).normalize(),
+            fov_y,
+            aspect,
+            near,
+        };
+        cam.validate()?;
+        Ok(cam)
+    }
+
+    /// Checks field of view, aspect and near.
+    ///
+    /// # Errors
+    /// [`Error::InvalidCamera`] naming the bad field.
+    pub fn validate(&self) -> Result<()> {
+        if !self.position.is_finite() {
+            return Err(cam_err("position", "must be finite"));
+        }
+        if !self.orientation.is_finite() || (self.orientation.length() - 1.0).abs() > 1e-6 {
+            return Err(cam_err("orientation", "must be a unit quaternion"));
+        }
+        if !(self.fov_y > 0.0 && self.fov_y < std::f64::consts::PI) {
+            return Err(cam_err("fov_y", "must lie strictly between 0° and 180°"));
+        }
+        if !(self.aspect > 0.0 && self.aspect.is_finite()) {
+            return Err(cam_err("aspect", "must be positive and finite"));
+        }
+        if !(self.near > 0.0 && self.near.is_finite()) {
+            return Err(cam_err("near", "must be positive and finite"));
+        }
+        Ok(())
+    }
+
+    /// Unit view direction in world space.
+    pub fn forward(&self) -> DVec3 {
+        self.orientation * DVec3::NEG_Z
+    }
+
+    /// Rotation part of `view_from_world` (the translation is applied separately,
+    /// eye-relative, by [`crate::transform::clip_from_local`]).
+    pub fn view_rotation(&self) -> DMat4 {
+        DMat4::from_quat(self.orientation.conjugate())
+    }
+
+    /// Reversed-Z projection with an infinite far plane (right-handed, view looks down −z):
+    /// `clip = (x·f/aspect, y·f, near, −z_view)`, so depth = near / distance.
+    pub fn projection(&self) -> DMat4 {
+        let f = 1.0 / (0.5 * self.fov_y).tan();
+        DMat4::from_cols(
+            DVec4::new(f / self.aspect, 0.0, 0.0, 0.0),
+            DVec4::new(0.0, f, 0.0, 0.0),
+            DVec4::new(0.0, 0.0, 0.0, -1.0),
+            DVec4::new(0.0, 0.0, self.near, 0.0),
+        )
+    }
+
+    /// Projection times view rotation: maps eye-relative world points to clip space.
+    pub fn clip_from_eye_relative(&self) -> DMat4 {
+        self.projection() * self.view_rotation()
+    }
+
+    /// World-space unit direction of the ray through pixel centre `(px, py)`
+    /// (pixel units, row 0 at the top) of a `width × height` viewport.
+    pub fn ray_direction(&self, px: f64, py: f64, width: u32, height: u32) -> DVec3 {
+        let ndc_x = 2.0 * px / width as f64 - 1.0;
+        let ndc_y = 1.0 - 2.0 * py / height as f64;
+        let t = (0.5 * self.fov_y).tan();
+        let d = DVec3::new(ndc_x * t * self.aspect, ndc_y * t, -1.0);
+        (self.orientation * d).normalize()
+    }
+
+    /// The view frustum (far end at infinity), planes with unit inside normals.
+    pub fn frustum(&self) -> Frustum {
+        let t = (0.5 * self.fov_y).tan();
+        let (hx, hy) = (t * self.aspect, t);
+        let view_dirs = [
+            DVec3::new(-hx, -hy, -1.0),
+            DVec3::new(hx, -hy, -1.0),
+            DVec3::new(hx, hy, -1.0),
+            DVec3::new(-hx, hy, -1.0),
+        ];
+        let dirs = view_dirs.map(|d| self.orientation * d);
+        let near_corners = dirs.map(|d| self.position + d * self.near);
+        let far_directions = dirs.map(|d| d.normalize());
+        let e = self.position;
+        // Side planes through the eye; CCW order seen from inside gives inside normals.
+        let side = |a: DVec3, b: DVec3| Plane::from_point_normal(e, b.cross(a)).normalized();
+        let fwd = self.forward();
+        let planes = [
+            side(dirs[3], dirs[0]), // left
+            side(dirs[1], dirs[2]), // right
+            side(dirs[0], dirs[1]), // bottom
+            side(dirs[2], dirs[3]), // top
+            Plane::from_point_normal(e + fwd * self.near, fwd),
+        ];
+        Frustum {
+            planes,
+            apex: e,
+            near_corners,
+            far_directions,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn cam() -> Camera {
+        Camera::look_at(
+            DVec3::new(1.0, 2.0, 3.0),
+            DVec3::new(1.0, 2.0, -10.0),
+            DVec3::Y,
+            60f64.to_radians(),
+            4.0 / 3.0,
+            0.5,
+        )
+        .unwrap()
+    }
+
+    #[test]
+    fn reversed_z_depth_is_one_at_near_zero_at_infinity() {
+        let c = cam();
+        let m = c.clip_from_eye_relative();
+        let near = m * (c.forward() * c.near).extend(1.0);
+        assert!((near.z / near.w - 1.0).abs() < 1e-12);
+        let far = m * (c.forward() * 1e12).extend(1.0);
+        assert!(far.z / far.w < 1e-12);
+        let inf = m * c.forward().extend(0.0);
+        assert_eq!(inf.z, 0.0);
+        assert!(inf.w > 0.0);
+    }
+
+    #[test]
+    fn frustum_contains_forward_points_only() {
+        let f = cam().frustum();
+        assert!(f.contains(DVec3::new(1.0, 2.0, -100.0)));
+        assert!(!f.contains(DVec3::new(1.0, 2.0, 10.0)));
+        assert!(!f.contains(DVec3::new(1.0, 2.0, 2.9)), "between eye and near plane");
+        assert!(!f.contains(DVec3::new(200.0, 2.0, -100.0)));
+        for c in f.near_corners {
+            for p in &f.planes {
+                assert!(p.signed_distance(c) > -1e-9);
+            }
+        }
+    }
+
+    #[test]
+    fn pixel_rays_hit_the_viewport_corners() {
+        let c = cam();
+        let d = c.ray_direction(0.0, 0.0, 800, 600); // top-left corner of the image
+        let f = c.frustum();
+        let expect = f.far_directions[3];
+        assert!((d - expect).length() < 1e-12);
+    }
+
+    #[test]
+    fn bad_cameras_name_their_field() {
+        let e = Camera::look_at(DVec3::ZERO, DVec3::ZERO, DVec3::Y, 1.0, 1.0, 0.1);
+        assert!(matches!(e, Err(Error::InvalidCamera { field: "target", .. })));
+        let e = Camera::look_at(DVec3::ZERO, DVec3::Y, DVec3::Y, 1.0, 1.0, 0.1);
+        assert!(matches!(e, Err(Error::InvalidCamera { field: "up", .. })));
+        let e = Camera::look_at(DVec3::ZERO, DVec3::X, DVec3::Y, 4.0, 1.0, 0.1);
+        assert!(matches!(e, Err(Error::InvalidCamera { field: "fov_y", .. })));
+        let e = Camera::look_at(DVec3::ZERO, DVec3::X, DVec3::Y, 1.0, 1.0, 0.0);
+        assert!(matches!(e, Err(Error::InvalidCamera { field: "near", .. })));
+    }
+}

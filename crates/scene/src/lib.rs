@@ -1,0 +1,48 @@
+//! # shadowcull-scene
+//!
+//! Scene graph, meshes and their topology, loaders (glTF 2.0, OBJ, the box-city
+//! benchmark format, procedural cities), the object BVH, and the geometry types
+//! every other shadowcull crate shares (`Aabb`, `Plane`, `Frustum`, `Camera`,
+//! `Light`), plus the one transform path and the one facing rule.
+//!
+//! # Conventions
+//! - Right-handed world, +y up, column vectors; glam `f32` for vertex data,
+//!   `f64` for transforms, camera and light positions, planes and facing.
+//! - Triangles are counter-clockwise seen from the front; mirrored instances
+//!   are reported with flipped winding ([`Scene::world_triangle`]).
+//! - Projection: reversed Z with an infinite far plane — depth 1 at the near
+//!   plane, 0 at infinity ([`Camera::projection`]).
+//! - Planes: inside is the positive side.
+//! - `clip_from_local` is composed in f64 in eye-relative form and rounded to
+//!   f32 once ([`transform::clip_from_local`]).
+//! - A triangle faces a light when the light is strictly on its front side
+//!   ([`faces_light`]).
+#![forbid(unsafe_code)]
+
+mod aabb;
+mod camera;
+mod camera_path;
+mod error;
+mod facing;
+mod frustum;
+mod graph;
+pub mod load;
+mod mesh;
+mod plane;
+pub mod procedural;
+mod scene;
+pub mod transform;
+
+pub use aabb::Aabb;
+pub use camera::{Camera, LookAt};
+pub use camera_path::CameraPath;
+pub use error::{Error, Result};
+pub use facing::faces_light;
+pub use frustum::Frustum;
+pub use graph::{MeshId, Node, NodeId, SceneGraph, Transform};
+pub use light::Light;
+pub use mesh::{Edge, EdgeRef, Mesh, Topology};
+pub use plane::Plane;
+pub use scene::{Object, ObjectId, Scene, SceneCounts, MAX_NODE_DEPTH, MAX_OBJECTS};
+
+mod light;

@@ -1,0 +1,1 @@
+//! Triangulation of polygons (in progress).

@@ -1,0 +1,341 @@
+//! Meshes and their topology, prepared once per mesh: welded positions,
+//! triangle list, and the edge table with the signed-counter layout of
+//! [AW §2.4] that silhouette extraction uses.
+
+use crate::{Aabb, Error, Result};
+use glam::{DVec3, Vec3};
+use std::collections::HashMap;
+
+/// A reference from a triangle to one of its edges, with the direction the
+/// triangle traverses it: `+1` when the triangle runs from the edge's `v[0]`
+/// to `v[1]`, `−1` when it runs the other way. Silhouette extraction [AW §2.4]
+/// adds this sign to the edge's counter for every light-facing triangle.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct EdgeRef(u32);
+
+impl EdgeRef {
+    const REVERSED: u32 = 1 << 31;
+
+    fn new(edge: u32, reversed: bool) -> Self {
+        EdgeRef(edge | if reversed { Self::REVERSED } else { 0 })
+    }
+
+    /// Index into [`Mesh::edges`].
+    pub fn index(self) -> usize {
+        (self.0 & !Self::REVERSED) as usize
+    }
+
+    /// `+1` if the triangle traverses the edge from `v[0]` to `v[1]`, else `−1`.
+    pub fn sign(self) -> i32 {
+        if self.0 & Self::REVERSED != 0 {
+            -1
+        } else {
+            1
+        }
+    }
+}
+
+/// An undirected edge between two welded vertices, `v[0] < v[1]`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Edge {
+    /// Vertex indices, smaller first.
+    pub v: [u32; 2],
+    /// Number of triangles that use the edge.
+    pub triangles: u32,
+    /// Sum of the traversal signs over those triangles (0 for a consistently
+    /// wound manifold edge).
+    pub winding_sum: i32,
+}
+
+/// Topology counts of a mesh, reported by `shadowcull inspect`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+pub struct Topology {
+    /// Edges used by exactly one triangle (holes, open borders).
+    pub boundary_edges: usize,
+    /// Edges used by more than two triangles.
+    pub non_manifold_edges: usize,
+    /// Edges used by two or more triangles, at least two of which traverse
+    /// the edge in the same direction (inconsistent orientation).
+    pub inconsistent_edges: usize,
+    /// Triangles dropped because two of their welded vertices coincide or
+    /// their three vertices are collinear (zero area).
+    pub degenerate_triangles: usize,
+}
+
+/// A triangle mesh with welded vertices and an edge table.
+///
+/// Built once per mesh and shared by every instance. Winding: counter-clockwise
+/// seen from the front. Vertices at bit-identical positions (with −0 equal to
+/// +0) are welded into one, so edges are shared across unwelded polygon soups.
+#[derive(Clone, Debug)]
+pub struct Mesh {
+    name: String,
+    positions: Vec<Vec3>,
+    triangles: Vec<[u32; 3]>,
+    edges: Vec<Edge>,
+    triangle_edges: Vec<[EdgeRef; 3]>,
+    topology: Topology,
+    bounds: Aabb,
+}
+
+fn weld_key(p: Vec3) -> [u32; 3] {
+    // +0.0 turns −0 into +0: the two weld together.
+    [(p.x + 0.0).to_bits(), (p.y + 0.0).to_bits(), (p.z + 0.0).to_bits()]
+}
+
+impl Mesh {
+    /// Builds a mesh from raw positions and triangles (indices into `positions`).
+    ///
+    /// Positions are welded, degenerate triangles dropped and counted, and the
+    /// edge table built.
+    ///
+    /// # Errors
+    /// [`Error::InvalidMesh`] naming `name` when an index is out of range or a
+    /// position used by a triangle is not finite.
+    pub fn new(name: impl Into<String>, positions: &[Vec3], triangles: &[[u32; 3]]) -> Result<Mesh> {
+        let name = name.into();
+        let n = positions.len();
+        for (t, tri) in triangles.iter().enumerate() {
+            for &i in tri {
+                if i as usize >= n {
+                    return Err(Error::InvalidMesh {
+                        mesh: name,
+                        message: format!(
+                            "triangle {t} uses vertex {i}, but there are only {n} vertices"
+                        ),
+                    });
+                }
+                if !positions[i as usize].is_finite() {
+                    return Err(Error::InvalidMesh {
+                        mesh: name,
+                        message: format!("vertex {i} (used by triangle {t}) is not finite"),
+                    });
+                }
+            }
+        }
+        // Weld only the vertices that triangles use, in first-use order.
+        let mut remap = vec![u32::MAX; n];
+        let mut lookup: HashMap<[u32; 3], u32> = HashMap::new();
+        let mut welded: Vec<Vec3> = Vec::new();
+        let mut tris = Vec::with_capacity(triangles.len());
+        let mut degenerate = 0;
+        for tri in triangles {
+            let w = tri.map(|i| {
+                let slot = &mut remap[i as usize];
+                if *slot == u32::MAX {
+                    let p = positions[i as usize];
+                    *slot = *lookup.entry(weld_key(p)).or_insert_with(|| {
+                        welded.push(p + Vec3::ZERO);
+                        (welded.len() - 1) as u32
+                    });
+                }
+                *slot
+            });
+            if w[0] == w[1] || w[1] == w[2] || w[0] == w[2] {
+                degenerate += 1;
+                continue;
+            }
+            let [a, b, c] = w.map(|i| welded[i as usize].as_dvec3());
+            if (b - a).cross(c - a) == DVec3::ZERO {
+                degenerate += 1;
+                continue;
+            }
+            tris.push(w);
+        }
+        // Drop vertices that only degenerate triangles used.
+        let mut used = vec![u32::MAX; welded.len()];
+        let mut compact = Vec::with_capacity(welded.len());
+        for t in &mut tris {
+            for i in t.iter_mut() {
+                if used[*i as usize] == u32::MAX {
+                    used[*i as usize] = compact.len() as u32;
+                    compact.push(welded[*i as usize]);
+                }
+                *i = used[*i as usize];
+            }
+        }
+        let welded = compact;
+        let (edges, triangle_edges) = build_edges(&tris);
+        let mut topology = Topology {
+            degenerate_triangles: degenerate,
+            ..Topology::default()
+        };
+        let mut forward = vec![0u32; edges.len()];
+        for te in &triangle_edges {
+            for r in te {
+                if r.sign() > 0 {
+                    forward[r.index()] += 1;
+                }
+            }
+        }
+        for (e, edge) in edges.iter().enumerate() {
+            let backward = edge.triangles - forward[e];
+            match edge.triangles {
+                1 => topology.boundary_edges += 1,
+                2 => {}
+                _ => topology.non_manifold_edges += 1,
+            }
+            if edge.triangles >= 2 && (forward[e] >= 2 || backward >= 2) {
+                topology.inconsistent_edges += 1;
+            }
+        }
+        let bounds = Aabb::from_points(welded.iter().copied());
+        Ok(Mesh {
+            name,
+            positions: welded,
+            triangles: tris,
+            edges,
+            triangle_edges,
+            topology,
+            bounds,
+        })
+    }
+
+    /// The mesh's name (from the file, or given in code).
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+
+    /// Welded vertex positions in local space.
+    pub fn positions(&self) -> &[Vec3] {
+        &self.positions
+    }
+
+    /// Triangles (indices into [`Mesh::positions`]), counter-clockwise = front.
+    pub fn triangles(&self) -> &[[u32; 3]] {
+        &self.triangles
+    }
+
+    /// The undirected edges.
+    pub fn edges(&self) -> &[Edge] {
+        &self.edges
+    }
+
+    /// Per triangle, its edges `(v0,v1), (v1,v2), (v2,v0)` with traversal signs.
+    pub fn triangle_edges(&self) -> &[[EdgeRef; 3]] {
+        &self.triangle_edges
+    }
+
+    /// Topology counts.
+    pub fn topology(&self) -> Topology {
+        self.topology
+    }
+
+    /// Local-space bounds.
+    pub fn bounds(&self) -> Aabb {
+        self.bounds
+    }
+
+    /// The three local positions of triangle `t`.
+    pub fn triangle(&self, t: usize) -> [Vec3; 3] {
+        self.triangles[t].map(|i| self.positions[i as usize])
+    }
+}
+
+fn build_edges(tris: &[[u32; 3]]) -> (Vec<Edge>, Vec<[EdgeRef; 3]>) {
+    let mut index: HashMap<(u32, u32), u32> = HashMap::with_capacity(tris.len() * 3 / 2);
+    let mut edges: Vec<Edge> = Vec::with_capacity(tris.len() * 3 / 2);
+    let triangle_edges = tris
+        .iter()
+        .map(|t| {
+            std::array::from_fn(|k| {
+                let (a, b) = (t[k], t[(k + 1) % 3]);
+                let (lo, hi, reversed) = if a < b { (a, b, false) } else { (b, a, true) };
+                let e = *index.entry((lo, hi)).or_insert_with(|| {
+                    edges.push(Edge {
+                        v: [lo, hi],
+                        triangles: 0,
+                        winding_sum: 0,
+                    });
+                    (edges.len() - 1) as u32
+                });
+                let r = EdgeRef::new(e, reversed);
+                let edge = &mut edges[e as usize];
+                edge.triangles += 1;
+                edge.winding_sum += r.sign();
+                r
+            })
+        })
+        .collect();
+    (edges, triangle_edges)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Unit cube as 12 CCW-outward triangles with 24 unwelded corners (like the
+    /// Cornell boxes), so welding must find the 8 real vertices.
+    fn soup_cube() -> (Vec<Vec3>, Vec<[u32; 3]>) {
+        let c = |i: u32| Vec3::new((i & 1) as f32, ((i >> 1) & 1) as f32, ((i >> 2) & 1) as f32);
+        let faces = [[0, 4, 6, 2], [1, 3, 7, 5], [0, 1, 5, 4], [2, 6, 7, 3], [0, 2, 3, 1], [4, 5, 7, 6]];
+        let mut pos = Vec::new();
+        let mut tris = Vec::new();
+        for f in faces {
+            let base = pos.len() as u32;
+            pos.extend(f.iter().map(|&i| c(i)));
+            tris.push([base, base + 1, base + 2]);
+            tris.push([base, base + 2, base + 3]);
+        }
+        (pos, tris)
+    }
+
+    #[test]
+    fn welded_cube_is_closed_and_consistent() {
+        let (p, t) = soup_cube();
+        let m = Mesh::new("cube", &p, &t).unwrap();
+        assert_eq!(m.positions().len(), 8);
+        assert_eq!(m.triangles().len(), 12);
+        assert_eq!(m.edges().len(), 18);
+        assert_eq!(m.topology(), Topology::default());
+        for e in m.edges() {
+            assert_eq!(e.triangles, 2);
+            assert_eq!(e.winding_sum, 0);
+        }
+    }
+
+    #[test]
+    fn flipped_face_counts_inconsistent_edges() {
+        let (p, mut t) = soup_cube();
+        t[0].swap(1, 2);
+        let m = Mesh::new("cube", &p, &t).unwrap();
+        assert_eq!(m.topology().inconsistent_edges, 3);
+    }
+
+    #[test]
+    fn negative_zero_welds_and_degenerates_are_dropped() {
+        let p = [
+            Vec3::new(0.0, 0.0, 0.0),
+            Vec3::new(1.0, 0.0, 0.0),
+            Vec3::new(0.0, 1.0, 0.0),
+            Vec3::new(-0.0, 0.0, -0.0),
+            Vec3::new(2.0, 0.0, 0.0),
+        ];
+        // Triangle 1 repeats the origin (as −0), triangle 2 is collinear.
+        let m = Mesh::new("t", &p, &[[0, 1, 2], [3, 0, 2], [0, 1, 4]]).unwrap();
+        assert_eq!(m.positions().len(), 3);
+        assert_eq!(m.triangles().len(), 1);
+        assert_eq!(m.topology().degenerate_triangles, 2);
+        assert_eq!(m.topology().boundary_edges, 3);
+    }
+
+    #[test]
+    fn non_manifold_fin() {
+        // Three triangles sharing edge (0,1).
+        let p = [Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::Z, Vec3::new(0.5, -1.0, 0.0)];
+        let m = Mesh::new("fin", &p, &[[0, 1, 2], [1, 0, 3], [0, 1, 4]]).unwrap();
+        assert_eq!(m.topology().non_manifold_edges, 1);
+        assert_eq!(m.topology().inconsistent_edges, 1);
+        let e = m.edges().iter().find(|e| e.v == [0, 1]).unwrap();
+        assert_eq!(e.triangles, 3);
+        assert_eq!(e.winding_sum, 1);
+    }
+
+    #[test]
+    fn bad_input_is_an_error() {
+        assert!(Mesh::new("m", &[Vec3::ZERO], &[[0, 0, 1]]).is_err());
+        let nan = [Vec3::ZERO, Vec3::X, Vec3::new(f32::NAN, 0.0, 0.0)];
+        let err = Mesh::new("m", &nan, &[[0, 1, 2]]).unwrap_err();
+        assert!(err.to_string().contains("mesh `m`"));
+    }
+}

@@ -1,0 +1,1 @@
+//! Procedural scenes: the `City` generator and small analytic test scenes.
