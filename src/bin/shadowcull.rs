@@ -1,1 +1,244 @@
-fn main(){}
+//! `shadowcull`: run RON batch jobs and inspect scenes.
+//!
+//! - `shadowcull run [JOB.ron] [--out DIR] [--frames N] [--log-format text|json]`
+//! - `shadowcull inspect SCENE [--json]`
+//!
+//! Exit status 0 on success, 1 on any error (one line on stderr naming the file).
+
+use anyhow::Context as _;
+use clap::{Parser, Subcommand, ValueEnum};
+use shadowcull::config::{default_job, Job};
+use shadowcull::run::{run_job, RunOptions};
+use shadowcull::stats::FrameStats;
+use std::io::IsTerminal;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+#[derive(Parser)]
+#[command(
+    name = "shadowcull",
+    version,
+    about = "Shadow-volume culling middleware: batch jobs and scene inspection"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Run a RON job (default: the bundled procedural-city job).
+    Run {
+        /// The job file; omitted: the bundled default (procedural city, street path).
+        job: Option<PathBuf>,
+        /// Output directory (created if missing).
+        #[arg(long, default_value = "out")]
+        out: PathBuf,
+        /// Stop after the first N frames.
+        #[arg(long)]
+        frames: Option<u32>,
+        /// How per-frame statistics are logged: plain text on stderr, or JSON lines on stdout.
+        #[arg(long, value_enum, default_value_t = LogFormat::Text)]
+        log_format: LogFormat,
+    },
+    /// Print a scene's objects, meshes, triangles, bounds, topology and load warnings.
+    Inspect {
+        /// A .gltf, .glb, .obj, directory of .obj, or box-city .txt file.
+        scene: PathBuf,
+        /// Print one JSON object on stdout.
+        #[arg(long)]
+        json: bool,
+    },
+}
+
+#[derive(Clone, Copy, ValueEnum, PartialEq)]
+enum LogFormat {
+    Text,
+    Json,
+}
+
+fn main() -> ExitCode {
+    // A bug must still end with one line and status 1, never a backtrace.
+    std::panic::set_hook(Box::new(|info| {
+        eprintln!("error: internal error: {info}");
+    }));
+    let cli = Cli::parse();
+    match std::panic::catch_unwind(|| dispatch(cli)) {
+        Ok(Ok(())) => ExitCode::SUCCESS,
+        Ok(Err(e)) => {
+            eprintln!("error: {}", one_line(&e));
+            ExitCode::from(1)
+        }
+        Err(_) => ExitCode::from(1),
+    }
+}
+
+fn one_line(e: &anyhow::Error) -> String {
+    let mut s = String::new();
+    for (i, cause) in e.chain().enumerate() {
+        let text = cause.to_string();
+        if i > 0 && s.contains(&text) {
+            continue;
+        }
+        if i > 0 {
+            s.push_str(": ");
+        }
+        s.push_str(&text);
+    }
+    s.replace('\n', " ")
+}
+
+fn dispatch(cli: Cli) -> anyhow::Result<()> {
+    match cli.command {
+        Command::Run {
+            job,
+            out,
+            frames,
+            log_format,
+        } => run(job.as_deref(), out, frames, log_format),
+        Command::Inspect { scene, json } => inspect(&scene, json),
+    }
+}
+
+fn run(
+    job_file: Option<&Path>,
+    out: PathBuf,
+    frames: Option<u32>,
+    log_format: LogFormat,
+) -> anyhow::Result<()> {
+    use tracing_subscriber::prelude::*;
+    let job = match job_file {
+        Some(p) => Job::from_file(p)?,
+        None => default_job(),
+    };
+    let tty = std::io::stderr().is_terminal();
+    match log_format {
+        LogFormat::Json => {
+            let layer = tracing_subscriber::fmt::layer()
+                .json()
+                .flatten_event(true)
+                .with_writer(std::io::stdout);
+            tracing_subscriber::registry().with(layer).init();
+        }
+        LogFormat::Text if !tty => {
+            let layer = tracing_subscriber::fmt::layer()
+                .with_writer(std::io::stderr)
+                .with_ansi(false);
+            tracing_subscriber::registry().with(layer).init();
+        }
+        LogFormat::Text => {}
+    }
+    let bar = (tty && log_format == LogFormat::Text).then(|| {
+        let b = indicatif::ProgressBar::new(0);
+        b.set_style(
+            indicatif::ProgressStyle::with_template(
+                "{bar:40} {pos}/{len} frame-lights  {msg}  [{elapsed}<{eta}]",
+            )
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+        );
+        b
+    });
+    if let Some(b) = &bar {
+        b.set_message("loading scene");
+    } else if log_format == LogFormat::Text {
+        eprintln!(
+            "shadowcull: loading {}",
+            job_file
+                .map(|p| p.display().to_string())
+                .unwrap_or("the default city job".into())
+        );
+    }
+    let nlights = job.lights.len().max(1) as u64;
+    let mut on_frame = |row: &FrameStats, frames: u32| {
+        if let Some(b) = &bar {
+            b.set_length(frames as u64 * nlights);
+            b.inc(1);
+            b.set_message(format!(
+                "frame {} light {}: reference {:.0} ms",
+                row.frame, row.light, row.reference.reference_ms
+            ));
+        }
+    };
+    let options = RunOptions {
+        out_dir: out.clone(),
+        max_frames: frames,
+    };
+    let summary = run_job(&job, job_file, &options, &mut on_frame)?;
+    if let Some(b) = &bar {
+        b.finish_and_clear();
+    }
+    if log_format == LogFormat::Text {
+        eprintln!(
+            "shadowcull: {} objects, {} triangles; {} frames × {} lights; mean reference {:.1} ms; wrote {}",
+            summary.scene.objects,
+            summary.scene.triangles,
+            summary.frames,
+            summary.lights.len(),
+            summary.mean_reference_ms,
+            out.display()
+        );
+    }
+    Ok(())
+}
+
+fn inspect(path: &Path, json: bool) -> anyhow::Result<()> {
+    let shown = path.display().to_string();
+    let with_file = |e: String| {
+        if e.contains(&shown) {
+            e
+        } else {
+            format!("{shown}: {e}")
+        }
+    };
+    let loaded =
+        scene::load::load_path(path).map_err(|e| anyhow::anyhow!(with_file(e.to_string())))?;
+    let scene =
+        scene::Scene::new(loaded.graph).map_err(|e| anyhow::anyhow!(with_file(e.to_string())))?;
+    let c = scene.counts();
+    let b = scene.bounds();
+    let bounds = if b.is_empty() {
+        serde_json::json!(null)
+    } else {
+        serde_json::json!({ "min": [b.min.x, b.min.y, b.min.z], "max": [b.max.x, b.max.y, b.max.z] })
+    };
+    if json {
+        let v = serde_json::json!({
+            "file": shown,
+            "objects": c.objects,
+            "meshes": c.meshes,
+            "triangles": c.triangles,
+            "vertices": c.vertices,
+            "bounds": bounds,
+            "boundary_edges": c.topology.boundary_edges,
+            "non_manifold_edges": c.topology.non_manifold_edges,
+            "inconsistent_edges": c.topology.inconsistent_edges,
+            "degenerate_triangles": c.topology.degenerate_triangles,
+            "warnings": scene.warnings(),
+        });
+        println!("{}", serde_json::to_string(&v).context("encoding JSON")?);
+    } else {
+        println!("{shown}");
+        println!("  objects              {}", c.objects);
+        println!("  meshes               {}", c.meshes);
+        println!("  triangles            {}", c.triangles);
+        println!("  vertices             {}", c.vertices);
+        if b.is_empty() {
+            println!("  bounds               (empty)");
+        } else {
+            println!(
+                "  bounds               {:?} .. {:?}",
+                b.min.to_array(),
+                b.max.to_array()
+            );
+        }
+        println!("  boundary edges       {}", c.topology.boundary_edges);
+        println!("  non-manifold edges   {}", c.topology.non_manifold_edges);
+        println!("  inconsistent edges   {}", c.topology.inconsistent_edges);
+        println!("  degenerate triangles {}", c.topology.degenerate_triangles);
+        println!("  warnings             {}", scene.warnings().len());
+        for w in scene.warnings() {
+            println!("    - {w}");
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,574 @@
+//! RON job files: which scene, views, lights, outputs and pipeline options a
+//! batch run uses.
+//!
+//! The schema grows without breaking old jobs: `version: 1`, and every field
+//! but `scene` has a default. Unknown fields and bad values are errors with
+//! line and column (or the field's path).
+
+use crate::{Error, Result};
+use glam::DVec3;
+use scene::load::Loaded;
+use scene::procedural::city::CityParams;
+use scene::{CameraPath, Light, LookAt};
+use serde::Deserialize;
+use std::path::{Path, PathBuf};
+
+/// The job schema version this build reads.
+pub const JOB_VERSION: u32 = 1;
+
+/// A batch job.
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Job {
+    /// Schema version; must be [`JOB_VERSION`].
+    #[serde(default = "default_version")]
+    pub version: u32,
+    /// The scene to load or generate.
+    pub scene: SceneSpec,
+    /// An optional ground quad added under the scene.
+    #[serde(default)]
+    pub ground: Option<Ground>,
+    /// Viewport `(width, height)` in pixels; default 800×600.
+    #[serde(default = "default_resolution")]
+    pub resolution: (u32, u32),
+    /// The view(s): a camera or camera path.
+    #[serde(default)]
+    pub camera: CameraSpec,
+    /// Number of frames; default: the camera's sequence length, else 1.
+    #[serde(default)]
+    pub frames: Option<u32>,
+    /// Lights; each frame is computed once per light. Default: the scene's
+    /// named lights, else one point light above the scene.
+    #[serde(default)]
+    pub lights: Vec<LightSpec>,
+    /// Which files to write.
+    #[serde(default)]
+    pub outputs: Outputs,
+    /// Pipeline options (later issues add culling, method, stencil, clamping).
+    #[serde(default)]
+    pub pipeline: PipelineOptions,
+}
+
+fn default_version() -> u32 {
+    JOB_VERSION
+}
+
+fn default_resolution() -> (u32, u32) {
+    (800, 600)
+}
+
+/// Where the scene comes from. Relative paths are relative to the job file.
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+pub enum SceneSpec {
+    /// A glTF 2.0 file (`.gltf` or `.glb`).
+    Gltf(PathBuf),
+    /// An OBJ file, or a directory of OBJ files loaded in name order.
+    Obj(PathBuf),
+    /// A box-city benchmark file (`citysc 1`).
+    BoxCity(PathBuf),
+    /// The procedural city with parameters (`City(())` for the defaults).
+    City(CityParams),
+    /// Several scenes combined into one.
+    Group(Vec<SceneSpec>),
+}
+
+/// A ground quad: a square of side `size` centred under the scene bounds, at height `y`, facing up.
+#[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Ground {
+    /// Edge length.
+    pub size: f32,
+    /// Height of the quad.
+    pub y: f32,
+}
+
+/// The view of each frame.
+#[derive(Clone, Debug, PartialEq, Deserialize, Default)]
+pub enum CameraSpec {
+    /// A fixed pose.
+    Fixed(LookAt),
+    /// One pose per frame, in order (frame i uses pose i).
+    Sequence(Vec<LookAt>),
+    /// A camera the scene names (box city: `street`, `bird`).
+    Named(String),
+    /// A camera path the scene names (`street`, `bird`).
+    Path(String),
+    /// Keyframes `(frame, pose)`, linearly interpolated.
+    Keyframes(Vec<(f64, LookAt)>),
+    /// Default: the scene's `street` path if it has one, else a view of the
+    /// whole scene bounds from the side.
+    #[default]
+    Auto,
+}
+
+/// A light of the job.
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+pub enum LightSpec {
+    /// Point light; `range` limits it.
+    Point {
+        /// Position.
+        position: DVec3,
+        /// Optional range.
+        #[serde(default)]
+        range: Option<f64>,
+    },
+    /// Spot light; `apex_deg` is the full cone angle in degrees.
+    Spot {
+        /// Position.
+        position: DVec3,
+        /// Axis direction.
+        direction: DVec3,
+        /// Full apex angle in degrees, (0, 180).
+        apex_deg: f64,
+        /// Optional range.
+        #[serde(default)]
+        range: Option<f64>,
+    },
+    /// Directional light travelling along `direction`.
+    Directional(DVec3),
+    /// The sun at `elevation_deg` above the horizon and `azimuth_deg`
+    /// counter-clockwise from +x seen from above (toward −z).
+    Sun {
+        /// Elevation in degrees.
+        elevation_deg: f64,
+        /// Azimuth in degrees.
+        azimuth_deg: f64,
+    },
+    /// A point light above the centre of the scene bounds at
+    /// `min.y + factor · height` (height = bounds' y extent).
+    AboveScene(f64),
+    /// A light the scene names (box city: `light`).
+    Named(String),
+}
+
+/// Files a run writes besides `stats.csv` and `summary.json`.
+#[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct Outputs {
+    /// `frames/<frame>_<light>_mask.png`: the four-class reference mask.
+    pub masks: bool,
+    /// `frames/<frame>_<light>_shaded.png`: a shaded image of the frame.
+    pub shaded: bool,
+    /// Write images only for every n-th frame (1 = all).
+    pub image_every: u32,
+}
+
+impl Default for Outputs {
+    fn default() -> Self {
+        Outputs {
+            masks: false,
+            shaded: false,
+            image_every: 1,
+        }
+    }
+}
+
+/// Pipeline options. For now only the reference's; later issues add culling,
+/// volume method, stencil backend, tile size and clamping here.
+#[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct PipelineOptions {
+    /// Compute the reference mask every n-th frame (0 = never).
+    pub reference_every: u32,
+    /// The reference's options (two-sided casting, depth-error bound).
+    pub reference: crate::reference::ReferenceOptions,
+}
+
+impl Default for PipelineOptions {
+    fn default() -> Self {
+        PipelineOptions {
+            reference_every: 1,
+            reference: Default::default(),
+        }
+    }
+}
+
+impl Job {
+    /// Parses a job from RON text; `file` names it in errors.
+    ///
+    /// # Errors
+    /// [`Error::Job`] with line and column for syntax errors, unknown fields
+    /// and bad values.
+    pub fn from_ron(text: &str, file: &Path) -> Result<Job> {
+        let job: Job = ron::Options::default()
+            .with_default_extension(ron::extensions::Extensions::IMPLICIT_SOME)
+            .from_str(text)
+            .map_err(|e| Error::Job {
+                file: file.to_path_buf(),
+                location: format!("{}:{}", e.position.line, e.position.col),
+                message: e.code.to_string(),
+            })?;
+        job.validate(file)?;
+        Ok(job)
+    }
+
+    /// Reads and parses a job file.
+    ///
+    /// # Errors
+    /// [`Error::Io`] or [`Error::Job`].
+    pub fn from_file(path: &Path) -> Result<Job> {
+        let text = std::fs::read_to_string(path).map_err(crate::error::io_err(path))?;
+        Job::from_ron(&text, path)
+    }
+
+    fn validate(&self, file: &Path) -> Result<()> {
+        let bad = |field: &str, message: String| Error::Job {
+            file: file.to_path_buf(),
+            location: field.to_string(),
+            message,
+        };
+        if self.version != JOB_VERSION {
+            return Err(bad(
+                "version",
+                format!(
+                    "unsupported job version {} (this build reads {JOB_VERSION})",
+                    self.version
+                ),
+            ));
+        }
+        let (w, h) = self.resolution;
+        if w == 0 || h == 0 || w > 16384 || h > 16384 {
+            return Err(bad(
+                "resolution",
+                format!("{w}×{h} must be between 1×1 and 16384×16384"),
+            ));
+        }
+        if let Some(g) = self.ground {
+            if !(g.size > 0.0 && g.size.is_finite()) || !g.y.is_finite() {
+                return Err(bad(
+                    "ground",
+                    "size must be positive and finite, y finite".into(),
+                ));
+            }
+        }
+        if self.frames == Some(0) {
+            return Err(bad("frames", "must be at least 1".into()));
+        }
+        if self.outputs.image_every == 0 {
+            return Err(bad("outputs.image_every", "must be at least 1".into()));
+        }
+        if !(self.pipeline.reference.depth_error >= 0.0
+            && self.pipeline.reference.depth_error < 1e-2)
+        {
+            return Err(bad(
+                "pipeline.reference.depth_error",
+                "must lie in [0, 0.01)".into(),
+            ));
+        }
+        for (i, l) in self.lights.iter().enumerate() {
+            if let Ok(Some(light)) = l.to_light_static() {
+                light
+                    .validate()
+                    .map_err(|e| bad(&format!("lights[{i}]"), e.to_string()))?;
+            }
+        }
+        Ok(())
+    }
+
+    /// The number of frames the job asks for.
+    pub fn frame_count(&self) -> u32 {
+        self.frames.unwrap_or(match &self.camera {
+            CameraSpec::Sequence(v) => v.len().max(1) as u32,
+            _ => 1,
+        })
+    }
+}
+
+impl LightSpec {
+    /// The light, when it does not depend on the scene.
+    fn to_light_static(&self) -> std::result::Result<Option<Light>, ()> {
+        Ok(Some(match *self {
+            LightSpec::Point { position, range } => Light::Point { position, range },
+            LightSpec::Spot {
+                position,
+                direction,
+                apex_deg,
+                range,
+            } => Light::Spot {
+                position,
+                direction,
+                apex_angle: apex_deg.to_radians(),
+                range,
+            },
+            LightSpec::Directional(direction) => Light::Directional { direction },
+            LightSpec::Sun {
+                elevation_deg,
+                azimuth_deg,
+            } => {
+                let (e, a) = (elevation_deg.to_radians(), azimuth_deg.to_radians());
+                let toward_sun = DVec3::new(e.cos() * a.cos(), e.sin(), -e.cos() * a.sin());
+                Light::Directional {
+                    direction: -toward_sun,
+                }
+            }
+            LightSpec::AboveScene(_) | LightSpec::Named(_) => return Ok(None),
+        }))
+    }
+
+    /// Resolves the light against the loaded scene.
+    ///
+    /// # Errors
+    /// [`Error::Job`] naming `lights[index]` for an unknown name or an invalid light.
+    pub fn resolve(
+        &self,
+        loaded: &Loaded,
+        bounds: &scene::Aabb,
+        index: usize,
+        file: &Path,
+    ) -> Result<Light> {
+        let bad = |message: String| Error::Job {
+            file: file.to_path_buf(),
+            location: format!("lights[{index}]"),
+            message,
+        };
+        let light = match self {
+            LightSpec::AboveScene(factor) => {
+                if bounds.is_empty() {
+                    return Err(bad("the scene is empty; AboveScene needs bounds".into()));
+                }
+                let c = bounds.center();
+                let h = (bounds.max.y - bounds.min.y) as f64;
+                Light::Point {
+                    position: DVec3::new(c.x, bounds.min.y as f64 + factor * h, c.z),
+                    range: None,
+                }
+            }
+            LightSpec::Named(name) => loaded
+                .lights
+                .iter()
+                .find(|(n, _)| n == name)
+                .map(|(_, l)| *l)
+                .ok_or_else(|| bad(format!("the scene has no light named `{name}`")))?,
+            other => other
+                .to_light_static()
+                .ok()
+                .flatten()
+                .ok_or_else(|| bad("unresolvable light".into()))?,
+        };
+        light.validate().map_err(|e| bad(e.to_string()))?;
+        Ok(light)
+    }
+}
+
+/// The camera path of a job, resolved against the loaded scene.
+///
+/// # Errors
+/// [`Error::Job`] naming `camera` for an unknown name.
+pub fn resolve_camera(
+    spec: &CameraSpec,
+    loaded: &Loaded,
+    bounds: &scene::Aabb,
+    file: &Path,
+) -> Result<CameraPath> {
+    let bad = |message: String| Error::Job {
+        file: file.to_path_buf(),
+        location: "camera".into(),
+        message,
+    };
+    Ok(match spec {
+        CameraSpec::Fixed(p) => CameraPath::Fixed(*p),
+        CameraSpec::Sequence(v) => {
+            if v.is_empty() {
+                return Err(bad("Sequence needs at least one pose".into()));
+            }
+            CameraPath::Keyframes(v.iter().enumerate().map(|(i, p)| (i as f64, *p)).collect())
+        }
+        CameraSpec::Keyframes(k) => {
+            if k.is_empty() || k.windows(2).any(|w| !(w[0].0 < w[1].0)) {
+                return Err(bad(
+                    "Keyframes need at least one key, frames strictly ascending".into(),
+                ));
+            }
+            CameraPath::Keyframes(k.clone())
+        }
+        CameraSpec::Named(name) => loaded
+            .cameras
+            .iter()
+            .find(|(n, _)| n == name)
+            .map(|(_, c)| CameraPath::Fixed(*c))
+            .ok_or_else(|| bad(format!("the scene has no camera named `{name}`")))?,
+        CameraSpec::Path(name) => loaded
+            .paths
+            .iter()
+            .find(|(n, _)| n == name)
+            .map(|(_, p)| p.clone())
+            .ok_or_else(|| bad(format!("the scene has no camera path named `{name}`")))?,
+        CameraSpec::Auto => match loaded.paths.iter().find(|(n, _)| n == "street") {
+            Some((_, p)) => p.clone(),
+            None => {
+                if bounds.is_empty() {
+                    return Err(bad("the scene is empty; give a camera".into()));
+                }
+                CameraPath::Fixed(fit_side_view(bounds))
+            }
+        },
+    })
+}
+
+/// A side view of `bounds`: 60° vertical fov, looking at the centre from +z
+/// at 1.2× the distance at which the bounding sphere fills the view, eye at a
+/// quarter of the bounds' height; near plane at 1/1000 of the distance.
+pub fn fit_side_view(bounds: &scene::Aabb) -> LookAt {
+    let c = bounds.center();
+    let r = (bounds.size().as_dvec3().length() * 0.5).max(1e-6);
+    let d = 1.2 * r / 30f64.to_radians().sin();
+    let eye_y = bounds.min.y as f64 + 0.25 * bounds.size().y as f64;
+    LookAt {
+        eye: DVec3::new(c.x, eye_y, c.z + d),
+        target: c,
+        up: DVec3::Y,
+        fov_y_deg: 60.0,
+        near: d / 1000.0,
+    }
+}
+
+/// Loads or generates the scene of `spec`; relative paths resolve against `base`.
+///
+/// # Errors
+/// The loader's error.
+pub fn load_scene(spec: &SceneSpec, base: &Path) -> Result<Loaded> {
+    let abs = |p: &PathBuf| {
+        if p.is_absolute() {
+            p.clone()
+        } else {
+            base.join(p)
+        }
+    };
+    Ok(match spec {
+        SceneSpec::Gltf(p) => Loaded::from_graph(scene::load::gltf::load_gltf(&abs(p))?),
+        SceneSpec::Obj(p) => {
+            let p = abs(p);
+            if p.is_dir() {
+                Loaded::from_graph(scene::load::obj::load_obj_dir(&p)?)
+            } else {
+                Loaded::from_graph(scene::load::obj::load_obj(&p)?)
+            }
+        }
+        SceneSpec::BoxCity(p) => scene::load::box_city::load_box_city(&abs(p))?,
+        SceneSpec::City(params) => scene::procedural::city::city(params)?,
+        SceneSpec::Group(specs) => {
+            let mut all = Loaded::default();
+            for s in specs {
+                all.merge(load_scene(s, base)?);
+            }
+            all
+        }
+    })
+}
+
+/// The bundled default job: the procedural city's `street` path at 800×600,
+/// a point light 1.5× the city height above its centre and a sun at 35°
+/// elevation, azimuth 30° from +x; masks and shaded images written.
+pub fn default_job() -> Job {
+    Job {
+        version: JOB_VERSION,
+        scene: SceneSpec::City(CityParams::default()),
+        ground: None,
+        resolution: (800, 600),
+        camera: CameraSpec::Path("street".into()),
+        frames: Some(8),
+        lights: vec![
+            LightSpec::AboveScene(1.5),
+            LightSpec::Sun {
+                elevation_deg: 35.0,
+                azimuth_deg: 30.0,
+            },
+        ],
+        outputs: Outputs {
+            masks: true,
+            shaded: true,
+            image_every: 1,
+        },
+        pipeline: PipelineOptions::default(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn parse(s: &str) -> Result<Job> {
+        Job::from_ron(s, Path::new("test.ron"))
+    }
+
+    #[test]
+    fn minimal_job_gets_defaults() {
+        let j = parse("(scene: Obj(\"a.obj\"))").unwrap();
+        assert_eq!(j.version, 1);
+        assert_eq!(j.resolution, (800, 600));
+        assert_eq!(j.camera, CameraSpec::Auto);
+        assert_eq!(j.pipeline.reference_every, 1);
+        assert_eq!(j.frame_count(), 1);
+    }
+
+    #[test]
+    fn full_job_parses() {
+        let j = parse(
+            r#"(
+                version: 1,
+                scene: Group([Obj("a.obj"), City((seed: 7))]),
+                ground: Some((size: 100.0, y: 0.0)),
+                resolution: (320, 240),
+                camera: Sequence([
+                    (eye: (0.0, 1.0, 5.0), target: (0.0, 0.0, 0.0), up: (0.0, 1.0, 0.0), fov_y_deg: 60.0, near: 0.1),
+                    (eye: (5.0, 5.0, 5.0), target: (0.0, 0.0, 0.0), up: (0.0, 1.0, 0.0), fov_y_deg: 60.0, near: 0.1),
+                ]),
+                lights: [
+                    Point(position: (0.0, 10.0, 0.0)),
+                    Spot(position: (0.0, 10.0, 0.0), direction: (0.0, -1.0, 0.0), apex_deg: 60.0, range: Some(50.0)),
+                    Directional((0.3, -1.0, 0.2)),
+                    Sun(elevation_deg: 35.0, azimuth_deg: 30.0),
+                    AboveScene(1.5),
+                    Named("light"),
+                ],
+                outputs: (masks: true, shaded: false),
+                pipeline: (reference_every: 2, reference: (two_sided: true)),
+            )"#,
+        )
+        .unwrap();
+        assert_eq!(j.frame_count(), 2);
+        assert_eq!(j.lights.len(), 6);
+        assert!(j.pipeline.reference.two_sided);
+    }
+
+    #[test]
+    fn errors_name_line_and_column_or_field() {
+        let e = parse("(\n  scene: Obj(\"a.obj\"),\n  colour: 3,\n)")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("test.ron:3:"), "{e}");
+        assert!(e.contains("colour"), "{e}");
+        let e = parse("(scene: Obj(\"a.obj\"), resolution: (0, 10))")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("resolution"), "{e}");
+        let e = parse("(scene: Obj(\"a.obj\"), version: 2)")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("version"), "{e}");
+        let e = parse("(scene: Obj(\"a.obj\"), lights: [Spot(position: (0.0,1.0,0.0), direction: (0.0,0.0,0.0), apex_deg: 30.0)])")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("lights[0]") && e.contains("direction"), "{e}");
+        let e = parse("(resolution: (10, 10))").unwrap_err().to_string();
+        assert!(e.contains("scene"), "{e}");
+    }
+
+    #[test]
+    fn sun_direction_points_down_from_its_azimuth() {
+        let l = LightSpec::Sun {
+            elevation_deg: 35.0,
+            azimuth_deg: 30.0,
+        }
+        .to_light_static()
+        .unwrap()
+        .unwrap();
+        let Light::Directional { direction } = l else {
+            panic!("sun is directional")
+        };
+        assert!(direction.y < 0.0);
+        let toward = -direction;
+        assert!((toward.y - 35f64.to_radians().sin()).abs() < 1e-12);
+        assert!(toward.x > 0.0 && toward.z < 0.0);
+    }
+}

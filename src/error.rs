@@ -1,0 +1,40 @@
+//! The facade's error type.
+
+use std::path::PathBuf;
+
+/// Errors of jobs, runs and outputs.
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    /// Loading or building the scene failed (names the file and element).
+    #[error(transparent)]
+    Scene(#[from] scene::Error),
+    /// The job file could not be parsed or holds a bad value. `location` is
+    /// `line:column` when the parser knows it. Fix: edit the named field.
+    #[error("{}:{location}: {message}", file.display())]
+    Job {
+        /// The job file.
+        file: PathBuf,
+        /// `line:column`, or the field path for semantic errors.
+        location: String,
+        /// What is wrong.
+        message: String,
+    },
+    /// Reading or writing a file failed.
+    #[error("{}: {source}", path.display())]
+    Io {
+        /// The file or directory.
+        path: PathBuf,
+        /// The underlying error.
+        source: std::io::Error,
+    },
+}
+
+/// Result with the facade's [`Error`].
+pub type Result<T> = std::result::Result<T, Error>;
+
+pub(crate) fn io_err(path: &std::path::Path) -> impl FnOnce(std::io::Error) -> Error + '_ {
+    move |source| Error::Io {
+        path: path.to_path_buf(),
+        source,
+    }
+}

@@ -1,0 +1,289 @@
+//! Shadow masks: the four pixel classes of DESIGN.md "Masks", the unlit rule
+//! every producer of masks shares, comparison against the reference, and PNG
+//! output.
+
+use glam::DVec3;
+use scene::{faces_light, Light};
+use std::io::Write;
+use std::path::Path;
+
+/// What one pixel shows with respect to one light.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize)]
+#[repr(u8)]
+pub enum PixelClass {
+    /// The visible surface receives light.
+    Lit = 0,
+    /// The visible surface would receive light but something casts a shadow on it.
+    Shadow = 1,
+    /// The visible side of the surface gets no light from this light at all
+    /// (faces away, eye and light on opposite sides, outside cone or range).
+    Unlit = 2,
+    /// No surface.
+    Background = 3,
+}
+
+impl PixelClass {
+    /// Grey level in the mask PNG: 0 lit, 255 shadow, 128 unlit, 64 background.
+    pub fn grey(self) -> u8 {
+        match self {
+            PixelClass::Lit => 0,
+            PixelClass::Shadow => 255,
+            PixelClass::Unlit => 128,
+            PixelClass::Background => 64,
+        }
+    }
+
+    /// True for the classes that comparisons count (lit and shadow).
+    pub fn is_compared(self) -> bool {
+        matches!(self, PixelClass::Lit | PixelClass::Shadow)
+    }
+}
+
+/// True when the visible side of the surface triangle `tri` (world space,
+/// counter-clockwise front) at `point`, seen from `eye`, gets no light from
+/// `light`: the triangle does not face the light, or eye and light lie on
+/// opposite sides of its plane, or `point` is outside the light's cone or
+/// range. With `two_sided`, only the last two tests apply.
+///
+/// The reference and the stencil mask assembly both call this, with the same
+/// inputs, so the unlit class never differs between them.
+pub fn is_unlit(
+    tri: &[DVec3; 3],
+    eye: DVec3,
+    light: &Light,
+    point: DVec3,
+    two_sided: bool,
+) -> bool {
+    if !light.reaches(point) {
+        return true;
+    }
+    if two_sided {
+        let [a, b, c] = *tri;
+        let n = (b - a).cross(c - a);
+        let eye_side = n.dot(eye - a);
+        let light_side = match light.position() {
+            Some(l) => n.dot(l - a),
+            None => n.dot(light.toward_light(a)),
+        };
+        // Light in the plane, or eye and light on opposite sides: unlit.
+        light_side == 0.0 || eye_side * light_side < 0.0
+    } else {
+        if !faces_light(tri, light) {
+            return true;
+        }
+        let [a, b, c] = *tri;
+        let n = (b - a).cross(c - a);
+        // The light is on the front side; the eye must be too.
+        n.dot(eye - a) <= 0.0
+    }
+}
+
+/// A per-pixel classification, row 0 at the top.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Mask {
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// `width × height` classes, row-major from the top row.
+    pub pixels: Vec<PixelClass>,
+}
+
+/// Counts of pixels per class.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+pub struct ClassCounts {
+    /// Lit pixels.
+    pub lit: u64,
+    /// Shadowed pixels.
+    pub shadow: u64,
+    /// Unlit pixels.
+    pub unlit: u64,
+    /// Background pixels.
+    pub background: u64,
+}
+
+impl Mask {
+    /// A mask of one class.
+    pub fn filled(width: u32, height: u32, class: PixelClass) -> Self {
+        Mask {
+            width,
+            height,
+            pixels: vec![class; width as usize * height as usize],
+        }
+    }
+
+    /// The class at `(x, y)`.
+    pub fn get(&self, x: u32, y: u32) -> PixelClass {
+        self.pixels[y as usize * self.width as usize + x as usize]
+    }
+
+    /// Pixels per class.
+    pub fn counts(&self) -> ClassCounts {
+        let mut c = ClassCounts::default();
+        for p in &self.pixels {
+            match p {
+                PixelClass::Lit => c.lit += 1,
+                PixelClass::Shadow => c.shadow += 1,
+                PixelClass::Unlit => c.unlit += 1,
+                PixelClass::Background => c.background += 1,
+            }
+        }
+        c
+    }
+
+    /// True when a 4-neighbour of `(x, y)` has a different class.
+    pub fn is_boundary(&self, x: u32, y: u32) -> bool {
+        let c = self.get(x, y);
+        let (w, h) = (self.width as i64, self.height as i64);
+        [(-1i64, 0i64), (1, 0), (0, -1), (0, 1)]
+            .iter()
+            .any(|(dx, dy)| {
+                let (nx, ny) = (x as i64 + dx, y as i64 + dy);
+                nx >= 0 && ny >= 0 && nx < w && ny < h && self.get(nx as u32, ny as u32) != c
+            })
+    }
+
+    /// Writes the mask as an 8-bit greyscale PNG (0 lit, 255 shadow, 128 unlit,
+    /// 64 background; row 0 at the top).
+    ///
+    /// # Errors
+    /// I/O or encoding errors.
+    pub fn write_png(&self, path: &Path) -> std::io::Result<()> {
+        let grey: Vec<u8> = self.pixels.iter().map(|p| p.grey()).collect();
+        write_png(
+            path,
+            self.width,
+            self.height,
+            png::ColorType::Grayscale,
+            &grey,
+        )
+    }
+}
+
+/// The result of comparing a mask with the reference over lit/shadow pixels.
+#[derive(Clone, Debug, Default, PartialEq, Eq, serde::Serialize)]
+pub struct Comparison {
+    /// Pixels compared: the reference says lit or shadow, and the pixel is not ambiguous.
+    pub compared: u64,
+    /// Compared pixels where the mask differs from the reference.
+    pub mismatches: u64,
+    /// Mismatches on a reference shadow boundary (a 4-neighbour classified differently).
+    pub mismatches_on_boundary: u64,
+    /// Lit/shadow reference pixels left out because they are ambiguous.
+    pub ambiguous: u64,
+    /// The mismatched pixels `(x, y, on_boundary)`, row-major order.
+    pub mismatch_pixels: Vec<(u32, u32, bool)>,
+}
+
+/// Compares `mask` with `reference` over the reference's lit and shadow pixels,
+/// skipping those flagged in `ambiguous` (same size, row-major).
+///
+/// # Panics
+/// If the sizes differ (both come from the same job).
+pub fn compare(reference: &Mask, ambiguous: &[bool], mask: &Mask) -> Comparison {
+    assert_eq!(
+        (reference.width, reference.height),
+        (mask.width, mask.height),
+        "mask sizes differ"
+    );
+    assert_eq!(
+        ambiguous.len(),
+        reference.pixels.len(),
+        "ambiguity flags size differs"
+    );
+    let mut out = Comparison::default();
+    for y in 0..reference.height {
+        for x in 0..reference.width {
+            let i = y as usize * reference.width as usize + x as usize;
+            let r = reference.pixels[i];
+            if !r.is_compared() {
+                continue;
+            }
+            if ambiguous[i] {
+                out.ambiguous += 1;
+                continue;
+            }
+            out.compared += 1;
+            if mask.pixels[i] != r {
+                let b = reference.is_boundary(x, y);
+                out.mismatches += 1;
+                out.mismatches_on_boundary += b as u64;
+                out.mismatch_pixels.push((x, y, b));
+            }
+        }
+    }
+    out
+}
+
+/// Writes 8-bit pixels as a PNG file.
+pub(crate) fn write_png(
+    path: &Path,
+    width: u32,
+    height: u32,
+    color: png::ColorType,
+    data: &[u8],
+) -> std::io::Result<()> {
+    let mut bytes = Vec::new();
+    {
+        let mut enc = png::Encoder::new(&mut bytes, width, height);
+        enc.set_color(color);
+        enc.set_depth(png::BitDepth::Eight);
+        let mut w = enc.write_header().map_err(std::io::Error::other)?;
+        w.write_image_data(data).map_err(std::io::Error::other)?;
+    }
+    let mut f = std::fs::File::create(path)?;
+    f.write_all(&bytes)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn compare_counts_mismatches_and_boundaries() {
+        let mut r = Mask::filled(4, 1, PixelClass::Lit);
+        r.pixels[2] = PixelClass::Shadow;
+        r.pixels[3] = PixelClass::Background;
+        let mut m = r.clone();
+        m.pixels[0] = PixelClass::Shadow; // interior mismatch
+        m.pixels[1] = PixelClass::Shadow; // next to the reference boundary
+        m.pixels[3] = PixelClass::Lit; // background is never compared
+        let c = compare(&r, &[false; 4], &m);
+        assert_eq!(c.compared, 3);
+        assert_eq!(c.mismatches, 2);
+        assert_eq!(c.mismatches_on_boundary, 1);
+        let c = compare(&r, &[true, false, false, false], &m);
+        assert_eq!((c.compared, c.mismatches, c.ambiguous), (2, 1, 1));
+    }
+
+    #[test]
+    fn unlit_rule() {
+        let up = [DVec3::ZERO, DVec3::new(0.0, 0.0, -1.0), DVec3::X]; // normal... check
+        let n = (up[1] - up[0]).cross(up[2] - up[0]);
+        let (tri, eye_above) = if n.y > 0.0 {
+            (up, DVec3::Y)
+        } else {
+            ([up[0], up[2], up[1]], DVec3::Y)
+        };
+        let light = Light::Point {
+            position: DVec3::new(0.1, 4.0, -0.1),
+            range: None,
+        };
+        let p = DVec3::new(0.2, 0.0, -0.2);
+        assert!(!is_unlit(&tri, eye_above, &light, p, false));
+        assert!(is_unlit(&tri, -eye_above, &light, p, false), "eye below");
+        let below = Light::Point {
+            position: DVec3::new(0.1, -4.0, -0.1),
+            range: None,
+        };
+        assert!(is_unlit(&tri, eye_above, &below, p, false));
+        // Two-sided: the back side is lit when eye and light are both below.
+        assert!(!is_unlit(&tri, -eye_above, &below, p, true));
+        assert!(is_unlit(&tri, eye_above, &below, p, true));
+        let short = Light::Point {
+            position: DVec3::new(0.1, 4.0, -0.1),
+            range: Some(1.0),
+        };
+        assert!(is_unlit(&tri, eye_above, &short, p, false));
+    }
+}

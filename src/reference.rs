@@ -1,0 +1,495 @@
+//! The exact shadow reference: per pixel, the visible surface point and a
+//! shadow ray to the light, through an obvhs BVH over every scene triangle.
+//!
+//! Every culling, clamping and stencil variant is measured against this.
+//!
+//! # Precision
+//! The BVH is built in f32 coordinates relative to the centre of the scene
+//! bounds (converted from the f64 world positions of the one transform path,
+//! boxes rounded outward and padded by 2⁻¹⁶ of the scene extent so f32 ray
+//! traversal never misses a triangle it should test); every ray–triangle test
+//! is done in f64 on centre-relative positions formed from the f64 world
+//! positions, so a scene 1e6 from the origin behaves as one at the origin.
+//! Facing and the unlit rule use the world positions themselves, exactly as
+//! the volume code does.
+//!
+//! # Which triangles block
+//! A triangle blocks a shadow ray only if it faces the light under the shared
+//! facing rule ([`scene::faces_light`]) — exactly the triangles shadow volumes
+//! are built from. With [`ReferenceOptions::two_sided`] every triangle blocks.
+//!
+//! # Epsilon rule (self-shadow and ambiguity)
+//! Let `d` be the view depth of the surface point `p` (distance along the
+//! camera's forward axis) and `δ = max(4·ε_z·d, 2⁻²⁰·d)`, ε_z the
+//! rasterizer's relative depth-error bound ([`ReferenceOptions::depth_error`]).
+//! - The shadow ray from a point `q` ignores the surface's own triangle and
+//!   every hit nearer than `δ` (self-shadow), and — when `q` lies behind the
+//!   surface's plane — every hit before the ray has crossed that plane plus `δ`
+//!   (what lies behind the visible surface cannot shadow it).
+//! - A pixel is *ambiguous* when the class at `p − δ·e` or `p + δ·e` (e the unit
+//!   eye-ray direction) differs from the class at `p`: coplanar casters,
+//!   grazing light, a light in a face's plane, points on a shadow edge within
+//!   the depth error. Ambiguous pixels are excluded from comparisons and counted.
+//!
+//! Both δ terms scale with depth, so the rule is the same at scene scales
+//! 1e-3 and 1e3 and at coordinates of 1e5 and 1e6.
+
+use crate::mask::{is_unlit, ClassCounts, Mask, PixelClass};
+use glam::{DVec3, Vec3A};
+use obvhs::{bvh2::Bvh2, ray::Ray};
+use rayon::prelude::*;
+use scene::{faces_light, Camera, Light, ObjectId, Scene};
+
+/// Default relative depth-error bound ε_z (a few f32 ulps) until a
+/// rasterizer states its own; δ is then `2⁻²⁰·d`.
+pub const DEFAULT_DEPTH_ERROR: f64 = 1.0 / (1u64 << 22) as f64;
+
+/// Options of the reference.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct ReferenceOptions {
+    /// Every triangle casts (both sides), not only light-facing ones.
+    pub two_sided: bool,
+    /// The rasterizer's relative depth-error bound ε_z.
+    pub depth_error: f64,
+}
+
+impl Default for ReferenceOptions {
+    fn default() -> Self {
+        ReferenceOptions {
+            two_sided: false,
+            depth_error: DEFAULT_DEPTH_ERROR,
+        }
+    }
+}
+
+/// A triangle id: the object and the triangle index in its mesh.
+pub type PrimitiveId = (ObjectId, u32);
+
+/// The eye pass's visible surface, when a rasterizer produced one: per pixel
+/// (row 0 at the top) the primitive id of the visible triangle, `None` for
+/// background. The surface point is rebuilt in f64 by intersecting the pixel's
+/// eye ray with that triangle's plane.
+#[derive(Clone, Copy, Debug)]
+pub struct EyeSurface<'a> {
+    /// `width × height` primitive ids.
+    pub primitive: &'a [Option<PrimitiveId>],
+}
+
+/// All scene triangles in a BVH, for ray casting.
+pub struct TriangleBvh {
+    bvh: Bvh2,
+    /// World-space f64 vertices (from [`Scene::world_triangle`]), indexed by primitive.
+    tris: Vec<[DVec3; 3]>,
+    ids: Vec<PrimitiveId>,
+    center: DVec3,
+    pad: f32,
+}
+
+impl std::fmt::Debug for TriangleBvh {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("TriangleBvh")
+            .field("triangles", &self.tris.len())
+            .finish()
+    }
+}
+
+impl TriangleBvh {
+    /// Builds the BVH over every triangle of every object.
+    pub fn new(scene: &Scene) -> Self {
+        let center = scene.bounds().center();
+        let extent = if scene.bounds().is_empty() {
+            1.0
+        } else {
+            scene.bounds().size().max_element().max(1e-30)
+        };
+        let pad = extent * (1.0 / 65536.0);
+        let mut tris = Vec::new();
+        let mut ids = Vec::new();
+        for (oi, _) in scene.objects().iter().enumerate() {
+            let id = ObjectId(oi as u32);
+            let n = scene.object_mesh(id).triangles().len();
+            for t in 0..n {
+                tris.push(scene.world_triangle(id, t));
+                ids.push((id, t as u32));
+            }
+        }
+        let boxes: Vec<obvhs::aabb::Aabb> = tris
+            .iter()
+            .map(|t| tri_box(&t.map(|p| p - center), pad))
+            .collect();
+        let bvh = if boxes.is_empty() {
+            Bvh2::default()
+        } else {
+            obvhs::bvh2::builder::build_bvh2(
+                &boxes,
+                obvhs::BvhBuildParams::fast_build(),
+                &mut Default::default(),
+            )
+        };
+        TriangleBvh {
+            bvh,
+            tris,
+            ids,
+            center,
+            pad,
+        }
+    }
+
+    /// Updates triangle positions after objects moved (same scene topology) and
+    /// refits the BVH without rebuilding it.
+    ///
+    /// # Panics
+    /// If the scene's triangle count changed since [`TriangleBvh::new`].
+    pub fn refit(&mut self, scene: &Scene) {
+        let mut k = 0;
+        for (oi, _) in scene.objects().iter().enumerate() {
+            let id = ObjectId(oi as u32);
+            for t in 0..scene.object_mesh(id).triangles().len() {
+                self.tris[k] = scene.world_triangle(id, t);
+                k += 1;
+            }
+        }
+        assert_eq!(
+            k,
+            self.tris.len(),
+            "scene topology changed; rebuild the TriangleBvh"
+        );
+        for node in 0..self.bvh.nodes.len() {
+            let n = self.bvh.nodes[node];
+            if n.is_leaf() {
+                let mut b = obvhs::aabb::Aabb::empty();
+                for p in n.first_index..n.first_index + n.prim_count {
+                    let prim = self.bvh.primitive_indices[p as usize] as usize;
+                    b = b.union(&tri_box(&self.rel(prim), self.pad));
+                }
+                self.bvh.nodes[node].set_aabb(b);
+            }
+        }
+        self.bvh.refit_all();
+    }
+
+    /// Number of triangles.
+    pub fn len(&self) -> usize {
+        self.tris.len()
+    }
+
+    /// True when the scene has no triangles.
+    pub fn is_empty(&self) -> bool {
+        self.tris.is_empty()
+    }
+
+    /// Triangle `prim` relative to the centre.
+    fn rel(&self, prim: usize) -> [DVec3; 3] {
+        self.tris[prim].map(|p| p - self.center)
+    }
+
+    fn ray(&self, origin: DVec3, dir: DVec3, tmax: f64) -> Ray {
+        let o = Vec3A::from(origin.as_vec3());
+        let d = Vec3A::from(dir.as_vec3());
+        let tmax = if tmax.is_finite() {
+            (tmax * (1.0 + 1e-6)) as f32 + 4.0 * self.pad
+        } else {
+            f32::INFINITY
+        };
+        Ray::new(o, d, 0.0, tmax)
+    }
+
+    /// Nearest triangle along a (centre-relative) ray, both faces; ties at equal
+    /// distance go to the smaller primitive id.
+    fn closest_hit(&self, origin: DVec3, dir: DVec3) -> Option<(f64, usize)> {
+        if self.tris.is_empty() {
+            return None;
+        }
+        let mut best: Option<(f64, usize)> = None;
+        let mut hit = obvhs::ray::RayHit::none();
+        self.bvh
+            .ray_traverse(self.ray(origin, dir, f64::INFINITY), &mut hit, |_, i| {
+                let prim = self.bvh.primitive_indices[i] as usize;
+                match intersect(&self.rel(prim), origin, dir) {
+                    Some(t) if t > 0.0 => {
+                        let better = match best {
+                            None => true,
+                            Some((bt, bp)) => t < bt || (t == bt && self.ids[prim] < self.ids[bp]),
+                        };
+                        if better {
+                            best = Some((t, prim));
+                        }
+                        // Keep equal-distance candidates reachable: report a slightly larger t.
+                        (t * (1.0 + 1e-6)) as f32 + self.pad
+                    }
+                    _ => f32::INFINITY,
+                }
+            });
+        best
+    }
+
+    /// True when some caster blocks the centre-relative ray within `(tmin, tmax)`.
+    fn blocked(
+        &self,
+        origin: DVec3,
+        dir: DVec3,
+        tmin: f64,
+        tmax: f64,
+        skip: usize,
+        light: &Light,
+        two_sided: bool,
+    ) -> bool {
+        !self
+            .bvh
+            .ray_traverse_miss(self.ray(origin, dir, tmax), |_, i| {
+                let prim = self.bvh.primitive_indices[i] as usize;
+                if prim == skip {
+                    return f32::INFINITY;
+                }
+                match intersect(&self.rel(prim), origin, dir) {
+                    Some(t) if t > tmin && t < tmax => {
+                        if two_sided || faces_light(&self.tris[prim], light) {
+                            0.0
+                        } else {
+                            f32::INFINITY
+                        }
+                    }
+                    _ => f32::INFINITY,
+                }
+            })
+    }
+}
+
+fn tri_box(t: &[DVec3; 3], pad: f32) -> obvhs::aabb::Aabb {
+    let b = scene::Aabb::from_dpoints(t.iter().copied());
+    obvhs::aabb::Aabb::new(
+        Vec3A::from(b.min) - Vec3A::splat(pad),
+        Vec3A::from(b.max) + Vec3A::splat(pad),
+    )
+}
+
+/// Ray–triangle distance in f64 (Möller–Trumbore), both faces, edges inclusive.
+fn intersect(tri: &[DVec3; 3], o: DVec3, d: DVec3) -> Option<f64> {
+    let e1 = tri[1] - tri[0];
+    let e2 = tri[2] - tri[0];
+    let p = d.cross(e2);
+    let det = e1.dot(p);
+    if det == 0.0 || !det.is_finite() {
+        return None;
+    }
+    let inv = 1.0 / det;
+    let s = o - tri[0];
+    let u = s.dot(p) * inv;
+    if !(0.0..=1.0).contains(&u) {
+        return None;
+    }
+    let q = s.cross(e1);
+    let v = d.dot(q) * inv;
+    if v < 0.0 || u + v > 1.0 {
+        return None;
+    }
+    Some(e2.dot(q) * inv)
+}
+
+/// Per-class counts of a reference mask plus its ambiguous pixels.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+pub struct ReferenceCounts {
+    /// Pixels per class.
+    pub classes: ClassCounts,
+    /// Lit or shadow pixels whose class flips within ±δ along the eye ray.
+    pub ambiguous: u64,
+}
+
+/// The reference's result for one view and one light.
+#[derive(Clone, Debug)]
+pub struct ReferenceMask {
+    /// The four-class mask.
+    pub mask: Mask,
+    /// Per pixel: ambiguous (excluded from comparisons).
+    pub ambiguous: Vec<bool>,
+    /// Per pixel: the visible primitive, `None` for background.
+    pub primitive: Vec<Option<PrimitiveId>>,
+    /// Per pixel: cosine between the surface's visible-side normal and the
+    /// direction to the light, clamped to `[0, 1]` (for shaded images).
+    pub lambert: Vec<f32>,
+    /// Counts.
+    pub counts: ReferenceCounts,
+}
+
+/// Computes the exact shadow mask of `light` seen through `camera` at
+/// `width × height` (pixel centres at +0.5, row 0 at the top).
+///
+/// The visible surface comes from `surface` when given (the eye pass's
+/// primitive ids), else from primary rays through the same BVH.
+///
+/// # Panics
+/// If `surface` has a size other than `width × height`, or names a primitive
+/// that is not in the scene.
+pub fn reference_mask(
+    bvh: &TriangleBvh,
+    camera: &Camera,
+    light: &Light,
+    width: u32,
+    height: u32,
+    options: &ReferenceOptions,
+    surface: Option<EyeSurface<'_>>,
+) -> ReferenceMask {
+    let n = width as usize * height as usize;
+    if let Some(s) = &surface {
+        assert_eq!(
+            s.primitive.len(),
+            n,
+            "surface size differs from the viewport"
+        );
+    }
+    // Primitive id -> BVH triangle index, only needed with an external surface.
+    let lookup = surface.as_ref().map(|_| {
+        let mut first = std::collections::HashMap::new();
+        for (k, id) in bvh.ids.iter().enumerate() {
+            first.entry(*id).or_insert(k);
+        }
+        first
+    });
+    let eye = camera.position - bvh.center;
+    let forward = camera.forward();
+    let light_rel = match *light {
+        Light::Point { position, range } => Light::Point {
+            position: position - bvh.center,
+            range,
+        },
+        Light::Spot {
+            position,
+            direction,
+            apex_angle,
+            range,
+        } => Light::Spot {
+            position: position - bvh.center,
+            direction,
+            apex_angle,
+            range,
+        },
+        Light::Directional { direction } => Light::Directional { direction },
+    };
+    let mut out: Vec<(PixelClass, bool, Option<PrimitiveId>, f32)> =
+        vec![(PixelClass::Background, false, None, 0.0); n];
+    out.par_chunks_mut(width.max(1) as usize)
+        .enumerate()
+        .for_each(|(y, row)| {
+            for (x, px) in row.iter_mut().enumerate() {
+                let dir = camera.ray_direction(x as f64 + 0.5, y as f64 + 0.5, width, height);
+                let hit = match (&surface, &lookup) {
+                    (Some(s), Some(l)) => s.primitive[y * width as usize + x].map(|id| {
+                        let k = *l
+                            .get(&id)
+                            .expect("surface names a primitive not in the scene");
+                        let t = plane_distance(&bvh.rel(k), eye, dir);
+                        (t, k)
+                    }),
+                    _ => bvh.closest_hit(eye, dir),
+                };
+                let Some((t, k)) = hit else { continue };
+                if !t.is_finite() {
+                    continue;
+                }
+                let tri = bvh.rel(k);
+                let p = eye + dir * t;
+                let depth = (p - eye).dot(forward);
+                let delta = (4.0 * options.depth_error * depth).max(depth / (1u64 << 20) as f64);
+                let class_at = |q: DVec3| {
+                    classify(bvh, k, eye, q, delta, light, &light_rel, options.two_sided)
+                };
+                let c = class_at(p);
+                let ambiguous = c.is_compared()
+                    && (class_at(p - dir * delta) != c || class_at(p + dir * delta) != c);
+                let nrm = (tri[1] - tri[0]).cross(tri[2] - tri[0]).normalize_or_zero();
+                let to_l = light_rel.toward_light(p).normalize_or_zero();
+                let side = if nrm.dot(eye - p) >= 0.0 { nrm } else { -nrm };
+                *px = (
+                    c,
+                    ambiguous,
+                    Some(bvh.ids[k]),
+                    side.dot(to_l).clamp(0.0, 1.0) as f32,
+                );
+            }
+        });
+    let mut mask = Mask::filled(width, height, PixelClass::Background);
+    let mut ambiguous = vec![false; n];
+    let mut primitive = vec![None; n];
+    let mut lambert = vec![0.0; n];
+    for (i, (c, a, p, l)) in out.into_iter().enumerate() {
+        mask.pixels[i] = c;
+        ambiguous[i] = a;
+        primitive[i] = p;
+        lambert[i] = l;
+    }
+    let counts = ReferenceCounts {
+        classes: mask.counts(),
+        ambiguous: ambiguous.iter().filter(|&&a| a).count() as u64,
+    };
+    ReferenceMask {
+        mask,
+        ambiguous,
+        primitive,
+        lambert,
+        counts,
+    }
+}
+
+/// Distance along the ray to the triangle's plane (infinite when parallel).
+fn plane_distance(tri: &[DVec3; 3], o: DVec3, d: DVec3) -> f64 {
+    let n = (tri[1] - tri[0]).cross(tri[2] - tri[0]);
+    let den = n.dot(d);
+    if den == 0.0 {
+        return f64::INFINITY;
+    }
+    n.dot(tri[0] - o) / den
+}
+
+/// Class of surface point `q` on triangle `k`; `eye` and `q` centre-relative,
+/// `light_rel` the light moved by the same offset, `light` in world space.
+#[allow(clippy::too_many_arguments)]
+fn classify(
+    bvh: &TriangleBvh,
+    k: usize,
+    eye: DVec3,
+    q: DVec3,
+    delta: f64,
+    light: &Light,
+    light_rel: &Light,
+    two_sided: bool,
+) -> PixelClass {
+    let c = bvh.center;
+    if is_unlit(&bvh.tris[k], eye + c, light, q + c, two_sided) {
+        return PixelClass::Unlit;
+    }
+    let tri = bvh.rel(k);
+    let (dir, tmax) = match light_rel.position() {
+        Some(l) => {
+            let v = l - q;
+            let len = v.length();
+            if len == 0.0 {
+                return PixelClass::Lit;
+            }
+            (v / len, len)
+        }
+        None => (light_rel.toward_light(q).normalize(), f64::INFINITY),
+    };
+    // Where the shadow ray leaves the surface's plane (when q is behind it).
+    let n = (tri[1] - tri[0]).cross(tri[2] - tri[0]);
+    let side_eye = n.dot(eye - tri[0]).signum();
+    let behind = n.dot(q - tri[0]) * side_eye; // < 0: q behind the visible side
+    let mut tmin = delta;
+    if behind < 0.0 {
+        let den = n.dot(dir);
+        if den != 0.0 {
+            let t_plane = n.dot(tri[0] - q) / den;
+            if t_plane > 0.0 {
+                tmin = t_plane + delta;
+            }
+        }
+    }
+    if tmin >= tmax {
+        return PixelClass::Lit;
+    }
+    if bvh.blocked(q, dir, tmin, tmax, k, light, two_sided) {
+        PixelClass::Shadow
+    } else {
+        PixelClass::Lit
+    }
+}

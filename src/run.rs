@@ -1,0 +1,282 @@
+//! Batch runs: a job's frames and lights through the pipeline, with
+//! statistics and images written as the run goes.
+//!
+//! `stats.csv` gets one row per frame and light as soon as it ends (flushed);
+//! `summary.json` and every image are written atomically (temp file +
+//! rename), so an interrupted run leaves valid files.
+
+use crate::config::{load_scene, resolve_camera, Job};
+use crate::error::io_err;
+use crate::reference::{reference_mask, ReferenceMask, TriangleBvh};
+use crate::stats::{FrameStats, ReferenceStats, SceneStats};
+use crate::{Error, Result};
+use glam::{DVec3, Vec3};
+use scene::load::Loaded;
+use scene::{Light, Mesh, Scene, SceneCounts, Transform};
+use serde::Serialize;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// How to run a job.
+#[derive(Clone, Debug)]
+pub struct RunOptions {
+    /// Output directory (created if missing; other files in it are left alone).
+    pub out_dir: PathBuf,
+    /// Stop after this many frames.
+    pub max_frames: Option<u32>,
+}
+
+/// What `summary.json` holds.
+#[derive(Clone, Debug, Serialize)]
+pub struct RunSummary {
+    /// The job file, or `<default>`.
+    pub job: String,
+    /// Scene counts.
+    pub scene: SceneCounts,
+    /// Scene bounds.
+    pub bounds: scene::Aabb,
+    /// Load warnings.
+    pub warnings: Vec<String>,
+    /// Viewport.
+    pub resolution: (u32, u32),
+    /// Frames run.
+    pub frames: u32,
+    /// Lights per frame.
+    pub lights: Vec<Light>,
+    /// Time to load or generate the scene and flatten it (ms).
+    pub load_ms: f64,
+    /// Time to build the reference's triangle BVH (ms).
+    pub bvh_ms: f64,
+    /// Mean reference time per frame and light over the frames that ran it (ms).
+    pub mean_reference_ms: f64,
+    /// Sum of every row's counters.
+    pub totals: ReferenceStats,
+}
+
+/// Loads the job's scene (with its optional ground quad) and flattens it.
+///
+/// # Errors
+/// Loader and graph errors, naming the file.
+pub fn prepare_scene(job: &Job, base: &Path) -> Result<(Loaded, Scene)> {
+    let mut loaded = load_scene(&job.scene, base)?;
+    if let Some(g) = job.ground {
+        // Bounds before the ground, to centre it under the scene.
+        let probe = Scene::new(loaded.graph.clone())?;
+        let c = if probe.bounds().is_empty() {
+            DVec3::ZERO
+        } else {
+            probe.bounds().center()
+        };
+        let h = g.size * 0.5;
+        let quad = Mesh::new(
+            "ground",
+            &[
+                Vec3::new(-h, 0.0, -h),
+                Vec3::new(-h, 0.0, h),
+                Vec3::new(h, 0.0, h),
+                Vec3::new(h, 0.0, -h),
+            ],
+            &[[0, 1, 2], [0, 2, 3]],
+        )?;
+        let m = loaded.graph.add_mesh(quad);
+        loaded.graph.add_instance(
+            "ground",
+            m,
+            Transform::translation(DVec3::new(c.x, g.y as f64, c.z)),
+        );
+    }
+    let scene = Scene::new(loaded.graph.clone())?;
+    Ok((loaded, scene))
+}
+
+/// Runs `job` (read from `job_file`, or the bundled default when `None`),
+/// calling `on_frame` after every frame-and-light row.
+///
+/// # Errors
+/// Scene, job and I/O errors.
+pub fn run_job(
+    job: &Job,
+    job_file: Option<&Path>,
+    options: &RunOptions,
+    on_frame: &mut dyn FnMut(&FrameStats, u32),
+) -> Result<RunSummary> {
+    let base = job_file.and_then(Path::parent).unwrap_or(Path::new("."));
+    let name = job_file
+        .map(|p| p.display().to_string())
+        .unwrap_or_else(|| "<default>".into());
+    let file = job_file.unwrap_or(Path::new("<default job>"));
+
+    let t0 = Instant::now();
+    let (loaded, scene) = prepare_scene(job, base)?;
+    let load_ms = ms(t0);
+    let bounds = scene.bounds();
+    let path = resolve_camera(&job.camera, &loaded, &bounds, file)?;
+    let lights = if job.lights.is_empty() {
+        if loaded.lights.is_empty() {
+            vec![crate::config::LightSpec::AboveScene(1.5).resolve(&loaded, &bounds, 0, file)?]
+        } else {
+            loaded.lights.iter().map(|(_, l)| *l).collect()
+        }
+    } else {
+        job.lights
+            .iter()
+            .enumerate()
+            .map(|(i, l)| l.resolve(&loaded, &bounds, i, file))
+            .collect::<Result<Vec<_>>>()?
+    };
+    let frames = job
+        .frame_count()
+        .min(options.max_frames.unwrap_or(u32::MAX));
+    let (w, h) = job.resolution;
+
+    let t1 = Instant::now();
+    let bvh = TriangleBvh::new(&scene);
+    let bvh_ms = ms(t1);
+
+    let out = &options.out_dir;
+    std::fs::create_dir_all(out).map_err(io_err(out))?;
+    let frames_dir = out.join("frames");
+    if job.outputs.masks || job.outputs.shaded {
+        std::fs::create_dir_all(&frames_dir).map_err(io_err(&frames_dir))?;
+    }
+    let csv_path = out.join("stats.csv");
+    let mut csv = std::fs::File::create(&csv_path).map_err(io_err(&csv_path))?;
+    writeln!(csv, "{}", FrameStats::csv_header()).map_err(io_err(&csv_path))?;
+
+    let counts = scene.counts();
+    let mut totals = ReferenceStats::default();
+    let mut ref_ms_sum = 0.0;
+    let mut ref_runs = 0u32;
+    for frame in 0..frames {
+        let pose = path.at(frame).ok_or_else(|| Error::Job {
+            file: file.to_path_buf(),
+            location: "camera".into(),
+            message: format!("no pose for frame {frame}"),
+        })?;
+        let camera = pose.camera(w as f64 / h as f64).map_err(|e| Error::Job {
+            file: file.to_path_buf(),
+            location: format!("camera (frame {frame})"),
+            message: e.to_string(),
+        })?;
+        for (li, light) in lights.iter().enumerate() {
+            let tf = Instant::now();
+            let mut row = FrameStats {
+                frame,
+                light: li as u32,
+                scene: SceneStats {
+                    update_ms: 0.0,
+                    objects: counts.objects as u64,
+                    triangles: counts.triangles as u64,
+                },
+                ..Default::default()
+            };
+            let every = job.pipeline.reference_every;
+            if every > 0 && frame % every == 0 {
+                let tr = Instant::now();
+                let r = reference_mask(&bvh, &camera, light, w, h, &job.pipeline.reference, None);
+                row.reference.reference_ms = ms(tr);
+                let c = r.counts;
+                row.reference.lit = c.classes.lit;
+                row.reference.shadow = c.classes.shadow;
+                row.reference.unlit = c.classes.unlit;
+                row.reference.background = c.classes.background;
+                row.reference.ambiguous = c.ambiguous;
+                ref_ms_sum += row.reference.reference_ms;
+                ref_runs += 1;
+                if frame % job.outputs.image_every == 0 {
+                    if job.outputs.masks {
+                        let p = frames_dir.join(format!("{frame}_{li}_mask.png"));
+                        atomic(&p, |tmp| r.mask.write_png(tmp))?;
+                    }
+                    if job.outputs.shaded {
+                        let p = frames_dir.join(format!("{frame}_{li}_shaded.png"));
+                        atomic(&p, |tmp| write_shaded(&r, tmp))?;
+                    }
+                }
+            }
+            row.frame_ms = ms(tf);
+            totals.lit += row.reference.lit;
+            totals.shadow += row.reference.shadow;
+            totals.unlit += row.reference.unlit;
+            totals.background += row.reference.background;
+            totals.ambiguous += row.reference.ambiguous;
+            totals.reference_ms += row.reference.reference_ms;
+            writeln!(csv, "{}", row.csv_row())
+                .and_then(|_| csv.flush())
+                .map_err(io_err(&csv_path))?;
+            row.emit();
+            on_frame(&row, frames);
+        }
+    }
+    let summary = RunSummary {
+        job: name,
+        scene: counts,
+        bounds,
+        warnings: scene.warnings().to_vec(),
+        resolution: job.resolution,
+        frames,
+        lights,
+        load_ms,
+        bvh_ms,
+        mean_reference_ms: if ref_runs > 0 {
+            ref_ms_sum / ref_runs as f64
+        } else {
+            0.0
+        },
+        totals,
+    };
+    let sp = out.join("summary.json");
+    atomic(&sp, |tmp| {
+        let text = serde_json::to_string_pretty(&summary).map_err(std::io::Error::other)?;
+        std::fs::write(tmp, text)
+    })?;
+    Ok(summary)
+}
+
+fn ms(t: Instant) -> f64 {
+    t.elapsed().as_secs_f64() * 1e3
+}
+
+/// Writes `path` through a temporary file in the same directory and a rename.
+fn atomic(path: &Path, write: impl FnOnce(&Path) -> std::io::Result<()>) -> Result<()> {
+    let mut tmp = path.as_os_str().to_owned();
+    tmp.push(".tmp");
+    let tmp = PathBuf::from(tmp);
+    write(&tmp).map_err(io_err(&tmp))?;
+    std::fs::rename(&tmp, path).map_err(io_err(path))
+}
+
+/// A shaded RGB image: each object a muted colour of its own, Lambert-lit
+/// where the mask says lit, ambient only in shadow and unlit; background dark blue.
+fn write_shaded(r: &ReferenceMask, path: &Path) -> std::io::Result<()> {
+    use crate::mask::PixelClass;
+    let mut rgb = Vec::with_capacity(r.mask.pixels.len() * 3);
+    for (i, class) in r.mask.pixels.iter().enumerate() {
+        let px = match (class, r.primitive[i]) {
+            (PixelClass::Background, _) | (_, None) => [38, 44, 64],
+            (c, Some((obj, _))) => {
+                let base = object_colour(obj.0);
+                let k = match c {
+                    PixelClass::Lit => 0.25 + 0.75 * r.lambert[i],
+                    _ => 0.25,
+                };
+                base.map(|v| (v as f32 * k).round().clamp(0.0, 255.0) as u8)
+            }
+        };
+        rgb.extend_from_slice(&px);
+    }
+    crate::mask::write_png(path, r.mask.width, r.mask.height, png::ColorType::Rgb, &rgb)
+}
+
+fn object_colour(id: u32) -> [u8; 3] {
+    let mut h = id.wrapping_mul(0x9E37_79B9) ^ 0x5bd1_e995;
+    h ^= h >> 15;
+    h = h.wrapping_mul(0x2c1b_3c6d);
+    h ^= h >> 12;
+    [
+        160 + (h & 0x5f) as u8,
+        160 + ((h >> 8) & 0x5f) as u8,
+        160 + ((h >> 16) & 0x5f) as u8,
+    ]
+}

@@ -1,0 +1,169 @@
+//! Per-frame statistics: one row per frame and light, written to `stats.csv`,
+//! emitted as one `tracing` event, and summed into `summary.json`.
+//!
+//! Column names are the leaf field names; the benchmark examples' JSON uses
+//! the same names. Times are `*_ms`.
+
+use serde::Serialize;
+
+/// Scene-update counters of a frame.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct SceneStats {
+    /// Time to update transforms and refit (ms).
+    pub update_ms: f64,
+    /// Objects in the scene.
+    pub objects: u64,
+    /// Triangles in the scene (all instances).
+    pub triangles: u64,
+}
+
+/// Reference counters of a frame and light.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct ReferenceStats {
+    /// Time of the ray-cast reference (ms), 0 when skipped.
+    pub reference_ms: f64,
+    /// Lit pixels.
+    pub lit: u64,
+    /// Shadowed pixels.
+    pub shadow: u64,
+    /// Unlit pixels.
+    pub unlit: u64,
+    /// Background pixels.
+    pub background: u64,
+    /// Ambiguous (lit or shadow) pixels.
+    pub ambiguous: u64,
+}
+
+/// Everything measured for one frame and one light.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct FrameStats {
+    /// Frame number, from 0.
+    pub frame: u32,
+    /// Light index in the job.
+    pub light: u32,
+    /// Scene update.
+    pub scene: SceneStats,
+    /// The reference.
+    pub reference: ReferenceStats,
+    /// Whole frame-and-light time, including image output (ms).
+    pub frame_ms: f64,
+}
+
+/// Defines the flattened row once, so the CSV header, the CSV values and
+/// the tracing event can never disagree.
+macro_rules! stats_row {
+    ($( $name:ident : $($path:ident).+ ),* $(,)?) => {
+        impl FrameStats {
+            /// Column names of the flattened row, in order.
+            pub const COLUMNS: &'static [&'static str] = &[$(stringify!($name)),*];
+
+            /// The flattened row's values, formatted for CSV, in [`FrameStats::COLUMNS`] order.
+            pub fn values(&self) -> Vec<String> {
+                vec![$(format_value(&self.$($path).+)),*]
+            }
+
+            /// Emits the row as one `tracing` event (target `shadowcull::frame`,
+            /// level INFO) whose fields are the columns.
+            pub fn emit(&self) {
+                tracing::info!(target: "shadowcull::frame", $($name = self.$($path).+),*);
+            }
+        }
+    };
+}
+
+stats_row! {
+    frame: frame,
+    light: light,
+    update_ms: scene.update_ms,
+    objects: scene.objects,
+    triangles: scene.triangles,
+    reference_ms: reference.reference_ms,
+    lit: reference.lit,
+    shadow: reference.shadow,
+    unlit: reference.unlit,
+    background: reference.background,
+    ambiguous: reference.ambiguous,
+    frame_ms: frame_ms,
+}
+
+trait CsvValue {
+    fn csv(&self) -> String;
+}
+impl CsvValue for f64 {
+    fn csv(&self) -> String {
+        format!("{self:.3}")
+    }
+}
+impl CsvValue for u64 {
+    fn csv(&self) -> String {
+        self.to_string()
+    }
+}
+impl CsvValue for u32 {
+    fn csv(&self) -> String {
+        self.to_string()
+    }
+}
+fn format_value<T: CsvValue>(v: &T) -> String {
+    v.csv()
+}
+
+impl FrameStats {
+    /// The CSV header line (no newline).
+    pub fn csv_header() -> String {
+        Self::COLUMNS.join(",")
+    }
+
+    /// The CSV line of this row (no newline).
+    pub fn csv_row(&self) -> String {
+        self.values().join(",")
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::sync::{Arc, Mutex};
+    use tracing::field::{Field, Visit};
+    use tracing_subscriber::layer::{Context, SubscriberExt};
+
+    struct Capture(Arc<Mutex<Vec<String>>>);
+    struct Names<'a>(&'a mut Vec<String>);
+    impl Visit for Names<'_> {
+        fn record_debug(&mut self, field: &Field, _: &dyn std::fmt::Debug) {
+            self.0.push(field.name().to_string());
+        }
+    }
+    impl<S: tracing::Subscriber> tracing_subscriber::Layer<S> for Capture {
+        fn on_event(&self, e: &tracing::Event<'_>, _: Context<'_, S>) {
+            let mut v = self.0.lock().unwrap();
+            e.record(&mut Names(&mut v));
+        }
+    }
+
+    #[test]
+    fn tracing_event_fields_are_the_csv_columns() {
+        let names = Arc::new(Mutex::new(Vec::new()));
+        let sub = tracing_subscriber::registry().with(Capture(names.clone()));
+        tracing::subscriber::with_default(sub, || FrameStats::default().emit());
+        assert_eq!(*names.lock().unwrap(), FrameStats::COLUMNS);
+    }
+
+    #[test]
+    fn row_matches_header() {
+        let mut s = FrameStats {
+            frame: 3,
+            light: 1,
+            ..Default::default()
+        };
+        s.reference.shadow = 42;
+        s.reference.reference_ms = 1.23456;
+        let cols = FrameStats::csv_header();
+        let row = s.csv_row();
+        assert_eq!(cols.split(',').count(), row.split(',').count());
+        let pairs: Vec<(&str, &str)> = cols.split(',').zip(row.split(',')).collect();
+        assert!(pairs.contains(&("frame", "3")));
+        assert!(pairs.contains(&("shadow", "42")));
+        assert!(pairs.contains(&("reference_ms", "1.235")));
+    }
+}

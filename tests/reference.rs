@@ -1,0 +1,514 @@
+//! End-to-end tests of the ray-cast reference on analytic scenes.
+
+use glam::{DMat4, DVec3, Vec3};
+use scene::{Camera, Light, Mesh, ObjectId, Scene, SceneGraph, Transform};
+use shadowcull::mask::{compare, PixelClass};
+use shadowcull::reference::{reference_mask, EyeSurface, ReferenceOptions, TriangleBvh};
+
+/// A closed box, CCW outward, 12 triangles.
+fn box_mesh(min: Vec3, max: Vec3) -> Mesh {
+    let c = |i: u32| {
+        Vec3::new(
+            if i & 1 != 0 { max.x } else { min.x },
+            if i & 2 != 0 { max.y } else { min.y },
+            if i & 4 != 0 { max.z } else { min.z },
+        )
+    };
+    let faces = [
+        [0, 4, 6, 2],
+        [1, 3, 7, 5],
+        [0, 1, 5, 4],
+        [2, 6, 7, 3],
+        [0, 2, 3, 1],
+        [4, 5, 7, 6],
+    ];
+    let pos: Vec<Vec3> = (0..8).map(c).collect();
+    let tris: Vec<[u32; 3]> = faces
+        .iter()
+        .flat_map(|f| [[f[0], f[1], f[2]], [f[0], f[2], f[3]]])
+        .collect();
+    Mesh::new("box", &pos, &tris).unwrap()
+}
+
+/// A horizontal quad at height `y`, half-size `h`, facing up or down.
+fn quad(y: f32, h: f32, up: bool) -> Mesh {
+    let p = [
+        Vec3::new(-h, y, -h),
+        Vec3::new(-h, y, h),
+        Vec3::new(h, y, h),
+        Vec3::new(h, y, -h),
+    ];
+    let t = if up {
+        [[0, 1, 2], [0, 2, 3]]
+    } else {
+        [[0, 2, 1], [0, 3, 2]]
+    };
+    Mesh::new("quad", &p, &t).unwrap()
+}
+
+fn scene_of(meshes: Vec<Mesh>, root: Transform) -> Scene {
+    let mut g = SceneGraph::new();
+    let ids: Vec<_> = meshes.into_iter().map(|m| g.add_mesh(m)).collect();
+    g.add_root(scene::Node {
+        name: "root".into(),
+        transform: root,
+        meshes: ids,
+        children: vec![],
+    });
+    Scene::new(g).unwrap()
+}
+
+fn top_down(center: DVec3, height: f64, fov_deg: f64) -> Camera {
+    Camera::look_at(
+        center + DVec3::Y * height,
+        center,
+        DVec3::NEG_Z,
+        fov_deg.to_radians(),
+        1.0,
+        height * 0.01,
+    )
+    .unwrap()
+}
+
+/// Area of the convex hull of 2D points (monotone chain + shoelace).
+fn hull_area(mut pts: Vec<(f64, f64)>) -> f64 {
+    pts.sort_by(|a, b| a.partial_cmp(b).unwrap());
+    let cross = |o: (f64, f64), a: (f64, f64), b: (f64, f64)| {
+        (a.0 - o.0) * (b.1 - o.1) - (a.1 - o.1) * (b.0 - o.0)
+    };
+    let mut h: Vec<(f64, f64)> = Vec::new();
+    for pass in 0..2 {
+        let start = h.len();
+        let iter: Box<dyn Iterator<Item = &(f64, f64)>> = if pass == 0 {
+            Box::new(pts.iter())
+        } else {
+            Box::new(pts.iter().rev())
+        };
+        for &p in iter {
+            while h.len() >= start + 2 && cross(h[h.len() - 2], h[h.len() - 1], p) <= 0.0 {
+                h.pop();
+            }
+            h.push(p);
+        }
+        h.pop();
+    }
+    let n = h.len();
+    (0..n)
+        .map(|i| h[i].0 * h[(i + 1) % n].1 - h[(i + 1) % n].0 * h[i].1)
+        .sum::<f64>()
+        .abs()
+        * 0.5
+}
+
+#[test]
+fn box_shadow_area_matches_the_analytic_projection() {
+    // Unit box whose bottom is 1 above the ground plane y = 0; point light to the
+    // side so the whole shadow is visible from straight above.
+    let light_pos = DVec3::new(-6.0, 5.0, 0.0);
+    let s = scene_of(
+        vec![
+            quad(0.0, 20.0, true),
+            box_mesh(Vec3::new(-0.5, 1.0, -0.5), Vec3::new(0.5, 2.0, 0.5)),
+        ],
+        Transform::default(),
+    );
+    let bvh = TriangleBvh::new(&s);
+    // Analytic shadow: convex hull of the 8 corners projected from the light onto y = 0.
+    let mut pts = Vec::new();
+    for &x in &[-0.5, 0.5] {
+        for &y in &[1.0, 2.0] {
+            for &z in &[-0.5, 0.5] {
+                let p = DVec3::new(x, y, z);
+                let t = light_pos.y / (light_pos.y - p.y);
+                let q = light_pos + (p - light_pos) * t;
+                pts.push((q.x, q.z));
+            }
+        }
+    }
+    let expected = hull_area(pts);
+    let (h, fov, res) = (1000.0, 0.35f64, 400u32);
+    let cam = top_down(DVec3::new(2.85, 0.0, 0.0), h, fov);
+    let light = Light::Point {
+        position: light_pos,
+        range: None,
+    };
+    let r = reference_mask(
+        &bvh,
+        &cam,
+        &light,
+        res,
+        res,
+        &ReferenceOptions::default(),
+        None,
+    );
+    let pixel = 2.0 * h * (0.5 * fov.to_radians()).tan() / res as f64;
+    let area = r.counts.classes.shadow as f64 * pixel * pixel;
+    let rel = (area - expected).abs() / expected;
+    assert!(
+        rel < 0.01,
+        "shadow area {area:.4} vs analytic {expected:.4} ({:.3}%)",
+        rel * 100.0
+    );
+    assert!(
+        r.counts.classes.shadow > 5000,
+        "resolution too low to measure 1%"
+    );
+}
+
+#[test]
+fn open_quad_casts_only_when_it_faces_the_light() {
+    let light = Light::Point {
+        position: DVec3::new(0.0, 6.0, 0.0),
+        range: None,
+    };
+    let cam = Camera::look_at(
+        DVec3::new(0.0, 8.0, 8.0),
+        DVec3::ZERO,
+        DVec3::Y,
+        60f64.to_radians(),
+        4.0 / 3.0,
+        0.1,
+    )
+    .unwrap();
+    let opts = ReferenceOptions::default();
+    let two = ReferenceOptions {
+        two_sided: true,
+        ..opts
+    };
+    for up in [true, false] {
+        let s = scene_of(
+            vec![quad(0.0, 10.0, true), quad(2.0, 1.0, up)],
+            Transform::default(),
+        );
+        let bvh = TriangleBvh::new(&s);
+        let r = reference_mask(&bvh, &cam, &light, 160, 120, &opts, None);
+        if up {
+            assert!(
+                r.counts.classes.shadow > 100,
+                "an up-facing quad must cast: {:?}",
+                r.counts
+            );
+        } else {
+            assert_eq!(
+                r.counts.classes.shadow, 0,
+                "a quad facing away casts nothing"
+            );
+        }
+        let r2 = reference_mask(&bvh, &cam, &light, 160, 120, &two, None);
+        assert!(
+            r2.counts.classes.shadow > 100,
+            "two-sided: every triangle casts"
+        );
+    }
+}
+
+#[test]
+fn light_inside_a_closed_box_casts_nothing_by_default_and_everything_two_sided() {
+    let light = Light::Point {
+        position: DVec3::new(0.0, 1.5, 0.0),
+        range: None,
+    };
+    let s = scene_of(
+        vec![
+            quad(0.0, 10.0, true),
+            box_mesh(Vec3::new(-0.5, 1.0, -0.5), Vec3::new(0.5, 2.0, 0.5)),
+        ],
+        Transform::default(),
+    );
+    let bvh = TriangleBvh::new(&s);
+    let cam = Camera::look_at(
+        DVec3::new(0.0, 6.0, 9.0),
+        DVec3::ZERO,
+        DVec3::Y,
+        60f64.to_radians(),
+        4.0 / 3.0,
+        0.1,
+    )
+    .unwrap();
+    let r = reference_mask(
+        &bvh,
+        &cam,
+        &light,
+        160,
+        120,
+        &ReferenceOptions::default(),
+        None,
+    );
+    assert_eq!(r.counts.classes.shadow, 0);
+    assert!(r.counts.classes.lit > 1000);
+    assert!(
+        r.counts.classes.unlit > 0,
+        "the box's outside faces the light's back"
+    );
+    let r = reference_mask(
+        &bvh,
+        &cam,
+        &light,
+        160,
+        120,
+        &ReferenceOptions {
+            two_sided: true,
+            ..Default::default()
+        },
+        None,
+    );
+    assert_eq!(r.counts.classes.lit, 0, "{:?}", r.counts);
+    assert!(r.counts.classes.shadow > 1000);
+}
+
+/// A small shadowed scene: ground, a box, a floating quad; camera and lights.
+fn test_scene(root: Transform) -> Scene {
+    scene_of(
+        vec![
+            quad(0.0, 10.0, true),
+            box_mesh(Vec3::new(-1.0, 0.0, -1.0), Vec3::new(1.0, 3.0, 1.0)),
+            box_mesh(Vec3::new(2.0, 1.0, 2.0), Vec3::new(3.0, 1.5, 4.0)),
+        ],
+        root,
+    )
+}
+
+#[test]
+fn masks_do_not_depend_on_offset_or_scale() {
+    let base_cam = (DVec3::new(2.0, 9.0, 12.0), DVec3::new(0.0, 0.5, 0.0));
+    let lights = [
+        Light::Point {
+            position: DVec3::new(-4.0, 8.0, 3.0),
+            range: None,
+        },
+        Light::Directional {
+            direction: DVec3::new(0.4, -1.0, -0.3),
+        },
+    ];
+    let mask_for = |offset: DVec3, scale: f64, light: &Light| {
+        let root = Transform::Matrix(
+            DMat4::from_translation(offset) * DMat4::from_scale(DVec3::splat(scale)),
+        );
+        let s = test_scene(root);
+        let bvh = TriangleBvh::new(&s);
+        let at = |p: DVec3| offset + p * scale;
+        let cam = Camera::look_at(
+            at(base_cam.0),
+            at(base_cam.1),
+            DVec3::Y,
+            50f64.to_radians(),
+            4.0 / 3.0,
+            0.05 * scale,
+        )
+        .unwrap();
+        let l = match *light {
+            Light::Point { position, range } => Light::Point {
+                position: at(position),
+                range,
+            },
+            other => other,
+        };
+        reference_mask(&bvh, &cam, &l, 200, 150, &ReferenceOptions::default(), None)
+    };
+    for light in &lights {
+        let base = mask_for(DVec3::ZERO, 1.0, light);
+        assert!(base.counts.classes.shadow > 200, "{:?}", base.counts);
+        for (offset, scale) in [
+            (DVec3::new(1e5, -3e4, 1e5), 1.0),
+            (DVec3::new(1e6, 1e6, -1e6), 1.0),
+            (DVec3::ZERO, 1e-3),
+            (DVec3::ZERO, 1e3),
+            (DVec3::splat(1e6), 1e3),
+        ] {
+            let other = mask_for(offset, scale, light);
+            let c = compare(&base.mask, &base.ambiguous, &other.mask);
+            assert!(
+                c.mismatches * 2000 <= c.compared,
+                "offset {offset} scale {scale}: {} of {} pixels differ",
+                c.mismatches,
+                c.compared
+            );
+        }
+    }
+}
+
+#[test]
+fn deterministic_across_thread_counts() {
+    let s = test_scene(Transform::default());
+    let bvh = TriangleBvh::new(&s);
+    let cam = Camera::look_at(
+        DVec3::new(2.0, 9.0, 12.0),
+        DVec3::ZERO,
+        DVec3::Y,
+        50f64.to_radians(),
+        4.0 / 3.0,
+        0.05,
+    )
+    .unwrap();
+    let light = Light::Point {
+        position: DVec3::new(-4.0, 8.0, 3.0),
+        range: None,
+    };
+    let a = reference_mask(
+        &bvh,
+        &cam,
+        &light,
+        200,
+        150,
+        &ReferenceOptions::default(),
+        None,
+    );
+    let one = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap();
+    let b = one.install(|| {
+        reference_mask(
+            &bvh,
+            &cam,
+            &light,
+            200,
+            150,
+            &ReferenceOptions::default(),
+            None,
+        )
+    });
+    assert_eq!(a.mask, b.mask);
+    assert_eq!(a.ambiguous, b.ambiguous);
+    assert_eq!(a.primitive, b.primitive);
+}
+
+#[test]
+fn given_eye_surface_gives_the_same_mask() {
+    let s = test_scene(Transform::default());
+    let bvh = TriangleBvh::new(&s);
+    let cam = Camera::look_at(
+        DVec3::new(2.0, 9.0, 12.0),
+        DVec3::ZERO,
+        DVec3::Y,
+        50f64.to_radians(),
+        4.0 / 3.0,
+        0.05,
+    )
+    .unwrap();
+    let light = Light::Directional {
+        direction: DVec3::new(0.4, -1.0, -0.3),
+    };
+    let a = reference_mask(
+        &bvh,
+        &cam,
+        &light,
+        200,
+        150,
+        &ReferenceOptions::default(),
+        None,
+    );
+    let b = reference_mask(
+        &bvh,
+        &cam,
+        &light,
+        200,
+        150,
+        &ReferenceOptions::default(),
+        Some(EyeSurface {
+            primitive: &a.primitive,
+        }),
+    );
+    let c = compare(&a.mask, &a.ambiguous, &b.mask);
+    assert_eq!(c.mismatches, 0);
+    assert_eq!(a.mask.counts(), b.mask.counts());
+}
+
+#[test]
+fn refit_after_moving_matches_a_rebuild() {
+    let mut s = test_scene(Transform::default());
+    let mut bvh = TriangleBvh::new(&s);
+    let cam = Camera::look_at(
+        DVec3::new(2.0, 9.0, 12.0),
+        DVec3::ZERO,
+        DVec3::Y,
+        50f64.to_radians(),
+        4.0 / 3.0,
+        0.05,
+    )
+    .unwrap();
+    let light = Light::Point {
+        position: DVec3::new(-4.0, 8.0, 3.0),
+        range: None,
+    };
+    let before = reference_mask(
+        &bvh,
+        &cam,
+        &light,
+        160,
+        120,
+        &ReferenceOptions::default(),
+        None,
+    );
+    s.set_object_transform(
+        ObjectId(1),
+        DMat4::from_translation(DVec3::new(3.0, 0.0, -2.0)),
+    )
+    .unwrap();
+    bvh.refit(&s);
+    let refit = reference_mask(
+        &bvh,
+        &cam,
+        &light,
+        160,
+        120,
+        &ReferenceOptions::default(),
+        None,
+    );
+    let rebuilt = reference_mask(
+        &TriangleBvh::new(&s),
+        &cam,
+        &light,
+        160,
+        120,
+        &ReferenceOptions::default(),
+        None,
+    );
+    assert_eq!(refit.mask, rebuilt.mask);
+    assert_ne!(
+        before.mask, refit.mask,
+        "moving the box must move its shadow"
+    );
+}
+
+#[test]
+fn spot_cone_and_range_make_pixels_unlit() {
+    let s = test_scene(Transform::default());
+    let bvh = TriangleBvh::new(&s);
+    let cam = Camera::look_at(
+        DVec3::new(0.0, 14.0, 14.0),
+        DVec3::ZERO,
+        DVec3::Y,
+        60f64.to_radians(),
+        1.0,
+        0.05,
+    )
+    .unwrap();
+    let spot = Light::Spot {
+        position: DVec3::new(0.0, 8.0, 0.0),
+        direction: DVec3::NEG_Y,
+        apex_angle: 40f64.to_radians(),
+        range: None,
+    };
+    let r = reference_mask(
+        &bvh,
+        &cam,
+        &spot,
+        120,
+        120,
+        &ReferenceOptions::default(),
+        None,
+    );
+    // Ground outside the cone's footprint (radius 8·tan 20° ≈ 2.9) is unlit.
+    assert!(
+        r.counts.classes.unlit > r.counts.classes.lit,
+        "{:?}",
+        r.counts
+    );
+    for (i, c) in r.mask.pixels.iter().enumerate() {
+        if *c == PixelClass::Lit {
+            let (obj, _) = r.primitive[i].unwrap();
+            assert!(obj.0 <= 2);
+        }
+    }
+}
