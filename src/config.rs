@@ -234,7 +234,7 @@ impl Job {
             ));
         }
         if let Some(g) = self.ground {
-            if !(g.size > 0.0 && g.size.is_finite()) || !g.y.is_finite() {
+            if g.size <= 0.0 || !g.size.is_finite() || !g.y.is_finite() {
                 return Err(bad(
                     "ground",
                     "size must be positive and finite, y finite".into(),
@@ -374,7 +374,10 @@ pub fn resolve_camera(
             CameraPath::Keyframes(v.iter().enumerate().map(|(i, p)| (i as f64, *p)).collect())
         }
         CameraSpec::Keyframes(k) => {
-            if k.is_empty() || k.windows(2).any(|w| !(w[0].0 < w[1].0)) {
+            if k.is_empty()
+                || k.windows(2)
+                    .any(|w| w[0].0.partial_cmp(&w[1].0) != Some(std::cmp::Ordering::Less))
+            {
                 return Err(bad(
                     "Keyframes need at least one key, frames strictly ascending".into(),
                 ));

@@ -224,17 +224,15 @@ impl TriangleBvh {
         best
     }
 
-    /// True when some caster blocks the centre-relative ray within `(tmin, tmax)`.
-    fn blocked(
-        &self,
-        origin: DVec3,
-        dir: DVec3,
-        tmin: f64,
-        tmax: f64,
-        skip: usize,
-        light: &Light,
-        two_sided: bool,
-    ) -> bool {
+    /// True when some caster blocks the centre-relative shadow ray.
+    fn blocked(&self, ray: &ShadowRay, light: &Light, two_sided: bool) -> bool {
+        let ShadowRay {
+            origin,
+            dir,
+            tmin,
+            tmax,
+            skip,
+        } = *ray;
         !self
             .bvh
             .ray_traverse_miss(self.ray(origin, dir, tmax), |_, i| {
@@ -242,18 +240,25 @@ impl TriangleBvh {
                 if prim == skip {
                     return f32::INFINITY;
                 }
+                // Only casters count: light-facing triangles, or all when two-sided.
+                let caster = || two_sided || faces_light(&self.tris[prim], light);
                 match intersect(&self.rel(prim), origin, dir) {
-                    Some(t) if t > tmin && t < tmax => {
-                        if two_sided || faces_light(&self.tris[prim], light) {
-                            0.0
-                        } else {
-                            f32::INFINITY
-                        }
-                    }
+                    Some(t) if t > tmin && t < tmax && caster() => 0.0,
                     _ => f32::INFINITY,
                 }
             })
     }
+}
+
+/// A shadow ray: centre-relative origin, unit direction, the open interval
+/// `(tmin, tmax)` where hits count, and the surface triangle to skip.
+#[derive(Clone, Copy)]
+struct ShadowRay {
+    origin: DVec3,
+    dir: DVec3,
+    tmin: f64,
+    tmax: f64,
+    skip: usize,
 }
 
 fn tri_box(t: &[DVec3; 3], pad: f32) -> obvhs::aabb::Aabb {
@@ -487,7 +492,14 @@ fn classify(
     if tmin >= tmax {
         return PixelClass::Lit;
     }
-    if bvh.blocked(q, dir, tmin, tmax, k, light, two_sided) {
+    let ray = ShadowRay {
+        origin: q,
+        dir,
+        tmin,
+        tmax,
+        skip: k,
+    };
+    if bvh.blocked(&ray, light, two_sided) {
         PixelClass::Shadow
     } else {
         PixelClass::Lit

@@ -1,0 +1,269 @@
+//! End-to-end tests of the `shadowcull` binary: `run` and `inspect`.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn bin() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_shadowcull"))
+}
+
+fn shared_data() -> Option<PathBuf> {
+    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data");
+    if p.is_dir() {
+        Some(p)
+    } else {
+        println!("note: {} is absent; skipping", p.display());
+        None
+    }
+}
+
+fn tmp_dir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("shadowcull-cli-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn inspect_json(path: &Path) -> serde_json::Value {
+    let out = bin()
+        .arg("inspect")
+        .arg(path)
+        .arg("--json")
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}: {}",
+        path.display(),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).unwrap()
+}
+
+#[test]
+fn inspect_reports_the_done_when_counts() {
+    let Some(data) = shared_data() else { return };
+    let engine = inspect_json(&data.join("scenes/engine_2cylinder/2CylinderEngine.glb"));
+    assert_eq!(engine["triangles"], 121_496, "every instance counted");
+    for key in [
+        "objects",
+        "meshes",
+        "triangles",
+        "vertices",
+        "bounds",
+        "boundary_edges",
+        "non_manifold_edges",
+        "inconsistent_edges",
+        "degenerate_triangles",
+        "warnings",
+    ] {
+        assert!(engine.get(key).is_some(), "missing key {key}");
+    }
+    assert!(engine["bounds"]["min"].is_array() && engine["bounds"]["max"].is_array());
+    assert!(engine["warnings"].is_array());
+    let city = inspect_json(&data.join("scenes/procedural_city/city.obj"));
+    assert_eq!(city["objects"], 498);
+}
+
+#[test]
+fn inspect_errors_exit_1_with_one_line_naming_the_file() {
+    let dir = tmp_dir("inspect-errors");
+    let cases: Vec<(PathBuf, &str)> = vec![
+        (dir.join("missing.obj"), "missing.obj"),
+        (dir.join("bad.gltf"), "bad.gltf"),
+        (dir.join("scene.xyz"), "scene.xyz"),
+    ];
+    std::fs::write(dir.join("bad.gltf"), b"{ not json").unwrap();
+    std::fs::write(dir.join("scene.xyz"), b"hello").unwrap();
+    for (path, name) in cases {
+        let out = bin()
+            .arg("inspect")
+            .arg(&path)
+            .arg("--json")
+            .output()
+            .unwrap();
+        assert_eq!(out.status.code(), Some(1), "{name}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(err.trim_end().lines().count(), 1, "one line: {err}");
+        assert!(err.contains(name), "names the file: {err}");
+        assert!(
+            !err.contains("panicked") && !err.contains("backtrace"),
+            "{err}"
+        );
+    }
+}
+
+#[test]
+fn inspect_missing_bin_names_both_files() {
+    let Some(data) = shared_data() else { return };
+    let p = data.join("edge_gltf/assimp/glTF2/MissingBin/BoxTextured.gltf");
+    let out = bin().arg("inspect").arg(&p).output().unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("BoxTextured.gltf") && err.contains(".bin"),
+        "{err}"
+    );
+}
+
+#[test]
+fn inspect_never_panics_on_the_edge_corpus() {
+    let Some(data) = shared_data() else { return };
+    let mut files = Vec::new();
+    let mut stack = vec![data.join("edge_gltf"), data.join("edge_obj")];
+    while let Some(d) = stack.pop() {
+        for e in std::fs::read_dir(&d).unwrap() {
+            let p = e.unwrap().path();
+            if p.is_dir() {
+                stack.push(p);
+            } else if matches!(
+                p.extension().and_then(|e| e.to_str()),
+                Some("gltf" | "glb" | "obj")
+            ) {
+                files.push(p);
+            }
+        }
+    }
+    files.sort();
+    assert!(files.len() > 300, "corpus has {} files", files.len());
+    let mut bad = Vec::new();
+    for f in &files {
+        let t = std::time::Instant::now();
+        let out = bin().arg("inspect").arg(f).arg("--json").output().unwrap();
+        let code = out.status.code();
+        let err = String::from_utf8_lossy(&out.stderr).to_string();
+        if !(code == Some(0) || code == Some(1))
+            || err.contains("panicked")
+            || err.contains("internal error")
+        {
+            bad.push(format!("{}: status {code:?}: {err}", f.display()));
+        }
+        if code == Some(1) && !err.contains(f.file_name().unwrap().to_str().unwrap()) {
+            bad.push(format!(
+                "{}: error does not name the file: {err}",
+                f.display()
+            ));
+        }
+        if t.elapsed().as_secs_f64() > 5.0 {
+            bad.push(format!("{}: took {:?}", f.display(), t.elapsed()));
+        }
+    }
+    assert!(
+        bad.is_empty(),
+        "{} of {} files misbehaved:\n{}",
+        bad.len(),
+        files.len(),
+        bad.join("\n")
+    );
+}
+
+const SMALL_JOB: &str = r#"(
+    version: 1,
+    scene: City((blocks_x: 2, blocks_z: 2)),
+    resolution: (64, 48),
+    camera: Path("bird"),
+    frames: 3,
+    lights: [AboveScene(1.5), Sun(elevation_deg: 35.0, azimuth_deg: 30.0)],
+    outputs: (masks: true, shaded: true),
+)"#;
+
+#[test]
+fn run_writes_stats_summary_and_images() {
+    let dir = tmp_dir("run");
+    let job = dir.join("job.ron");
+    std::fs::write(&job, SMALL_JOB).unwrap();
+    let out = dir.join("out/nested");
+    std::fs::create_dir_all(&out).unwrap();
+    std::fs::write(out.join("keep.txt"), "other file").unwrap();
+    let o = bin()
+        .arg("run")
+        .arg(&job)
+        .arg("--out")
+        .arg(&out)
+        .arg("--frames")
+        .arg("2")
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(out.join("keep.txt").exists(), "other files are left alone");
+    let csv = std::fs::read_to_string(out.join("stats.csv")).unwrap();
+    let lines: Vec<&str> = csv.lines().collect();
+    assert_eq!(lines.len(), 1 + 2 * 2, "header + frames × lights:\n{csv}");
+    assert!(lines[0].starts_with("frame,light,"));
+    assert!(
+        lines[0].contains("reference_ms") && lines[0].contains(",lit,shadow,unlit,background,")
+    );
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    assert_eq!(summary["frames"], 2);
+    for f in [
+        "0_0_mask.png",
+        "0_1_mask.png",
+        "1_0_shaded.png",
+        "1_1_shaded.png",
+    ] {
+        assert!(out.join("frames").join(f).exists(), "{f}");
+    }
+    assert!(
+        !out.join("frames/2_0_mask.png").exists(),
+        "--frames 2 stops after two frames"
+    );
+    // Rows add up to the image size.
+    let cols: Vec<&str> = lines[0].split(',').collect();
+    let idx = |name: &str| cols.iter().position(|c| *c == name).unwrap();
+    for row in &lines[1..] {
+        let v: Vec<&str> = row.split(',').collect();
+        let sum: u64 = ["lit", "shadow", "unlit", "background"]
+            .iter()
+            .map(|c| v[idx(c)].parse::<u64>().unwrap())
+            .sum();
+        assert_eq!(sum, 64 * 48);
+    }
+}
+
+#[test]
+fn run_log_format_json_prints_one_event_per_row() {
+    let dir = tmp_dir("json");
+    let job = dir.join("job.ron");
+    std::fs::write(&job, SMALL_JOB).unwrap();
+    let o = bin()
+        .args(["run", "--log-format", "json", "--frames", "1", "--out"])
+        .arg(dir.join("out"))
+        .arg(&job)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let events: Vec<serde_json::Value> = String::from_utf8_lossy(&o.stdout)
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .filter(|v: &serde_json::Value| v["target"] == "shadowcull::frame")
+        .collect();
+    assert_eq!(events.len(), 2);
+    for key in shadowcull::stats::FrameStats::COLUMNS {
+        assert!(
+            events[0].get(*key).is_some(),
+            "event lacks {key}: {}",
+            events[0]
+        );
+    }
+}
+
+#[test]
+fn run_reports_job_errors_with_line_and_column() {
+    let dir = tmp_dir("badjob");
+    let job = dir.join("bad.ron");
+    std::fs::write(&job, "(\n  scene: City(()),\n  lightz: [],\n)").unwrap();
+    let o = bin()
+        .arg("run")
+        .arg(&job)
+        .arg("--out")
+        .arg(dir.join("out"))
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("bad.ron:3:") && err.contains("lightz"),
+        "{err}"
+    );
+}

@@ -1,0 +1,96 @@
+//! The job files in `data/jobs/`: they parse, and the shared-scene test views
+//! show their scenes with shadows the reference can compute.
+
+use shadowcull::config::{default_job, resolve_camera, Job};
+use shadowcull::reference::{reference_mask, TriangleBvh};
+use shadowcull::run::prepare_scene;
+use std::path::{Path, PathBuf};
+
+fn jobs_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("data/jobs")
+}
+
+fn job_files() -> Vec<PathBuf> {
+    let mut v: Vec<PathBuf> = std::fs::read_dir(jobs_dir())
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "ron"))
+        .collect();
+    v.sort();
+    v
+}
+
+#[test]
+fn every_job_file_parses() {
+    let files = job_files();
+    assert!(
+        files.len() >= 9,
+        "default + 8 shared jobs, found {}",
+        files.len()
+    );
+    for f in files {
+        Job::from_file(&f).unwrap_or_else(|e| panic!("{e}"));
+    }
+}
+
+#[test]
+fn default_job_file_matches_the_built_in_default() {
+    let j = Job::from_file(&jobs_dir().join("default_city.ron")).unwrap();
+    assert_eq!(j, default_job());
+}
+
+#[test]
+fn shared_scene_views_show_their_scenes_and_shadows() {
+    let shared = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data");
+    if !shared.is_dir() {
+        println!(
+            "note: {} is absent; skipping the shared-scene jobs",
+            shared.display()
+        );
+        return;
+    }
+    let (w, h) = (96u32, 72u32);
+    for f in job_files().into_iter().filter(|f| {
+        f.file_name()
+            .unwrap()
+            .to_str()
+            .unwrap()
+            .starts_with("shared_")
+    }) {
+        let job = Job::from_file(&f).unwrap();
+        let (loaded, scene) = prepare_scene(&job, f.parent().unwrap())
+            .unwrap_or_else(|e| panic!("{}: {e}", f.display()));
+        let bounds = scene.bounds();
+        let path = resolve_camera(&job.camera, &loaded, &bounds, &f).unwrap();
+        let bvh = TriangleBvh::new(&scene);
+        assert_eq!(job.frame_count(), 2, "{}: two cameras", f.display());
+        assert_eq!(job.lights.len(), 4, "{}: four lights", f.display());
+        for frame in 0..2 {
+            let cam = path.at(frame).unwrap().camera(w as f64 / h as f64).unwrap();
+            let mut shadow_seen = false;
+            for (i, l) in job.lights.iter().enumerate() {
+                let light = l.resolve(&loaded, &bounds, i, &f).unwrap();
+                let r = reference_mask(&bvh, &cam, &light, w, h, &job.pipeline.reference, None);
+                let c = r.counts.classes;
+                assert_eq!(c.lit + c.shadow + c.unlit + c.background, (w * h) as u64);
+                assert!(
+                    c.background < (w * h) as u64 * 9 / 10,
+                    "{} frame {frame}: the view misses the scene: {c:?}",
+                    f.display()
+                );
+                assert!(
+                    r.counts.ambiguous * 20 <= (c.lit + c.shadow).max(1),
+                    "{} frame {frame} light {i}: too many ambiguous pixels: {:?}",
+                    f.display(),
+                    r.counts
+                );
+                shadow_seen |= c.shadow > 0;
+            }
+            assert!(
+                shadow_seen,
+                "{} frame {frame}: no light casts a visible shadow",
+                f.display()
+            );
+        }
+    }
+}
