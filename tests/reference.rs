@@ -144,6 +144,10 @@ fn box_shadow_area_matches_the_analytic_projection() {
     let pixel = 2.0 * h * (0.5 * fov.to_radians()).tan() / res as f64;
     let area = r.counts.classes.shadow as f64 * pixel * pixel;
     let rel = (area - expected).abs() / expected;
+    println!(
+        "shadow area {area:.4} m² vs analytic {expected:.4} m² ({:.3}%)",
+        rel * 100.0
+    );
     assert!(
         rel < 0.01,
         "shadow area {area:.4} vs analytic {expected:.4} ({:.3}%)",
@@ -511,4 +515,142 @@ fn spot_cone_and_range_make_pixels_unlit() {
             assert!(obj.0 <= 2);
         }
     }
+}
+
+#[test]
+fn coplanar_casters_do_not_shadow_their_plane() {
+    // A light-facing quad lying exactly on the ground: no shadow acne either way.
+    let s = scene_of(
+        vec![quad(0.0, 10.0, true), quad(0.0, 2.0, true)],
+        Transform::default(),
+    );
+    let bvh = TriangleBvh::new(&s);
+    let cam = Camera::look_at(
+        DVec3::new(0.0, 6.0, 8.0),
+        DVec3::ZERO,
+        DVec3::Y,
+        60f64.to_radians(),
+        4.0 / 3.0,
+        0.1,
+    )
+    .unwrap();
+    let light = Light::Point {
+        position: DVec3::new(1.0, 5.0, 0.0),
+        range: None,
+    };
+    let r = reference_mask(
+        &bvh,
+        &cam,
+        &light,
+        160,
+        120,
+        &ReferenceOptions::default(),
+        None,
+    );
+    assert_eq!(r.counts.classes.shadow, 0, "{:?}", r.counts);
+    assert!(r.counts.classes.lit > 5000);
+}
+
+#[test]
+fn ambiguous_pixels_lie_on_shadow_boundaries_under_grazing_light() {
+    let s = test_scene(Transform::default());
+    let bvh = TriangleBvh::new(&s);
+    let cam = Camera::look_at(
+        DVec3::new(2.0, 9.0, 12.0),
+        DVec3::ZERO,
+        DVec3::Y,
+        50f64.to_radians(),
+        4.0 / 3.0,
+        0.05,
+    )
+    .unwrap();
+    // The sun 0.5° above the horizon: long shadows, grazing incidence on the ground.
+    let e = 0.5f64.to_radians();
+    let light = Light::Directional {
+        direction: -DVec3::new(e.cos() * 0.6, e.sin(), e.cos() * 0.8),
+    };
+    let r = reference_mask(
+        &bvh,
+        &cam,
+        &light,
+        200,
+        150,
+        &ReferenceOptions::default(),
+        None,
+    );
+    assert!(r.counts.classes.shadow > 300, "{:?}", r.counts);
+    let (w, h) = (200i64, 150i64);
+    for (i, &a) in r.ambiguous.iter().enumerate() {
+        if !a {
+            continue;
+        }
+        let (x, y) = (i as i64 % w, i as i64 / w);
+        let c = r.mask.pixels[i];
+        let near_boundary = (-2..=2).any(|dy| {
+            (-2..=2).any(|dx| {
+                let (nx, ny) = (x + dx, y + dy);
+                nx >= 0 && ny >= 0 && nx < w && ny < h && r.mask.pixels[(ny * w + nx) as usize] != c
+            })
+        });
+        assert!(
+            near_boundary,
+            "ambiguous pixel ({x}, {y}) is far from any class boundary"
+        );
+    }
+    println!("grazing sun: {:?}", r.counts);
+}
+
+#[test]
+fn a_point_exactly_on_a_shadow_boundary_is_ambiguous() {
+    // The light lies in the plane x = 1 of the box's +X face, so the shadow
+    // boundary on the ground is the line x = 1. The centre pixel of an odd-sized
+    // image looks exactly at (1, 0, 0), obliquely: moving ±δ along its eye ray
+    // crosses the boundary, so the pixel must be ambiguous (and excluded).
+    let s = scene_of(
+        vec![
+            quad(0.0, 10.0, true),
+            box_mesh(Vec3::new(-1.0, 1.0, -1.0), Vec3::new(1.0, 2.0, 1.0)),
+        ],
+        Transform::default(),
+    );
+    let bvh = TriangleBvh::new(&s);
+    let light = Light::Point {
+        position: DVec3::new(1.0, 5.0, 0.0),
+        range: None,
+    };
+    let cam = Camera::look_at(
+        DVec3::new(5.0, 4.0, 0.5),
+        DVec3::new(1.0, 0.0, 0.0),
+        DVec3::Y,
+        40f64.to_radians(),
+        101.0 / 75.0,
+        0.05,
+    )
+    .unwrap();
+    let r = reference_mask(
+        &bvh,
+        &cam,
+        &light,
+        101,
+        75,
+        &ReferenceOptions::default(),
+        None,
+    );
+    let centre = 37 * 101 + 50;
+    assert!(
+        r.ambiguous[centre],
+        "centre pixel must be ambiguous: {:?}",
+        r.counts
+    );
+    assert!(
+        r.counts.classes.shadow > 100 && r.counts.classes.lit > 100,
+        "{:?}",
+        r.counts
+    );
+    // Its neighbours across the boundary are decided and differ.
+    let left = r.mask.pixels[centre - 2];
+    let right = r.mask.pixels[centre + 2];
+    assert_ne!(left, right, "the boundary runs through the centre column");
+    let c = compare(&r.mask, &r.ambiguous, &r.mask);
+    assert_eq!(c.ambiguous, r.counts.ambiguous);
 }
