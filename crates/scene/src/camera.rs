@@ -89,9 +89,14 @@ impl Camera {
         }
         let f = forward.normalize();
         let side = f.cross(up);
-        if !side.is_finite() || side.length() < 1e-12 * up.length().max(1e-300) || side.length() == 0.0
+        if !side.is_finite()
+            || side.length() < 1e-12 * up.length().max(1e-300)
+            || side.length() == 0.0
         {
-            return Err(cam_err("up", "must be finite and not parallel to the view direction"));
+            return Err(cam_err(
+                "up",
+                "must be finite and not parallel to the view direction",
+            ));
         }
         let x = side.normalize();
         let y = x.cross(f);
@@ -235,7 +240,10 @@ mod tests {
         let f = cam().frustum();
         assert!(f.contains(DVec3::new(1.0, 2.0, -100.0)));
         assert!(!f.contains(DVec3::new(1.0, 2.0, 10.0)));
-        assert!(!f.contains(DVec3::new(1.0, 2.0, 2.9)), "between eye and near plane");
+        assert!(
+            !f.contains(DVec3::new(1.0, 2.0, 2.9)),
+            "between eye and near plane"
+        );
         assert!(!f.contains(DVec3::new(200.0, 2.0, -100.0)));
         for c in f.near_corners {
             for p in &f.planes {
@@ -256,11 +264,20 @@ mod tests {
     #[test]
     fn bad_cameras_name_their_field() {
         let e = Camera::look_at(DVec3::ZERO, DVec3::ZERO, DVec3::Y, 1.0, 1.0, 0.1);
-        assert!(matches!(e, Err(Error::InvalidCamera { field: "target", .. })));
+        assert!(matches!(
+            e,
+            Err(Error::InvalidCamera {
+                field: "target",
+                ..
+            })
+        ));
         let e = Camera::look_at(DVec3::ZERO, DVec3::Y, DVec3::Y, 1.0, 1.0, 0.1);
         assert!(matches!(e, Err(Error::InvalidCamera { field: "up", .. })));
         let e = Camera::look_at(DVec3::ZERO, DVec3::X, DVec3::Y, 4.0, 1.0, 0.1);
-        assert!(matches!(e, Err(Error::InvalidCamera { field: "fov_y", .. })));
+        assert!(matches!(
+            e,
+            Err(Error::InvalidCamera { field: "fov_y", .. })
+        ));
         let e = Camera::look_at(DVec3::ZERO, DVec3::X, DVec3::Y, 1.0, 1.0, 0.0);
         assert!(matches!(e, Err(Error::InvalidCamera { field: "near", .. })));
     }

@@ -61,7 +61,11 @@ impl CameraPath {
                 for w in keys.windows(2) {
                     let (a, b) = (&w[0], &w[1]);
                     if f <= b.0 {
-                        let t = if b.0 > a.0 { (f - a.0) / (b.0 - a.0) } else { 1.0 };
+                        let t = if b.0 > a.0 {
+                            (f - a.0) / (b.0 - a.0)
+                        } else {
+                            1.0
+                        };
                         return Some(LookAt {
                             eye: a.1.eye.lerp(b.1.eye, t),
                             target: a.1.target.lerp(b.1.target, t),
@@ -93,10 +97,17 @@ mod tests {
 
     #[test]
     fn orbit_keeps_distance_and_dolly_moves() {
-        let o = CameraPath::Orbit { start: pose(), center: DVec3::ZERO, deg_per_frame: 90.0 };
+        let o = CameraPath::Orbit {
+            start: pose(),
+            center: DVec3::ZERO,
+            deg_per_frame: 90.0,
+        };
         let p = o.at(1).unwrap();
         assert!((p.eye - DVec3::new(0.0, 5.0, -10.0)).length() < 1e-9);
-        let d = CameraPath::Dolly { start: pose(), per_frame: DVec3::NEG_Z };
+        let d = CameraPath::Dolly {
+            start: pose(),
+            per_frame: DVec3::NEG_Z,
+        };
         assert_eq!(d.at(3).unwrap().eye.z, -3.0);
         assert_eq!(d.at(3).unwrap().target.z, -3.0);
     }

@@ -29,15 +29,28 @@ mod tests {
     #[test]
     fn facing_sign_and_in_plane() {
         let t = [DVec3::ZERO, DVec3::X, DVec3::Z * -1.0]; // normal +y
-        let above = Light::Point { position: DVec3::new(0.2, 5.0, -0.2), range: None };
-        let below = Light::Point { position: DVec3::new(0.2, -5.0, -0.2), range: None };
-        let inplane = Light::Point { position: DVec3::new(7.0, 0.0, 3.0), range: None };
+        let above = Light::Point {
+            position: DVec3::new(0.2, 5.0, -0.2),
+            range: None,
+        };
+        let below = Light::Point {
+            position: DVec3::new(0.2, -5.0, -0.2),
+            range: None,
+        };
+        let inplane = Light::Point {
+            position: DVec3::new(7.0, 0.0, 3.0),
+            range: None,
+        };
         assert!(faces_light(&t, &above));
         assert!(!faces_light(&t, &below));
         assert!(!faces_light(&t, &inplane));
-        let sun = Light::Directional { direction: DVec3::new(0.3, -1.0, 0.0) };
+        let sun = Light::Directional {
+            direction: DVec3::new(0.3, -1.0, 0.0),
+        };
         assert!(faces_light(&t, &sun));
-        let grazing = Light::Directional { direction: DVec3::X };
+        let grazing = Light::Directional {
+            direction: DVec3::X,
+        };
         assert!(!faces_light(&t, &grazing));
     }
 }

@@ -158,18 +158,44 @@ mod tests {
             position: DVec3::new(f64::NAN, 0.0, 0.0),
             range: None,
         };
-        assert!(matches!(nan.validate(), Err(Error::InvalidLight { field: "position", .. })));
-        let zero = Light::Directional { direction: DVec3::ZERO };
-        assert!(matches!(zero.validate(), Err(Error::InvalidLight { field: "direction", .. })));
+        assert!(matches!(
+            nan.validate(),
+            Err(Error::InvalidLight {
+                field: "position",
+                ..
+            })
+        ));
+        let zero = Light::Directional {
+            direction: DVec3::ZERO,
+        };
+        assert!(matches!(
+            zero.validate(),
+            Err(Error::InvalidLight {
+                field: "direction",
+                ..
+            })
+        ));
         let wide = Light::Spot {
             position: DVec3::ZERO,
             direction: DVec3::NEG_Y,
             apex_angle: std::f64::consts::PI,
             range: None,
         };
-        assert!(matches!(wide.validate(), Err(Error::InvalidLight { field: "apex_angle", .. })));
-        let r = Light::Point { position: DVec3::ZERO, range: Some(0.0) };
-        assert!(matches!(r.validate(), Err(Error::InvalidLight { field: "range", .. })));
+        assert!(matches!(
+            wide.validate(),
+            Err(Error::InvalidLight {
+                field: "apex_angle",
+                ..
+            })
+        ));
+        let r = Light::Point {
+            position: DVec3::ZERO,
+            range: Some(0.0),
+        };
+        assert!(matches!(
+            r.validate(),
+            Err(Error::InvalidLight { field: "range", .. })
+        ));
     }
 
     #[test]

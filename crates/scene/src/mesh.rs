@@ -80,7 +80,11 @@ pub struct Mesh {
 
 fn weld_key(p: Vec3) -> [u32; 3] {
     // +0.0 turns −0 into +0: the two weld together.
-    [(p.x + 0.0).to_bits(), (p.y + 0.0).to_bits(), (p.z + 0.0).to_bits()]
+    [
+        (p.x + 0.0).to_bits(),
+        (p.y + 0.0).to_bits(),
+        (p.z + 0.0).to_bits(),
+    ]
 }
 
 impl Mesh {
@@ -92,7 +96,11 @@ impl Mesh {
     /// # Errors
     /// [`Error::InvalidMesh`] naming `name` when an index is out of range or a
     /// position used by a triangle is not finite.
-    pub fn new(name: impl Into<String>, positions: &[Vec3], triangles: &[[u32; 3]]) -> Result<Mesh> {
+    pub fn new(
+        name: impl Into<String>,
+        positions: &[Vec3],
+        triangles: &[[u32; 3]],
+    ) -> Result<Mesh> {
         let name = name.into();
         let n = positions.len();
         for (t, tri) in triangles.iter().enumerate() {
@@ -268,7 +276,14 @@ mod tests {
     /// Cornell boxes), so welding must find the 8 real vertices.
     fn soup_cube() -> (Vec<Vec3>, Vec<[u32; 3]>) {
         let c = |i: u32| Vec3::new((i & 1) as f32, ((i >> 1) & 1) as f32, ((i >> 2) & 1) as f32);
-        let faces = [[0, 4, 6, 2], [1, 3, 7, 5], [0, 1, 5, 4], [2, 6, 7, 3], [0, 2, 3, 1], [4, 5, 7, 6]];
+        let faces = [
+            [0, 4, 6, 2],
+            [1, 3, 7, 5],
+            [0, 1, 5, 4],
+            [2, 6, 7, 3],
+            [0, 2, 3, 1],
+            [4, 5, 7, 6],
+        ];
         let mut pos = Vec::new();
         let mut tris = Vec::new();
         for f in faces {
@@ -322,7 +337,13 @@ mod tests {
     #[test]
     fn non_manifold_fin() {
         // Three triangles sharing edge (0,1).
-        let p = [Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::Z, Vec3::new(0.5, -1.0, 0.0)];
+        let p = [
+            Vec3::ZERO,
+            Vec3::X,
+            Vec3::Y,
+            Vec3::Z,
+            Vec3::new(0.5, -1.0, 0.0),
+        ];
         let m = Mesh::new("fin", &p, &[[0, 1, 2], [1, 0, 3], [0, 1, 4]]).unwrap();
         assert_eq!(m.topology().non_manifold_edges, 1);
         assert_eq!(m.topology().inconsistent_edges, 1);

@@ -55,6 +55,9 @@ mod tests {
         let p = Plane::from_points(DVec3::ZERO, DVec3::X, DVec3::Y);
         assert!(p.signed_distance(DVec3::Z) > 0.0);
         assert!(p.signed_distance(-DVec3::Z) < 0.0);
-        assert_eq!(p.normalized().signed_distance(DVec3::new(3.0, 4.0, 2.0)), 2.0);
+        assert_eq!(
+            p.normalized().signed_distance(DVec3::new(3.0, 4.0, 2.0)),
+            2.0
+        );
     }
 }

@@ -66,8 +66,11 @@ pub struct SceneCounts {
     pub objects: usize,
     /// Distinct meshes.
     pub meshes: usize,
-    /// Triangles summed over all instances.
+    /// Triangles as loaded, summed over all instances: the file's own count,
+    /// including the degenerate triangles that meshes drop.
     pub triangles: usize,
+    /// Triangles kept and drawn (degenerate ones dropped), summed over all instances.
+    pub drawn_triangles: usize,
     /// Welded vertices summed over all instances.
     pub vertices: usize,
     /// Topology counts summed over distinct meshes.
@@ -104,7 +107,11 @@ impl Scene {
         if self.objects.is_empty() {
             return Bvh2::default();
         }
-        let boxes: Vec<obvhs::aabb::Aabb> = self.objects.iter().map(|o| to_obvhs(&o.world_bounds)).collect();
+        let boxes: Vec<obvhs::aabb::Aabb> = self
+            .objects
+            .iter()
+            .map(|o| to_obvhs(&o.world_bounds))
+            .collect();
         let mut params = obvhs::BvhBuildParams::medium_build();
         // One object per leaf: visibility traverses objects, and refit needs it.
         params.max_prims_per_leaf = 1;
@@ -175,7 +182,8 @@ impl Scene {
         };
         for o in &self.objects {
             let m = &self.graph.meshes()[o.mesh.0 as usize];
-            c.triangles += m.triangles().len();
+            c.triangles += m.triangles().len() + m.topology().degenerate_triangles;
+            c.drawn_triangles += m.triangles().len();
             c.vertices += m.positions().len();
         }
         for m in self.graph.meshes() {
@@ -355,7 +363,10 @@ mod tests {
         assert_eq!(s.objects().len(), 2);
         assert_eq!(s.counts().triangles, 2);
         assert_eq!(s.counts().meshes, 1);
-        assert_eq!(s.object(ObjectId(1)).world_bounds.min, Vec3::new(10.0, 1.0, -1.0));
+        assert_eq!(
+            s.object(ObjectId(1)).world_bounds.min,
+            Vec3::new(10.0, 1.0, -1.0)
+        );
         assert_eq!(s.bounds().max, Vec3::new(11.0, 1.0, 0.0));
     }
 
@@ -363,7 +374,10 @@ mod tests {
     fn cycles_are_errors_not_hangs() {
         let mut g = SceneGraph::new();
         let a = g.add_root(Node::default());
-        let b = g.add_node(Node { children: vec![a], ..Node::default() });
+        let b = g.add_node(Node {
+            children: vec![a],
+            ..Node::default()
+        });
         g.node_mut(a).unwrap().children.push(b);
         let e = Scene::new(g).unwrap_err();
         assert!(e.to_string().contains("cycle"), "{e}");
@@ -385,10 +399,17 @@ mod tests {
     fn mirrored_instances_keep_world_facing() {
         let mut g = SceneGraph::new();
         let m = g.add_mesh(tri_mesh()); // CCW seen from +y
-        g.add_instance("mirror", m, Transform::Matrix(DMat4::from_scale(DVec3::new(-1.0, 1.0, 1.0))));
+        g.add_instance(
+            "mirror",
+            m,
+            Transform::Matrix(DMat4::from_scale(DVec3::new(-1.0, 1.0, 1.0))),
+        );
         let s = Scene::new(g).unwrap();
         assert!(s.object(ObjectId(0)).mirrored);
-        let above = Light::Point { position: DVec3::new(-0.2, 3.0, -0.2), range: None };
+        let above = Light::Point {
+            position: DVec3::new(-0.2, 3.0, -0.2),
+            range: None,
+        };
         // The mirror image of an upward-facing triangle still faces up.
         assert!(faces_light(&s.world_triangle(ObjectId(0), 0), &above));
     }
@@ -400,12 +421,19 @@ mod tests {
         let n0 = g.add_instance("a", m, Transform::default());
         g.add_instance("b", m, Transform::translation(DVec3::new(5.0, 0.0, 0.0)));
         let mut s = Scene::new(g).unwrap();
-        s.set_node_transform(n0, Transform::translation(DVec3::new(0.0, 100.0, 0.0))).unwrap();
+        s.set_node_transform(n0, Transform::translation(DVec3::new(0.0, 100.0, 0.0)))
+            .unwrap();
         assert_eq!(s.bounds().max.y, 100.0);
         let root = s.object_bvh().nodes[0];
         assert_eq!(root.aabb().max.y, 100.0);
-        s.set_object_transform(ObjectId(1), DMat4::from_translation(DVec3::new(0.0, -7.0, 0.0))).unwrap();
+        s.set_object_transform(
+            ObjectId(1),
+            DMat4::from_translation(DVec3::new(0.0, -7.0, 0.0)),
+        )
+        .unwrap();
         assert_eq!(s.object_bvh().nodes[0].aabb().min.y, -7.0);
-        assert!(s.set_node_transform(n0, Transform::translation(DVec3::NAN)).is_err());
+        assert!(s
+            .set_node_transform(n0, Transform::translation(DVec3::NAN))
+            .is_err());
     }
 }

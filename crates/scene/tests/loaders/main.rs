@@ -17,7 +17,10 @@ pub fn shared_data() -> Option<PathBuf> {
     if root.is_dir() {
         Some(root)
     } else {
-        println!("note: {} is absent; skipping a test that needs the shared corpus", root.display());
+        println!(
+            "note: {} is absent; skipping a test that needs the shared corpus",
+            root.display()
+        );
         None
     }
 }
