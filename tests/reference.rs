@@ -1,49 +1,49 @@
 //! End-to-end tests of the ray-cast reference on analytic scenes.
 
 use glam::{DMat4, DVec3, Vec3};
+use scene::procedural::analytic;
 use scene::{Camera, Light, Mesh, ObjectId, Scene, SceneGraph, Transform};
 use shadowcull::mask::{compare, PixelClass};
-use shadowcull::reference::{reference_mask, EyeSurface, ReferenceOptions, TriangleBvh};
+use shadowcull::reference::{
+    reference_mask, EyeSurface, ReferenceMask, ReferenceOptions, TriangleBvh,
+};
 
 /// A closed box, CCW outward, 12 triangles.
 fn box_mesh(min: Vec3, max: Vec3) -> Mesh {
-    let c = |i: u32| {
-        Vec3::new(
-            if i & 1 != 0 { max.x } else { min.x },
-            if i & 2 != 0 { max.y } else { min.y },
-            if i & 4 != 0 { max.z } else { min.z },
-        )
-    };
-    let faces = [
-        [0, 4, 6, 2],
-        [1, 3, 7, 5],
-        [0, 1, 5, 4],
-        [2, 6, 7, 3],
-        [0, 2, 3, 1],
-        [4, 5, 7, 6],
-    ];
-    let pos: Vec<Vec3> = (0..8).map(c).collect();
-    let tris: Vec<[u32; 3]> = faces
-        .iter()
-        .flat_map(|f| [[f[0], f[1], f[2]], [f[0], f[2], f[3]]])
-        .collect();
-    Mesh::new("box", &pos, &tris).unwrap()
+    analytic::box_mesh("box", min, max).unwrap()
 }
 
 /// A horizontal quad at height `y`, half-size `h`, facing up or down.
 fn quad(y: f32, h: f32, up: bool) -> Mesh {
-    let p = [
-        Vec3::new(-h, y, -h),
-        Vec3::new(-h, y, h),
-        Vec3::new(h, y, h),
-        Vec3::new(h, y, -h),
-    ];
-    let t = if up {
-        [[0, 1, 2], [0, 2, 3]]
-    } else {
-        [[0, 2, 1], [0, 3, 2]]
-    };
-    Mesh::new("quad", &p, &t).unwrap()
+    analytic::horizontal_quad("quad", [-h, h], [-h, h], y, up).unwrap()
+}
+
+/// The view of [`test_scene`] most tests use.
+fn test_camera() -> Camera {
+    let eye = DVec3::new(2.0, 9.0, 12.0);
+    Camera::look_at(
+        eye,
+        DVec3::ZERO,
+        DVec3::Y,
+        50f64.to_radians(),
+        4.0 / 3.0,
+        0.05,
+    )
+    .unwrap()
+}
+
+/// A point light up and to the side of [`test_scene`].
+fn test_lamp() -> Light {
+    let position = DVec3::new(-4.0, 8.0, 3.0);
+    Light::Point {
+        position,
+        range: None,
+    }
+}
+
+/// The reference with default options.
+fn mask(bvh: &TriangleBvh, cam: &Camera, light: &Light, w: u32, h: u32) -> ReferenceMask {
+    reference_mask(bvh, cam, light, w, h, &ReferenceOptions::default(), None)
 }
 
 fn scene_of(meshes: Vec<Mesh>, root: Transform) -> Scene {
@@ -229,15 +229,7 @@ fn light_inside_a_closed_box_casts_nothing_by_default_and_everything_two_sided()
         0.1,
     )
     .unwrap();
-    let r = reference_mask(
-        &bvh,
-        &cam,
-        &light,
-        160,
-        120,
-        &ReferenceOptions::default(),
-        None,
-    );
+    let r = mask(&bvh, &cam, &light, 160, 120);
     assert_eq!(r.counts.classes.shadow, 0);
     assert!(r.counts.classes.lit > 1000);
     assert!(
@@ -276,10 +268,7 @@ fn test_scene(root: Transform) -> Scene {
 fn masks_do_not_depend_on_offset_or_scale() {
     let base_cam = (DVec3::new(2.0, 9.0, 12.0), DVec3::new(0.0, 0.5, 0.0));
     let lights = [
-        Light::Point {
-            position: DVec3::new(-4.0, 8.0, 3.0),
-            range: None,
-        },
+        test_lamp(),
         Light::Directional {
             direction: DVec3::new(0.4, -1.0, -0.3),
         },
@@ -307,7 +296,7 @@ fn masks_do_not_depend_on_offset_or_scale() {
             },
             other => other,
         };
-        reference_mask(&bvh, &cam, &l, 200, 150, &ReferenceOptions::default(), None)
+        mask(&bvh, &cam, &l, 200, 150)
     };
     for light in &lights {
         let base = mask_for(DVec3::ZERO, 1.0, light);
@@ -335,43 +324,14 @@ fn masks_do_not_depend_on_offset_or_scale() {
 fn deterministic_across_thread_counts() {
     let s = test_scene(Transform::default());
     let bvh = TriangleBvh::new(&s);
-    let cam = Camera::look_at(
-        DVec3::new(2.0, 9.0, 12.0),
-        DVec3::ZERO,
-        DVec3::Y,
-        50f64.to_radians(),
-        4.0 / 3.0,
-        0.05,
-    )
-    .unwrap();
-    let light = Light::Point {
-        position: DVec3::new(-4.0, 8.0, 3.0),
-        range: None,
-    };
-    let a = reference_mask(
-        &bvh,
-        &cam,
-        &light,
-        200,
-        150,
-        &ReferenceOptions::default(),
-        None,
-    );
+    let cam = test_camera();
+    let light = test_lamp();
+    let a = mask(&bvh, &cam, &light, 200, 150);
     let one = rayon::ThreadPoolBuilder::new()
         .num_threads(1)
         .build()
         .unwrap();
-    let b = one.install(|| {
-        reference_mask(
-            &bvh,
-            &cam,
-            &light,
-            200,
-            150,
-            &ReferenceOptions::default(),
-            None,
-        )
-    });
+    let b = one.install(|| mask(&bvh, &cam, &light, 200, 150));
     assert_eq!(a.mask, b.mask);
     assert_eq!(a.ambiguous, b.ambiguous);
     assert_eq!(a.primitive, b.primitive);
@@ -381,27 +341,11 @@ fn deterministic_across_thread_counts() {
 fn given_eye_surface_gives_the_same_mask() {
     let s = test_scene(Transform::default());
     let bvh = TriangleBvh::new(&s);
-    let cam = Camera::look_at(
-        DVec3::new(2.0, 9.0, 12.0),
-        DVec3::ZERO,
-        DVec3::Y,
-        50f64.to_radians(),
-        4.0 / 3.0,
-        0.05,
-    )
-    .unwrap();
+    let cam = test_camera();
     let light = Light::Directional {
         direction: DVec3::new(0.4, -1.0, -0.3),
     };
-    let a = reference_mask(
-        &bvh,
-        &cam,
-        &light,
-        200,
-        150,
-        &ReferenceOptions::default(),
-        None,
-    );
+    let a = mask(&bvh, &cam, &light, 200, 150);
     let b = reference_mask(
         &bvh,
         &cam,
@@ -422,43 +366,16 @@ fn given_eye_surface_gives_the_same_mask() {
 fn refit_after_moving_matches_a_rebuild() {
     let mut s = test_scene(Transform::default());
     let mut bvh = TriangleBvh::new(&s);
-    let cam = Camera::look_at(
-        DVec3::new(2.0, 9.0, 12.0),
-        DVec3::ZERO,
-        DVec3::Y,
-        50f64.to_radians(),
-        4.0 / 3.0,
-        0.05,
-    )
-    .unwrap();
-    let light = Light::Point {
-        position: DVec3::new(-4.0, 8.0, 3.0),
-        range: None,
-    };
-    let before = reference_mask(
-        &bvh,
-        &cam,
-        &light,
-        160,
-        120,
-        &ReferenceOptions::default(),
-        None,
-    );
+    let cam = test_camera();
+    let light = test_lamp();
+    let before = mask(&bvh, &cam, &light, 160, 120);
     s.set_object_transform(
         ObjectId(1),
         DMat4::from_translation(DVec3::new(3.0, 0.0, -2.0)),
     )
     .unwrap();
     bvh.refit(&s);
-    let refit = reference_mask(
-        &bvh,
-        &cam,
-        &light,
-        160,
-        120,
-        &ReferenceOptions::default(),
-        None,
-    );
+    let refit = mask(&bvh, &cam, &light, 160, 120);
     let rebuilt = reference_mask(
         &TriangleBvh::new(&s),
         &cam,
@@ -494,15 +411,7 @@ fn spot_cone_and_range_make_pixels_unlit() {
         apex_angle: 40f64.to_radians(),
         range: None,
     };
-    let r = reference_mask(
-        &bvh,
-        &cam,
-        &spot,
-        120,
-        120,
-        &ReferenceOptions::default(),
-        None,
-    );
+    let r = mask(&bvh, &cam, &spot, 120, 120);
     // Ground outside the cone's footprint (radius 8·tan 20° ≈ 2.9) is unlit.
     assert!(
         r.counts.classes.unlit > r.counts.classes.lit,
@@ -538,15 +447,7 @@ fn coplanar_casters_do_not_shadow_their_plane() {
         position: DVec3::new(1.0, 5.0, 0.0),
         range: None,
     };
-    let r = reference_mask(
-        &bvh,
-        &cam,
-        &light,
-        160,
-        120,
-        &ReferenceOptions::default(),
-        None,
-    );
+    let r = mask(&bvh, &cam, &light, 160, 120);
     assert_eq!(r.counts.classes.shadow, 0, "{:?}", r.counts);
     assert!(r.counts.classes.lit > 5000);
 }
@@ -555,29 +456,13 @@ fn coplanar_casters_do_not_shadow_their_plane() {
 fn ambiguous_pixels_lie_on_shadow_boundaries_under_grazing_light() {
     let s = test_scene(Transform::default());
     let bvh = TriangleBvh::new(&s);
-    let cam = Camera::look_at(
-        DVec3::new(2.0, 9.0, 12.0),
-        DVec3::ZERO,
-        DVec3::Y,
-        50f64.to_radians(),
-        4.0 / 3.0,
-        0.05,
-    )
-    .unwrap();
+    let cam = test_camera();
     // The sun 0.5° above the horizon: long shadows, grazing incidence on the ground.
     let e = 0.5f64.to_radians();
     let light = Light::Directional {
         direction: -DVec3::new(e.cos() * 0.6, e.sin(), e.cos() * 0.8),
     };
-    let r = reference_mask(
-        &bvh,
-        &cam,
-        &light,
-        200,
-        150,
-        &ReferenceOptions::default(),
-        None,
-    );
+    let r = mask(&bvh, &cam, &light, 200, 150);
     assert!(r.counts.classes.shadow > 300, "{:?}", r.counts);
     let (w, h) = (200i64, 150i64);
     for (i, &a) in r.ambiguous.iter().enumerate() {
@@ -627,15 +512,7 @@ fn a_point_exactly_on_a_shadow_boundary_is_ambiguous() {
         0.05,
     )
     .unwrap();
-    let r = reference_mask(
-        &bvh,
-        &cam,
-        &light,
-        101,
-        75,
-        &ReferenceOptions::default(),
-        None,
-    );
+    let r = mask(&bvh, &cam, &light, 101, 75);
     let centre = 37 * 101 + 50;
     assert!(
         r.ambiguous[centre],
