@@ -1,0 +1,326 @@
+//! The depth target: an f32 depth buffer in tile-major layout with per-tile
+//! hierarchical z (zmin, zmax over written pixels, background count) and an
+//! optional primitive-id target [Greene et al. 1993, "Hierarchical Z-buffer
+//! visibility"].
+//!
+//! Background (never written) pixels hold [`BACKGROUND`] (−1, below every
+//! legal depth), so the GREATER write test and the GEQUAL query test treat them
+//! as "no surface" without a branch; tile bounds ignore them.
+
+use crate::setup::Viewport;
+use crate::stats::RasterStats;
+use crate::{Error, Result, MAX_TARGET_SIZE};
+
+/// Depth value of a background (never written) pixel.
+pub const BACKGROUND: f32 = -1.0;
+
+/// Primitive id of a background pixel.
+pub const NO_ID: (u32, u32) = (u32::MAX, u32::MAX);
+
+/// Tile edge length in pixels.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub enum TileSize {
+    /// 4×4 tiles.
+    T4,
+    /// 8×8 tiles (the default).
+    #[default]
+    T8,
+    /// 16×16 tiles.
+    T16,
+}
+
+impl TileSize {
+    /// Edge length in pixels.
+    pub fn pixels(self) -> u32 {
+        1 << self.shift()
+    }
+
+    pub(crate) fn shift(self) -> u32 {
+        match self {
+            TileSize::T4 => 2,
+            TileSize::T8 => 3,
+            TileSize::T16 => 4,
+        }
+    }
+}
+
+/// Hierarchical-z bounds of one tile.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct TileBounds {
+    /// Smallest written depth (+∞ when none).
+    pub zmin: f32,
+    /// Largest written depth ([`BACKGROUND`] when none).
+    pub zmax: f32,
+    /// In-target pixels still background.
+    pub background: u32,
+}
+
+impl TileBounds {
+    /// Lower bound of every pixel's stored value, background included.
+    #[inline]
+    pub fn zmin_all(&self) -> f32 {
+        if self.background > 0 {
+            BACKGROUND
+        } else {
+            self.zmin
+        }
+    }
+}
+
+/// Address arithmetic of the tile-major layout.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Layout {
+    pub width: u32,
+    pub height: u32,
+    pub tiles_x: u32,
+    pub tiles_y: u32,
+    pub shift: u32,
+}
+
+impl Layout {
+    #[inline(always)]
+    pub fn tile_pixels(&self) -> usize {
+        1 << (2 * self.shift)
+    }
+
+    /// Index of tile `(tx, ty)`.
+    #[inline(always)]
+    pub fn tile_index(&self, tx: u32, ty: u32) -> usize {
+        (ty * self.tiles_x + tx) as usize
+    }
+
+    /// Index of pixel `(x, y)` in the tile-major buffers.
+    #[inline(always)]
+    pub fn pixel_index(&self, x: u32, y: u32) -> usize {
+        let t = self.tile_index(x >> self.shift, y >> self.shift);
+        let m = (1 << self.shift) - 1;
+        (t << (2 * self.shift)) + (((y & m) << self.shift) + (x & m)) as usize
+    }
+
+    /// Inclusive in-target pixel range of tile `(tx, ty)`.
+    #[inline(always)]
+    pub fn tile_rect(&self, tx: u32, ty: u32) -> (u32, u32, u32, u32) {
+        let s = 1 << self.shift;
+        let x0 = tx * s;
+        let y0 = ty * s;
+        (
+            x0,
+            (x0 + s).min(self.width) - 1,
+            y0,
+            (y0 + s).min(self.height) - 1,
+        )
+    }
+}
+
+/// A depth buffer with hierarchical z and an optional primitive-id buffer.
+///
+/// Reversed Z: depth 1 at the near plane, 0 at infinity; a draw writes where its
+/// depth is GREATER than the stored one (or equal with a smaller id when the id
+/// target is enabled); queries count GEQUAL samples.
+#[derive(Clone, Debug)]
+pub struct DepthTarget {
+    pub(crate) vp: Viewport,
+    pub(crate) layout: Layout,
+    pub(crate) depth: Vec<f32>,
+    pub(crate) ids: Option<Vec<u64>>,
+    pub(crate) tiles: Vec<TileBounds>,
+    pub(crate) stats: RasterStats,
+    pub(crate) threads: usize,
+}
+
+impl DepthTarget {
+    /// A cleared `width × height` target with the given tile size, with a primitive-id
+    /// target when `with_ids`.
+    ///
+    /// # Errors
+    /// [`Error::InvalidSize`] when a side is 0 or above [`MAX_TARGET_SIZE`].
+    pub fn new(width: u32, height: u32, tile: TileSize, with_ids: bool) -> Result<Self> {
+        if width == 0 || height == 0 || width > MAX_TARGET_SIZE || height > MAX_TARGET_SIZE {
+            return Err(Error::InvalidSize {
+                width,
+                height,
+                max: MAX_TARGET_SIZE,
+            });
+        }
+        let shift = tile.shift();
+        let s = 1u32 << shift;
+        let layout = Layout {
+            width,
+            height,
+            tiles_x: width.div_ceil(s),
+            tiles_y: height.div_ceil(s),
+            shift,
+        };
+        let n = (layout.tiles_x * layout.tiles_y) as usize;
+        let mut t = DepthTarget {
+            vp: Viewport::new(width, height),
+            layout,
+            depth: vec![BACKGROUND; n * layout.tile_pixels()],
+            ids: with_ids.then(|| vec![u64::MAX; n * layout.tile_pixels()]),
+            tiles: Vec::new(),
+            stats: RasterStats::default(),
+            threads: 0,
+        };
+        t.clear();
+        Ok(t)
+    }
+
+    /// Width in pixels.
+    pub fn width(&self) -> u32 {
+        self.layout.width
+    }
+
+    /// Height in pixels.
+    pub fn height(&self) -> u32 {
+        self.layout.height
+    }
+
+    /// Tile edge length in pixels.
+    pub fn tile_pixels(&self) -> u32 {
+        1 << self.layout.shift
+    }
+
+    /// Number of tiles horizontally and vertically.
+    pub fn tile_counts(&self) -> (u32, u32) {
+        (self.layout.tiles_x, self.layout.tiles_y)
+    }
+
+    /// Limits batch draws and queries to `threads` rayon workers (0 = rayon's pool size,
+    /// 1 = single-threaded). The output never depends on it.
+    pub fn set_threads(&mut self, threads: usize) {
+        self.threads = threads;
+    }
+
+    /// Resets every pixel to background (and every id to [`NO_ID`]).
+    pub fn clear(&mut self) {
+        self.depth.fill(BACKGROUND);
+        if let Some(ids) = &mut self.ids {
+            ids.fill(u64::MAX);
+        }
+        let l = self.layout;
+        self.tiles.clear();
+        for ty in 0..l.tiles_y {
+            for tx in 0..l.tiles_x {
+                let (x0, x1, y0, y1) = l.tile_rect(tx, ty);
+                self.tiles.push(TileBounds {
+                    zmin: f32::INFINITY,
+                    zmax: BACKGROUND,
+                    background: (x1 - x0 + 1) * (y1 - y0 + 1),
+                });
+            }
+        }
+    }
+
+    /// Depth at pixel `(x, y)` (row 0 at the top); `None` for background.
+    ///
+    /// # Panics
+    /// When `(x, y)` lies outside the target.
+    pub fn depth_at(&self, x: u32, y: u32) -> Option<f32> {
+        assert!(
+            x < self.width() && y < self.height(),
+            "pixel ({x}, {y}) outside the target"
+        );
+        let d = self.depth[self.layout.pixel_index(x, y)];
+        (d != BACKGROUND).then_some(d)
+    }
+
+    /// Primitive id `(object, triangle)` at pixel `(x, y)`; `None` for background or
+    /// when the target has no id buffer.
+    ///
+    /// # Panics
+    /// When `(x, y)` lies outside the target.
+    pub fn id_at(&self, x: u32, y: u32) -> Option<(u32, u32)> {
+        assert!(
+            x < self.width() && y < self.height(),
+            "pixel ({x}, {y}) outside the target"
+        );
+        let id = self.ids.as_ref()?[self.layout.pixel_index(x, y)];
+        (id != u64::MAX).then_some(((id >> 32) as u32, id as u32))
+    }
+
+    /// Depths in row-major order (row 0 at the top), [`BACKGROUND`] for background.
+    pub fn depth_rows(&self) -> Vec<f32> {
+        let (w, h) = (self.width(), self.height());
+        let mut out = Vec::with_capacity((w * h) as usize);
+        for y in 0..h {
+            for x in 0..w {
+                out.push(self.depth[self.layout.pixel_index(x, y)]);
+            }
+        }
+        out
+    }
+
+    /// Hierarchical-z bounds `(zmin, zmax)` of the written pixels of tile `(tx, ty)`;
+    /// `None` when all its pixels are background.
+    ///
+    /// # Panics
+    /// When the tile lies outside the target.
+    pub fn tile_bounds(&self, tx: u32, ty: u32) -> Option<(f32, f32)> {
+        assert!(tx < self.layout.tiles_x && ty < self.layout.tiles_y);
+        let t = self.tiles[self.layout.tile_index(tx, ty)];
+        (t.zmax != BACKGROUND).then_some((t.zmin, t.zmax))
+    }
+
+    /// Number of background pixels in tile `(tx, ty)`.
+    ///
+    /// # Panics
+    /// When the tile lies outside the target.
+    pub fn tile_background(&self, tx: u32, ty: u32) -> u32 {
+        assert!(tx < self.layout.tiles_x && ty < self.layout.tiles_y);
+        self.tiles[self.layout.tile_index(tx, ty)].background
+    }
+
+    /// Counters accumulated since the last call; resets them.
+    pub fn take_stats(&mut self) -> RasterStats {
+        std::mem::take(&mut self.stats)
+    }
+
+    /// Counters accumulated since the last [`DepthTarget::take_stats`].
+    pub fn stats(&self) -> RasterStats {
+        self.stats
+    }
+}
+
+/// Mutable access to the tile rows `ty0..ty1` of a target (one parallel bin).
+pub(crate) struct Band<'a> {
+    pub layout: Layout,
+    pub ty0: u32,
+    pub ty1: u32,
+    pub depth: &'a mut [f32],
+    pub ids: Option<&'a mut [u64]>,
+    pub tiles: &'a mut [TileBounds],
+}
+
+impl Band<'_> {
+    /// Offset of this band's first tile in the whole target.
+    #[inline(always)]
+    pub fn tile_base(&self) -> usize {
+        (self.ty0 * self.layout.tiles_x) as usize
+    }
+
+    /// Recomputes the bounds of tile `(tx, ty)` from its pixels.
+    pub fn refresh_tile(&mut self, tx: u32, ty: u32) {
+        let l = self.layout;
+        let t = l.tile_index(tx, ty) - self.tile_base();
+        let (x0, x1, y0, y1) = l.tile_rect(tx, ty);
+        let base = t << (2 * l.shift);
+        let (mut zmin, mut zmax, mut bg) = (f32::INFINITY, BACKGROUND, 0u32);
+        for y in 0..(y1 - y0 + 1) {
+            let row = base + (y << l.shift) as usize;
+            for &d in &self.depth[row..row + (x1 - x0 + 1) as usize] {
+                if d == BACKGROUND {
+                    bg += 1;
+                } else {
+                    zmin = zmin.min(d);
+                    zmax = zmax.max(d);
+                }
+            }
+        }
+        self.tiles[t] = TileBounds {
+            zmin,
+            zmax,
+            background: bg,
+        };
+    }
+}

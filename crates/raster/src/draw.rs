@@ -1,0 +1,397 @@
+//! Drawing occluders into a [`DepthTarget`]: transform, setup, fan, traversal;
+//! batches are binned into bands of tile rows and rasterized in parallel
+//! (rayon), each band processing its triangles in submission order, so the
+//! output is identical to the single-threaded path.
+
+use crate::clip::MAX_CLIPPED_VERTICES;
+use crate::coverage::{pixel_bounds, Coverage};
+use crate::depth_target::{Band, DepthTarget};
+use crate::dispatch::draw_item;
+use crate::edge::{for_each_fan_tri, Tri};
+use crate::hiz::{hidden, project, Projected};
+use crate::setup::SnappedVertex;
+use crate::setup::{setup_into, Facing, Setup, VertexCache, Viewport, CACHE_VERTICES};
+use crate::stats::RasterStats;
+use crate::{Error, Result};
+use glam::{Mat4, Vec3, Vec4};
+
+/// Triangles of an axis-aligned box in the box-city order (README of the bench
+/// data): corner `c = (x?1:0) | (y?2:0) | (z?4:0)`, faces −X, +X, −Y, +Y, −Z, +Z
+/// as CCW quads seen from outside, each split into (a, b, c), (a, c, d).
+pub const AABB_TRIANGLES: [[u32; 3]; 12] = [
+    [0, 4, 6],
+    [0, 6, 2],
+    [1, 3, 7],
+    [1, 7, 5],
+    [0, 1, 5],
+    [0, 5, 4],
+    [2, 6, 7],
+    [2, 7, 3],
+    [0, 2, 3],
+    [0, 3, 1],
+    [4, 5, 7],
+    [4, 7, 6],
+];
+
+/// The eight corners of the box `(min, max)` as points (w = 1), indexed as in
+/// [`AABB_TRIANGLES`].
+pub fn aabb_corners(min: Vec3, max: Vec3) -> [Vec4; 8] {
+    std::array::from_fn(|c| {
+        Vec4::new(
+            if c & 1 != 0 { max.x } else { min.x },
+            if c & 2 != 0 { max.y } else { min.y },
+            if c & 4 != 0 { max.z } else { min.z },
+            1.0,
+        )
+    })
+}
+
+/// One mesh to draw: local positions (w = 0 for points at infinity), triangles,
+/// the `clip_from_local` matrix and the object id written to the id target.
+#[derive(Clone, Copy, Debug)]
+pub struct DrawItem<'a> {
+    /// `clip_from_local` (reversed Z, see the crate conventions).
+    pub clip_from_local: Mat4,
+    /// Local-space positions.
+    pub positions: &'a [Vec4],
+    /// Vertex indices of each triangle; triangle `k` gets id `(object, k)`.
+    pub triangles: &'a [[u32; 3]],
+    /// Object id.
+    pub object: u32,
+}
+
+/// Clip-space vertices of triangle `k` of `item`.
+#[inline(always)]
+pub(crate) fn clip_vertices(item: &DrawItem, k: usize) -> Result<[Vec4; 3]> {
+    let t = item.triangles[k];
+    let mut out = [Vec4::ZERO; 3];
+    for (o, &i) in out.iter_mut().zip(&t) {
+        let p = item
+            .positions
+            .get(i as usize)
+            .ok_or(Error::IndexOutOfRange {
+                triangle: k,
+                index: i,
+                len: item.positions.len(),
+            })?;
+        *o = item.clip_from_local * *p;
+    }
+    Ok(out)
+}
+
+fn check_indices(item: &DrawItem) -> Result<()> {
+    for (k, t) in item.triangles.iter().enumerate() {
+        for &i in t {
+            if i as usize >= item.positions.len() {
+                return Err(Error::IndexOutOfRange {
+                    triangle: k,
+                    index: i,
+                    len: item.positions.len(),
+                });
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Sets up every triangle of `item`, calling `f(tri, id)` for each fan triangle.
+/// `f` returns true to stop early (an any-samples query that passed).
+#[inline(always)]
+pub(crate) fn setup_item(
+    vp: &Viewport,
+    item: &DrawItem,
+    cov: Coverage,
+    st: &mut RasterStats,
+    mut f: impl FnMut(&Tri, u64) -> bool,
+) -> Result<()> {
+    let mut s = Setup {
+        facing: None,
+        clipped: false,
+        vertices: [SnappedVertex::default(); MAX_CLIPPED_VERTICES],
+        len: 0,
+    };
+    // Small meshes (boxes): transform, clip-test and snap each vertex once, and draw
+    // the front-facing triangles first: the result does not depend on the order
+    // within a draw (GREATER keeps the maximum; ties go to the smaller id), but
+    // back faces drawn after the front ones mostly fail early.
+    let cache = (item.positions.len() <= CACHE_VERTICES)
+        .then(|| VertexCache::new(&item.clip_from_local, item.positions, vp));
+    let passes = if cache.is_some() { 2 } else { 1 };
+    for pass in 0..passes {
+        for k in 0..item.triangles.len() {
+            match &cache {
+                Some(c) => {
+                    let t = item.triangles[k];
+                    if let Some(&i) = t.iter().find(|&&i| i as usize >= item.positions.len()) {
+                        return Err(Error::IndexOutOfRange {
+                            triangle: k,
+                            index: i,
+                            len: item.positions.len(),
+                        });
+                    }
+                    let front = c.facing(t) == Some(Facing::Front);
+                    if front != (pass == 0) {
+                        continue;
+                    }
+                    c.setup(t, vp, &mut s);
+                }
+                None => setup_into(clip_vertices(item, k)?, vp, &mut s),
+            }
+            st.triangles_in += 1;
+            if s.clipped {
+                st.triangles_clipped += 1;
+            }
+            let id = (u64::from(item.object) << 32) | k as u64;
+            let mut any = false;
+            let mut stop = false;
+            for_each_fan_tri(s.polygon(), |t| {
+                if !stop && pixel_bounds(t, cov, vp.width, vp.height).is_some() {
+                    any = true;
+                    stop = f(t, id);
+                }
+            });
+            if !any {
+                st.triangles_culled += 1;
+            }
+            if stop {
+                return Ok(());
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Smallest target (pixels) for which batches are binned and run in parallel.
+const PARALLEL_MIN_PIXELS: u64 = 256 * 256;
+
+impl DepthTarget {
+    /// Whether the whole mesh can be skipped in tile rows `ty0..ty1` (counted in `st`).
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn mesh_hidden(
+        &self,
+        item: &DrawItem,
+        p: &Projected,
+        ty0: u32,
+        ty1: u32,
+        st: &mut RasterStats,
+    ) -> Result<bool> {
+        let skip = match p {
+            Projected::Unknown => false,
+            Projected::Offscreen => true,
+            Projected::Bounds(b) => {
+                let l = &self.layout;
+                let base = (ty0 * l.tiles_x) as usize;
+                hidden(l, &self.tiles[base..], ty0, ty1, b)
+            }
+        };
+        if skip {
+            check_indices(item)?;
+            let n = item.triangles.len() as u64;
+            st.triangles_in += n;
+            st.triangles_culled += n;
+            st.meshes_rejected_hiz += 1;
+        }
+        Ok(skip)
+    }
+
+    /// Draws the triangles of one mesh with the GREATER depth test (ties to the
+    /// smaller id when the id target is enabled).
+    ///
+    /// # Errors
+    /// [`Error::IndexOutOfRange`] when a triangle names a missing vertex (triangles
+    /// before it are drawn).
+    pub fn draw(&mut self, item: &DrawItem, cov: Coverage) -> Result<()> {
+        let vp = self.vp;
+        let mut st = RasterStats::default();
+        if self.mesh_hidden(
+            item,
+            &project(&item.clip_from_local, item.positions, vp.width, vp.height),
+            0,
+            self.layout.tiles_y,
+            &mut st,
+        )? {
+            self.stats.add(&st);
+            return Ok(());
+        }
+        let mut band = Band {
+            layout: self.layout,
+            ty0: 0,
+            ty1: self.layout.tiles_y,
+            depth: &mut self.depth,
+            ids: self.ids.as_deref_mut(),
+            tiles: &mut self.tiles,
+        };
+        let mut st2 = RasterStats::default();
+        let r = draw_item(&vp, &mut band, item, cov, &mut st, &mut st2);
+        st.add(&st2);
+        self.stats.add(&st);
+        r
+    }
+
+    /// Draws the 12 triangles of the box `(min, max)` ([`AABB_TRIANGLES`]) as `object`.
+    pub fn draw_aabb(
+        &mut self,
+        clip_from_local: Mat4,
+        min: Vec3,
+        max: Vec3,
+        object: u32,
+        cov: Coverage,
+    ) {
+        let corners = aabb_corners(min, max);
+        let item = DrawItem {
+            clip_from_local,
+            positions: &corners,
+            triangles: &AABB_TRIANGLES,
+            object,
+        };
+        self.draw(&item, cov).expect("box indices are in range");
+    }
+
+    /// Draws many meshes in order; the result equals drawing them one by one with
+    /// [`DepthTarget::draw`]. Large targets are split into bands of tile rows that are
+    /// rasterized in parallel (see [`DepthTarget::set_threads`]).
+    ///
+    /// # Errors
+    /// [`Error::IndexOutOfRange`] as [`DepthTarget::draw`]; then nothing is drawn.
+    pub fn draw_batch(&mut self, items: &[DrawItem], cov: Coverage) -> Result<()> {
+        let threads = self.effective_threads();
+        let pixels = u64::from(self.width()) * u64::from(self.height());
+        for it in items {
+            check_indices(it)?;
+        }
+        if threads <= 1 || pixels < PARALLEL_MIN_PIXELS {
+            for it in items {
+                self.draw(it, cov)?;
+            }
+            return Ok(());
+        }
+        self.draw_batch_parallel(items, cov, threads)
+    }
+
+    fn effective_threads(&self) -> usize {
+        #[cfg(feature = "parallel")]
+        {
+            if self.threads == 0 {
+                rayon::current_num_threads()
+            } else {
+                self.threads
+            }
+        }
+        #[cfg(not(feature = "parallel"))]
+        {
+            1
+        }
+    }
+
+    #[cfg(not(feature = "parallel"))]
+    fn draw_batch_parallel(
+        &mut self,
+        items: &[DrawItem],
+        cov: Coverage,
+        _threads: usize,
+    ) -> Result<()> {
+        for it in items {
+            self.draw(it, cov)?;
+        }
+        Ok(())
+    }
+
+    #[cfg(feature = "parallel")]
+    fn draw_batch_parallel(
+        &mut self,
+        items: &[DrawItem],
+        cov: Coverage,
+        threads: usize,
+    ) -> Result<()> {
+        use rayon::prelude::*;
+        let vp = self.vp;
+        let l = self.layout;
+        for it in items {
+            check_indices(it)?;
+        }
+        // Screen bounds of every item (in parallel, order kept).
+        let projected: Vec<Projected> = items
+            .par_iter()
+            .map(|it| project(&it.clip_from_local, it.positions, vp.width, vp.height))
+            .collect();
+        // Bands of tile rows, several per thread for balance; each band sets up and
+        // draws, in submission order, the items whose bounds reach it.
+        let bands = (threads * 4).min(l.tiles_y as usize).max(1) as u32;
+        let rows_per = l.tiles_y.div_ceil(bands);
+        let tile_px = l.tile_pixels();
+        let band_tiles = (rows_per * l.tiles_x) as usize;
+        let ids_chunks: Vec<Option<&mut [u64]>> = match self.ids.as_deref_mut() {
+            Some(ids) => ids.chunks_mut(band_tiles * tile_px).map(Some).collect(),
+            None => (0..l.tiles_y.div_ceil(rows_per)).map(|_| None).collect(),
+        };
+        // Per band: traversal counters and, per item set up there, its setup counters
+        // (triangles clipped, culled); the first band that set an item up reports them.
+        type BandOut = (RasterStats, Vec<(u32, u32, u32)>);
+        let outs: Vec<BandOut> = self
+            .depth
+            .par_chunks_mut(band_tiles * tile_px)
+            .zip(self.tiles.par_chunks_mut(band_tiles))
+            .zip(ids_chunks.into_par_iter())
+            .enumerate()
+            .map(|(b, ((depth, tiles), ids))| {
+                let ty0 = b as u32 * rows_per;
+                let ty1 = (ty0 + rows_per).min(l.tiles_y);
+                let mut band = Band {
+                    layout: l,
+                    ty0,
+                    ty1,
+                    depth,
+                    ids,
+                    tiles,
+                };
+                let mut st = RasterStats::default();
+                let mut setups = Vec::new();
+                for (k, (it, p)) in items.iter().zip(&projected).enumerate() {
+                    match p {
+                        Projected::Offscreen => continue,
+                        Projected::Bounds(sb) => {
+                            if (sb.y1 >> l.shift) < ty0 || (sb.y0 >> l.shift) >= ty1 {
+                                continue;
+                            }
+                            if hidden(&l, band.tiles, ty0, ty1, sb) {
+                                continue;
+                            }
+                        }
+                        Projected::Unknown => {}
+                    }
+                    let mut sst = RasterStats::default();
+                    // Indices were checked above.
+                    let _ = draw_item(&vp, &mut band, it, cov, &mut sst, &mut st);
+                    setups.push((
+                        k as u32,
+                        sst.triangles_clipped as u32,
+                        sst.triangles_culled as u32,
+                    ));
+                }
+                (st, setups)
+            })
+            .collect();
+        let mut seen = vec![false; items.len()];
+        for (st, setups) in &outs {
+            self.stats.add(st);
+            for &(k, clipped, culled) in setups {
+                if !std::mem::replace(&mut seen[k as usize], true) {
+                    self.stats.triangles_clipped += u64::from(clipped);
+                    self.stats.triangles_culled += u64::from(culled);
+                }
+            }
+        }
+        // Items no band set up: off screen or hidden wherever they reach.
+        for (it, seen) in items.iter().zip(&seen) {
+            if !seen {
+                self.stats.triangles_culled += it.triangles.len() as u64;
+                self.stats.meshes_rejected_hiz += 1;
+            }
+        }
+        self.stats.triangles_in += items
+            .iter()
+            .map(|it| it.triangles.len() as u64)
+            .sum::<u64>();
+        Ok(())
+    }
+}

@@ -1,0 +1,39 @@
+//! The crate's one error type.
+
+/// Errors of the rasterizer's public API.
+#[derive(Debug, thiserror::Error, Clone, PartialEq, Eq)]
+pub enum Error {
+    /// A target was created with a zero or too large size. Use a width and
+    /// height in `1..=`[`crate::MAX_TARGET_SIZE`].
+    #[error("invalid target size {width}x{height}: each side must lie in 1..={max}")]
+    InvalidSize {
+        /// Requested width in pixels.
+        width: u32,
+        /// Requested height in pixels.
+        height: u32,
+        /// The largest allowed side.
+        max: u32,
+    },
+    /// A triangle index names a vertex past the end of the position slice.
+    /// Fix the index buffer or pass the matching positions.
+    #[error("triangle {triangle} names vertex {index}, but only {len} positions were given")]
+    IndexOutOfRange {
+        /// Triangle number within the draw or query.
+        triangle: usize,
+        /// The offending vertex index.
+        index: u32,
+        /// Number of positions passed.
+        len: usize,
+    },
+    /// A receiver target does not have the size of the depth target it is used with.
+    #[error("receiver target is {got:?}, depth target is {expected:?}")]
+    SizeMismatch {
+        /// (width, height) of the depth target.
+        expected: (u32, u32),
+        /// (width, height) of the receiver target.
+        got: (u32, u32),
+    },
+}
+
+/// Result with the crate's [`Error`].
+pub type Result<T> = std::result::Result<T, Error>;

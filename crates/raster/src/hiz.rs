@@ -1,0 +1,141 @@
+//! Whole-mesh hierarchical-z culling [Greene et al. 1993]: a mesh whose vertices
+//! all lie in front of the near plane covers only pixels inside the bounding
+//! rectangle of their projections, at depths no nearer than the nearest vertex
+//! (depth along a triangle is a convex combination of its vertex depths). When
+//! every tile under that rectangle already holds only strictly nearer depths, no
+//! sample of the mesh can pass GREATER or GEQUAL, so it is skipped without setup.
+
+use crate::coverage::f32_up;
+use crate::depth_target::{Layout, TileBounds};
+use glam::{Mat4, Vec4};
+
+/// Pixel margin added around the projected rectangle: covers snapping (1/512 px),
+/// outer-conservative coverage (1 px) and rounding, with room to spare.
+const MARGIN_PX: f64 = 2.0;
+
+/// Screen rectangle (inclusive pixel range, clamped) and nearest depth of a mesh.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct ScreenBounds {
+    pub x0: u32,
+    pub x1: u32,
+    pub y0: u32,
+    pub y1: u32,
+    /// At least as near as every depth the mesh can produce.
+    pub zmax: f32,
+}
+
+/// Outcome of projecting a mesh's vertices.
+#[derive(Clone, Copy, Debug)]
+pub(crate) enum Projected {
+    /// Some vertex is not strictly in front of the near plane: no shortcut.
+    Unknown,
+    /// The mesh cannot cover any pixel of the target.
+    Offscreen,
+    /// Bounds of what it can cover.
+    Bounds(ScreenBounds),
+}
+
+/// Projects `positions` with `clip_from_local` exactly as setup does (f32 product,
+/// f64 division).
+pub(crate) fn project(m: &Mat4, positions: &[Vec4], width: u32, height: u32) -> Projected {
+    project_iter(positions.iter().map(|p| *m * *p), width, height)
+}
+
+/// [`project`] of clip-space points.
+pub(crate) fn project_clip(clip: &[Vec4], width: u32, height: u32) -> Projected {
+    project_iter(clip.iter().copied(), width, height)
+}
+
+#[inline(always)]
+fn project_iter(clip: impl Iterator<Item = Vec4>, width: u32, height: u32) -> Projected {
+    let mut count = 0usize;
+    let (mut xmin, mut xmax) = (f64::INFINITY, f64::NEG_INFINITY);
+    let (mut ymin, mut ymax) = (f64::INFINITY, f64::NEG_INFINITY);
+    let mut zmax: f64 = 0.0;
+    let mut unknown = false;
+    // Bit k set: every vertex so far is strictly outside frustum plane k.
+    let mut all_out = 0x3fu32;
+    // Side planes pushed out by the margin, so that snapping and outer-conservative
+    // coverage at the viewport border cannot matter.
+    let gx = 1.0 + 2.0 * MARGIN_PX / width as f64;
+    let gy = 1.0 + 2.0 * MARGIN_PX / height as f64;
+    for c in clip {
+        count += 1;
+        let (x, y, z, w) = (c.x as f64, c.y as f64, c.z as f64, c.w as f64);
+        let out = u32::from(w - z < 0.0)
+            | u32::from(z < 0.0) << 1
+            | u32::from(gx * w + x < 0.0) << 2
+            | u32::from(gx * w - x < 0.0) << 3
+            | u32::from(gy * w + y < 0.0) << 4
+            | u32::from(gy * w - y < 0.0) << 5;
+        all_out &= out;
+        // Strictly inside near and far planes, w clearly positive.
+        if unknown || w.is_nan() || w <= 0.0 || z > w * (1.0 - 1e-6) || z < 0.0 {
+            unknown = true;
+            continue;
+        }
+        // One division; the product differs from x / w by at most an ulp (covered
+        // by the margins).
+        let iw = 1.0 / w;
+        let (sx, sy) = (x * iw, y * iw);
+        xmin = xmin.min(sx);
+        xmax = xmax.max(sx);
+        ymin = ymin.min(sy);
+        ymax = ymax.max(sy);
+        zmax = zmax.max(z * iw);
+    }
+    // All vertices outside one frustum plane: so is their convex hull (homogeneous
+    // clipping would remove every triangle).
+    if count == 0 || all_out != 0 {
+        return Projected::Offscreen;
+    }
+    if unknown {
+        return Projected::Unknown;
+    }
+    let (w, h) = (width as f64, height as f64);
+    let px0 = ((xmin + 1.0) * 0.5 * w - MARGIN_PX).floor();
+    let px1 = ((xmax + 1.0) * 0.5 * w + MARGIN_PX).floor();
+    let py0 = ((1.0 - ymax) * 0.5 * h - MARGIN_PX).floor();
+    let py1 = ((1.0 - ymin) * 0.5 * h + MARGIN_PX).floor();
+    if !(px0.is_finite() && px1.is_finite() && py0.is_finite() && py1.is_finite()) {
+        return Projected::Unknown;
+    }
+    if px1 < 0.0 || py1 < 0.0 || px0 > w - 1.0 || py0 > h - 1.0 {
+        return Projected::Offscreen;
+    }
+    Projected::Bounds(ScreenBounds {
+        x0: px0.max(0.0) as u32,
+        x1: px1.min(w - 1.0) as u32,
+        y0: py0.max(0.0) as u32,
+        y1: py1.min(h - 1.0) as u32,
+        zmax: f32_up(zmax * (1.0 + 1e-12)),
+        // (1e-12 ≫ the few f64 ulps by which setup's z / w can differ.)
+    })
+}
+
+/// Whether every tile of the tile rows `ty0..ty1` under `b` holds only depths
+/// strictly nearer than `b.zmax` (background counts as farthest). `tiles` holds the
+/// bounds of those rows, starting at row `ty0`.
+pub(crate) fn hidden(
+    l: &Layout,
+    tiles: &[TileBounds],
+    ty0: u32,
+    ty1: u32,
+    b: &ScreenBounds,
+) -> bool {
+    let s = l.shift;
+    let (tx0, tx1) = (b.x0 >> s, b.x1 >> s);
+    let (r0, r1) = ((b.y0 >> s).max(ty0), (b.y1 >> s).min(ty1.saturating_sub(1)));
+    for ty in r0..r1 + 1 {
+        if ty >= ty1 {
+            break;
+        }
+        let row = ((ty - ty0) * l.tiles_x) as usize;
+        for t in &tiles[row + tx0 as usize..=row + tx1 as usize] {
+            if b.zmax >= t.zmin_all() {
+                return false;
+            }
+        }
+    }
+    true
+}

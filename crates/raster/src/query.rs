@@ -1,0 +1,313 @@
+//! Occlusion queries with GPU semantics: count the samples of some geometry that
+//! pass GEQUAL against the current depth, without writing it [GL
+//! `SAMPLES_PASSED` / `ANY_SAMPLES_PASSED`; Steiner §2.5].
+//!
+//! An AABB query first tests the box against the view's apex region — in clip
+//! space `{z ≥ w, |x| ≤ w, |y| ≤ w}`: for a perspective view conv(centre of
+//! projection, near rectangle), for an orthographic one the half-infinite prism
+//! over the near rectangle toward the light — widened by [`APEX_EPS`]; a box
+//! meeting it is [`VISIBLE`] without rasterizing. Every other box has its 12
+//! triangles (all faces, no culling) clipped and rasterized as usual.
+
+use crate::coverage::Coverage;
+use crate::depth_target::DepthTarget;
+use crate::dispatch::query_item;
+use crate::draw::{aabb_corners, DrawItem, AABB_TRIANGLES};
+use crate::hiz::project_clip;
+use crate::receivers::ReceiverTarget;
+use crate::stats::RasterStats;
+use crate::traverse::QueryView;
+use crate::{Error, Result};
+use glam::{DMat4, DVec4, Mat4, Vec3};
+
+/// Query result meaning "visible without counting" (apex region).
+pub const VISIBLE: u32 = u32::MAX;
+
+/// Relative widening of the apex-region planes, scaled by the box's clip-space
+/// magnitude `max(|x| + |y| + |z| + |w|)` over its corners: covers the f32
+/// rounding of `clip_from_local` (2⁻²⁴ per entry) with a wide margin.
+pub const APEX_EPS: f64 = 1.0 / 65536.0;
+
+/// What a query returns.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub enum QueryMode {
+    /// The number of passing samples (GL `SAMPLES_PASSED`), saturating below [`VISIBLE`].
+    #[default]
+    Count,
+    /// 1 at the first passing sample, else 0 (GL `ANY_SAMPLES_PASSED`).
+    Any,
+}
+
+/// Options of a query.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct QueryOptions {
+    /// Coverage of the query geometry (outer-conservative at nearest depth for casters).
+    pub coverage: Coverage,
+    /// Count or any-samples.
+    pub mode: QueryMode,
+}
+
+fn check_receivers(t: &DepthTarget, r: Option<&ReceiverTarget>) -> Result<()> {
+    match r {
+        Some(r) if r.size() != (t.width(), t.height()) || r.depth.len() != t.depth.len() => {
+            Err(Error::SizeMismatch {
+                expected: (t.width(), t.height()),
+                got: r.size(),
+            })
+        }
+        _ => Ok(()),
+    }
+}
+
+impl DepthTarget {
+    pub(crate) fn query_view<'a>(&'a self, receivers: Option<&'a ReceiverTarget>) -> QueryView<'a> {
+        QueryView {
+            layout: self.layout,
+            depth: &self.depth,
+            tiles: &self.tiles,
+            receivers: receivers.map(|r| r.depth.as_slice()),
+        }
+    }
+
+    pub(crate) fn query_item(
+        &self,
+        item: &DrawItem,
+        opts: &QueryOptions,
+        receivers: Option<&ReceiverTarget>,
+        st: &mut RasterStats,
+    ) -> Result<u32> {
+        let view = self.query_view(receivers);
+        let any = opts.mode == QueryMode::Any;
+        let mut st2 = RasterStats::default();
+        let count = query_item(&self.vp, &view, item, opts.coverage, any, st, &mut st2)?;
+        st.add(&st2);
+        st.queries += 1;
+        Ok(count.min(u64::from(VISIBLE - 1)) as u32)
+    }
+
+    /// Counts the samples of a mesh passing GEQUAL against the current depth (no
+    /// writes, no face culling), restricted to marked receiver pixels at or nearer
+    /// than the receiver depth when `receivers` is given.
+    ///
+    /// # Errors
+    /// [`Error::IndexOutOfRange`] for a bad triangle index, [`Error::SizeMismatch`]
+    /// when `receivers` belongs to another size.
+    pub fn query(
+        &mut self,
+        item: &DrawItem,
+        opts: &QueryOptions,
+        receivers: Option<&ReceiverTarget>,
+    ) -> Result<u32> {
+        check_receivers(self, receivers)?;
+        let mut st = RasterStats::default();
+        let r = self.query_item(item, opts, receivers, &mut st);
+        self.stats.add(&st);
+        r
+    }
+
+    /// Queries the box `(min, max)` in local space: [`VISIBLE`] when it meets the apex
+    /// region, else the count (or any-samples flag) of its 12 triangles.
+    ///
+    /// # Errors
+    /// [`Error::SizeMismatch`] when `receivers` belongs to another size.
+    pub fn query_aabb(
+        &mut self,
+        clip_from_local: Mat4,
+        min: Vec3,
+        max: Vec3,
+        opts: &QueryOptions,
+        receivers: Option<&ReceiverTarget>,
+    ) -> Result<u32> {
+        check_receivers(self, receivers)?;
+        let mut st = RasterStats::default();
+        let r = self.query_aabb_inner(clip_from_local, min, max, opts, receivers, &mut st);
+        self.stats.add(&st);
+        r
+    }
+
+    pub(crate) fn query_aabb_inner(
+        &self,
+        clip_from_local: Mat4,
+        min: Vec3,
+        max: Vec3,
+        opts: &QueryOptions,
+        receivers: Option<&ReceiverTarget>,
+        st: &mut RasterStats,
+    ) -> Result<u32> {
+        let corners = aabb_corners(min, max);
+        let clip = corners.map(|p| clip_from_local * p);
+        // Most boxes lie wholly beyond the near plane, with twice the widening of the
+        // exact test to spare (the f32 corners differ from its f64 ones by ~2⁻²⁴ of
+        // the scale): [`meets_apex_region`] would reject them at its first plane.
+        let scale = clip
+            .iter()
+            .map(|c| (c.x.abs() + c.y.abs() + c.z.abs() + c.w.abs()) as f64)
+            .fold(0.0, f64::max);
+        let delta = 2.0 * APEX_EPS * scale;
+        let beyond_near = clip
+            .iter()
+            .all(|c| (c.z as f64) - (c.w as f64) + delta < 0.0);
+        if !beyond_near && meets_apex_region(&clip_from_local, min, max) {
+            st.queries += 1;
+            st.queries_apex += 1;
+            return Ok(VISIBLE);
+        }
+        let item = DrawItem {
+            clip_from_local,
+            positions: &corners,
+            triangles: &AABB_TRIANGLES,
+            object: 0,
+        };
+        let p = project_clip(&clip, self.width(), self.height());
+        if self.mesh_hidden(&item, &p, 0, self.layout.tiles_y, st)? {
+            st.queries += 1;
+            return Ok(0);
+        }
+        self.query_item(&item, opts, receivers, st)
+    }
+
+    /// Queries many boxes against the current depth, in parallel when threads allow;
+    /// results in input order, identical to one-by-one [`DepthTarget::query_aabb`].
+    ///
+    /// # Errors
+    /// [`Error::SizeMismatch`] when `receivers` belongs to another size.
+    pub fn query_aabbs(
+        &mut self,
+        clip_from_local: Mat4,
+        boxes: &[(Vec3, Vec3)],
+        opts: &QueryOptions,
+        receivers: Option<&ReceiverTarget>,
+        out: &mut Vec<u32>,
+    ) -> Result<()> {
+        check_receivers(self, receivers)?;
+        out.clear();
+        #[cfg(feature = "parallel")]
+        {
+            let threads = if self.threads == 0 {
+                rayon::current_num_threads()
+            } else {
+                self.threads
+            };
+            if threads > 1 && boxes.len() > 64 {
+                use rayon::prelude::*;
+                let this = &*self;
+                let chunk = boxes.len().div_ceil(threads * 8).max(1);
+                let parts: Vec<(Vec<u32>, RasterStats)> = boxes
+                    .par_chunks(chunk)
+                    .map(|bs| {
+                        let mut st = RasterStats::default();
+                        let v = bs
+                            .iter()
+                            .map(|&(a, b)| {
+                                this.query_aabb_inner(
+                                    clip_from_local,
+                                    a,
+                                    b,
+                                    opts,
+                                    receivers,
+                                    &mut st,
+                                )
+                                .expect("box indices are in range")
+                            })
+                            .collect();
+                        (v, st)
+                    })
+                    .collect();
+                for (v, st) in parts {
+                    out.extend(v);
+                    self.stats.add(&st);
+                }
+                return Ok(());
+            }
+        }
+        let mut st = RasterStats::default();
+        for &(a, b) in boxes {
+            out.push(self.query_aabb_inner(clip_from_local, a, b, opts, receivers, &mut st)?);
+        }
+        self.stats.add(&st);
+        Ok(())
+    }
+}
+
+/// Whether the box `(min, max)` meets the apex region `{z ≥ w, |x| ≤ w, |y| ≤ w}`
+/// of `clip_from_local`, widened by [`APEX_EPS`].
+pub fn meets_apex_region(clip_from_local: &Mat4, min: Vec3, max: Vec3) -> bool {
+    let m: DMat4 = clip_from_local.as_dmat4();
+    let corners = aabb_corners(min, max).map(|p| m * p.as_dvec4());
+    let scale = corners
+        .iter()
+        .map(|c| c.x.abs() + c.y.abs() + c.z.abs() + c.w.abs())
+        .fold(0.0, f64::max);
+    let delta = APEX_EPS * scale;
+    let planes = [
+        DVec4::new(0.0, 0.0, 1.0, -1.0),
+        DVec4::new(-1.0, 0.0, 0.0, 1.0),
+        DVec4::new(1.0, 0.0, 0.0, 1.0),
+        DVec4::new(0.0, -1.0, 0.0, 1.0),
+        DVec4::new(0.0, 1.0, 0.0, 1.0),
+    ];
+    // Quick reject: all corners strictly outside one (widened) plane.
+    for p in &planes {
+        if corners.iter().all(|c| p.dot(*c) + delta < 0.0) {
+            return false;
+        }
+    }
+    const FACES: [[usize; 4]; 6] = [
+        [0, 4, 6, 2],
+        [1, 3, 7, 5],
+        [0, 1, 5, 4],
+        [2, 6, 7, 3],
+        [0, 2, 3, 1],
+        [4, 5, 7, 6],
+    ];
+    for f in FACES {
+        // A quad clipped by five planes has at most 9 vertices.
+        let mut poly = [DVec4::ZERO; 12];
+        let mut next = [DVec4::ZERO; 12];
+        let mut n = 4;
+        for (k, &i) in f.iter().enumerate() {
+            poly[k] = corners[i];
+        }
+        for p in &planes {
+            let mut m = 0;
+            for i in 0..n {
+                let a = poly[i];
+                let b = poly[(i + 1) % n];
+                let da = p.dot(a) + delta;
+                let db = p.dot(b) + delta;
+                if da >= 0.0 {
+                    next[m] = a;
+                    m += 1;
+                }
+                if (da >= 0.0) != (db >= 0.0) {
+                    next[m] = a + (b - a) * (da / (da - db));
+                    m += 1;
+                }
+            }
+            poly[..m].copy_from_slice(&next[..m]);
+            n = m;
+            if n == 0 {
+                break;
+            }
+        }
+        if n > 0 {
+            return true;
+        }
+    }
+    // The region may lie inside the box without meeting a face: test the
+    // near-rectangle centre (clip (0, 0, 1, 1)), a point of the region.
+    if m.determinant() != 0.0 {
+        let q = m.inverse() * DVec4::new(0.0, 0.0, 1.0, 1.0);
+        if q.w != 0.0 {
+            let p = q.truncate() / q.w;
+            let (lo, hi) = (min.as_dvec3(), max.as_dvec3());
+            let pad = (hi - lo).abs().max_element() * APEX_EPS;
+            if p.cmpge(lo - pad).all() && p.cmple(hi + pad).all() {
+                return true;
+            }
+        }
+    }
+    false
+}

@@ -1,0 +1,115 @@
+//! Receiver marking for the light pass [Steiner §4.3.1; Bittner et al. 2011,
+//! "Shadow caster culling for efficient shadow mapping"]: the eye's visible
+//! surface points, projected into the light view, mark the light pixels they
+//! fall on, keeping per pixel the farthest (smallest reversed-Z) receiver depth.
+//!
+//! A point marks every pixel whose closed square lies within
+//! [`RECEIVER_EPS_PX`] pixels (Euclidean) of its projection.
+
+use crate::depth_target::{DepthTarget, Layout};
+use glam::{Mat4, Vec4};
+
+/// Footprint of a receiver point, in pixels: it covers the f32 rounding of the
+/// projection (below 2⁻¹⁰ px at 16384 px) with a wide margin.
+pub const RECEIVER_EPS_PX: f64 = 1.0 / 64.0;
+
+/// The farthest receiver depth per pixel of a light view (+∞ where unmarked).
+#[derive(Clone, Debug)]
+pub struct ReceiverTarget {
+    pub(crate) layout: Layout,
+    pub(crate) depth: Vec<f32>,
+}
+
+impl ReceiverTarget {
+    /// An unmarked receiver target with the size and tiling of `target`.
+    pub fn for_target(target: &DepthTarget) -> Self {
+        ReceiverTarget {
+            layout: target.layout,
+            depth: vec![f32::INFINITY; target.depth.len()],
+        }
+    }
+
+    /// Width and height in pixels.
+    pub fn size(&self) -> (u32, u32) {
+        (self.layout.width, self.layout.height)
+    }
+
+    /// Unmarks every pixel.
+    pub fn clear(&mut self) {
+        self.depth.fill(f32::INFINITY);
+    }
+
+    /// The farthest receiver depth at pixel `(x, y)`, `None` when unmarked.
+    ///
+    /// # Panics
+    /// When `(x, y)` lies outside the target.
+    pub fn at(&self, x: u32, y: u32) -> Option<f32> {
+        assert!(x < self.layout.width && y < self.layout.height);
+        let d = self.depth[self.layout.pixel_index(x, y)];
+        (d != f32::INFINITY).then_some(d)
+    }
+
+    /// Marks the points `clip_from_local · p`; points with clip w ≤ 0 (behind the
+    /// light's centre of projection) are skipped. Returns the number of pixels marked
+    /// (counting repeats).
+    pub fn mark_points(&mut self, clip_from_local: Mat4, points: &[Vec4]) -> u64 {
+        let l = self.layout;
+        let (w, h) = (l.width as f64, l.height as f64);
+        let eps = RECEIVER_EPS_PX;
+        let mut n = 0;
+        for p in points {
+            let c = (clip_from_local * *p).as_dvec4();
+            if c.w.is_nan() || c.w <= 0.0 {
+                continue;
+            }
+            let px = (c.x / c.w + 1.0) * 0.5 * w;
+            let py = (1.0 - c.y / c.w) * 0.5 * h;
+            let z = (c.z / c.w) as f32;
+            if !(px.is_finite() && py.is_finite()) {
+                continue;
+            }
+            let x0 = (px - eps - 1.0).ceil().max(0.0);
+            let x1 = (px + eps).floor().min(w - 1.0);
+            let y0 = (py - eps - 1.0).ceil().max(0.0);
+            let y1 = (py + eps).floor().min(h - 1.0);
+            if x0 > x1 || y0 > y1 {
+                continue;
+            }
+            for y in y0 as u32..=y1 as u32 {
+                for x in x0 as u32..=x1 as u32 {
+                    let dx = (x as f64 - px).max(px - (x as f64 + 1.0)).max(0.0);
+                    let dy = (y as f64 - py).max(py - (y as f64 + 1.0)).max(0.0);
+                    if dx * dx + dy * dy <= eps * eps {
+                        let i = l.pixel_index(x, y);
+                        self.depth[i] = self.depth[i].min(z);
+                        n += 1;
+                    }
+                }
+            }
+        }
+        n
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::TileSize;
+
+    #[test]
+    fn marks_pixels_near_the_point_keeping_the_farthest() {
+        let t = DepthTarget::new(8, 8, TileSize::T4, false).unwrap();
+        let mut r = ReceiverTarget::for_target(&t);
+        // Pixel centre of (2, 5): x = 2.5 → ndc −0.375; y = 5.5 → ndc −0.375.
+        r.mark_points(Mat4::IDENTITY, &[Vec4::new(-0.375, -0.375, 0.5, 1.0)]);
+        r.mark_points(Mat4::IDENTITY, &[Vec4::new(-0.375, -0.375, 0.25, 1.0)]);
+        assert_eq!(r.at(2, 5), Some(0.25));
+        assert_eq!(r.at(3, 5), None);
+        // A point on the corner shared by four pixels marks all four.
+        r.mark_points(Mat4::IDENTITY, &[Vec4::new(0.0, 0.0, 0.5, 1.0)]);
+        for (x, y) in [(3, 3), (4, 3), (3, 4), (4, 4)] {
+            assert_eq!(r.at(x, y), Some(0.5));
+        }
+        assert_eq!(r.at(5, 4), None);
+    }
+}

@@ -1,0 +1,628 @@
+//! Tile traversal [McCormack & McNamara 2000, "Tiled polygon traversal using
+//! half-plane edge functions"]: for each tile under the triangle's pixel bounds,
+//! the edge functions at the tile's corner pixel centres reject or wholly
+//! accept the tile, hierarchical z rejects it (or, for queries, counts it
+//! whole), and only the remaining tiles get per-pixel work.
+
+use crate::coverage::{
+    depth_range, edge_offsets, f32_down, f32_up, pixel_bounds, pixel_depth, Coverage,
+};
+use crate::depth_target::{Band, Layout, TileBounds, BACKGROUND};
+use crate::edge::Tri;
+use crate::setup::SUBPIXEL;
+use crate::stats::RasterStats;
+
+/// Tile classification against the triangle's edges.
+struct TileClass {
+    /// Raw edge values at the tile's first pixel centre.
+    e00: [i64; 3],
+    /// Raw edge values at the four corner pixel centres.
+    corners: [[i64; 3]; 4],
+    /// Every in-target pixel of the tile is covered.
+    full: bool,
+}
+
+/// Classifies the in-target pixel rectangle `(x0, x1, y0, y1)`; `None` when no pixel
+/// can be covered.
+#[inline(always)]
+fn classify(tri: &Tri, off: &[i64; 3], r: (u32, u32, u32, u32)) -> Option<TileClass> {
+    let (x0, x1, y0, y1) = (r.0 as i64, r.1 as i64, r.2 as i64, r.3 as i64);
+    let mut e00 = [0i64; 3];
+    let mut corners = [[0i64; 3]; 4];
+    let mut full = true;
+    for i in 0..3 {
+        let e = &tri.e[i];
+        let v = e.at_pixel(x0, y0);
+        let dx = e.a * SUBPIXEL * (x1 - x0);
+        let dy = e.b * SUBPIXEL * (y1 - y0);
+        let vmax = v + dx.max(0) + dy.max(0) + off[i];
+        if vmax < 0 {
+            return None;
+        }
+        let vmin = v + dx.min(0) + dy.min(0) + off[i];
+        full &= vmin >= 0;
+        e00[i] = v;
+        corners[0][i] = v;
+        corners[1][i] = v + dx;
+        corners[2][i] = v + dy;
+        corners[3][i] = v + dx + dy;
+    }
+    Some(TileClass { e00, corners, full })
+}
+
+/// Tile range `(tx0, tx1, ty0, ty1)` (inclusive) of a pixel range.
+#[inline]
+fn tiles_of(l: &Layout, p: (i64, i64, i64, i64)) -> (u32, u32, u32, u32) {
+    let s = l.shift;
+    (
+        (p.0 as u32) >> s,
+        (p.1 as u32) >> s,
+        (p.2 as u32) >> s,
+        (p.3 as u32) >> s,
+    )
+}
+
+/// Largest tile edge, in pixels.
+const MAX_TILE: usize = 16;
+
+/// Per-triangle constants of traversal.
+struct Prep {
+    pb: (i64, i64, i64, i64),
+    off: [i64; 3],
+    step_x: [i64; 3],
+    step_y: [i64; 3],
+    offf: [f64; 3],
+    stepf: [f64; 3],
+    /// The triangle is small: use the vertex depth range for every tile.
+    single_tile: bool,
+    /// Bounds of every depth it produces.
+    zlo: f32,
+    zhi: f32,
+    tiles: (u32, u32, u32, u32),
+}
+
+#[inline(always)]
+fn prep(tri: &Tri, cov: Coverage, l: &Layout) -> Option<Prep> {
+    let pb = pixel_bounds(tri, cov, l.width, l.height)?;
+    let off = edge_offsets(tri, cov);
+    let step_x = tri.e.map(|e| e.a * SUBPIXEL);
+    let step_y = tri.e.map(|e| e.b * SUBPIXEL);
+    let tiles = tiles_of(l, pb);
+    Some(Prep {
+        pb,
+        off,
+        step_x,
+        step_y,
+        offf: off.map(|o| o as f64),
+        stepf: step_x.map(|o| o as f64),
+        // Small triangles (at most two tiles across): the vertex depth range is
+        // nearly as tight as the per-tile corner range and much cheaper.
+        single_tile: (pb.1 - pb.0) < 2 << l.shift && (pb.3 - pb.2) < 2 << l.shift,
+        zlo: f32_down(tri.zlo),
+        zhi: f32_up(tri.zhi),
+        tiles,
+    })
+}
+
+/// Coverage mask and depth of `n ≤ N` pixels of a row whose first pixel has raw
+/// edge values `e` (exact integers held in f64: all below 2⁵³).
+#[inline(always)]
+fn eval_row_n<const N: usize>(
+    tri: &Tri,
+    p: &Prep,
+    full: bool,
+    e: [f64; 3],
+    n: usize,
+    zs: &mut [f32; MAX_TILE],
+    mask: &mut [bool; MAX_TILE],
+) {
+    let (z0, z1, z2, inv) = (tri.z[0], tri.z[1], tri.z[2], tri.inv_area);
+    if full {
+        // Every pixel of the tile is covered: depth only.
+        for k in 0..N {
+            let kf = k as f64;
+            let a = e[0] + kf * p.stepf[0];
+            let b = e[1] + kf * p.stepf[1];
+            let c = e[2] + kf * p.stepf[2];
+            mask[k] = k < n;
+            zs[k] = ((a * z0 + b * z1 + c * z2) * inv) as f32;
+        }
+        return;
+    }
+    for k in 0..N {
+        let kf = k as f64;
+        let a = e[0] + kf * p.stepf[0];
+        let b = e[1] + kf * p.stepf[1];
+        let c = e[2] + kf * p.stepf[2];
+        mask[k] = k < n && (a + p.offf[0]).min(b + p.offf[1]).min(c + p.offf[2]) >= 0.0;
+        // Bit-identical to `Tri::depth` (same operations in the same order).
+        zs[k] = ((a * z0 + b * z1 + c * z2) * inv) as f32;
+    }
+}
+
+/// Coverage mask and depth of the `n` pixels of a row (see [`eval_row_n`]).
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn eval_row(
+    tri: &Tri,
+    cov: Coverage,
+    p: &Prep,
+    full: bool,
+    e: [f64; 3],
+    n: usize,
+    zs: &mut [f32; MAX_TILE],
+    mask: &mut [bool; MAX_TILE],
+) {
+    if cov == Coverage::Standard {
+        if n <= 4 {
+            eval_row_n::<4>(tri, p, full, e, n, zs, mask)
+        } else if n <= 8 {
+            eval_row_n::<8>(tri, p, full, e, n, zs, mask)
+        } else {
+            eval_row_n::<16>(tri, p, full, e, n, zs, mask)
+        }
+    } else {
+        for k in 0..n {
+            let kf = k as f64;
+            let ei = [0, 1, 2].map(|i| (e[i] + kf * p.stepf[i]) as i64);
+            mask[k] = full || ((ei[0] + p.off[0]) | (ei[1] + p.off[1]) | (ei[2] + p.off[2])) >= 0;
+            zs[k] = if mask[k] {
+                pixel_depth(tri, cov, ei)
+            } else {
+                0.0
+            };
+        }
+    }
+}
+
+/// Accumulated results of [`rows_std`].
+#[derive(Default)]
+struct RowAcc {
+    tested: u32,
+    written: u32,
+    bg_written: u32,
+    new_min: f32,
+    new_max: f32,
+    hit_min: bool,
+}
+
+/// Standard-coverage GREATER writes (no id target) of `rows` whole tile rows of
+/// width `T`, lanes `lane0..=lane1` eligible: fixed-width, branch-free loops the
+/// compiler vectorizes. `e` holds the raw edge values at the row's first pixel;
+/// the arithmetic is that of [`eval_row_n`], so results are bit-identical.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn rows_std<const T: usize>(
+    tri: &Tri,
+    p: &Prep,
+    full: bool,
+    no_test: bool,
+    mut e: [f64; 3],
+    stepy: [f64; 3],
+    lanes: (usize, usize),
+    depth: &mut [f32],
+    zmin: f32,
+    acc: &mut RowAcc,
+) {
+    let (z0, z1, z2, inv) = (tri.z[0], tri.z[1], tri.z[2], tri.inv_area);
+    let kstep: [[f64; T]; 3] =
+        std::array::from_fn(|i| std::array::from_fn(|k| k as f64 * p.stepf[i]));
+    let eligible: [bool; T] = std::array::from_fn(|k| k >= lanes.0 && k <= lanes.1);
+    let fullm = full as u32;
+    let no_testm = no_test as u32;
+    for row in depth.chunks_exact_mut(T) {
+        let row: &mut [f32; T] = row.try_into().expect("tile row");
+        // Plain comparisons and selects (no NaN-aware min/max, no short-circuit) so the
+        // loop vectorizes; masks are 0/1 integers.
+        let mut tested = [0u32; T];
+        let mut written = [0u32; T];
+        let mut bgw = [0u32; T];
+        let mut hit = [0u32; T];
+        let mut vmax = [acc.new_max; T];
+        let mut vmin = [acc.new_min; T];
+        for k in 0..T {
+            let a = e[0] + kstep[0][k];
+            let b = e[1] + kstep[1][k];
+            let c = e[2] + kstep[2][k];
+            let inside = ((a + p.offf[0] >= 0.0) as u32)
+                & ((b + p.offf[1] >= 0.0) as u32)
+                & ((c + p.offf[2] >= 0.0) as u32);
+            let m = (eligible[k] as u32) & (fullm | inside);
+            let z = ((a * z0 + b * z1 + c * z2) * inv) as f32;
+            let d = row[k];
+            let win = m & (no_testm | ((z > d) as u32));
+            tested[k] = m;
+            written[k] = win;
+            row[k] = if win != 0 { z } else { d };
+            vmax[k] = if win != 0 && z > vmax[k] { z } else { vmax[k] };
+            let from_bg = win & ((d == BACKGROUND) as u32);
+            bgw[k] = from_bg;
+            vmin[k] = if from_bg != 0 && z < vmin[k] {
+                z
+            } else {
+                vmin[k]
+            };
+            hit[k] = win & ((d == zmin) as u32);
+        }
+        for k in 0..T {
+            acc.tested += tested[k];
+            acc.written += written[k];
+            acc.bg_written += bgw[k];
+            acc.hit_min |= hit[k] != 0;
+            if vmax[k] > acc.new_max {
+                acc.new_max = vmax[k];
+            }
+            if vmin[k] < acc.new_min {
+                acc.new_min = vmin[k];
+            }
+        }
+        for i in 0..3 {
+            e[i] += stepy[i];
+        }
+    }
+}
+
+/// Standard-coverage GEQUAL sample count over `rows` whole tile rows (see
+/// [`rows_std`]), restricted by receivers when given.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn rows_query<const T: usize>(
+    tri: &Tri,
+    p: &Prep,
+    full: bool,
+    mut e: [f64; 3],
+    stepy: [f64; 3],
+    lanes: (usize, usize),
+    depth: &[f32],
+    receivers: Option<&[f32]>,
+    tested: &mut u64,
+) -> u64 {
+    let (z0, z1, z2, inv) = (tri.z[0], tri.z[1], tri.z[2], tri.inv_area);
+    let kstep: [[f64; T]; 3] =
+        std::array::from_fn(|i| std::array::from_fn(|k| k as f64 * p.stepf[i]));
+    let eligible: [bool; T] = std::array::from_fn(|k| k >= lanes.0 && k <= lanes.1);
+    let mut pass = 0u32;
+    let mut te = 0u32;
+    for (r, row) in depth.chunks_exact(T).enumerate() {
+        let row: &[f32; T] = row.try_into().expect("tile row");
+        let rec: [f32; T] = match receivers {
+            Some(rv) => rv[r * T..r * T + T].try_into().expect("tile row"),
+            None => [f32::NEG_INFINITY; T],
+        };
+        for k in 0..T {
+            let a = e[0] + kstep[0][k];
+            let b = e[1] + kstep[1][k];
+            let c = e[2] + kstep[2][k];
+            let inside = ((a + p.offf[0] >= 0.0) as u32)
+                & ((b + p.offf[1] >= 0.0) as u32)
+                & ((c + p.offf[2] >= 0.0) as u32);
+            let m = (eligible[k] as u32) & ((full as u32) | inside);
+            let z = ((a * z0 + b * z1 + c * z2) * inv) as f32;
+            te += m;
+            pass += m & ((z >= row[k]) as u32) & ((z >= rec[k]) as u32);
+        }
+        for i in 0..3 {
+            e[i] += stepy[i];
+        }
+    }
+    *tested += u64::from(te);
+    u64::from(pass)
+}
+
+/// Rasterizes `tri` into `band` with the GREATER test (ties broken by smaller `id`
+/// when the band has an id buffer). Returns false when the triangle covers no pixel
+/// of the whole target (culled).
+#[inline(always)]
+pub(crate) fn draw_tri(
+    band: &mut Band,
+    tri: &Tri,
+    cov: Coverage,
+    id: u64,
+    st: &mut RasterStats,
+) -> bool {
+    let l = band.layout;
+    let Some(p) = prep(tri, cov, &l) else {
+        return false;
+    };
+    let (tx0, tx1, ty0, ty1) = p.tiles;
+    let base_tile = band.tile_base();
+    let mut zs = [0f32; MAX_TILE];
+    let mut mask = [false; MAX_TILE];
+    for ty in ty0.max(band.ty0)..ty1.min(band.ty1 - 1) + 1 {
+        for tx in tx0..tx1 + 1 {
+            st.tiles_touched += 1;
+            let t = l.tile_index(tx, ty) - base_tile;
+            let tb: TileBounds = band.tiles[t];
+            if tb.background == 0 && p.zhi < tb.zmin {
+                st.tiles_rejected_hiz += 1;
+                continue;
+            }
+            let rect = l.tile_rect(tx, ty);
+            let Some(c) = classify(tri, &p.off, rect) else {
+                st.tiles_rejected_edges += 1;
+                continue;
+            };
+            let (lo, hi) = if p.single_tile || (tb.background > 0 && !c.full) {
+                (p.zlo, p.zhi)
+            } else {
+                depth_range(tri, cov, &c.corners)
+            };
+            if tb.background == 0 && hi < tb.zmin {
+                st.tiles_rejected_hiz += 1;
+                continue;
+            }
+            if c.full {
+                st.tiles_accepted_whole += 1;
+            }
+            // Pixels of this tile inside the triangle's pixel bounds.
+            let px0 = rect.0.max(p.pb.0 as u32);
+            let px1 = rect.1.min(p.pb.1 as u32);
+            let py0 = rect.2.max(p.pb.2 as u32);
+            let py1 = rect.3.min(p.pb.3 as u32);
+            let n = (px1 - px0 + 1) as usize;
+            let no_test = c.full && lo > tb.zmax;
+            let tile_base = t << (2 * l.shift);
+            let mut written = 0u64;
+            let mut tested = 0u64;
+            // Incremental tile bounds: writes only raise depths, so zmin changes only
+            // when background is covered (new minimum candidates) or a pixel holding
+            // the old minimum is overwritten (then the tile is rescanned).
+            let mut bg_written = 0u32;
+            let mut new_min = f32::INFINITY;
+            let mut new_max = tb.zmax;
+            let mut rescan = false;
+            let mut erow: [f64; 3] = std::array::from_fn(|i| {
+                (c.e00[i]
+                    + p.step_x[i] * (px0 - rect.0) as i64
+                    + p.step_y[i] * (py0 - rect.2) as i64) as f64
+            });
+            let stepyf = p.step_y.map(|s| s as f64);
+            if cov == Coverage::Standard && band.ids.is_none() {
+                // Fast path: whole tile rows, fixed width.
+                let mut acc = RowAcc {
+                    new_min: f32::INFINITY,
+                    new_max: tb.zmax,
+                    ..RowAcc::default()
+                };
+                let e0: [f64; 3] = std::array::from_fn(|i| {
+                    (c.e00[i] + p.step_y[i] * (py0 - rect.2) as i64) as f64
+                });
+                let lanes = ((px0 - rect.0) as usize, (px1 - rect.0) as usize);
+                let tw = 1usize << l.shift;
+                let start = tile_base + (py0 - rect.2) as usize * tw;
+                let depth = &mut band.depth[start..start + (py1 - py0 + 1) as usize * tw];
+                match l.shift {
+                    2 => rows_std::<4>(
+                        tri, &p, c.full, no_test, e0, stepyf, lanes, depth, tb.zmin, &mut acc,
+                    ),
+                    3 => rows_std::<8>(
+                        tri, &p, c.full, no_test, e0, stepyf, lanes, depth, tb.zmin, &mut acc,
+                    ),
+                    _ => rows_std::<16>(
+                        tri, &p, c.full, no_test, e0, stepyf, lanes, depth, tb.zmin, &mut acc,
+                    ),
+                }
+                tested = u64::from(acc.tested);
+                written = u64::from(acc.written);
+                bg_written = acc.bg_written;
+                new_min = acc.new_min;
+                new_max = acc.new_max;
+                rescan = acc.hit_min;
+            } else {
+                for y in py0..py1 + 1 {
+                    eval_row(tri, cov, &p, c.full, erow, n, &mut zs, &mut mask);
+                    let row = tile_base + (((y - rect.2) << l.shift) + (px0 - rect.0)) as usize;
+                    let depth = &mut band.depth[row..row + n];
+                    match band.ids.as_deref_mut() {
+                        None => {
+                            // Branch-free (selects), so the compiler can vectorize it.
+                            let (mut bgw, mut wr, mut te) = (0u32, 0u32, 0u32);
+                            let mut hit_min = false;
+                            for k in 0..n {
+                                let (z, d) = (zs[k], depth[k]);
+                                let m = mask[k];
+                                let win = m & (no_test | (z > d));
+                                te += u32::from(m);
+                                wr += u32::from(win);
+                                depth[k] = if win { z } else { d };
+                                new_max = if win { new_max.max(z) } else { new_max };
+                                let from_bg = win & (d == BACKGROUND);
+                                bgw += u32::from(from_bg);
+                                new_min = if from_bg { new_min.min(z) } else { new_min };
+                                hit_min |= win & (d == tb.zmin);
+                            }
+                            tested += u64::from(te);
+                            written += u64::from(wr);
+                            bg_written += bgw;
+                            rescan |= hit_min;
+                        }
+                        Some(ids) => {
+                            let ids = &mut ids[row..row + n];
+                            for k in 0..n {
+                                let (z, d) = (zs[k], depth[k]);
+                                let m = mask[k];
+                                tested += u64::from(m);
+                                let win = m && (no_test || z > d || (z == d && id < ids[k]));
+                                if win {
+                                    depth[k] = z;
+                                    ids[k] = id;
+                                    written += 1;
+                                    new_max = new_max.max(z);
+                                    if d == BACKGROUND {
+                                        bg_written += 1;
+                                        new_min = new_min.min(z);
+                                    } else if d == tb.zmin {
+                                        rescan = true;
+                                    }
+                                }
+                            }
+                        }
+                    }
+                    for i in 0..3 {
+                        erow[i] += stepyf[i];
+                    }
+                }
+            }
+            st.pixels_tested += tested;
+            st.pixels_written += written;
+            if rescan {
+                band.refresh_tile(tx, ty);
+            } else if written > 0 {
+                band.tiles[t] = TileBounds {
+                    zmin: tb.zmin.min(new_min),
+                    zmax: new_max,
+                    background: tb.background - bg_written,
+                };
+            }
+        }
+    }
+    true
+}
+
+/// Read-only view of a target for queries.
+pub(crate) struct QueryView<'a> {
+    pub layout: Layout,
+    pub depth: &'a [f32],
+    pub tiles: &'a [TileBounds],
+    /// Farthest receiver depth per pixel (same layout), +∞ where unmarked.
+    pub receivers: Option<&'a [f32]>,
+}
+
+/// Counts the covered samples of `tri` passing GEQUAL (and the receiver restriction).
+/// With `any`, stops at the first passing sample and returns 1. Returns `None` when
+/// the triangle covers no pixel of the target.
+#[inline(always)]
+pub(crate) fn query_tri(
+    v: &QueryView,
+    tri: &Tri,
+    cov: Coverage,
+    any: bool,
+    st: &mut RasterStats,
+) -> Option<u64> {
+    let l = v.layout;
+    let p = prep(tri, cov, &l)?;
+    let (tx0, tx1, ty0, ty1) = p.tiles;
+    let mut count = 0u64;
+    let mut zs = [0f32; MAX_TILE];
+    let mut mask = [false; MAX_TILE];
+    for ty in ty0..ty1 + 1 {
+        for tx in tx0..tx1 + 1 {
+            st.tiles_touched += 1;
+            let t = l.tile_index(tx, ty);
+            let tb = v.tiles[t];
+            if p.zhi < tb.zmin_all() {
+                st.tiles_rejected_hiz += 1;
+                continue;
+            }
+            let rect = l.tile_rect(tx, ty);
+            let Some(c) = classify(tri, &p.off, rect) else {
+                st.tiles_rejected_edges += 1;
+                continue;
+            };
+            let (lo, hi) = if p.single_tile {
+                (p.zlo, p.zhi)
+            } else {
+                depth_range(tri, cov, &c.corners)
+            };
+            if hi < tb.zmin_all() {
+                st.tiles_rejected_hiz += 1;
+                continue;
+            }
+            if c.full {
+                st.tiles_accepted_whole += 1;
+                if v.receivers.is_none() && lo >= tb.zmax {
+                    st.tiles_query_accepted_whole += 1;
+                    if any {
+                        return Some(1);
+                    }
+                    count += ((rect.1 - rect.0 + 1) * (rect.3 - rect.2 + 1)) as u64;
+                    continue;
+                }
+            }
+            let px0 = rect.0.max(p.pb.0 as u32);
+            let px1 = rect.1.min(p.pb.1 as u32);
+            let py0 = rect.2.max(p.pb.2 as u32);
+            let py1 = rect.3.min(p.pb.3 as u32);
+            let n = (px1 - px0 + 1) as usize;
+            let tile_base = t << (2 * l.shift);
+            let mut erow: [f64; 3] = std::array::from_fn(|i| {
+                (c.e00[i]
+                    + p.step_x[i] * (px0 - rect.0) as i64
+                    + p.step_y[i] * (py0 - rect.2) as i64) as f64
+            });
+            let stepyf = p.step_y.map(|s| s as f64);
+            if cov == Coverage::Standard {
+                let e0: [f64; 3] = std::array::from_fn(|i| {
+                    (c.e00[i] + p.step_y[i] * (py0 - rect.2) as i64) as f64
+                });
+                let lanes = ((px0 - rect.0) as usize, (px1 - rect.0) as usize);
+                let tw = 1usize << l.shift;
+                let start = tile_base + (py0 - rect.2) as usize * tw;
+                let end = start + (py1 - py0 + 1) as usize * tw;
+                let depth = &v.depth[start..end];
+                let rec = v.receivers.map(|r| &r[start..end]);
+                let mut tested = 0u64;
+                let pass = match l.shift {
+                    2 => {
+                        rows_query::<4>(tri, &p, c.full, e0, stepyf, lanes, depth, rec, &mut tested)
+                    }
+                    3 => {
+                        rows_query::<8>(tri, &p, c.full, e0, stepyf, lanes, depth, rec, &mut tested)
+                    }
+                    _ => rows_query::<16>(
+                        tri,
+                        &p,
+                        c.full,
+                        e0,
+                        stepyf,
+                        lanes,
+                        depth,
+                        rec,
+                        &mut tested,
+                    ),
+                };
+                st.pixels_tested += tested;
+                if pass > 0 {
+                    if any {
+                        return Some(1);
+                    }
+                    count += pass;
+                }
+                continue;
+            }
+            for y in py0..py1 + 1 {
+                eval_row(tri, cov, &p, c.full, erow, n, &mut zs, &mut mask);
+                let row = tile_base + (((y - rect.2) << l.shift) + (px0 - rect.0)) as usize;
+                let depth = &v.depth[row..row + n];
+                let mut pass = 0u64;
+                let mut tested = 0u64;
+                match v.receivers {
+                    None => {
+                        for k in 0..n {
+                            tested += u64::from(mask[k]);
+                            pass += u64::from(mask[k] && zs[k] >= depth[k]);
+                        }
+                    }
+                    Some(r) => {
+                        let r = &r[row..row + n];
+                        for k in 0..n {
+                            tested += u64::from(mask[k]);
+                            pass += u64::from(mask[k] && zs[k] >= depth[k] && zs[k] >= r[k]);
+                        }
+                    }
+                }
+                st.pixels_tested += tested;
+                if pass > 0 {
+                    if any {
+                        return Some(1);
+                    }
+                    count += pass;
+                }
+                for i in 0..3 {
+                    erow[i] += stepyf[i];
+                }
+            }
+        }
+    }
+    Some(count)
+}

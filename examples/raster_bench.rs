@@ -1,0 +1,211 @@
+//! Box-city occlusion benchmark of the tile rasterizer, comparable with Intel's
+//! Masked Software Occlusion Culling on the same input.
+//!
+//! `cargo run --release --example raster_bench -- ../shared/data/bench/city_16384.txt street 1920x1080 [--threads N] [--reps R] [--query any|count]`
+//!
+//! Loads the box city, sorts the boxes front to back by the distance from the eye to
+//! the box centre, then per repetition clears the depth target, rasterizes every box
+//! as an occluder (standard coverage) and queries every box's AABB against the
+//! result. Prints one JSON line on stdout: medians over the repetitions of
+//! `occluder_ms` (clear + rasterize, sorting excluded) and `query_ms`, the number of
+//! `visible_boxes` (query passed ≥ 1 sample), `threads`, and counters. Logs go to stderr.
+
+use anyhow::{bail, Context};
+use glam::{DMat4, Vec3, Vec4};
+use raster::{
+    aabb_corners, Coverage, DepthTarget, DrawItem, QueryMode, QueryOptions, TileSize,
+    AABB_TRIANGLES,
+};
+use std::path::PathBuf;
+use std::time::Instant;
+
+struct Args {
+    path: PathBuf,
+    camera: String,
+    width: u32,
+    height: u32,
+    threads: usize,
+    reps: usize,
+    mode: QueryMode,
+    tile: TileSize,
+}
+
+fn parse() -> anyhow::Result<Args> {
+    let mut it = std::env::args().skip(1);
+    let usage = "usage: raster_bench CITY.txt CAMERA WxH [--threads N] [--reps R] [--query any|count] [--tile 4|8|16]";
+    let path = PathBuf::from(it.next().context(usage)?);
+    let camera = it.next().context(usage)?;
+    let res = it.next().context(usage)?;
+    let (w, h) = res
+        .split_once('x')
+        .context("resolution must look like 1920x1080")?;
+    let mut a = Args {
+        path,
+        camera,
+        width: w.parse().context("width")?,
+        height: h.parse().context("height")?,
+        threads: 1,
+        reps: 31,
+        mode: QueryMode::Any,
+        tile: TileSize::T8,
+    };
+    while let Some(flag) = it.next() {
+        let v = it.next().with_context(|| format!("{flag} needs a value"))?;
+        match flag.as_str() {
+            "--threads" => a.threads = v.parse().context("--threads")?,
+            "--reps" => a.reps = v.parse::<usize>().context("--reps")?.max(1),
+            "--query" => {
+                a.mode = match v.as_str() {
+                    "any" => QueryMode::Any,
+                    "count" => QueryMode::Count,
+                    _ => bail!("--query must be any or count"),
+                }
+            }
+            "--tile" => {
+                a.tile = match v.as_str() {
+                    "4" => TileSize::T4,
+                    "8" => TileSize::T8,
+                    "16" => TileSize::T16,
+                    _ => bail!("--tile must be 4, 8 or 16"),
+                }
+            }
+            _ => bail!("unknown flag {flag}\n{usage}"),
+        }
+    }
+    Ok(a)
+}
+
+fn median(v: &mut [f64]) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+fn main() -> anyhow::Result<()> {
+    let a = parse()?;
+    let loaded = scene::load::box_city::load_box_city(&a.path)?;
+    let look = loaded
+        .cameras
+        .iter()
+        .find(|(n, _)| *n == a.camera)
+        .with_context(|| format!("no camera named {:?} in {}", a.camera, a.path.display()))?
+        .1;
+    let cam = look.camera(a.width as f64 / a.height as f64)?;
+    let graph = &loaded.graph;
+    // Box k is node k with one mesh in world coordinates; the ground is not an occluder.
+    let mut boxes: Vec<(Vec3, Vec3)> = Vec::new();
+    for node in graph.nodes() {
+        if node.name == "ground" {
+            continue;
+        }
+        for m in &node.meshes {
+            let b = graph.meshes()[m.0 as usize].bounds();
+            boxes.push((b.min, b.max));
+        }
+    }
+    let eye = cam.position;
+    boxes.sort_by(|p, q| {
+        let d = |b: &(Vec3, Vec3)| ((b.0 + b.1).as_dvec3() * 0.5 - eye).length_squared();
+        d(p).total_cmp(&d(q))
+    });
+    let clip_from_world = scene::transform::clip_from_local(&cam, &DMat4::IDENTITY);
+    let corners: Vec<[Vec4; 8]> = boxes.iter().map(|&(lo, hi)| aabb_corners(lo, hi)).collect();
+    let items: Vec<DrawItem> = corners
+        .iter()
+        .enumerate()
+        .map(|(k, c)| DrawItem {
+            clip_from_local: clip_from_world,
+            positions: c,
+            triangles: &AABB_TRIANGLES,
+            object: k as u32,
+        })
+        .collect();
+    eprintln!(
+        "raster_bench: {} boxes, camera {}, {}x{}, {} thread(s), {} reps",
+        boxes.len(),
+        a.camera,
+        a.width,
+        a.height,
+        a.threads,
+        a.reps
+    );
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(a.threads.max(1))
+        .build()?;
+    let mut target = DepthTarget::new(a.width, a.height, a.tile, false)?;
+    target.set_threads(a.threads.max(1));
+    let opts = QueryOptions {
+        coverage: Coverage::Standard,
+        mode: a.mode,
+    };
+    let mut results = Vec::with_capacity(boxes.len());
+    let (mut occ, mut qry) = (Vec::new(), Vec::new());
+    let mut draw_stats = raster::RasterStats::default();
+    let mut query_stats = raster::RasterStats::default();
+    pool.install(|| -> anyhow::Result<()> {
+        eprintln!(
+            "raster_bench: rayon pool of {} thread(s)",
+            rayon::current_num_threads()
+        );
+        for rep in 0..a.reps {
+            let t0 = Instant::now();
+            target.clear();
+            target.draw_batch(&items, Coverage::Standard)?;
+            let t1 = Instant::now();
+            let ds = target.take_stats();
+            target.query_aabbs(clip_from_world, &boxes, &opts, None, &mut results)?;
+            let t2 = Instant::now();
+            let qs = target.take_stats();
+            occ.push((t1 - t0).as_secs_f64() * 1e3);
+            qry.push((t2 - t1).as_secs_f64() * 1e3);
+            if rep == 0 {
+                draw_stats = ds;
+                query_stats = qs;
+            }
+        }
+        Ok(())
+    })?;
+    let visible = results.iter().filter(|&&n| n > 0).count();
+    let occluder_ms = median(&mut occ);
+    let query_ms = median(&mut qry);
+    // Minimums too: on a shared machine they show the undisturbed cost.
+    let (occluder_min_ms, query_min_ms) = (occ[0], qry[0]);
+    let decided = |s: &raster::RasterStats| {
+        let whole = s.tiles_rejected_edges + s.tiles_rejected_hiz + s.tiles_query_accepted_whole;
+        whole as f64 / s.tiles_touched.max(1) as f64
+    };
+    let line = serde_json::json!({
+        "scene": a.path.display().to_string(),
+        "camera": a.camera,
+        "width": a.width,
+        "height": a.height,
+        "threads": a.threads,
+        "reps": a.reps,
+        "query": if a.mode == QueryMode::Any { "any" } else { "count" },
+        "tile": target.tile_pixels(),
+        "boxes": boxes.len(),
+        "occluder_ms": occluder_ms,
+        "query_ms": query_ms,
+        "occluder_min_ms": occluder_min_ms,
+        "query_min_ms": query_min_ms,
+        "visible_boxes": visible,
+        "occluder_triangles": draw_stats.triangles_in,
+        "occluder_mtri_per_s": draw_stats.triangles_in as f64 / occluder_ms / 1e3,
+        "occluder_triangles_clipped": draw_stats.triangles_clipped,
+        "occluder_triangles_culled": draw_stats.triangles_culled,
+        "occluder_meshes_rejected_hiz": draw_stats.meshes_rejected_hiz,
+        "occluder_tiles_touched": draw_stats.tiles_touched,
+        "occluder_tiles_rejected_hiz": draw_stats.tiles_rejected_hiz,
+        "occluder_tiles_accepted_whole": draw_stats.tiles_accepted_whole,
+        "occluder_pixels_tested": draw_stats.pixels_tested,
+        "occluder_pixels_written": draw_stats.pixels_written,
+        "occluder_tiles_without_pixel_work": decided(&draw_stats),
+        "query_tiles_touched": query_stats.tiles_touched,
+        "query_tiles_without_pixel_work": decided(&query_stats),
+        "query_pixels_tested": query_stats.pixels_tested,
+        "queries_apex": query_stats.queries_apex,
+        "query_meshes_rejected_hiz": query_stats.meshes_rejected_hiz,
+        "query_triangles": query_stats.triangles_in,
+    });
+    println!("{line}");
+    Ok(())
+}
