@@ -165,6 +165,17 @@ fn main() -> anyhow::Result<()> {
         Ok(())
     })?;
     let visible = results.iter().filter(|&&n| n > 0).count();
+    // FNV-1a of the depth buffer (row-major bits) and of the query results: equal
+    // hashes across builds mean bit-identical output.
+    let fnv = |words: &mut dyn Iterator<Item = u32>| {
+        words.fold(0xcbf2_9ce4_8422_2325u64, |h, w| {
+            w.to_le_bytes()
+                .iter()
+                .fold(h, |h, &b| (h ^ u64::from(b)).wrapping_mul(0x100_0000_01b3))
+        })
+    };
+    let depth_hash = fnv(&mut target.depth_rows().into_iter().map(f32::to_bits));
+    let query_hash = fnv(&mut results.iter().copied());
     let occluder_ms = median(&mut occ);
     let query_ms = median(&mut qry);
     // Minimums too: on a shared machine they show the undisturbed cost.
@@ -188,6 +199,8 @@ fn main() -> anyhow::Result<()> {
         "occluder_min_ms": occluder_min_ms,
         "query_min_ms": query_min_ms,
         "visible_boxes": visible,
+        "depth_hash": format!("{depth_hash:016x}"),
+        "query_hash": format!("{query_hash:016x}"),
         "occluder_triangles": draw_stats.triangles_in,
         "occluder_mtri_per_s": draw_stats.triangles_in as f64 / occluder_ms / 1e3,
         "occluder_triangles_clipped": draw_stats.triangles_clipped,

@@ -9,6 +9,7 @@
 use crate::coverage::Coverage;
 use crate::depth_target::Band;
 use crate::draw::{setup_item, DrawItem};
+use crate::hiz::RowSkip;
 use crate::setup::Viewport;
 use crate::stats::RasterStats;
 use crate::traverse::{draw_tri, query_tri, QueryView};
@@ -20,11 +21,12 @@ fn draw_item_impl(
     band: &mut Band,
     item: &DrawItem,
     cov: Coverage,
+    skip: &RowSkip,
     st_setup: &mut RasterStats,
     st: &mut RasterStats,
 ) -> Result<()> {
-    setup_item(vp, item, cov, st_setup, |t, id| {
-        draw_tri(band, t, cov, id, st);
+    setup_item(vp, item, cov, st_setup, |t, pb, id| {
+        draw_tri(band, t, pb, cov, id, skip, st);
         false
     })
 }
@@ -40,10 +42,8 @@ fn query_item_impl(
     st: &mut RasterStats,
 ) -> Result<u64> {
     let mut count = 0u64;
-    setup_item(vp, item, cov, st_setup, |t, _| {
-        if let Some(c) = query_tri(view, t, cov, any, st) {
-            count += c;
-        }
+    setup_item(vp, item, cov, st_setup, |t, pb, _| {
+        count += query_tri(view, t, pb, cov, any, st);
         any && count > 0
     })?;
     Ok(count)
@@ -55,15 +55,16 @@ pub(crate) fn draw_item(
     band: &mut Band,
     item: &DrawItem,
     cov: Coverage,
+    skip: &RowSkip,
     st_setup: &mut RasterStats,
     st: &mut RasterStats,
 ) -> Result<()> {
     #[cfg(target_arch = "x86_64")]
     if avx2::available() {
         // SAFETY: `avx2::draw_item` only requires AVX2, detected at runtime just now.
-        return unsafe { avx2::draw_item(vp, band, item, cov, st_setup, st) };
+        return unsafe { avx2::draw_item(vp, band, item, cov, skip, st_setup, st) };
     }
-    draw_item_impl(vp, band, item, cov, st_setup, st)
+    draw_item_impl(vp, band, item, cov, skip, st_setup, st)
 }
 
 /// The portable build of [`draw_item`] (what the tests compare against).
@@ -73,10 +74,11 @@ pub(crate) fn draw_item_scalar(
     band: &mut Band,
     item: &DrawItem,
     cov: Coverage,
+    skip: &RowSkip,
     st_setup: &mut RasterStats,
     st: &mut RasterStats,
 ) -> Result<()> {
-    draw_item_impl(vp, band, item, cov, st_setup, st)
+    draw_item_impl(vp, band, item, cov, skip, st_setup, st)
 }
 
 /// Counts the samples of `item` passing the query test (1 at the first with `any`).
@@ -139,10 +141,11 @@ mod avx2 {
         band: &mut Band,
         item: &DrawItem,
         cov: Coverage,
+        skip: &RowSkip,
         st_setup: &mut RasterStats,
         st: &mut RasterStats,
     ) -> Result<()> {
-        draw_item_impl(vp, band, item, cov, st_setup, st)
+        draw_item_impl(vp, band, item, cov, skip, st_setup, st)
     }
 
     #[target_feature(enable = "avx2")]
@@ -218,8 +221,10 @@ mod tests {
                     triangles: &[[0, 1, 2]],
                     object: k,
                 };
-                draw_item(&vp, &mut band(&mut a), &item, cov, &mut sa, &mut ta).unwrap();
-                draw_item_scalar(&vp, &mut band(&mut b), &item, cov, &mut sb, &mut tb).unwrap();
+                let skip = RowSkip::new();
+                draw_item(&vp, &mut band(&mut a), &item, cov, &skip, &mut sa, &mut ta).unwrap();
+                draw_item_scalar(&vp, &mut band(&mut b), &item, cov, &skip, &mut sb, &mut tb)
+                    .unwrap();
                 let view = QueryView {
                     layout: a.layout,
                     depth: &a.depth,

@@ -8,7 +8,7 @@ use crate::coverage::{pixel_bounds, Coverage};
 use crate::depth_target::{Band, DepthTarget};
 use crate::dispatch::draw_item;
 use crate::edge::{for_each_fan_tri, Tri};
-use crate::hiz::{hidden, project, Projected};
+use crate::hiz::{hidden, project, Projected, RowSkip};
 use crate::setup::SnappedVertex;
 use crate::setup::{setup_into, Facing, Setup, VertexCache, Viewport, CACHE_VERTICES};
 use crate::stats::RasterStats;
@@ -94,15 +94,16 @@ fn check_indices(item: &DrawItem) -> Result<()> {
     Ok(())
 }
 
-/// Sets up every triangle of `item`, calling `f(tri, id)` for each fan triangle.
-/// `f` returns true to stop early (an any-samples query that passed).
+/// Sets up every triangle of `item`, calling `f(tri, pixel_bounds, id)` for each fan
+/// triangle that can cover a pixel of the target. `f` returns true to stop early
+/// (an any-samples query that passed).
 #[inline(always)]
 pub(crate) fn setup_item(
     vp: &Viewport,
     item: &DrawItem,
     cov: Coverage,
     st: &mut RasterStats,
-    mut f: impl FnMut(&Tri, u64) -> bool,
+    mut f: impl FnMut(&Tri, (i64, i64, i64, i64), u64) -> bool,
 ) -> Result<()> {
     let mut s = Setup {
         facing: None,
@@ -117,11 +118,13 @@ pub(crate) fn setup_item(
     let cache = (item.positions.len() <= CACHE_VERTICES)
         .then(|| VertexCache::new(&item.clip_from_local, item.positions, vp));
     let passes = if cache.is_some() { 2 } else { 1 };
+    // Facing of the first triangles, from the first pass (computed once).
+    const KEEP: usize = 64;
+    let mut facings = [None; KEEP];
     for pass in 0..passes {
-        for k in 0..item.triangles.len() {
+        for (k, &t) in item.triangles.iter().enumerate() {
             match &cache {
                 Some(c) => {
-                    let t = item.triangles[k];
                     if let Some(&i) = t.iter().find(|&&i| i as usize >= item.positions.len()) {
                         return Err(Error::IndexOutOfRange {
                             triangle: k,
@@ -129,11 +132,18 @@ pub(crate) fn setup_item(
                             len: item.positions.len(),
                         });
                     }
-                    let front = c.facing(t) == Some(Facing::Front);
-                    if front != (pass == 0) {
+                    let facing = match facings.get_mut(k) {
+                        Some(f) if pass == 1 => *f,
+                        Some(f) => {
+                            *f = c.facing(t);
+                            *f
+                        }
+                        None => c.facing(t),
+                    };
+                    if (facing == Some(Facing::Front)) != (pass == 0) {
                         continue;
                     }
-                    c.setup(t, vp, &mut s);
+                    c.setup(t, facing, vp, &mut s);
                 }
                 None => setup_into(clip_vertices(item, k)?, vp, &mut s),
             }
@@ -145,9 +155,12 @@ pub(crate) fn setup_item(
             let mut any = false;
             let mut stop = false;
             for_each_fan_tri(s.polygon(), |t| {
-                if !stop && pixel_bounds(t, cov, vp.width, vp.height).is_some() {
+                if stop {
+                    return;
+                }
+                if let Some(pb) = pixel_bounds(t, cov, vp.width, vp.height) {
                     any = true;
-                    stop = f(t, id);
+                    stop = f(t, pb, id);
                 }
             });
             if !any {
@@ -203,13 +216,20 @@ impl DepthTarget {
     pub fn draw(&mut self, item: &DrawItem, cov: Coverage) -> Result<()> {
         let vp = self.vp;
         let mut st = RasterStats::default();
-        if self.mesh_hidden(
-            item,
-            &project(&item.clip_from_local, item.positions, vp.width, vp.height),
-            0,
-            self.layout.tiles_y,
-            &mut st,
-        )? {
+        let mut skip = RowSkip::new();
+        let hidden = match project(&item.clip_from_local, item.positions, vp.width, vp.height) {
+            Projected::Unknown => false,
+            Projected::Offscreen => true,
+            Projected::Bounds(b) => {
+                skip.compute(&self.layout, &self.tiles, 0, self.layout.tiles_y, &b)
+            }
+        };
+        if hidden {
+            check_indices(item)?;
+            let n = item.triangles.len() as u64;
+            st.triangles_in += n;
+            st.triangles_culled += n;
+            st.meshes_rejected_hiz += 1;
             self.stats.add(&st);
             return Ok(());
         }
@@ -222,7 +242,7 @@ impl DepthTarget {
             tiles: &mut self.tiles,
         };
         let mut st2 = RasterStats::default();
-        let r = draw_item(&vp, &mut band, item, cov, &mut st, &mut st2);
+        let r = draw_item(&vp, &mut band, item, cov, &skip, &mut st, &mut st2);
         st.add(&st2);
         self.stats.add(&st);
         r
@@ -346,6 +366,7 @@ impl DepthTarget {
                 };
                 let mut st = RasterStats::default();
                 let mut setups = Vec::new();
+                let mut skip = RowSkip::new();
                 for (k, (it, p)) in items.iter().zip(&projected).enumerate() {
                     match p {
                         Projected::Offscreen => continue,
@@ -353,15 +374,15 @@ impl DepthTarget {
                             if (sb.y1 >> l.shift) < ty0 || (sb.y0 >> l.shift) >= ty1 {
                                 continue;
                             }
-                            if hidden(&l, band.tiles, ty0, ty1, sb) {
+                            if skip.compute(&l, band.tiles, ty0, ty1, sb) {
                                 continue;
                             }
                         }
-                        Projected::Unknown => {}
+                        Projected::Unknown => skip.reset(),
                     }
                     let mut sst = RasterStats::default();
                     // Indices were checked above.
-                    let _ = draw_item(&vp, &mut band, it, cov, &mut sst, &mut st);
+                    let _ = draw_item(&vp, &mut band, it, cov, &skip, &mut sst, &mut st);
                     setups.push((
                         k as u32,
                         sst.triangles_clipped as u32,

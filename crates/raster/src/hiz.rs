@@ -139,3 +139,82 @@ pub(crate) fn hidden(
     }
     true
 }
+
+/// Most tile rows a target can have (16384 pixels in 4-pixel tiles).
+const MAX_TILE_ROWS: usize = 4096;
+
+/// The tile rows of one mesh's screen rectangle that are hidden when the mesh
+/// starts (every tile under the rectangle in that row strictly nearer than the
+/// mesh's nearest depth); traversal of the mesh's triangles skips them.
+///
+/// A row's state when a mesh starts depends only on the meshes drawn before it
+/// into that row, in submission order, so the rows skipped — and the tiles
+/// counted — are the same for the serial path and for any split into bands.
+pub(crate) struct RowSkip {
+    /// First and last tile row of the rectangle (`r1 < r0`: no rows skipped).
+    r0: u32,
+    r1: u32,
+    bits: [u64; MAX_TILE_ROWS / 64],
+}
+
+impl RowSkip {
+    /// Skips nothing.
+    pub fn new() -> Self {
+        RowSkip {
+            r0: 1,
+            r1: 0,
+            bits: [0; MAX_TILE_ROWS / 64],
+        }
+    }
+
+    /// Skips nothing (for meshes without screen bounds).
+    #[inline]
+    pub fn reset(&mut self) {
+        self.r0 = 1;
+        self.r1 = 0;
+    }
+
+    /// Marks the hidden rows of `b` among tile rows `ty0..ty1` (whose bounds `tiles`
+    /// holds, starting at row `ty0`); true when every such row is hidden (the mesh
+    /// can be skipped in these rows).
+    pub fn compute(
+        &mut self,
+        l: &Layout,
+        tiles: &[TileBounds],
+        ty0: u32,
+        ty1: u32,
+        b: &ScreenBounds,
+    ) -> bool {
+        let s = l.shift;
+        let (tx0, tx1) = (b.x0 >> s, b.x1 >> s);
+        let (r0, r1) = ((b.y0 >> s).max(ty0), (b.y1 >> s).min(ty1.saturating_sub(1)));
+        self.r0 = r0;
+        self.r1 = r1;
+        let mut all = true;
+        if r1 < r0 {
+            return true;
+        }
+        let words = ((r1 - r0) / 64 + 1) as usize;
+        self.bits[..words].fill(0);
+        for ty in r0..r1 + 1 {
+            let row = ((ty - ty0) * l.tiles_x) as usize;
+            let hid = tiles[row + tx0 as usize..=row + tx1 as usize]
+                .iter()
+                .all(|t| b.zmax < t.zmin_all());
+            all &= hid;
+            let k = (ty - r0) as usize;
+            self.bits[k / 64] |= u64::from(hid) << (k % 64);
+        }
+        all
+    }
+
+    /// Whether tile row `ty` is skipped.
+    #[inline(always)]
+    pub fn hides(&self, ty: u32) -> bool {
+        if ty < self.r0 || ty > self.r1 {
+            return false;
+        }
+        let k = (ty - self.r0) as usize;
+        self.bits[k / 64] >> (k % 64) & 1 != 0
+    }
+}

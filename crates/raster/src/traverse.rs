@@ -4,11 +4,10 @@
 //! accept the tile, hierarchical z rejects it (or, for queries, counts it
 //! whole), and only the remaining tiles get per-pixel work.
 
-use crate::coverage::{
-    depth_range, edge_offsets, f32_down, f32_up, pixel_bounds, pixel_depth, Coverage,
-};
+use crate::coverage::{depth_range, edge_offsets, f32_down, f32_up, pixel_depth, Coverage};
 use crate::depth_target::{Band, Layout, TileBounds, BACKGROUND};
 use crate::edge::Tri;
+use crate::hiz::RowSkip;
 use crate::setup::SUBPIXEL;
 use crate::stats::RasterStats;
 
@@ -82,13 +81,12 @@ struct Prep {
 }
 
 #[inline(always)]
-fn prep(tri: &Tri, cov: Coverage, l: &Layout) -> Option<Prep> {
-    let pb = pixel_bounds(tri, cov, l.width, l.height)?;
+fn prep(tri: &Tri, pb: (i64, i64, i64, i64), cov: Coverage, l: &Layout) -> Prep {
     let off = edge_offsets(tri, cov);
     let step_x = tri.e.map(|e| e.a * SUBPIXEL);
     let step_y = tri.e.map(|e| e.b * SUBPIXEL);
     let tiles = tiles_of(l, pb);
-    Some(Prep {
+    Prep {
         pb,
         off,
         step_x,
@@ -101,7 +99,7 @@ fn prep(tri: &Tri, cov: Coverage, l: &Layout) -> Option<Prep> {
         zlo: f32_down(tri.zlo),
         zhi: f32_up(tri.zhi),
         tiles,
-    })
+    }
 }
 
 /// Coverage mask and depth of `n ≤ N` pixels of a row whose first pixel has raw
@@ -210,16 +208,22 @@ fn rows_std<const T: usize>(
     let eligible: [bool; T] = std::array::from_fn(|k| k >= lanes.0 && k <= lanes.1);
     let fullm = full as u32;
     let no_testm = no_test as u32;
+    // Per-lane accumulators over all rows, reduced once at the end. Plain
+    // comparisons and selects (no NaN-aware min/max, no short-circuit) so the loop
+    // vectorizes; masks are 0/1 integers.
+    let mut tested = [0u32; T];
+    let mut written = [0u32; T];
+    let mut bgw = [0u32; T];
+    let mut hit = [0u32; T];
+    let mut vmax = [acc.new_max; T];
+    let mut vmin = [acc.new_min; T];
     for row in depth.chunks_exact_mut(T) {
         let row: &mut [f32; T] = row.try_into().expect("tile row");
-        // Plain comparisons and selects (no NaN-aware min/max, no short-circuit) so the
-        // loop vectorizes; masks are 0/1 integers.
-        let mut tested = [0u32; T];
-        let mut written = [0u32; T];
-        let mut bgw = [0u32; T];
-        let mut hit = [0u32; T];
-        let mut vmax = [acc.new_max; T];
-        let mut vmin = [acc.new_min; T];
+        // The new row is built apart (a bitwise merge, not a select) and stored
+        // whole: `row[k] = if win { z } else { d }` compiles to a masked store
+        // (vmaskmovps), slow on AMD and never forwarded to the next triangle's
+        // loads of the same row.
+        let mut out = [0f32; T];
         for k in 0..T {
             let a = e[0] + kstep[0][k];
             let b = e[1] + kstep[1][k];
@@ -231,33 +235,36 @@ fn rows_std<const T: usize>(
             let z = ((a * z0 + b * z1 + c * z2) * inv) as f32;
             let d = row[k];
             let win = m & (no_testm | ((z > d) as u32));
-            tested[k] = m;
-            written[k] = win;
-            row[k] = if win != 0 { z } else { d };
+            tested[k] += m;
+            written[k] += win;
+            // Bitwise merge (win ? z : d).
+            let (zb, db) = (z.to_bits(), d.to_bits());
+            out[k] = f32::from_bits(db ^ ((db ^ zb) & 0u32.wrapping_sub(win)));
             vmax[k] = if win != 0 && z > vmax[k] { z } else { vmax[k] };
             let from_bg = win & ((d == BACKGROUND) as u32);
-            bgw[k] = from_bg;
+            bgw[k] += from_bg;
             vmin[k] = if from_bg != 0 && z < vmin[k] {
                 z
             } else {
                 vmin[k]
             };
-            hit[k] = win & ((d == zmin) as u32);
+            hit[k] |= win & ((d == zmin) as u32);
         }
-        for k in 0..T {
-            acc.tested += tested[k];
-            acc.written += written[k];
-            acc.bg_written += bgw[k];
-            acc.hit_min |= hit[k] != 0;
-            if vmax[k] > acc.new_max {
-                acc.new_max = vmax[k];
-            }
-            if vmin[k] < acc.new_min {
-                acc.new_min = vmin[k];
-            }
-        }
+        *row = out;
         for i in 0..3 {
             e[i] += stepy[i];
+        }
+    }
+    for k in 0..T {
+        acc.tested += tested[k];
+        acc.written += written[k];
+        acc.bg_written += bgw[k];
+        acc.hit_min |= hit[k] != 0;
+        if vmax[k] > acc.new_max {
+            acc.new_max = vmax[k];
+        }
+        if vmin[k] < acc.new_min {
+            acc.new_min = vmin[k];
         }
     }
 }
@@ -309,26 +316,29 @@ fn rows_query<const T: usize>(
     u64::from(pass)
 }
 
-/// Rasterizes `tri` into `band` with the GREATER test (ties broken by smaller `id`
-/// when the band has an id buffer). Returns false when the triangle covers no pixel
-/// of the whole target (culled).
+/// Rasterizes `tri`, whose pixel bounds ([`pixel_bounds`]) are `pb`, into `band`
+/// with the GREATER test (ties broken by smaller `id` when the band has an id
+/// buffer).
 #[inline(always)]
 pub(crate) fn draw_tri(
     band: &mut Band,
     tri: &Tri,
+    pb: (i64, i64, i64, i64),
     cov: Coverage,
     id: u64,
+    skip: &RowSkip,
     st: &mut RasterStats,
-) -> bool {
+) {
     let l = band.layout;
-    let Some(p) = prep(tri, cov, &l) else {
-        return false;
-    };
+    let p = prep(tri, pb, cov, &l);
     let (tx0, tx1, ty0, ty1) = p.tiles;
     let base_tile = band.tile_base();
     let mut zs = [0f32; MAX_TILE];
     let mut mask = [false; MAX_TILE];
     for ty in ty0.max(band.ty0)..ty1.min(band.ty1 - 1) + 1 {
+        if skip.hides(ty) {
+            continue;
+        }
         for tx in tx0..tx1 + 1 {
             st.tiles_touched += 1;
             let t = l.tile_index(tx, ty) - base_tile;
@@ -476,7 +486,6 @@ pub(crate) fn draw_tri(
             }
         }
     }
-    true
 }
 
 /// Read-only view of a target for queries.
@@ -489,18 +498,19 @@ pub(crate) struct QueryView<'a> {
 }
 
 /// Counts the covered samples of `tri` passing GEQUAL (and the receiver restriction).
-/// With `any`, stops at the first passing sample and returns 1. Returns `None` when
-/// the triangle covers no pixel of the target.
+/// With `any`, stops at the first passing sample and returns 1. `pb` are the
+/// triangle's pixel bounds ([`pixel_bounds`]).
 #[inline(always)]
 pub(crate) fn query_tri(
     v: &QueryView,
     tri: &Tri,
+    pb: (i64, i64, i64, i64),
     cov: Coverage,
     any: bool,
     st: &mut RasterStats,
-) -> Option<u64> {
+) -> u64 {
     let l = v.layout;
-    let p = prep(tri, cov, &l)?;
+    let p = prep(tri, pb, cov, &l);
     let (tx0, tx1, ty0, ty1) = p.tiles;
     let mut count = 0u64;
     let mut zs = [0f32; MAX_TILE];
@@ -533,7 +543,7 @@ pub(crate) fn query_tri(
                 if v.receivers.is_none() && lo >= tb.zmax {
                     st.tiles_query_accepted_whole += 1;
                     if any {
-                        return Some(1);
+                        return 1;
                     }
                     count += ((rect.1 - rect.0 + 1) * (rect.3 - rect.2 + 1)) as u64;
                     continue;
@@ -584,7 +594,7 @@ pub(crate) fn query_tri(
                 st.pixels_tested += tested;
                 if pass > 0 {
                     if any {
-                        return Some(1);
+                        return 1;
                     }
                     count += pass;
                 }
@@ -614,7 +624,7 @@ pub(crate) fn query_tri(
                 st.pixels_tested += tested;
                 if pass > 0 {
                     if any {
-                        return Some(1);
+                        return 1;
                     }
                     count += pass;
                 }
@@ -624,5 +634,5 @@ pub(crate) fn query_tri(
             }
         }
     }
-    Some(count)
+    count
 }
