@@ -56,6 +56,7 @@ mod receivers;
 mod setup;
 mod stats;
 mod traverse;
+mod volume_buffer;
 
 pub use backend::{
     BackendStats, DrawCommand, Gate, Latency, OcclusionBackend, QueryCommand, QueryId,
@@ -70,6 +71,7 @@ pub use query::{meets_apex_region, QueryMode, QueryOptions, APEX_EPS, VISIBLE};
 pub use receivers::{ReceiverTarget, RECEIVER_EPS_PX};
 pub use setup::{facing, setup_triangle, Facing, Setup, SnappedVertex, SUBPIXEL};
 pub use stats::RasterStats;
+pub use volume_buffer::{VolumeBuffer, VolumeMethod, VolumeRange};
 
 /// Largest width or height of a target, in pixels.
 pub const MAX_TARGET_SIZE: u32 = 16384;

@@ -1,0 +1,169 @@
+//! One light's shadow volumes for a set of casters: silhouettes (cached),
+//! method choice and volume construction into a caller-owned
+//! [`raster::VolumeBuffer`] (DESIGN.md "One frame, per light", steps 5 and 7).
+
+use crate::volume::{append_volume, LocalLight};
+use crate::{Error, MethodChoice, NearLightHull, Result, SilhouetteCache};
+use raster::{VolumeBuffer, VolumeMethod};
+use scene::{Camera, Light, ObjectId, Scene};
+use std::time::Instant;
+
+/// Options of [`build_volumes`].
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct BuildOptions {
+    /// How each caster's method is chosen.
+    pub method: MethodChoice,
+    /// Every triangle casts (back-facing ones flipped), as the reference's two-sided mode.
+    pub two_sided: bool,
+    /// Viewport `(width, height)` in pixels: when given, every range gets its
+    /// scissor rectangle and depth bounds ([`crate::volume_bounds`], restricted
+    /// to the scene bounds); when `None` they stay full (whole viewport, 1..0).
+    pub viewport: Option<(u32, u32)>,
+}
+
+/// Counters and timings of one [`build_volumes`] call.
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct VolumeStats {
+    /// Casters processed (one range each).
+    pub casters: usize,
+    /// Silhouettes taken from the cache.
+    pub cache_hits: usize,
+    /// Silhouettes recomputed.
+    pub cache_misses: usize,
+    /// Silhouette edges, counted with multiplicity.
+    pub silhouette_edges: usize,
+    /// Casting (light-cap) triangles over all casters.
+    pub cap_source_triangles: usize,
+    /// Triangles written to the volume buffer.
+    pub volume_triangles: usize,
+    /// Casters drawn with zpass.
+    pub zpass: usize,
+    /// Casters drawn with zfail.
+    pub zfail: usize,
+    /// Casters drawn with zp+.
+    pub zpplus: usize,
+    /// Wall time of silhouette extraction (cache lookups and recomputation), ms.
+    pub silhouette_ms: f64,
+    /// Wall time of method choice and volume construction, ms.
+    pub volume_ms: f64,
+}
+
+/// Builds the shadow volumes of `casters` for `light` seen by `camera` into
+/// `out` (cleared first): one range per caster, in the order given, with the
+/// method `options.method` yields. Silhouettes come from `cache` (updated),
+/// which also holds the reusable construction scratch.
+///
+/// # Errors
+/// [`Error::Light`] when the light fails [`Light::validate`];
+/// [`Error::UnknownObject`] when a caster id is not in `scene`;
+/// [`Error::BufferOverflow`] past `u32` indices.
+pub fn build_volumes(
+    out: &mut VolumeBuffer,
+    scene: &Scene,
+    camera: &Camera,
+    light: &Light,
+    casters: &[ObjectId],
+    options: BuildOptions,
+    cache: &mut SilhouetteCache,
+) -> Result<VolumeStats> {
+    out.clear();
+    light.validate()?;
+    let objects = scene.objects().len();
+    if let Some(bad) = casters.iter().find(|id| id.0 as usize >= objects) {
+        return Err(Error::UnknownObject { id: bad.0, objects });
+    }
+    let mut stats = VolumeStats {
+        casters: casters.len(),
+        ..VolumeStats::default()
+    };
+    let t0 = Instant::now();
+    let (h0, m0) = cache.hits_misses();
+    cache.update(scene, light, options.two_sided, casters);
+    let (h1, m1) = cache.hits_misses();
+    stats.cache_hits = h1 - h0;
+    stats.cache_misses = m1 - m0;
+    stats.silhouette_ms = t0.elapsed().as_secs_f64() * 1e3;
+
+    let t1 = Instant::now();
+    let mut scratch = std::mem::take(&mut cache.scratch);
+    let result = append_all(
+        out,
+        scene,
+        camera,
+        light,
+        casters,
+        options,
+        cache,
+        &mut scratch,
+        &mut stats,
+    );
+    cache.scratch = scratch;
+    result?;
+    stats.volume_ms = t1.elapsed().as_secs_f64() * 1e3;
+    debug_assert_eq!(stats.volume_triangles, out.triangle_count());
+    Ok(stats)
+}
+
+#[allow(clippy::too_many_arguments)]
+fn append_all(
+    out: &mut VolumeBuffer,
+    scene: &Scene,
+    camera: &Camera,
+    light: &Light,
+    casters: &[ObjectId],
+    options: BuildOptions,
+    cache: &SilhouetteCache,
+    scratch: &mut crate::VolumeScratch,
+    stats: &mut VolumeStats,
+) -> Result<()> {
+    let hull = NearLightHull::new(camera, light);
+    for &id in casters {
+        let sil = cache.get(id, light).expect("update() cached every caster");
+        let object = scene.object(id);
+        let mesh = scene.object_mesh(id);
+        // Worst case per caster: 2 vertices per mesh vertex, 3·(2·caps + 2·edges) indices.
+        let need_v = out.positions.len() + 2 * mesh.positions().len() + 1;
+        let need_i = out.indices.len() + 6 * (sil.caps.len() + sil.edge_count());
+        if need_v > u32::MAX as usize || need_i > u32::MAX as usize {
+            return Err(Error::BufferOverflow);
+        }
+        let method = hull.choose(options.method, &object.world_bounds);
+        match method {
+            VolumeMethod::ZPass => stats.zpass += 1,
+            VolumeMethod::ZFail => stats.zfail += 1,
+            VolumeMethod::ZpPlus => stats.zpplus += 1,
+        }
+        let local = LocalLight::new(light, &object.world_from_local);
+        let c = append_volume(
+            out,
+            scratch,
+            id.0,
+            mesh.positions(),
+            &object.world_from_local,
+            sil,
+            &local,
+            method,
+        );
+        stats.silhouette_edges += sil.edge_count();
+        stats.cap_source_triangles += sil.caps.len();
+        stats.volume_triangles += c.side_triangles + c.cap_triangles;
+    }
+    if let Some(viewport) = options.viewport {
+        let scene_bounds = scene.bounds();
+        let bound = |r: &mut raster::VolumeRange| {
+            let caster = &scene.objects()[r.object as usize].world_bounds;
+            let b = crate::volume_bounds(camera, viewport, light, caster, &scene_bounds);
+            r.scissor = b.scissor;
+            r.depth_near = b.depth_near;
+            r.depth_far = b.depth_far;
+        };
+        #[cfg(feature = "parallel")]
+        {
+            use rayon::prelude::*;
+            out.ranges.par_iter_mut().for_each(bound);
+        }
+        #[cfg(not(feature = "parallel"))]
+        out.ranges.iter_mut().for_each(bound);
+    }
+    Ok(())
+}

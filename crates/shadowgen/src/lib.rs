@@ -1,0 +1,39 @@
+//! # shadowcull-shadowgen
+//!
+//! Silhouettes, shadow-volume construction and per-caster method choice:
+//! fills the [`raster::VolumeBuffer`] the stencil stage (or a GPU host) draws.
+//!
+//! # Conventions
+//! - Right-handed world, column vectors; transforms named `dst_from_src`.
+//! - Facing is the one rule [`scene::faces_light`] on f64 world positions from
+//!   [`scene::Scene::world_triangle`]; a light in a triangle's plane does not face it.
+//! - Volume positions stay in each caster's local space (the eye pass's own f32
+//!   vertices, `w = 1`); extruded vertices are points at infinity, `w = 0`.
+//!   Clip space is reversed Z with an infinite far plane, reached through the
+//!   one transform path `scene::transform::clip_from_local`.
+//! - Winding: volume triangles are counter-clockwise seen from outside the
+//!   volume in world space ([EK]), mirrored instances included; light caps keep
+//!   the light-facing winding, dark caps are reversed.
+//!
+//! # What is here
+//! - [`silhouette()`] and [`SilhouetteCache`]: signed edge counters [AW §2.4].
+//! - [`append_volume`]: sides, light and dark caps, `w = 0` extrusion [EK, Steiner §4.1].
+//! - [`MethodChoice`], [`zpass_is_safe`]: near-plane/light pyramid test [EK].
+//! - [`volume_bounds`]: per-volume scissor and depth bounds [EK "Exploit Bounds"].
+//! - [`build_volumes`]: all of the above for one light, with [`VolumeStats`].
+#![forbid(unsafe_code)]
+#![warn(missing_docs)]
+
+mod bounds;
+mod build;
+mod error;
+mod method;
+mod silhouette;
+mod volume;
+
+pub use bounds::{volume_bounds, VolumeBounds, BOUNDS_MARGIN};
+pub use build::{build_volumes, BuildOptions, VolumeStats};
+pub use error::{Error, Result};
+pub use method::{choose_method, zpass_is_safe, MethodChoice, NearLightHull, ZPASS_MARGIN};
+pub use silhouette::{silhouette, Silhouette, SilhouetteCache, SilhouetteEdge};
+pub use volume::{append_volume, LocalLight, VolumeCounts, VolumeScratch};

@@ -1,0 +1,802 @@
+//! Integration tests of shadowgen: silhouette laws (proptest), volume winding,
+//! extrusion and closedness, method choice through `build_volumes`, errors.
+
+use glam::{DMat4, DQuat, DVec3, DVec4, Vec3};
+use proptest::prelude::*;
+use raster::{VolumeBuffer, VolumeMethod, VolumeRange};
+use scene::{Camera, Light, Mesh, ObjectId, Scene, SceneGraph, Transform};
+use shadowgen::{
+    build_volumes, silhouette, BuildOptions, Error, MethodChoice, Silhouette, SilhouetteCache,
+};
+use std::collections::HashMap;
+
+// ---------------------------------------------------------------- meshes
+
+fn unit_box() -> Mesh {
+    let c = |i: u32| Vec3::new((i & 1) as f32, ((i >> 1) & 1) as f32, ((i >> 2) & 1) as f32);
+    let pos: Vec<Vec3> = (0..8).map(c).collect();
+    // Quads CCW seen from outside.
+    let faces = [
+        [0, 4, 6, 2],
+        [1, 3, 7, 5],
+        [0, 1, 5, 4],
+        [2, 6, 7, 3],
+        [0, 2, 3, 1],
+        [4, 5, 7, 6],
+    ];
+    let mut tris = Vec::new();
+    for f in faces {
+        tris.push([f[0], f[1], f[2]]);
+        tris.push([f[0], f[2], f[3]]);
+    }
+    Mesh::new("box", &pos, &tris).unwrap()
+}
+
+/// A closed, consistently wound, star-shaped (generally non-convex) sphere.
+fn star_sphere(radii: &[f32], lat: usize, lon: usize) -> Mesh {
+    let mut pos = vec![Vec3::Y * radii[0]];
+    let mut k = 1;
+    for i in 1..lat {
+        let th = std::f32::consts::PI * i as f32 / lat as f32;
+        for j in 0..lon {
+            let ph = std::f32::consts::TAU * j as f32 / lon as f32;
+            let d = Vec3::new(th.sin() * ph.cos(), th.cos(), -th.sin() * ph.sin());
+            pos.push(d * radii[k % radii.len()]);
+            k += 1;
+        }
+    }
+    pos.push(Vec3::NEG_Y * radii[k % radii.len()]);
+    let bottom = pos.len() as u32 - 1;
+    let ring = |i: usize, j: usize| (1 + (i - 1) * lon + j % lon) as u32;
+    let mut tris = Vec::new();
+    for j in 0..lon {
+        tris.push([0, ring(1, j), ring(1, j + 1)]);
+        tris.push([bottom, ring(lat - 1, j + 1), ring(lat - 1, j)]);
+    }
+    for i in 1..lat - 1 {
+        for j in 0..lon {
+            let (a, b, c, d) = (
+                ring(i, j),
+                ring(i, j + 1),
+                ring(i + 1, j),
+                ring(i + 1, j + 1),
+            );
+            tris.push([a, c, d]);
+            tris.push([a, d, b]);
+        }
+    }
+    Mesh::new("star", &pos, &tris).unwrap()
+}
+
+fn scene_with(mesh: Mesh, world_from_local: DMat4) -> Scene {
+    let mut g = SceneGraph::new();
+    let m = g.add_mesh(mesh);
+    g.add_instance("o", m, Transform::Matrix(world_from_local));
+    Scene::new(g).unwrap()
+}
+
+fn point(p: DVec3) -> Light {
+    Light::Point {
+        position: p,
+        range: None,
+    }
+}
+
+fn camera() -> Camera {
+    Camera::look_at(
+        DVec3::new(0.0, 2.0, 20.0),
+        DVec3::ZERO,
+        DVec3::Y,
+        1.0,
+        1.0,
+        0.1,
+    )
+    .unwrap()
+}
+
+/// Per vertex, out-degree minus in-degree counted with multiplicity.
+fn imbalance(s: &Silhouette) -> HashMap<u32, i64> {
+    let mut m = HashMap::new();
+    for e in &s.edges {
+        *m.entry(e.from).or_insert(0) += e.multiplicity as i64;
+        *m.entry(e.to).or_insert(0) -= e.multiplicity as i64;
+    }
+    m.retain(|_, v| *v != 0);
+    m
+}
+
+// ---------------------------------------------------------------- strategies
+
+fn transform() -> impl Strategy<Value = DMat4> {
+    (
+        prop::array::uniform4(-1.0f64..1.0),
+        prop::array::uniform3(0.3f64..3.0),
+        prop::array::uniform3(any::<bool>()),
+        prop::array::uniform3(-10.0f64..10.0),
+    )
+        .prop_filter_map("zero quaternion", |(q, s, neg, t)| {
+            let q = DQuat::from_xyzw(q[0], q[1], q[2], q[3]);
+            (q.length() > 0.1).then(|| {
+                let s = DVec3::new(
+                    if neg[0] { -s[0] } else { s[0] },
+                    if neg[1] { -s[1] } else { s[1] },
+                    if neg[2] { -s[2] } else { s[2] },
+                );
+                DMat4::from_scale_rotation_translation(s, q.normalize(), DVec3::from(t))
+            })
+        })
+}
+
+fn light() -> impl Strategy<Value = Light> {
+    prop_oneof![
+        prop::array::uniform3(-40.0f64..40.0).prop_map(|p| point(DVec3::from(p))),
+        prop::array::uniform3(-1.0f64..1.0)
+            .prop_filter("zero direction", |d| DVec3::from(*d).length() > 0.05)
+            .prop_map(|d| Light::Directional {
+                direction: DVec3::from(d)
+            }),
+    ]
+}
+
+// ---------------------------------------------------------------- silhouettes
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(96))]
+
+    /// Closed consistently wound meshes: silhouette edges have multiplicity 1
+    /// and form closed loops (equal in- and out-degree at every vertex).
+    #[test]
+    fn closed_mesh_silhouettes_form_loops(
+        radii in prop::collection::vec(0.5f32..1.5, 7..40),
+        lat in 3usize..8,
+        lon in 3usize..9,
+        w in transform(),
+        l in light(),
+        use_box in any::<bool>(),
+        two_sided in any::<bool>(),
+    ) {
+        let mesh = if use_box { unit_box() } else { star_sphere(&radii, lat, lon) };
+        let s = scene_with(mesh, w);
+        let mut out = Silhouette::default();
+        silhouette(&s, ObjectId(0), &l, two_sided, &mut out);
+        prop_assert!(imbalance(&out).is_empty());
+        if !two_sided {
+            prop_assert!(out.edges.iter().all(|e| e.multiplicity == 1));
+        } else {
+            // Two-sided on a closed mesh: front and flipped back faces cancel
+            // along each edge or double up, never more than 2.
+            prop_assert!(out.edges.iter().all(|e| e.multiplicity <= 2));
+        }
+    }
+
+    /// Any triangle soup (open, non-manifold, mixed winding): the counters
+    /// balance at every vertex.
+    #[test]
+    fn any_mesh_counters_balance(
+        pts in prop::collection::vec(prop::array::uniform3(-2.0f32..2.0), 4..10),
+        tris in prop::collection::vec(prop::array::uniform3(0u32..10), 1..30),
+        w in transform(),
+        l in light(),
+        two_sided in any::<bool>(),
+    ) {
+        let n = pts.len() as u32;
+        let pos: Vec<Vec3> = pts.into_iter().map(Vec3::from).collect();
+        let tris: Vec<[u32; 3]> = tris.into_iter().map(|t| t.map(|i| i % n)).collect();
+        let Ok(mesh) = Mesh::new("soup", &pos, &tris) else { return Ok(()); };
+        if mesh.triangles().is_empty() { return Ok(()); }
+        let s = scene_with(mesh, w);
+        let mut out = Silhouette::default();
+        silhouette(&s, ObjectId(0), &l, two_sided, &mut out);
+        prop_assert!(imbalance(&out).is_empty(), "{:?}", out.edges);
+    }
+
+    /// Every volume triangle of a box faces outward relative to the box centre
+    /// (in world space, mirrored transforms included); zfail volumes are closed
+    /// surfaces; extruded vertices have w = 0 exactly.
+    #[test]
+    fn box_volumes_are_outward_and_closed(w in transform(), l in light(), method in 0usize..3) {
+        let s = scene_with(unit_box(), w);
+        let centre = w.transform_point3(DVec3::splat(0.5));
+        if let Some(p) = l.position() {
+            // Keep the light clearly outside the box.
+            let local = w.inverse().transform_point3(p);
+            prop_assume!(local.cmplt(DVec3::splat(-0.2)).any() || local.cmpgt(DVec3::splat(1.2)).any());
+        }
+        let choice = [MethodChoice::ZPass, MethodChoice::ZFail, MethodChoice::ZpPlus][method];
+        let buf = build(&s, &l, choice);
+        check_outward(&buf, centre);
+        check_extrusion(&s, &buf, &l);
+        if choice != MethodChoice::ZPass {
+            prop_assert!(boundary(&buf, &buf.ranges[0]).is_empty());
+        }
+    }
+}
+
+fn build(s: &Scene, l: &Light, choice: MethodChoice) -> VolumeBuffer {
+    let mut buf = VolumeBuffer::new();
+    let mut cache = SilhouetteCache::new();
+    let ids: Vec<ObjectId> = (0..s.objects().len() as u32).map(ObjectId).collect();
+    let opts = BuildOptions {
+        method: choice,
+        two_sided: false,
+        viewport: None,
+    };
+    let st = build_volumes(&mut buf, s, &camera(), l, &ids, opts, &mut cache).unwrap();
+    buf.check().unwrap();
+    assert_eq!(st.volume_triangles, buf.triangle_count());
+    buf
+}
+
+fn world(range: &VolumeRange, p: [f32; 4]) -> DVec4 {
+    range.world_from_local * DVec4::new(p[0] as f64, p[1] as f64, p[2] as f64, p[3] as f64)
+}
+
+fn det4(rows: [DVec4; 4]) -> f64 {
+    glam::DMat4::from_cols(rows[0], rows[1], rows[2], rows[3]).determinant()
+}
+
+/// `det[A, B, C, X] > 0` ⇔ X lies behind the triangle (A, B, C) — for w = 0
+/// vertices too, by multilinearity (the limit of far finite points).
+fn check_outward(buf: &VolumeBuffer, interior: DVec3) {
+    // Sanity of the sign convention on a finite triangle with normal +z.
+    let t = [
+        DVec4::new(0.0, 0.0, 0.0, 1.0),
+        DVec4::new(1.0, 0.0, 0.0, 1.0),
+        DVec4::new(0.0, 1.0, 0.0, 1.0),
+    ];
+    assert!(det4([t[0], t[1], t[2], DVec4::new(0.1, 0.1, -1.0, 1.0)]) > 0.0);
+    let x = interior.extend(1.0);
+    for r in &buf.ranges {
+        for t in r.indices().step_by(3) {
+            let [a, b, c] = buf.triangle(t / 3).map(|p| world(r, p));
+            let d = det4([a, b, c, x]);
+            let scale = a.length() * b.length() * c.length() * x.length();
+            assert!(d > -1e-9 * scale, "triangle {} faces inward: {d}", t / 3);
+        }
+    }
+}
+
+fn check_extrusion(s: &Scene, buf: &VolumeBuffer, l: &Light) {
+    for r in &buf.ranges {
+        let verts = r.first_vertex as usize..(r.first_vertex + r.vertex_count) as usize;
+        let mesh = s.object_mesh(ObjectId(r.object));
+        let mut infinite = Vec::new();
+        for p in &buf.positions[verts] {
+            if p[3] == 1.0 {
+                let v = Vec3::new(p[0], p[1], p[2]);
+                assert!(
+                    mesh.positions().contains(&v),
+                    "finite vertex not a mesh vertex"
+                );
+            } else {
+                assert_eq!(p[3].to_bits(), 0.0f32.to_bits(), "w is exactly +0");
+                infinite.push(world(r, *p).truncate());
+            }
+        }
+        if let Light::Directional { direction } = *l {
+            assert!(infinite.len() <= 1);
+            for d in infinite {
+                assert!(d.normalize().dot(direction.normalize()) > 1.0 - 1e-6);
+            }
+        }
+    }
+}
+
+/// Directed edges of a range's triangles (by position value) that have no
+/// reverse partner: empty for a closed surface.
+fn boundary(buf: &VolumeBuffer, r: &VolumeRange) -> HashMap<([u32; 4], [u32; 4]), i32> {
+    let key = |i: u32| buf.positions[i as usize].map(f32::to_bits);
+    let mut m: HashMap<([u32; 4], [u32; 4]), i32> = HashMap::new();
+    for t in r.indices().step_by(3) {
+        let tri = [buf.indices[t], buf.indices[t + 1], buf.indices[t + 2]];
+        for k in 0..3 {
+            let (a, b) = (key(tri[k]), key(tri[(k + 1) % 3]));
+            if a == b {
+                continue;
+            }
+            if a < b {
+                *m.entry((a, b)).or_insert(0) += 1;
+            } else {
+                *m.entry((b, a)).or_insert(0) -= 1;
+            }
+        }
+    }
+    m.retain(|_, v| *v != 0);
+    m
+}
+
+// ---------------------------------------------------------------- volumes
+
+#[test]
+fn unit_box_under_a_point_light() {
+    let s = scene_with(unit_box(), DMat4::IDENTITY);
+    // Corner-on: three faces lit, a hexagonal silhouette.
+    let l = point(DVec3::new(5.0, 6.0, 7.0));
+    let mut sil = Silhouette::default();
+    silhouette(&s, ObjectId(0), &l, false, &mut sil);
+    let k = sil.edge_count();
+    assert_eq!(k, 6);
+    assert_eq!(sil.caps.len(), 6);
+    let zpass = build(&s, &l, MethodChoice::ZPass);
+    assert_eq!(
+        zpass.triangle_count(),
+        2 * k,
+        "one quad (2 triangles) per silhouette edge"
+    );
+    assert!(zpass.ranges[0].light_cap.is_empty() && zpass.ranges[0].dark_cap.is_empty());
+    let zfail = build(&s, &l, MethodChoice::ZFail);
+    let r = &zfail.ranges[0];
+    assert_eq!(r.method, VolumeMethod::ZFail);
+    assert_eq!(r.light_cap.len(), 3 * 6);
+    assert_eq!(r.dark_cap.len(), 3 * 6);
+    assert_eq!(zfail.triangle_count(), 2 * k + 12);
+    // 6 silhouette vertices + 1 cap-only corner, each finite and extruded.
+    assert_eq!(r.vertex_count, 14);
+    assert!(boundary(&zfail, r).is_empty());
+    check_outward(&zfail, DVec3::splat(0.5));
+    // Face-on: one face lit, four silhouette edges.
+    let l = point(DVec3::new(0.5, 0.5, 9.0));
+    silhouette(&s, ObjectId(0), &l, false, &mut sil);
+    assert_eq!(sil.edge_count(), 4);
+    assert_eq!(build(&s, &l, MethodChoice::ZPass).triangle_count(), 8);
+}
+
+#[test]
+fn directional_sides_meet_in_one_point_at_infinity() {
+    let s = scene_with(
+        unit_box(),
+        DMat4::from_translation(DVec3::new(3.0, 1.0, -2.0)),
+    );
+    let sun = Light::Directional {
+        direction: DVec3::new(-0.3, -1.0, -0.2),
+    };
+    let buf = build(&s, &sun, MethodChoice::ZFail);
+    let r = &buf.ranges[0];
+    assert!(r.dark_cap.is_empty());
+    let infinite: Vec<usize> = (r.first_vertex..r.first_vertex + r.vertex_count)
+        .map(|i| i as usize)
+        .filter(|&i| buf.positions[i][3] == 0.0)
+        .collect();
+    assert_eq!(infinite.len(), 1);
+    let sides = r.light_cap.end as usize..r.indices().end;
+    assert_eq!(sides.len() / 3, 6, "one triangle per silhouette edge");
+    for t in sides.step_by(3) {
+        assert_eq!(buf.indices[t + 2] as usize, infinite[0]);
+    }
+    assert!(boundary(&buf, r).is_empty(), "light cap + fan is closed");
+    check_outward(&buf, DVec3::new(3.5, 1.5, -1.5));
+}
+
+#[test]
+fn mirrored_box_keeps_outward_winding() {
+    for scale in [
+        DVec3::new(-1.0, 1.0, 1.0),
+        DVec3::new(-2.0, -1.0, 1.5),
+        DVec3::new(-1.0, -1.0, -1.0),
+    ] {
+        let w = DMat4::from_scale(scale);
+        let s = scene_with(unit_box(), w);
+        let centre = w.transform_point3(DVec3::splat(0.5));
+        for l in [
+            point(DVec3::new(5.0, 6.0, 7.0)),
+            Light::Directional {
+                direction: DVec3::new(0.2, -1.0, 0.3),
+            },
+        ] {
+            let buf = build(&s, &l, MethodChoice::ZFail);
+            check_outward(&buf, centre);
+            assert!(boundary(&buf, &buf.ranges[0]).is_empty());
+        }
+    }
+}
+
+#[test]
+fn open_and_non_manifold_volumes_are_closed() {
+    // Open quad plus a fin: the zfail volume is still a closed surface.
+    let p = [
+        Vec3::ZERO,
+        Vec3::X,
+        Vec3::new(1.0, 1.0, 0.0),
+        Vec3::Y,
+        Vec3::new(0.5, 0.0, 1.0),
+        Vec3::new(0.5, 0.0, -1.0),
+    ];
+    let m = Mesh::new("fin", &p, &[[0, 1, 2], [0, 2, 3], [0, 1, 4], [1, 0, 5]]).unwrap();
+    let s = scene_with(m, DMat4::IDENTITY);
+    for l in [
+        point(DVec3::new(0.3, -2.0, 5.0)),
+        point(DVec3::new(0.3, 2.0, -5.0)),
+    ] {
+        for two_sided in [false, true] {
+            let mut buf = VolumeBuffer::new();
+            let mut cache = SilhouetteCache::new();
+            let opts = BuildOptions {
+                method: MethodChoice::ZFail,
+                two_sided,
+                viewport: None,
+            };
+            build_volumes(
+                &mut buf,
+                &s,
+                &camera(),
+                &l,
+                &[ObjectId(0)],
+                opts,
+                &mut cache,
+            )
+            .unwrap();
+            assert!(boundary(&buf, &buf.ranges[0]).is_empty());
+        }
+    }
+}
+
+// ---------------------------------------------------------------- build_volumes
+
+#[test]
+fn auto_chooses_zfail_when_the_camera_is_in_shadow() {
+    let mut g = SceneGraph::new();
+    let m = g.add_mesh(unit_box());
+    // Between the eye (0, 2, 20) and the light above it.
+    g.add_instance(
+        "over",
+        m,
+        Transform::translation(DVec3::new(-0.5, 6.0, 19.5)),
+    );
+    // Far off to the side.
+    g.add_instance(
+        "far",
+        m,
+        Transform::translation(DVec3::new(-30.0, 0.0, -30.0)),
+    );
+    let s = Scene::new(g).unwrap();
+    let l = point(DVec3::new(0.0, 12.0, 20.0));
+    let mut buf = VolumeBuffer::new();
+    let mut cache = SilhouetteCache::new();
+    let ids = [ObjectId(0), ObjectId(1)];
+    let st = build_volumes(
+        &mut buf,
+        &s,
+        &camera(),
+        &l,
+        &ids,
+        BuildOptions::default(),
+        &mut cache,
+    )
+    .unwrap();
+    assert_eq!(buf.ranges[0].method, VolumeMethod::ZFail);
+    assert_eq!(buf.ranges[1].method, VolumeMethod::ZPass);
+    assert_eq!((st.zpass, st.zfail, st.zpplus), (1, 1, 0));
+    assert_eq!(st.cache_misses, 2);
+    assert_eq!(st.silhouette_edges, 4 + 6);
+    buf.check().unwrap();
+    // Second frame: everything from the cache, same buffer.
+    let before = buf.clone();
+    let st = build_volumes(
+        &mut buf,
+        &s,
+        &camera(),
+        &l,
+        &ids,
+        BuildOptions::default(),
+        &mut cache,
+    )
+    .unwrap();
+    assert_eq!((st.cache_hits, st.cache_misses), (2, 0));
+    assert_eq!(before, buf);
+    // Forced zp+ names both caps.
+    let opts = BuildOptions {
+        method: MethodChoice::ZpPlus,
+        two_sided: false,
+        viewport: None,
+    };
+    build_volumes(&mut buf, &s, &camera(), &l, &ids, opts, &mut cache).unwrap();
+    for r in &buf.ranges {
+        assert_eq!(r.method, VolumeMethod::ZpPlus);
+        assert!(!r.light_cap.is_empty() && !r.dark_cap.is_empty());
+        assert_eq!((r.depth_near, r.depth_far), (1.0, 0.0));
+        assert_eq!(r.scissor, VolumeRange::FULL_SCISSOR);
+    }
+}
+
+#[test]
+fn bad_lights_and_ids_are_errors() {
+    let s = scene_with(unit_box(), DMat4::IDENTITY);
+    let mut buf = VolumeBuffer::new();
+    let mut cache = SilhouetteCache::new();
+    let bad = [
+        point(DVec3::new(f64::NAN, 0.0, 0.0)),
+        Light::Directional {
+            direction: DVec3::ZERO,
+        },
+        Light::Directional {
+            direction: DVec3::new(0.0, f64::NAN, 0.0),
+        },
+        Light::Spot {
+            position: DVec3::Y * 5.0,
+            direction: DVec3::NEG_Y,
+            apex_angle: std::f64::consts::PI,
+            range: None,
+        },
+    ];
+    for l in bad {
+        let e = build_volumes(
+            &mut buf,
+            &s,
+            &camera(),
+            &l,
+            &[ObjectId(0)],
+            BuildOptions::default(),
+            &mut cache,
+        );
+        assert!(matches!(e, Err(Error::Light(_))), "{l:?}");
+    }
+    let e = build_volumes(
+        &mut buf,
+        &s,
+        &camera(),
+        &point(DVec3::Y * 5.0),
+        &[ObjectId(3)],
+        BuildOptions::default(),
+        &mut cache,
+    );
+    assert!(matches!(e, Err(Error::UnknownObject { id: 3, .. })));
+}
+
+#[test]
+fn light_inside_a_closed_object_casts_nothing_one_sided() {
+    let s = scene_with(unit_box(), DMat4::IDENTITY);
+    let l = point(DVec3::splat(0.5));
+    let buf = build(&s, &l, MethodChoice::ZFail);
+    assert_eq!(buf.triangle_count(), 0);
+    let mut buf = VolumeBuffer::new();
+    let mut cache = SilhouetteCache::new();
+    let opts = BuildOptions {
+        method: MethodChoice::ZFail,
+        two_sided: true,
+        viewport: None,
+    };
+    build_volumes(
+        &mut buf,
+        &s,
+        &camera(),
+        &l,
+        &[ObjectId(0)],
+        opts,
+        &mut cache,
+    )
+    .unwrap();
+    // Two-sided: every face casts (flipped), caps cover the whole box, no sides.
+    let r = &buf.ranges[0];
+    assert_eq!(r.light_cap.len() / 3, 12);
+    assert_eq!(buf.triangle_count(), 24);
+    assert!(boundary(&buf, r).is_empty());
+}
+
+// ---------------------------------------------------------------- volumes = reference
+
+/// Sign of `det[A, B, C, D]`, or `None` when it is too close to 0 to trust
+/// (relative to the sizes of its rows).
+fn sign4(rows: [DVec4; 4]) -> Option<i32> {
+    let d = det4(rows);
+    let scale: f64 = rows.iter().map(|r| r.length()).product();
+    if d.abs() <= 1e-7 * scale {
+        None
+    } else {
+        Some(if d > 0.0 { 1 } else { -1 })
+    }
+}
+
+/// Signed crossing of segment `p → q` (homogeneous, `w ≥ 0`) with triangle
+/// `(a, b, c)`: +1 when it passes from the front to the back side, −1 the other
+/// way, 0 when it misses. `None` when nearly degenerate.
+fn crossing(p: DVec4, q: DVec4, tri: [DVec4; 3]) -> Option<i32> {
+    // Translate so that the finite point p is the origin (a projective map with
+    // determinant 1: signs are kept, and far-from-origin scenes keep precision).
+    let o = p.truncate();
+    let m = |x: DVec4| (x.truncate() - o * x.w).extend(x.w);
+    let (p, q, [a, b, c]) = (m(p), m(q), tri.map(m));
+    let sp = sign4([a, b, c, p])?;
+    let sq = sign4([a, b, c, q])?;
+    if sp == sq {
+        return Some(0);
+    }
+    let e = [
+        sign4([p, q, a, b])?,
+        sign4([p, q, b, c])?,
+        sign4([p, q, c, a])?,
+    ];
+    Some(if e[0] == e[1] && e[1] == e[2] { sq } else { 0 })
+}
+
+/// Reference: how many casting triangles block the segment from `p` to the light.
+fn blockers(s: &Scene, p: DVec3, l: &Light, two_sided: bool) -> Option<i32> {
+    let lh = l.homogeneous();
+    let mut n = 0;
+    let mesh = s.object_mesh(ObjectId(0));
+    for t in 0..mesh.triangles().len() {
+        let w = s.world_triangle(ObjectId(0), t);
+        let casts =
+            scene::faces_light(&w, l) || (two_sided && scene::faces_light(&[w[0], w[2], w[1]], l));
+        if casts {
+            n += crossing(p.extend(1.0), lh, w.map(|v| v.extend(1.0)))?.abs();
+        }
+    }
+    Some(n)
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(512))]
+
+    /// The closed volume's signed crossings along a segment e → q equal the
+    /// change in the number of casting triangles between each end and the
+    /// light: the volume is exactly the union of the casting triangles' shadows
+    /// (the reference's definition), for any mesh, transform and light.
+    #[test]
+    fn volume_crossings_match_the_reference(
+        pts in prop::collection::vec(prop::array::uniform3(-2.0f32..2.0), 4..9),
+        tris in prop::collection::vec(prop::array::uniform3(0u32..9), 1..14),
+        radii in prop::collection::vec(0.5f32..1.5, 7..20),
+        soup in any::<bool>(),
+        w in transform(),
+        l in light(),
+        scale_exp in -3i32..=3,
+        offset in prop_oneof![Just(0.0), Just(1e5), Just(1e6)],
+        e in prop::array::uniform3(-2.0f64..2.0),
+        q in prop::array::uniform3(-2.0f64..2.0),
+        te in 0.3f64..3.0,
+        tq in 0.3f64..3.0,
+        two_sided in any::<bool>(),
+    ) {
+        let mesh = if soup {
+            let n = pts.len() as u32;
+            let pos: Vec<Vec3> = pts.into_iter().map(Vec3::from).collect();
+            let tris: Vec<[u32; 3]> = tris.into_iter().map(|t| t.map(|i| i % n)).collect();
+            match Mesh::new("soup", &pos, &tris) {
+                Ok(m) if !m.triangles().is_empty() => m,
+                _ => return Ok(()),
+            }
+        } else {
+            star_sphere(&radii, 4, 5)
+        };
+        // The whole scene (caster and light) scaled by 10^k and offset in x and z.
+        let k = 10f64.powi(scale_exp);
+        let outer = DMat4::from_translation(DVec3::new(offset, 0.0, offset)) * DMat4::from_scale(DVec3::splat(k));
+        let w = outer * w;
+        let l = match l {
+            Light::Directional { .. } => l,
+            _ => point(outer.transform_point3(l.position().unwrap())),
+        };
+        let s = scene_with(mesh, w);
+        // Points near the caster, slid along the light's rays: often in shadow.
+        let slide = |p: [f64; 3], t: f64| {
+            let p = w.transform_point3(DVec3::from(p));
+            match l {
+                Light::Directional { direction } => p + direction * (3.0 * t * k),
+                _ => {
+                    let lp = l.position().unwrap();
+                    lp + (p - lp) * t
+                }
+            }
+        };
+        let (e, q) = (slide(e, te), slide(q, tq));
+        let mut buf = VolumeBuffer::new();
+        let mut cache = SilhouetteCache::new();
+        let opts = BuildOptions { method: MethodChoice::ZFail, two_sided, viewport: None };
+        build_volumes(&mut buf, &s, &camera(), &l, &[ObjectId(0)], opts, &mut cache).unwrap();
+        let r = &buf.ranges[0];
+        let mut count = 0;
+        for t in r.indices().step_by(3) {
+            let tri = buf.triangle(t / 3).map(|p| world(r, p));
+            let Some(c) = crossing(e.extend(1.0), q.extend(1.0), tri) else { return Ok(()); };
+            count += c;
+        }
+        let (Some(bq), Some(be)) = (blockers(&s, q, &l, two_sided), blockers(&s, e, &l, two_sided)) else {
+            return Ok(());
+        };
+        prop_assert_eq!(count, bq - be);
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(512))]
+
+    /// zpass is only chosen when no point of the near rectangle lies in the
+    /// caster's shadow (sampled on a grid over the rectangle, both sides of
+    /// every triangle casting).
+    #[test]
+    fn zpass_only_when_the_near_rectangle_is_lit(
+        w in transform(),
+        l in light(),
+        eye in prop::array::uniform3(-4.0f64..4.0),
+        target in prop::array::uniform3(-4.0f64..4.0),
+        near in 0.05f64..2.0,
+        fov in 0.3f64..2.5,
+    ) {
+        let s = scene_with(unit_box(), w);
+        let centre = w.transform_point3(DVec3::splat(0.5));
+        let eye = centre + DVec3::from(eye);
+        let Ok(cam) = Camera::look_at(eye, centre + DVec3::from(target), DVec3::Y, fov, 1.3, near) else {
+            return Ok(());
+        };
+        let bounds = s.object(ObjectId(0)).world_bounds;
+        if !shadowgen::zpass_is_safe(&cam, &l, &bounds) {
+            return Ok(());
+        }
+        let c = cam.frustum().near_corners;
+        for i in 0..=8 {
+            for j in 0..=8 {
+                let (u, v) = (i as f64 / 8.0, j as f64 / 8.0);
+                let r = c[0] + (c[1] - c[0]) * u + (c[3] - c[0]) * v;
+                if let Some(n) = blockers(&s, r, &l, true) {
+                    prop_assert_eq!(n, 0, "near point {:?} is in shadow", r);
+                }
+            }
+        }
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(512))]
+
+    /// Every point in a caster's shadow, inside the scene bounds and in front
+    /// of the near plane, projects into the volume's scissor rectangle and
+    /// depth bounds.
+    #[test]
+    fn shadowed_points_lie_within_scissor_and_depth_bounds(
+        w in transform(),
+        l in light(),
+        eye in prop::array::uniform3(-12.0f64..12.0),
+        near in 0.05f64..2.0,
+        range in prop::option::of(1.0f64..30.0),
+        pts in prop::collection::vec((prop::array::uniform3(-0.2f64..1.2), 0.3f64..8.0), 16),
+    ) {
+        let mut g = SceneGraph::new();
+        let m = g.add_mesh(unit_box());
+        g.add_instance("caster", m, Transform::Matrix(w));
+        let ground = DMat4::from_scale_rotation_translation(
+            DVec3::new(30.0, 1.0, 30.0), DQuat::IDENTITY, DVec3::new(-15.0, -12.0, -15.0));
+        g.add_instance("ground", m, Transform::Matrix(ground));
+        let s = Scene::new(g).unwrap();
+        let l = match l {
+            Light::Point { position, .. } => Light::Point { position, range },
+            _ => l,
+        };
+        let centre = w.transform_point3(DVec3::splat(0.5));
+        let Ok(cam) = Camera::look_at(centre + DVec3::from(eye), centre, DVec3::Y, 1.0, 1.3, near) else {
+            return Ok(());
+        };
+        let (wd, ht) = (80u32, 60u32);
+        let b = shadowgen::volume_bounds(&cam, (wd, ht), &l, &s.object(ObjectId(0)).world_bounds, &s.bounds());
+        prop_assert!(b.scissor[0] <= b.scissor[2] && b.scissor[1] <= b.scissor[3]);
+        prop_assert!(b.depth_near >= b.depth_far);
+        let sb = s.bounds();
+        let clip = cam.clip_from_eye_relative();
+        for (p, t) in pts {
+            let p = w.transform_point3(DVec3::from(p));
+            let q = match l {
+                Light::Directional { direction } => p + direction * (3.0 * t),
+                _ => {
+                    let lp = l.position().unwrap();
+                    lp + (p - lp) * t
+                }
+            };
+            if !sb.contains(q.as_vec3())
+                || !l.reaches(q)
+                || blockers(&s, q, &l, true).unwrap_or(0) == 0
+            {
+                continue;
+            }
+            let c = clip * (q - cam.position).extend(1.0);
+            if c.w < near {
+                continue;
+            }
+            let (x, y) = ((c.x / c.w + 1.0) * 0.5 * wd as f64, (1.0 - c.y / c.w) * 0.5 * ht as f64);
+            let z = (c.z / c.w) as f32;
+            if x >= 0.0 && x < wd as f64 && y >= 0.0 && y < ht as f64 {
+                prop_assert!(x >= b.scissor[0] as f64 && x < b.scissor[2] as f64, "x {} {:?}", x, b);
+                prop_assert!(y >= b.scissor[1] as f64 && y < b.scissor[3] as f64, "y {} {:?}", y, b);
+            }
+            prop_assert!(z <= b.depth_near && z >= b.depth_far, "z {} {:?}", z, b);
+        }
+    }
+}
