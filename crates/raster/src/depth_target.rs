@@ -194,6 +194,43 @@ impl DepthTarget {
 
     /// Resets every pixel to background (and every id to [`NO_ID`]).
     pub fn clear(&mut self) {
+        let l = self.layout;
+        if self.tiles.len() == (l.tiles_x * l.tiles_y) as usize {
+            // Only tiles written since the last clear need it: a tile's first write
+            // overwrites a background pixel, which lowers its background count below
+            // its area, and only a clear raises it back.
+            let tp = l.tile_pixels();
+            let s = 1u32 << l.shift;
+            let mut t = 0usize;
+            for ty in 0..l.tiles_y {
+                let h = if ty + 1 < l.tiles_y {
+                    s
+                } else {
+                    l.height - ty * s
+                };
+                for tx in 0..l.tiles_x {
+                    let w = if tx + 1 < l.tiles_x {
+                        s
+                    } else {
+                        l.width - tx * s
+                    };
+                    let tb = &mut self.tiles[t];
+                    if tb.background != w * h {
+                        self.depth[t * tp..(t + 1) * tp].fill(BACKGROUND);
+                        if let Some(ids) = &mut self.ids {
+                            ids[t * tp..(t + 1) * tp].fill(u64::MAX);
+                        }
+                        *tb = TileBounds {
+                            zmin: f32::INFINITY,
+                            zmax: BACKGROUND,
+                            background: w * h,
+                        };
+                    }
+                    t += 1;
+                }
+            }
+            return;
+        }
         self.depth.fill(BACKGROUND);
         if let Some(ids) = &mut self.ids {
             ids.fill(u64::MAX);

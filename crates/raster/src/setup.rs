@@ -210,12 +210,13 @@ impl VertexCache {
         facing(t.map(|i| self.clip[i as usize]))
     }
 
-    /// [`setup_into`] for the triangle with (checked) vertex indices `t`.
+    /// [`setup_into`] for the triangle with (checked) vertex indices `t`, whose
+    /// facing [`VertexCache::facing`] is `f`.
     #[inline(always)]
-    pub fn setup(&self, t: [u32; 3], vp: &Viewport, s: &mut Setup) {
+    pub fn setup(&self, t: [u32; 3], f: Option<Facing>, vp: &Viewport, s: &mut Setup) {
         let [a, b, c] = t.map(|i| i as usize);
         if self.inside[a] && self.inside[b] && self.inside[c] {
-            s.facing = facing([self.clip[a], self.clip[b], self.clip[c]]);
+            s.facing = f;
             s.clipped = false;
             s.len = 0;
             if s.facing.is_some() {

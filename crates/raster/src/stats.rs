@@ -15,7 +15,9 @@ pub struct RasterStats {
     /// Meshes (draws or box queries) skipped whole: off screen, or hidden by
     /// hierarchical z under their screen rectangle ([`crate::DepthTarget::draw`]).
     pub meshes_rejected_hiz: u64,
-    /// Tiles visited by traversal.
+    /// Tiles visited by traversal. A draw skips, without visiting, the tile rows
+    /// under its mesh's screen rectangle that are wholly nearer than the mesh when
+    /// it starts (the same rows for any thread count).
     pub tiles_touched: u64,
     /// Tiles missed by the triangle, decided at the tile corners.
     pub tiles_rejected_edges: u64,
