@@ -32,6 +32,19 @@ fn test_camera() -> Camera {
     .unwrap()
 }
 
+/// A 60° camera at `eye` looking at the origin.
+fn view_from(eye: DVec3) -> Camera {
+    Camera::look_at(
+        eye,
+        DVec3::ZERO,
+        DVec3::Y,
+        60f64.to_radians(),
+        4.0 / 3.0,
+        0.1,
+    )
+    .unwrap()
+}
+
 /// A point light up and to the side of [`test_scene`].
 fn test_lamp() -> Light {
     let position = DVec3::new(-4.0, 8.0, 3.0);
@@ -165,15 +178,7 @@ fn open_quad_casts_only_when_it_faces_the_light() {
         position: DVec3::new(0.0, 6.0, 0.0),
         range: None,
     };
-    let cam = Camera::look_at(
-        DVec3::new(0.0, 8.0, 8.0),
-        DVec3::ZERO,
-        DVec3::Y,
-        60f64.to_radians(),
-        4.0 / 3.0,
-        0.1,
-    )
-    .unwrap();
+    let cam = view_from(DVec3::new(0.0, 8.0, 8.0));
     let opts = ReferenceOptions::default();
     let two = ReferenceOptions {
         two_sided: true,
@@ -220,15 +225,7 @@ fn light_inside_a_closed_box_casts_nothing_by_default_and_everything_two_sided()
         Transform::default(),
     );
     let bvh = TriangleBvh::new(&s);
-    let cam = Camera::look_at(
-        DVec3::new(0.0, 6.0, 9.0),
-        DVec3::ZERO,
-        DVec3::Y,
-        60f64.to_radians(),
-        4.0 / 3.0,
-        0.1,
-    )
-    .unwrap();
+    let cam = view_from(DVec3::new(0.0, 6.0, 9.0));
     let r = mask(&bvh, &cam, &light, 160, 120);
     assert_eq!(r.counts.classes.shadow, 0);
     assert!(r.counts.classes.lit > 1000);
@@ -434,15 +431,7 @@ fn coplanar_casters_do_not_shadow_their_plane() {
         Transform::default(),
     );
     let bvh = TriangleBvh::new(&s);
-    let cam = Camera::look_at(
-        DVec3::new(0.0, 6.0, 8.0),
-        DVec3::ZERO,
-        DVec3::Y,
-        60f64.to_radians(),
-        4.0 / 3.0,
-        0.1,
-    )
-    .unwrap();
+    let cam = view_from(DVec3::new(0.0, 6.0, 8.0));
     let light = Light::Point {
         position: DVec3::new(1.0, 5.0, 0.0),
         range: None,

@@ -126,6 +126,19 @@ pub trait OcclusionBackend {
     fn stats(&self) -> BackendStats;
 }
 
+/// Checks a query's mesh indices (box queries need no check).
+fn check_query(q: &QueryCommand) -> Result<()> {
+    if let QueryCommand::Mesh {
+        positions,
+        triangles,
+        ..
+    } = q
+    {
+        check_indices(positions, triangles)?;
+    }
+    Ok(())
+}
+
 fn check_indices(positions: &[Vec4], triangles: &[[u32; 3]]) -> Result<()> {
     for (k, t) in triangles.iter().enumerate() {
         for &i in t {
@@ -272,14 +285,7 @@ impl OcclusionBackend for SimulatedBackend {
     }
 
     fn issue_query(&mut self, q: QueryCommand) -> Result<QueryId> {
-        if let QueryCommand::Mesh {
-            positions,
-            triangles,
-            ..
-        } = &q
-        {
-            check_indices(positions, triangles)?;
-        }
+        check_query(&q)?;
         self.stats.queries += 1;
         let id = QueryId(self.results.len() as u32);
         self.run(Command::Query(id, q));
@@ -506,14 +512,7 @@ impl OcclusionBackend for ThreadedBackend {
     }
 
     fn issue_query(&mut self, q: QueryCommand) -> Result<QueryId> {
-        if let QueryCommand::Mesh {
-            positions,
-            triangles,
-            ..
-        } = &q
-        {
-            check_indices(positions, triangles)?;
-        }
+        check_query(&q)?;
         self.stats.queries += 1;
         let id = QueryId(self.queries);
         self.queries += 1;

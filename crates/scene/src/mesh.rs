@@ -275,20 +275,13 @@ mod tests {
     /// Unit cube as 12 CCW-outward triangles with 24 unwelded corners (like the
     /// Cornell boxes), so welding must find the 8 real vertices.
     fn soup_cube() -> (Vec<Vec3>, Vec<[u32; 3]>) {
-        let c = |i: u32| Vec3::new((i & 1) as f32, ((i >> 1) & 1) as f32, ((i >> 2) & 1) as f32);
-        let faces = [
-            [0, 4, 6, 2],
-            [1, 3, 7, 5],
-            [0, 1, 5, 4],
-            [2, 6, 7, 3],
-            [0, 2, 3, 1],
-            [4, 5, 7, 6],
-        ];
+        use crate::procedural::analytic::{box_corners, BOX_FACES};
+        let c = box_corners(Vec3::ZERO, Vec3::ONE);
         let mut pos = Vec::new();
         let mut tris = Vec::new();
-        for f in faces {
+        for f in BOX_FACES {
             let base = pos.len() as u32;
-            pos.extend(f.iter().map(|&i| c(i)));
+            pos.extend(f.iter().map(|&i| c[i as usize]));
             tris.push([base, base + 1, base + 2]);
             tris.push([base, base + 2, base + 3]);
         }

@@ -13,23 +13,7 @@ use std::collections::HashMap;
 // ---------------------------------------------------------------- meshes
 
 fn unit_box() -> Mesh {
-    let c = |i: u32| Vec3::new((i & 1) as f32, ((i >> 1) & 1) as f32, ((i >> 2) & 1) as f32);
-    let pos: Vec<Vec3> = (0..8).map(c).collect();
-    // Quads CCW seen from outside.
-    let faces = [
-        [0, 4, 6, 2],
-        [1, 3, 7, 5],
-        [0, 1, 5, 4],
-        [2, 6, 7, 3],
-        [0, 2, 3, 1],
-        [4, 5, 7, 6],
-    ];
-    let mut tris = Vec::new();
-    for f in faces {
-        tris.push([f[0], f[1], f[2]]);
-        tris.push([f[0], f[2], f[3]]);
-    }
-    Mesh::new("box", &pos, &tris).unwrap()
+    scene::procedural::analytic::box_mesh("unit box", Vec3::ZERO, Vec3::ONE).unwrap()
 }
 
 /// A closed, consistently wound, star-shaped (generally non-convex) sphere.

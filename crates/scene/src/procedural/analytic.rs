@@ -21,13 +21,7 @@ pub const ANALYTIC_FILE: &str = "<analytic scene>";
 /// `c = (x?1:0) | (y?2:0) | (z?4:0)` (0 = min, 1 = max), as in the box-city
 /// format (`../shared/data/bench/README.md`).
 pub fn box_corners(min: Vec3, max: Vec3) -> [Vec3; 8] {
-    std::array::from_fn(|c| {
-        Vec3::new(
-            if c & 1 != 0 { max.x } else { min.x },
-            if c & 2 != 0 { max.y } else { min.y },
-            if c & 4 != 0 { max.z } else { min.z },
-        )
-    })
+    crate::Aabb { min, max }.corners()
 }
 
 /// The six faces of a box as corner-index quads, counter-clockwise seen from
