@@ -55,6 +55,7 @@ mod query;
 mod receivers;
 mod setup;
 mod stats;
+mod stencil;
 mod traverse;
 mod volume_buffer;
 
@@ -71,6 +72,7 @@ pub use query::{meets_apex_region, QueryMode, QueryOptions, APEX_EPS, VISIBLE};
 pub use receivers::{ReceiverTarget, RECEIVER_EPS_PX};
 pub use setup::{facing, setup_triangle, Facing, Setup, SnappedVertex, SUBPIXEL};
 pub use stats::RasterStats;
+pub use stencil::{StencilBits, StencilStats, StencilTarget};
 pub use volume_buffer::{VolumeBuffer, VolumeMethod, VolumeRange};
 
 /// Largest width or height of a target, in pixels.
