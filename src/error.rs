@@ -8,6 +8,12 @@ pub enum Error {
     /// Loading or building the scene failed (names the file and element).
     #[error(transparent)]
     Scene(#[from] scene::Error),
+    /// The rasterizer rejected its input (a bug in the caller, or an oversized target).
+    #[error("rasterizer: {0}")]
+    Raster(#[from] raster::Error),
+    /// Shadow-volume construction failed (an invalid light or caster id).
+    #[error("shadow volumes: {0}")]
+    Shadowgen(#[from] shadowgen::Error),
     /// The job file could not be parsed or holds a bad value. `location` is
     /// `line:column` when the parser knows it. Fix: edit the named field.
     #[error("{}:{location}: {message}", file.display())]

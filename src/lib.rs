@@ -14,6 +14,7 @@
 pub mod config;
 mod error;
 pub mod mask;
+pub mod pipeline;
 pub mod reference;
 pub mod run;
 pub mod stats;

@@ -3,7 +3,7 @@
 //! output.
 
 use glam::DVec3;
-use scene::{faces_light, Light};
+use scene::{faces_light, Camera, Light, ObjectId, Scene};
 use std::io::Write;
 use std::path::Path;
 
@@ -76,6 +76,59 @@ pub fn is_unlit(
         // The light is on the front side; the eye must be too.
         n.dot(eye - a) <= 0.0
     }
+}
+
+/// Assembles the four-class mask from the raw stencil and the eye pass's
+/// primitive ids (DESIGN.md "Masks"): background where no primitive; unlit
+/// where [`is_unlit`] says so for the visible triangle (world space, from
+/// [`Scene::world_triangle`]) at the pixel's surface point (the pixel-centre
+/// eye ray meeting that triangle's plane, in f64); otherwise shadow where
+/// `shadowed(pixel)` (stencil ≠ 0), else lit.
+///
+/// # Panics
+/// If `primitive` is not `width × height` long or names an object or
+/// triangle not in `scene`.
+#[allow(clippy::too_many_arguments)]
+pub fn assemble(
+    scene: &Scene,
+    camera: &Camera,
+    light: &Light,
+    width: u32,
+    height: u32,
+    primitive: &[Option<(ObjectId, u32)>],
+    shadowed: impl Fn(usize) -> bool,
+    two_sided: bool,
+) -> Mask {
+    assert_eq!(
+        primitive.len(),
+        width as usize * height as usize,
+        "primitive ids size"
+    );
+    let mut mask = Mask::filled(width, height, PixelClass::Background);
+    for (i, p) in primitive.iter().enumerate() {
+        let Some((obj, t)) = *p else { continue };
+        let tri = scene.world_triangle(obj, t as usize);
+        let (x, y) = (i as u32 % width, i as u32 / width);
+        let dir = camera.ray_direction(x as f64 + 0.5, y as f64 + 0.5, width, height);
+        // Eye-relative plane intersection keeps precision far from the origin.
+        let e = camera.position;
+        let n = (tri[1] - tri[0]).cross(tri[2] - tri[0]);
+        let den = n.dot(dir);
+        let t_hit = if den != 0.0 {
+            n.dot(tri[0] - e) / den
+        } else {
+            0.0
+        };
+        let point = e + dir * t_hit;
+        mask.pixels[i] = if is_unlit(&tri, e, light, point, two_sided) {
+            PixelClass::Unlit
+        } else if shadowed(i) {
+            PixelClass::Shadow
+        } else {
+            PixelClass::Lit
+        };
+    }
+    mask
 }
 
 /// A per-pixel classification, row 0 at the top.

@@ -1,0 +1,189 @@
+//! One frame of the exact stencil-shadow pipeline, without culling yet: the
+//! eye pass rasterizes every object into a depth and primitive-id target, the
+//! shadow volumes of every object are built [shadowgen], each is drawn into a
+//! brute-force stencil on the eye depth buffer [raster], and the raw stencil
+//! plus the primitive ids become the four-class mask ([`crate::mask::assemble`]).
+
+use crate::mask::{assemble, Mask};
+use crate::reference::PrimitiveId;
+use crate::Result;
+use glam::Vec4;
+use raster::{
+    Coverage, DepthTarget, DrawItem, StencilBits, StencilStats, StencilTarget, TileSize,
+    VolumeBuffer,
+};
+use scene::{Camera, Light, ObjectId, Scene};
+use shadowgen::{build_volumes, BuildOptions, MethodChoice, SilhouetteCache, VolumeStats};
+
+/// Per-mesh vertex data in the rasterizer's form (`w = 1`), built once per scene.
+#[derive(Debug)]
+pub struct MeshCache {
+    positions: Vec<Vec<Vec4>>,
+}
+
+impl MeshCache {
+    /// Converts every mesh of `scene`.
+    pub fn new(scene: &Scene) -> Self {
+        MeshCache {
+            positions: scene
+                .graph()
+                .meshes()
+                .iter()
+                .map(|m| m.positions().iter().map(|p| p.extend(1.0)).collect())
+                .collect(),
+        }
+    }
+}
+
+/// The eye pass's result: depth with hierarchical z, and per pixel (row 0 at the
+/// top) the visible primitive.
+#[derive(Debug)]
+pub struct EyePass {
+    /// Depth and primitive-id target.
+    pub target: DepthTarget,
+    /// Per pixel the visible `(object, triangle)`, `None` for background.
+    pub primitive: Vec<Option<PrimitiveId>>,
+}
+
+/// Rasterizes every object (both faces, standard coverage) into a fresh
+/// `width × height` depth and primitive-id target.
+///
+/// # Errors
+/// [`crate::Error::Raster`] for a target larger than the rasterizer allows.
+pub fn eye_pass(
+    scene: &Scene,
+    meshes: &MeshCache,
+    camera: &Camera,
+    width: u32,
+    height: u32,
+) -> Result<EyePass> {
+    let mut target = DepthTarget::new(width, height, TileSize::T8, true)?;
+    for (i, o) in scene.objects().iter().enumerate() {
+        let mesh = &scene.graph().meshes()[o.mesh.0 as usize];
+        let item = DrawItem {
+            clip_from_local: scene::transform::clip_from_local(camera, &o.world_from_local),
+            positions: &meshes.positions[o.mesh.0 as usize],
+            triangles: mesh.triangles(),
+            object: i as u32,
+        };
+        target.draw(&item, Coverage::Standard)?;
+    }
+    let mut primitive = Vec::with_capacity(width as usize * height as usize);
+    for y in 0..height {
+        for x in 0..width {
+            primitive.push(target.id_at(x, y).map(|(o, t)| (ObjectId(o), t)));
+        }
+    }
+    Ok(EyePass { target, primitive })
+}
+
+/// Options of the shadow stage.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ShadowOptions {
+    /// Volume method per caster.
+    pub method: MethodChoice,
+    /// Every triangle casts (matches the reference's two-sided mode).
+    pub two_sided: bool,
+    /// 8-bit wrapping stencil or wide counters.
+    pub bits: StencilBits,
+}
+
+impl Default for ShadowOptions {
+    fn default() -> Self {
+        ShadowOptions {
+            method: MethodChoice::Auto,
+            two_sided: false,
+            bits: StencilBits::Eight,
+        }
+    }
+}
+
+/// The shadow stage's output for one light.
+#[derive(Debug)]
+pub struct ShadowFrame {
+    /// The four-class mask.
+    pub mask: Mask,
+    /// Volume construction counters.
+    pub volumes: VolumeStats,
+    /// Volume triangles drawn.
+    pub volume_triangles: u64,
+    /// Stencil counters.
+    pub stencil: StencilStats,
+}
+
+/// Scratch kept across frames: the silhouette cache and the volume buffer.
+#[derive(Default)]
+pub struct ShadowScratch {
+    cache: SilhouetteCache,
+    volumes: VolumeBuffer,
+}
+
+impl std::fmt::Debug for ShadowScratch {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ShadowScratch")
+            .field("volume_ranges", &self.volumes.ranges.len())
+            .finish_non_exhaustive()
+    }
+}
+
+/// Builds every object's shadow volume for `light`, stencils them on the eye
+/// depth buffer and assembles the mask.
+///
+/// # Errors
+/// Invalid light ([`crate::Error::Shadowgen`]) or rasterizer errors.
+pub fn shadow_mask(
+    scene: &Scene,
+    camera: &Camera,
+    light: &Light,
+    eye: &EyePass,
+    options: &ShadowOptions,
+    scratch: &mut ShadowScratch,
+) -> Result<ShadowFrame> {
+    let (w, h) = (eye.target.width(), eye.target.height());
+    let casters: Vec<ObjectId> = (0..scene.objects().len() as u32).map(ObjectId).collect();
+    let build = BuildOptions {
+        method: options.method,
+        two_sided: options.two_sided,
+        viewport: None,
+    };
+    let volumes = build_volumes(
+        &mut scratch.volumes,
+        scene,
+        camera,
+        light,
+        &casters,
+        build,
+        &mut scratch.cache,
+    )?;
+    let mut stencil = StencilTarget::new(w, h, options.bits)?;
+    let mut stats = StencilStats::default();
+    let mut volume_triangles = 0;
+    for range in &scratch.volumes.ranges {
+        let clip_from_local = scene::transform::clip_from_local(camera, &range.world_from_local);
+        stencil.draw_volume(
+            &eye.target,
+            clip_from_local,
+            &scratch.volumes,
+            range,
+            &mut stats,
+        )?;
+        volume_triangles += u64::from(range.index_count / 3);
+    }
+    let shadowed = |i: usize| stencil.nonzero(i as u32 % w, i as u32 / w);
+    let mask = assemble(
+        scene,
+        camera,
+        light,
+        w,
+        h,
+        &eye.primitive,
+        shadowed,
+        options.two_sided,
+    );
+    Ok(ShadowFrame {
+        mask,
+        volumes,
+        volume_triangles,
+        stencil: stats,
+    })
+}
