@@ -1,8 +1,11 @@
 //! End-to-end tests of the ray-cast reference on analytic scenes.
 
+mod common;
+
+use common::scene_of;
 use glam::{DMat4, DVec3, Vec3};
 use scene::procedural::analytic;
-use scene::{Camera, Light, Mesh, ObjectId, Scene, SceneGraph, Transform};
+use scene::{Camera, Light, Mesh, ObjectId, Scene, Transform};
 use shadowcull::mask::{compare, PixelClass};
 use shadowcull::reference::{
     reference_mask, EyeSurface, ReferenceMask, ReferenceOptions, TriangleBvh,
@@ -57,18 +60,6 @@ fn test_lamp() -> Light {
 /// The reference with default options.
 fn mask(bvh: &TriangleBvh, cam: &Camera, light: &Light, w: u32, h: u32) -> ReferenceMask {
     reference_mask(bvh, cam, light, w, h, &ReferenceOptions::default(), None)
-}
-
-fn scene_of(meshes: Vec<Mesh>, root: Transform) -> Scene {
-    let mut g = SceneGraph::new();
-    let ids: Vec<_> = meshes.into_iter().map(|m| g.add_mesh(m)).collect();
-    g.add_root(scene::Node {
-        name: "root".into(),
-        transform: root,
-        meshes: ids,
-        children: vec![],
-    });
-    Scene::new(g).unwrap()
 }
 
 fn top_down(center: DVec3, height: f64, fov_deg: f64) -> Camera {

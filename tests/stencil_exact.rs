@@ -3,25 +3,16 @@
 //! primitive ids: every compared pixel agrees except ambiguous ones and at
 //! most 0.01% of the image more, each on a reference shadow boundary.
 
+mod common;
+
+use common::scene_of;
 use glam::{DMat4, DVec3, Vec3};
 use scene::procedural::analytic;
-use scene::{Camera, Light, Mesh, Scene, SceneGraph, Transform};
+use scene::{Camera, Light, Scene, Transform};
 use shadowcull::mask::compare;
 use shadowcull::pipeline::{eye_pass, shadow_mask, MeshCache, ShadowOptions, ShadowScratch};
 use shadowcull::reference::{reference_mask, EyeSurface, ReferenceOptions, TriangleBvh};
 use shadowgen::MethodChoice;
-
-fn scene_of(meshes: Vec<Mesh>, root: Transform) -> Scene {
-    let mut g = SceneGraph::new();
-    let ids: Vec<_> = meshes.into_iter().map(|m| g.add_mesh(m)).collect();
-    g.add_root(scene::Node {
-        name: "root".into(),
-        transform: root,
-        meshes: ids,
-        children: vec![],
-    });
-    Scene::new(g).unwrap()
-}
 
 fn boxes_on_ground(root: Transform) -> Scene {
     scene_of(
