@@ -123,21 +123,34 @@ pub(crate) fn hidden(
     ty1: u32,
     b: &ScreenBounds,
 ) -> bool {
+    let (tx0, tx1, r0, r1) = row_span(l, ty0, ty1, b);
+    (r0..r1 + 1).all(|ty| row_hidden(l, tiles, ty0, ty, tx0, tx1, b.zmax))
+}
+
+/// The tile columns `tx0..=tx1` and rows `r0..=r1` under `b`, rows limited to
+/// `ty0..ty1` (empty when `r1 < r0`).
+fn row_span(l: &Layout, ty0: u32, ty1: u32, b: &ScreenBounds) -> (u32, u32, u32, u32) {
     let s = l.shift;
-    let (tx0, tx1) = (b.x0 >> s, b.x1 >> s);
     let (r0, r1) = ((b.y0 >> s).max(ty0), (b.y1 >> s).min(ty1.saturating_sub(1)));
-    for ty in r0..r1 + 1 {
-        if ty >= ty1 {
-            break;
-        }
-        let row = ((ty - ty0) * l.tiles_x) as usize;
-        for t in &tiles[row + tx0 as usize..=row + tx1 as usize] {
-            if b.zmax >= t.zmin_all() {
-                return false;
-            }
-        }
-    }
-    true
+    (b.x0 >> s, b.x1 >> s, r0, r1)
+}
+
+/// Whether every tile `tx0..=tx1` of tile row `ty` (bounds in `tiles`, which
+/// start at row `ty0`) holds only depths strictly nearer than `zmax`.
+#[inline(always)]
+fn row_hidden(
+    l: &Layout,
+    tiles: &[TileBounds],
+    ty0: u32,
+    ty: u32,
+    tx0: u32,
+    tx1: u32,
+    zmax: f32,
+) -> bool {
+    let row = ((ty - ty0) * l.tiles_x) as usize;
+    tiles[row + tx0 as usize..=row + tx1 as usize]
+        .iter()
+        .all(|t| zmax < t.zmin_all())
 }
 
 /// Most tile rows a target can have (16384 pixels in 4-pixel tiles).
@@ -185,9 +198,7 @@ impl RowSkip {
         ty1: u32,
         b: &ScreenBounds,
     ) -> bool {
-        let s = l.shift;
-        let (tx0, tx1) = (b.x0 >> s, b.x1 >> s);
-        let (r0, r1) = ((b.y0 >> s).max(ty0), (b.y1 >> s).min(ty1.saturating_sub(1)));
+        let (tx0, tx1, r0, r1) = row_span(l, ty0, ty1, b);
         self.r0 = r0;
         self.r1 = r1;
         let mut all = true;
@@ -197,10 +208,7 @@ impl RowSkip {
         let words = ((r1 - r0) / 64 + 1) as usize;
         self.bits[..words].fill(0);
         for ty in r0..r1 + 1 {
-            let row = ((ty - ty0) * l.tiles_x) as usize;
-            let hid = tiles[row + tx0 as usize..=row + tx1 as usize]
-                .iter()
-                .all(|t| b.zmax < t.zmin_all());
+            let hid = row_hidden(l, tiles, ty0, ty, tx0, tx1, b.zmax);
             all &= hid;
             let k = (ty - r0) as usize;
             self.bits[k / 64] |= u64::from(hid) << (k % 64);
