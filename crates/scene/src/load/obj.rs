@@ -10,6 +10,13 @@
 //! Delaunay triangulation in their best-fit plane (see `triangulate`), not
 //! fanned, so concave faces keep their true area and their winding.
 //!
+//! Far from the origin: positions are also parsed in f64. Geometry whose
+//! centre lies far from the origin compared with its size (city.obj's
+//! buildings near 1e7) is recentred: the mesh holds `f32(p − centre)` and its
+//! node the translation, in f64 (see [`super::recentre`]). Groups whose bounds
+//! touch share one centre, so their common vertices stay bit-identical. Other
+//! meshes keep the file's f32 values and an identity transform.
+//!
 //! Why the text is sanitized before tobj parses it: tobj 4.0.5 panics (in
 //! debug builds) on out-of-range texture/normal indices, silently drops a
 //! first line that starts with a UTF-8 byte-order mark, fails the whole file
@@ -25,7 +32,7 @@
 
 use super::triangulate::{triangulate, Outcome};
 use crate::{Error, Mesh, Result, SceneGraph, Transform};
-use glam::Vec3;
+use glam::{DVec3, Vec3};
 use std::borrow::Cow;
 use std::collections::HashMap;
 use std::fmt::Write as _;
@@ -38,8 +45,9 @@ const LINES_IN_WARNING: usize = 8;
 /// Loads an `.obj` file.
 ///
 /// One object per `o`/`g` group that has faces (consecutive groups of the same
-/// name are one object); faces before any group, and groups without a name,
-/// belong to an object named after the file stem. Only positions are read: no
+/// name are one object; a group far from the origin is recentred, its
+/// translation in the node's transform); faces before any group, and groups
+/// without a name, belong to an object named after the file stem. Only positions are read: no
 /// `.mtl` is opened. A file without faces (empty, or only `v`/`l`/`p` lines)
 /// loads as an empty graph with a warning. Load warnings (dropped `l`/`p`
 /// statements, faces with fewer than three corners, polygons that had to be
@@ -116,7 +124,7 @@ pub fn load_obj_bytes(bytes: &[u8], file: &Path) -> Result<SceneGraph> {
     let clean = sanitize(&text, file, &stem)?;
     clean.warn(&mut graph, file);
     let models = parse_with_tobj(&clean.text, file)?;
-    build_objects(models, &clean.face_lines, file, &mut graph)?;
+    build_objects(models, &clean, file, &mut graph)?;
     Ok(graph)
 }
 
@@ -163,6 +171,17 @@ struct Sanitized {
     text: String,
     /// Source line of each face written, in order.
     face_lines: Vec<usize>,
+    /// Every `v` position as parsed in f32 (divided by w in f32), the values
+    /// tobj sees; a mesh that is not recentred keeps exactly these.
+    positions: Vec<Vec3>,
+    /// Every `v` position parsed in f64 (divided by w in f64), from which a
+    /// recentred mesh's local vertices are formed before rounding to f32.
+    positions_f64: Vec<DVec3>,
+    /// Zero-based position indices of every face written, concatenated.
+    face_corners: Vec<u32>,
+    /// Where each face's corners start in `face_corners` (one more entry
+    /// than faces: the last is `face_corners.len()`).
+    face_starts: Vec<usize>,
     /// Lines of dropped `l` statements.
     polylines: Vec<usize>,
     /// Lines of dropped `p` statements.
@@ -289,15 +308,19 @@ fn sanitize(text: &str, file: &Path, stem: &str) -> Result<Sanitized> {
         match keyword {
             "v" => {
                 let mut xyz = [0f32; 3];
+                let mut wide = [0f64; 3];
                 let mut count = 0;
-                for (slot, word) in xyz.iter_mut().zip(words.by_ref()) {
-                    *slot = word.parse::<f32>().map_err(|_| {
+                for ((slot, wslot), word) in xyz.iter_mut().zip(wide.iter_mut()).zip(words.by_ref())
+                {
+                    let parse_error = || {
                         error(
                             number,
                             format!("cannot parse vertex coordinate `{word}` as a number"),
                         )
-                    })?;
-                    if !slot.is_finite() {
+                    };
+                    *slot = word.parse::<f32>().map_err(|_| parse_error())?;
+                    *wslot = word.parse::<f64>().map_err(|_| parse_error())?;
+                    if !slot.is_finite() || !wslot.is_finite() {
                         return Err(error(
                             number,
                             format!("vertex coordinate `{word}` is not a finite f32 (NaN, infinite or out of range)"),
@@ -315,21 +338,28 @@ fn sanitize(text: &str, file: &Path, stem: &str) -> Result<Sanitized> {
                 // One more value is the homogeneous w (tobj divides by it);
                 // three or more are vertex colors, which are ignored.
                 if let [w] = rest[..] {
-                    let w = w.parse::<f32>().map_err(|_| {
+                    let w_error = || {
                         error(
                             number,
                             format!("cannot parse vertex weight `{w}` as a number"),
                         )
-                    })?;
-                    if w == 0.0 || !w.is_finite() {
+                    };
+                    let w32 = w.parse::<f32>().map_err(|_| w_error())?;
+                    let w64 = w.parse::<f64>().map_err(|_| w_error())?;
+                    if w32 == 0.0 || !w32.is_finite() || w64 == 0.0 || !w64.is_finite() {
                         return Err(error(
                             number,
-                            format!("vertex weight w = {w} is not a finite non-zero number"),
+                            format!("vertex weight w = {w32} is not a finite non-zero number"),
                         ));
                     }
-                    xyz = xyz.map(|c| c / w);
+                    xyz = xyz.map(|c| c / w32);
+                    wide = wide.map(|c| c / w64);
                 }
-                if xyz.iter().any(|c| !c.is_finite()) {
+                if xyz.iter().any(|c| !c.is_finite())
+                    || wide
+                        .iter()
+                        .any(|&c| !c.is_finite() || !(c as f32).is_finite())
+                {
                     return Err(error(
                         number,
                         "vertex coordinates divided by w are not finite".into(),
@@ -337,6 +367,8 @@ fn sanitize(text: &str, file: &Path, stem: &str) -> Result<Sanitized> {
                 }
                 let [x, y, z] = xyz;
                 let _ = writeln!(out.text, "v {x:e} {y:e} {z:e}");
+                out.positions.push(Vec3::from_array(xyz));
+                out.positions_f64.push(DVec3::from_array(wide));
                 vertices += 1;
             }
             "f" => {
@@ -377,6 +409,11 @@ fn sanitize(text: &str, file: &Path, stem: &str) -> Result<Sanitized> {
                 }
                 out.text.push('\n');
                 out.face_lines.push(number);
+                out.face_starts.push(out.face_corners.len());
+                // Absolute indices are 1..=vertices, and vertices fit in u32
+                // (checked below before anything uses them).
+                out.face_corners
+                    .extend(corners.iter().map(|&c| (c - 1) as u32));
             }
             "o" | "g" => {
                 let name = line.trim_start()[1..].trim();
@@ -396,6 +433,7 @@ fn sanitize(text: &str, file: &Path, stem: &str) -> Result<Sanitized> {
             message: format!("{vertices} vertices; at most {} are supported", u32::MAX),
         });
     }
+    out.face_starts.push(out.face_corners.len());
     Ok(out)
 }
 
@@ -427,25 +465,38 @@ fn parse_with_tobj(text: &str, file: &Path) -> Result<Vec<tobj::Model>> {
 /// One object being assembled from consecutive tobj models of one name.
 struct Group {
     name: String,
+    /// Zero-based file position index of each group vertex, in first-use order.
+    vertices: Vec<u32>,
+    /// File position index → group vertex.
+    local: HashMap<u32, u32>,
+    /// Group-vertex corners of every face, concatenated.
+    corners: Vec<u32>,
+    /// Per face: source line and its range in `corners`.
+    faces: Vec<(usize, std::ops::Range<usize>)>,
+}
+
+/// A group ready to become a mesh.
+struct Built {
+    name: String,
     positions: Vec<Vec3>,
     triangles: Vec<[u32; 3]>,
     faces: usize,
+    centre: Option<DVec3>,
 }
 
-/// Triangulates tobj's models, merges consecutive models of the same group
-/// name, and adds one mesh and one root node per group to `graph`.
+/// Groups tobj's models (consecutive models of one name are one object),
+/// takes positions from the validated text (f64, recentred when far from the
+/// origin; see [`cluster_centres`]), triangulates, and adds one mesh and one
+/// root node per group to `graph`.
 fn build_objects(
     models: Vec<tobj::Model>,
-    face_lines: &[usize],
+    clean: &Sanitized,
     file: &Path,
     graph: &mut SceneGraph,
 ) -> Result<()> {
     let shown = file.display();
     let mut groups: Vec<Group> = Vec::new();
-    let mut face = 0usize; // running face number across models, indexes face_lines
-    let mut fallbacks: Vec<(usize, &'static str)> = Vec::new();
-    let mut corners: Vec<Vec3> = Vec::new();
-    let mut local: Vec<[u32; 3]> = Vec::new();
+    let mut face = 0usize; // running face number across models
     for model in models {
         let mesh = model.mesh;
         if mesh.indices.is_empty() {
@@ -455,20 +506,15 @@ fn build_objects(
         if !same {
             groups.push(Group {
                 name: model.name,
-                positions: Vec::new(),
-                triangles: Vec::new(),
-                faces: 0,
+                vertices: Vec::new(),
+                local: HashMap::new(),
+                corners: Vec::new(),
+                faces: Vec::new(),
             });
         }
         let Some(group) = groups.last_mut() else {
             continue;
         };
-        let base = group.positions.len() as u32;
-        group.positions.extend(
-            mesh.positions
-                .chunks_exact(3)
-                .map(|c| Vec3::new(c[0], c[1], c[2])),
-        );
         let arities: Vec<u32> = if mesh.face_arities.is_empty() {
             vec![3; mesh.indices.len() / 3]
         } else {
@@ -477,35 +523,83 @@ fn build_objects(
         let mut start = 0usize;
         for arity in arities {
             let end = start + arity as usize;
-            let Some(indices) = mesh.indices.get(start..end) else {
+            if mesh.indices.get(start..end).is_none() {
+                break;
+            }
+            start = end;
+            // tobj keeps the faces of the validated text in order, so face k
+            // of its models is face k written by `sanitize`.
+            let (Some(&from), Some(&to)) =
+                (clean.face_starts.get(face), clean.face_starts.get(face + 1))
+            else {
                 break;
             };
-            start = end;
-            let line = face_lines.get(face).copied().unwrap_or(0);
+            let line = clean.face_lines.get(face).copied().unwrap_or(0);
             face += 1;
-            group.faces += 1;
+            let global = &clean.face_corners[from..to];
+            if global.len() != arity as usize {
+                return Err(Error::Load {
+                    file: file.to_path_buf(),
+                    element: format!("line {line}"),
+                    message: format!(
+                        "the OBJ parser (tobj) read a face of {arity} corners where {} were written",
+                        global.len()
+                    ),
+                });
+            }
+            let first = group.corners.len();
+            for &g in global {
+                let next = group.vertices.len() as u32;
+                let k = *group.local.entry(g).or_insert_with(|| {
+                    group.vertices.push(g);
+                    next
+                });
+                group.corners.push(k);
+            }
+            group.faces.push((line, first..group.corners.len()));
+        }
+    }
+
+    let centres = cluster_centres(&groups, &clean.positions_f64);
+    let mut fallbacks: Vec<(usize, &'static str)> = Vec::new();
+    let mut corners: Vec<Vec3> = Vec::new();
+    let mut local: Vec<[u32; 3]> = Vec::new();
+    let mut built: Vec<Built> = Vec::with_capacity(groups.len());
+    for (group, centre) in groups.into_iter().zip(centres) {
+        let positions: Vec<Vec3> = match centre {
+            Some(c) => group
+                .vertices
+                .iter()
+                .map(|&g| (clean.positions_f64[g as usize] - c).as_vec3())
+                .collect(),
+            None => group
+                .vertices
+                .iter()
+                .map(|&g| clean.positions[g as usize])
+                .collect(),
+        };
+        let mut triangles: Vec<[u32; 3]> = Vec::with_capacity(group.corners.len());
+        for (line, range) in &group.faces {
+            let indices = &group.corners[range.clone()];
             if let [a, b, c] = *indices {
-                group.triangles.push([a + base, b + base, c + base]);
+                triangles.push([a, b, c]);
                 continue;
             }
             corners.clear();
-            corners.extend(
-                indices
-                    .iter()
-                    .filter_map(|&i| group.positions.get((i + base) as usize).copied()),
-            );
-            if corners.len() != indices.len() {
-                // tobj's indices are into its own positions; cannot happen.
-                continue;
-            }
+            corners.extend(indices.iter().map(|&i| positions[i as usize]));
             local.clear();
             if let Outcome::Fallback(why) = triangulate(&corners, &mut local) {
-                fallbacks.push((line, why.describe()));
+                fallbacks.push((*line, why.describe()));
             }
-            group
-                .triangles
-                .extend(local.iter().map(|t| t.map(|k| indices[k as usize] + base)));
+            triangles.extend(local.iter().map(|t| t.map(|k| indices[k as usize])));
         }
+        built.push(Built {
+            name: group.name,
+            positions,
+            triangles,
+            faces: group.faces.len(),
+            centre,
+        });
     }
     if !fallbacks.is_empty() {
         let lines: Vec<usize> = fallbacks.iter().map(|f| f.0).collect();
@@ -517,14 +611,14 @@ fn build_objects(
             fallbacks[0].1
         ));
     }
-    if groups.is_empty() {
+    if built.is_empty() {
         graph.warn(format!(
             "{shown}: no faces; the file loads as an empty scene"
         ));
     }
-    for group in groups {
-        // Indices come from tobj over validated text and positions are
-        // finite, so this cannot fail; if it does, the error names the file.
+    for group in built {
+        // Indices come from validated text and positions are finite, so
+        // this cannot fail; if it does, the error names the file.
         let mesh =
             Mesh::new(group.name.clone(), &group.positions, &group.triangles).map_err(|e| {
                 Error::Load {
@@ -541,7 +635,67 @@ fn build_objects(
             continue;
         }
         let id = graph.add_mesh(mesh);
-        graph.add_instance(&group.name, id, Transform::default());
+        let transform = group
+            .centre
+            .map_or_else(Transform::default, Transform::translation);
+        graph.add_instance(&group.name, id, transform);
     }
     Ok(())
+}
+
+/// The translation each group is recentred by (see [`super::recentre`]), or
+/// `None` where it keeps the file's f32 values.
+///
+/// Groups whose f64 bounds touch or overlap form one cluster and share one
+/// centre, computed from the cluster's bounds: groups that share vertices (a
+/// roof on its walls, three faces of `regr_3429812.obj`) then hold
+/// bit-identical local vertices under one and the same transform, so the
+/// eye pass and the volumes see their common edges exactly where they met
+/// before. Sort and sweep along x; union-find over the overlaps.
+fn cluster_centres(groups: &[Group], positions: &[DVec3]) -> Vec<Option<DVec3>> {
+    let bounds: Vec<(DVec3, DVec3)> = groups
+        .iter()
+        .map(|g| {
+            g.vertices.iter().fold(
+                (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
+                |(lo, hi), &v| {
+                    let p = positions[v as usize];
+                    (lo.min(p), hi.max(p))
+                },
+            )
+        })
+        .collect();
+    let mut parent: Vec<usize> = (0..groups.len()).collect();
+    fn root(parent: &mut [usize], mut i: usize) -> usize {
+        while parent[i] != i {
+            parent[i] = parent[parent[i]];
+            i = parent[i];
+        }
+        i
+    }
+    let mut order: Vec<usize> = (0..groups.len()).collect();
+    order.sort_by(|&a, &b| bounds[a].0.x.total_cmp(&bounds[b].0.x));
+    let mut active: Vec<usize> = Vec::new();
+    for &i in &order {
+        let (lo, hi) = bounds[i];
+        active.retain(|&j| bounds[j].1.x >= lo.x);
+        for &j in &active {
+            let (jlo, jhi) = bounds[j];
+            if jlo.cmple(hi).all() && lo.cmple(jhi).all() {
+                let (a, b) = (root(&mut parent, i), root(&mut parent, j));
+                parent[a.max(b)] = a.min(b);
+            }
+        }
+        active.push(i);
+    }
+    let mut cluster: Vec<(DVec3, DVec3)> =
+        vec![(DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)); groups.len()];
+    let roots: Vec<usize> = (0..groups.len()).map(|i| root(&mut parent, i)).collect();
+    for (i, &r) in roots.iter().enumerate() {
+        cluster[r] = (cluster[r].0.min(bounds[i].0), cluster[r].1.max(bounds[i].1));
+    }
+    roots
+        .iter()
+        .map(|&r| super::recentre(cluster[r].0, cluster[r].1))
+        .collect()
 }

@@ -76,9 +76,13 @@ fn procedural_city_has_498_objects_and_the_readme_triangles() {
     // roofs written as `a b b a` — their 166 triangles are dropped as
     // degenerate, without a warning — and 2 quads (lines 33052–33053) repeat
     // their last corner, so they are triangles: the CDT makes 1 triangle of
-    // each where the fan makes 2, one degenerate. 7,148 − 166 − 2 = 6,980.
-    assert_eq!(c.drawn_triangles, 6_980);
-    assert_eq!(c.triangles, 6_980 + 166, "as loaded, degenerate included");
+    // each where the fan makes 2, one degenerate. 7,148 − 166 − 2 = 6,980
+    // with f32 world positions. The loader recentres the buildings (near
+    // 1e7, where f32 spacing is 1) from the file's f64 values, which keeps 2
+    // more: triangles 13 and 15 of `b_54e7512f`, whose corners at
+    // y = 9,857,572.46 and 9,857,571.53 are one point in f32 world coordinates.
+    assert_eq!(c.drawn_triangles, 6_982);
+    assert_eq!(c.triangles, 6_982 + 166, "as loaded, degenerate included");
     assert_eq!(c.topology.degenerate_triangles, 166);
     // Same script, edges counted per group as `Mesh` does: a polygon soup
     // with many faces wound against their neighbours.
@@ -773,6 +777,148 @@ fn missing_file_is_an_io_error_naming_it() {
     let err = load_obj(Path::new("/nonexistent/nothing.obj")).unwrap_err();
     assert!(matches!(err, Error::Io { .. }));
     assert!(err.to_string().contains("nothing.obj"));
+}
+
+// ---------------------------------------------------------------- recentring
+
+/// A 4 × 2 × 3 box (walls, 10 triangles) and a separate roof group on it,
+/// near (2.57e5, 9.857e6, 10) like city.obj's buildings, where an f32 has a
+/// spacing of 1 (y) and 1/64 (x). Every coordinate is a multiple of 1/8, so
+/// the f64 values, the f64 centre and the small f32 local coordinates are
+/// all exact: world positions must come back bit for bit.
+const FAR_X: f64 = 257_000.125;
+const FAR_Y: f64 = 9_857_000.375;
+const FAR_Z: f64 = 10.5;
+
+fn far_box_obj() -> (String, Vec<DVec3>) {
+    let mut corners = Vec::new();
+    for k in 0..8 {
+        let d = DVec3::new(
+            if k & 1 == 0 { 0.0 } else { 4.0 },
+            if k & 2 == 0 { 0.0 } else { 2.25 },
+            if k & 4 == 0 { 0.0 } else { 3.0 },
+        );
+        corners.push(DVec3::new(FAR_X, FAR_Y, FAR_Z) + d);
+    }
+    let mut text = String::from("g walls\n");
+    for c in &corners {
+        text += &format!("v {} {} {}\n", c.x, c.y, c.z);
+    }
+    // Four walls and the floor (outward, counter-clockwise), then the roof
+    // (z = max) as its own group sharing the top corners.
+    text += "f 1 3 4 2\nf 1 2 6 5\nf 2 4 8 6\nf 4 3 7 8\nf 3 1 5 7\n";
+    text += "g roof\nf 5 6 8 7\n";
+    (text, corners)
+}
+
+fn write_temp(name: &str, text: &str) -> PathBuf {
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("obj_recentre_test");
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join(name);
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+#[test]
+fn far_off_obj_is_recentred_and_round_trips_world_positions() {
+    let (text, corners) = far_box_obj();
+    let file = write_temp("far_box.obj", &text);
+    let graph = load_obj(&file).unwrap();
+    assert!(graph.warnings().is_empty(), "{:?}", graph.warnings());
+    assert_eq!(graph.nodes().len(), 2);
+    let centre = DVec3::new(FAR_X + 2.0, FAR_Y + 1.125, FAR_Z + 1.5);
+    for node in graph.nodes() {
+        // The translation is in the node, in f64, and is the f64 centre of
+        // the walls and roof together (they touch, so they share it).
+        let m = node.transform.matrix();
+        assert_eq!(m, glam::DMat4::from_translation(centre), "{}", node.name);
+        // Local vertices are centred and small.
+        let mesh = &graph.meshes()[node.meshes[0].0 as usize];
+        for p in mesh.positions() {
+            assert!(
+                p.abs().cmple(glam::Vec3::new(2.0, 1.125, 1.5)).all(),
+                "{}: local vertex {p} is not centred",
+                node.name
+            );
+        }
+        let b = mesh.bounds();
+        assert!(
+            b.center().abs().max_element() <= 1.5,
+            "{}: local bounds {b:?}",
+            node.name
+        );
+    }
+    // World positions (f64, the one transform path) are the file's exactly,
+    // and every file corner is some vertex: nothing was merged by f32
+    // rounding at 1e7 (2.25 and 0.375 apart in y would be 0 or 1 there).
+    let s = scene(graph);
+    let mut seen = Vec::new();
+    for (o, obj) in s.objects().iter().enumerate() {
+        let mesh = s.object_mesh(scene::ObjectId(o as u32));
+        for p in mesh.positions() {
+            let w = scene::transform::world_point(&obj.world_from_local, *p);
+            assert!(corners.contains(&w), "world {w} is not a file corner");
+            seen.push(w.to_array().map(f64::to_bits));
+        }
+    }
+    seen.sort_unstable();
+    seen.dedup();
+    assert_eq!(seen.len(), 8);
+    // Walls and roof share their top corners bit for bit in local space.
+    let walls = &s.graph().meshes()[0];
+    let roof = &s.graph().meshes()[1];
+    for p in roof.positions() {
+        assert!(walls.positions().contains(p), "roof corner {p}");
+    }
+    // World bounds still hold the box.
+    let b = s.bounds();
+    assert!(b.min.as_dvec3().cmple(corners[0]).all());
+    assert!(b.max.as_dvec3().cmpge(corners[7]).all());
+}
+
+#[test]
+fn far_off_obj_keeps_world_positions_within_f32_of_the_small_local_values() {
+    // Values that are not exact in binary: the world position is the f64
+    // value of the file up to the f32 rounding of the *local* coordinate
+    // (a few metres: about 2.4e-7), not of the world one (spacing 1 at 1e7).
+    let text = "v 257318.945 9857572.46 27.9\nv 257318.945 9857571.53 27.9\n\
+                v 257320.955 9857574.00 25.28\nv 257316.935 9857574.00 25.28\n\
+                f 1 2 3\nf 1 4 2\n";
+    let want = [
+        DVec3::new(257318.945, 9857572.46, 27.9),
+        DVec3::new(257318.945, 9857571.53, 27.9),
+        DVec3::new(257320.955, 9857574.00, 25.28),
+        DVec3::new(257316.935, 9857574.00, 25.28),
+    ];
+    let graph = load_obj(&write_temp("far_roof.obj", text)).unwrap();
+    let s = scene(graph);
+    let id = scene::ObjectId(0);
+    assert_eq!(s.object_mesh(id).triangles().len(), 2, "none degenerate");
+    let got: Vec<DVec3> = (0..2).flat_map(|t| s.world_triangle(id, t)).collect();
+    for w in want {
+        let err = got
+            .iter()
+            .map(|g| (*g - w).abs().max_element())
+            .fold(f64::INFINITY, f64::min);
+        assert!(err <= 3.0 * 2f64.powi(-24), "{w}: off by {err}");
+    }
+}
+
+#[test]
+fn obj_near_its_origin_is_not_moved() {
+    // Centre 0.5 away, radius 0.5: kept bit for bit with an identity transform.
+    let g = load_str("v 0.1 0.2 0.3\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
+    assert_eq!(g.nodes()[0].transform, scene::Transform::default());
+    assert!(g.meshes()[0]
+        .positions()
+        .contains(&glam::Vec3::new(0.1, 0.2, 0.3)));
+    // Far groups in one file are moved; near ones are not.
+    let g = load_str("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1e6 0 0\nv 1000001 0 0\nv 1e6 1 0\ng near\nf 1 2 3\ng far\nf 4 5 6\n").unwrap();
+    assert_eq!(g.nodes()[0].transform, scene::Transform::default());
+    assert_eq!(
+        g.nodes()[1].transform.matrix().w_axis.truncate(),
+        DVec3::new(1e6 + 0.5, 0.5, 0.0)
+    );
 }
 
 // ---------------------------------------------------------------- fuzzing
