@@ -44,9 +44,14 @@ pub struct Job {
     /// Which files to write.
     #[serde(default)]
     pub outputs: Outputs,
-    /// Pipeline options (later issues add culling, method, stencil, clamping).
+    /// Pipeline options.
     #[serde(default)]
     pub pipeline: PipelineOptions,
+    /// Variants `shadowcull compare` runs on the same frames (empty: brute
+    /// force, depth bounds, and scissor with depth bounds, each otherwise
+    /// like `pipeline`).
+    #[serde(default)]
+    pub pipelines: Vec<NamedPipeline>,
 }
 
 fn default_version() -> u32 {
@@ -163,24 +168,123 @@ impl Default for Outputs {
     }
 }
 
-/// Pipeline options. For now only the reference's; later issues add culling,
-/// volume method, stencil backend, tile size and clamping here.
+/// Shadow-volume method per caster, as the job spells it (`method: auto`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Method {
+    /// zpass where it is safe, else zfail ([`shadowgen::MethodChoice::Auto`]).
+    #[default]
+    Auto,
+    /// zpass everywhere (wrong where a volume meets the near rectangle).
+    Zpass,
+    /// zfail everywhere.
+    Zfail,
+    /// zp+ everywhere.
+    Zpplus,
+}
+
+impl Method {
+    /// The shadowgen choice.
+    pub fn choice(self) -> shadowgen::MethodChoice {
+        match self {
+            Method::Auto => shadowgen::MethodChoice::Auto,
+            Method::Zpass => shadowgen::MethodChoice::ZPass,
+            Method::Zfail => shadowgen::MethodChoice::ZFail,
+            Method::Zpplus => shadowgen::MethodChoice::ZpPlus,
+        }
+    }
+}
+
+/// Stencil backend (`stencil: bf`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum StencilBackend {
+    /// Brute force: every volume fragment on a non-background pixel.
+    #[default]
+    Bf,
+    /// Brute force with the per-volume depth-bounds test [EK "Computing Depth Bounds"].
+    Db,
+}
+
+/// Stencil counter width (`stencil_bits: eight`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum StencilBitsSpec {
+    /// 8-bit wrapping counters, as a GPU.
+    #[default]
+    Eight,
+    /// Wide counters (shows where 8 bits alias).
+    Wide,
+}
+
+/// Pipeline options: how shadows are computed and how often the reference checks them.
 #[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct PipelineOptions {
+    /// Volume method per caster.
+    pub method: Method,
+    /// Stencil backend.
+    pub stencil: StencilBackend,
+    /// Per-volume scissor rectangles.
+    pub scissor: bool,
+    /// Stencil counter width.
+    pub stencil_bits: StencilBitsSpec,
+    /// Every triangle casts (back-facing ones flipped); the reference uses the same rule.
+    pub two_sided: bool,
     /// Compute the reference mask every n-th frame (0 = never).
     pub reference_every: u32,
-    /// The reference's options (two-sided casting, depth-error bound).
+    /// The reference's options (depth-error bound; its `two_sided` must equal
+    /// the pipeline's or be left out).
     pub reference: crate::reference::ReferenceOptions,
 }
 
 impl Default for PipelineOptions {
     fn default() -> Self {
         PipelineOptions {
+            method: Method::Auto,
+            stencil: StencilBackend::Bf,
+            scissor: false,
+            stencil_bits: StencilBitsSpec::Eight,
+            two_sided: false,
             reference_every: 1,
             reference: Default::default(),
         }
     }
+}
+
+impl PipelineOptions {
+    /// The shadow stage's options.
+    pub fn shadow_options(&self) -> crate::pipeline::ShadowOptions {
+        crate::pipeline::ShadowOptions {
+            method: self.method.choice(),
+            two_sided: self.two_sided,
+            bits: match self.stencil_bits {
+                StencilBitsSpec::Eight => raster::StencilBits::Eight,
+                StencilBitsSpec::Wide => raster::StencilBits::Wide,
+            },
+            scissor: self.scissor,
+            depth_bounds: self.stencil == StencilBackend::Db,
+        }
+    }
+
+    /// The reference's options, with the pipeline's two-sided rule.
+    pub fn reference_options(&self) -> crate::reference::ReferenceOptions {
+        crate::reference::ReferenceOptions {
+            two_sided: self.two_sided,
+            ..self.reference
+        }
+    }
+}
+
+/// One variant of `shadowcull compare`: a name and its pipeline options.
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct NamedPipeline {
+    /// Row name in `compare.csv` and label in `compare.svg`.
+    pub name: String,
+    /// The options (defaults as in the job's `pipeline`).
+    #[serde(default)]
+    pub pipeline: PipelineOptions,
 }
 
 impl Job {
@@ -247,13 +351,36 @@ impl Job {
         if self.outputs.image_every == 0 {
             return Err(bad("outputs.image_every", "must be at least 1".into()));
         }
-        if !(self.pipeline.reference.depth_error >= 0.0
-            && self.pipeline.reference.depth_error < 1e-2)
-        {
-            return Err(bad(
-                "pipeline.reference.depth_error",
-                "must lie in [0, 0.01)".into(),
-            ));
+        let variants = std::iter::once(("pipeline".to_string(), &self.pipeline)).chain(
+            self.pipelines
+                .iter()
+                .enumerate()
+                .map(|(i, p)| (format!("pipelines[{i}].pipeline"), &p.pipeline)),
+        );
+        for (at, p) in variants {
+            if !(p.reference.depth_error >= 0.0 && p.reference.depth_error < 1e-2) {
+                return Err(bad(
+                    &format!("{at}.reference.depth_error"),
+                    "must lie in [0, 0.01)".into(),
+                ));
+            }
+            if p.reference.two_sided && !p.two_sided {
+                return Err(bad(
+                    &format!("{at}.reference.two_sided"),
+                    format!(
+                        "set {at}.two_sided instead: the pipeline and its reference use one rule"
+                    ),
+                ));
+            }
+        }
+        let mut names = std::collections::HashSet::new();
+        for (i, p) in self.pipelines.iter().enumerate() {
+            if p.name.is_empty() || !names.insert(p.name.as_str()) {
+                return Err(bad(
+                    &format!("pipelines[{i}].name"),
+                    format!("{:?} must be non-empty and unique", p.name),
+                ));
+            }
         }
         for (i, l) in self.lights.iter().enumerate() {
             if let Ok(Some(light)) = l.to_light_static() {
@@ -483,6 +610,7 @@ pub fn default_job() -> Job {
             image_every: 1,
         },
         pipeline: PipelineOptions::default(),
+        pipelines: Vec::new(),
     }
 }
 
@@ -525,13 +653,25 @@ mod tests {
                     Named("light"),
                 ],
                 outputs: (masks: true, shaded: false),
-                pipeline: (reference_every: 2, reference: (two_sided: true)),
+                pipeline: (method: zfail, stencil: db, scissor: true, two_sided: true, reference_every: 2),
+                pipelines: [(name: "bf"), (name: "zp+", pipeline: (method: zpplus, stencil_bits: wide))],
             )"#,
         )
         .unwrap();
         assert_eq!(j.frame_count(), 2);
         assert_eq!(j.lights.len(), 6);
-        assert!(j.pipeline.reference.two_sided);
+        assert_eq!(j.pipeline.method, Method::Zfail);
+        assert_eq!(j.pipeline.stencil, StencilBackend::Db);
+        assert!(j.pipeline.scissor);
+        assert!(j.pipeline.reference_options().two_sided);
+        let o = j.pipeline.shadow_options();
+        assert!(o.two_sided && o.depth_bounds && o.scissor);
+        assert_eq!(j.pipelines.len(), 2);
+        assert_eq!(j.pipelines[0].pipeline, PipelineOptions::default());
+        assert_eq!(
+            j.pipelines[1].pipeline.method.choice(),
+            shadowgen::MethodChoice::ZpPlus
+        );
     }
 
     #[test]
@@ -555,6 +695,18 @@ mod tests {
         assert!(e.contains("lights[0]") && e.contains("direction"), "{e}");
         let e = parse("(resolution: (10, 10))").unwrap_err().to_string();
         assert!(e.contains("scene"), "{e}");
+        let e = parse("(scene: Obj(\"a.obj\"), pipeline: (stencil: hier))")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("hier"), "{e}");
+        let e = parse("(scene: Obj(\"a.obj\"), pipeline: (reference: (two_sided: true)))")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("pipeline.reference.two_sided"), "{e}");
+        let e = parse("(scene: Obj(\"a.obj\"), pipelines: [(name: \"a\"), (name: \"a\")])")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("pipelines[1].name"), "{e}");
     }
 
     #[test]

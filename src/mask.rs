@@ -268,6 +268,14 @@ pub fn compare(reference: &Mask, ambiguous: &[bool], mask: &Mask) -> Comparison 
     out
 }
 
+/// Writes an 8-bit greyscale image (`width × height` bytes, row 0 at the top) as a PNG file.
+///
+/// # Errors
+/// I/O and encoder errors; a pixel count other than `width × height`.
+pub fn write_grey_png(path: &Path, width: u32, height: u32, grey: &[u8]) -> std::io::Result<()> {
+    write_png(path, width, height, png::ColorType::Grayscale, grey)
+}
+
 /// Writes 8-bit pixels as a PNG file.
 pub(crate) fn write_png(
     path: &Path,

@@ -43,6 +43,19 @@ pub struct EyePass {
     pub target: DepthTarget,
     /// Per pixel the visible `(object, triangle)`, `None` for background.
     pub primitive: Vec<Option<PrimitiveId>>,
+    /// Per pixel (row 0 at the top) the rasterized depth, reversed Z
+    /// ([`raster::BACKGROUND`] where nothing was drawn).
+    pub depth: Vec<f32>,
+}
+
+impl EyePass {
+    /// The visible surface as the reference takes it: primitive ids and depth.
+    pub fn surface(&self) -> crate::reference::EyeSurface<'_> {
+        crate::reference::EyeSurface {
+            primitive: &self.primitive,
+            depth: Some(&self.depth),
+        }
+    }
 }
 
 /// Rasterizes every object (both faces, standard coverage) into a fresh
@@ -74,7 +87,12 @@ pub fn eye_pass(
             primitive.push(target.id_at(x, y).map(|(o, t)| (ObjectId(o), t)));
         }
     }
-    Ok(EyePass { target, primitive })
+    let depth = target.depth_rows();
+    Ok(EyePass {
+        target,
+        primitive,
+        depth,
+    })
 }
 
 /// Options of the shadow stage.
@@ -86,6 +104,10 @@ pub struct ShadowOptions {
     pub two_sided: bool,
     /// 8-bit wrapping stencil or wide counters.
     pub bits: StencilBits,
+    /// Per-volume scissor test ([`raster::VolumeRange::scissor`]).
+    pub scissor: bool,
+    /// Per-volume depth-bounds test (`stencil: db`).
+    pub depth_bounds: bool,
 }
 
 impl Default for ShadowOptions {
@@ -94,6 +116,8 @@ impl Default for ShadowOptions {
             method: MethodChoice::Auto,
             two_sided: false,
             bits: StencilBits::Eight,
+            scissor: false,
+            depth_bounds: false,
         }
     }
 }
@@ -109,6 +133,11 @@ pub struct ShadowFrame {
     pub volume_triangles: u64,
     /// Stencil counters.
     pub stencil: StencilStats,
+    /// Per pixel (row-major, row 0 at the top): the raw stencil is non-zero,
+    /// whatever the surface's facing.
+    pub raw_nonzero: Vec<bool>,
+    /// Wall time of the stencil stage: clearing, every volume drawn, mask assembly (ms).
+    pub stencil_ms: f64,
 }
 
 /// Scratch kept across frames: the silhouette cache and the volume buffer.
@@ -144,7 +173,9 @@ pub fn shadow_mask(
     let build = BuildOptions {
         method: options.method,
         two_sided: options.two_sided,
-        viewport: None,
+        // Scissor rectangles and depth bounds cost time; only computed when used.
+        viewport: (options.scissor || options.depth_bounds).then_some((w, h)),
+        finite_extrusion: false,
     };
     let volumes = build_volumes(
         &mut scratch.volumes,
@@ -155,8 +186,13 @@ pub fn shadow_mask(
         build,
         &mut scratch.cache,
     )?;
+    let t = std::time::Instant::now();
     let mut stencil = StencilTarget::new(w, h, options.bits)?;
     let mut stats = StencilStats::default();
+    let tests = raster::StencilTests {
+        scissor: options.scissor,
+        depth_bounds: options.depth_bounds,
+    };
     let mut volume_triangles = 0;
     for range in &scratch.volumes.ranges {
         let clip_from_local = scene::transform::clip_from_local(camera, &range.world_from_local);
@@ -165,11 +201,16 @@ pub fn shadow_mask(
             clip_from_local,
             &scratch.volumes,
             range,
+            tests,
             &mut stats,
         )?;
         volume_triangles += u64::from(range.index_count / 3);
     }
-    let shadowed = |i: usize| stencil.nonzero(i as u32 % w, i as u32 / w);
+    let raw_nonzero: Vec<bool> = (0..h)
+        .flat_map(|y| (0..w).map(move |x| (x, y)))
+        .map(|(x, y)| stencil.nonzero(x, y))
+        .collect();
+    let shadowed = |i: usize| raw_nonzero[i];
     let mask = assemble(
         scene,
         camera,
@@ -185,5 +226,7 @@ pub fn shadow_mask(
         volumes,
         volume_triangles,
         stencil: stats,
+        raw_nonzero,
+        stencil_ms: t.elapsed().as_secs_f64() * 1e3,
     })
 }

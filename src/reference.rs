@@ -29,7 +29,13 @@
 //! - A pixel is *ambiguous* when the class at `p − δ·e` or `p + δ·e` (e the unit
 //!   eye-ray direction) differs from the class at `p`: coplanar casters,
 //!   grazing light, a light in a face's plane, points on a shadow edge within
-//!   the depth error. Ambiguous pixels are excluded from comparisons and counted.
+//!   the depth error; or when the class differs at the points of the surface's
+//!   plane seen through the pixel centre moved by ±[`SNAP_PROBE_PX`] in x or y.
+//!   The rasterizer snaps every vertex to 1/256 pixel, moving each projected
+//!   edge and each interpolated plane by up to half of that sideways (an error
+//!   ε_z does not cover: on a grazing surface it is many δ along the ray), so
+//!   a pixel whose class flips within that distance can go either way.
+//!   Ambiguous pixels are excluded from comparisons and counted.
 //!
 //! Both δ terms scale with depth, so the rule is the same at scene scales
 //! 1e-3 and 1e3 and at coordinates of 1e5 and 1e6.
@@ -39,6 +45,10 @@ use glam::{DVec3, Vec3A};
 use obvhs::{bvh2::Bvh2, ray::Ray};
 use rayon::prelude::*;
 use scene::{faces_light, Camera, Light, ObjectId, Scene};
+
+/// Screen-space reach of the sideways ambiguity probes, pixels: twice the
+/// rasterizer's largest vertex-snapping displacement (half of its 1/256-pixel grid).
+pub const SNAP_PROBE_PX: f64 = 1.0 / 256.0;
 
 /// Default relative depth-error bound ε_z (a few f32 ulps) until a
 /// rasterizer states its own; δ is then `2⁻²⁰·d`.
@@ -74,6 +84,11 @@ pub type PrimitiveId = (ObjectId, u32);
 pub struct EyeSurface<'a> {
     /// `width × height` primitive ids.
     pub primitive: &'a [Option<PrimitiveId>],
+    /// The rasterized depth (reversed Z) of the same pixels, when known: the
+    /// ambiguity window along the eye ray is widened to twice the distance
+    /// between the exact surface point and the rasterized one, since every
+    /// stencil decision at the pixel is made against the rasterized depth.
+    pub depth: Option<&'a [f32]>,
 }
 
 /// All scene triangles in a BVH, for ray casting.
@@ -396,12 +411,36 @@ pub fn reference_mask(
                 let p = eye + dir * t;
                 let depth = (p - eye).dot(forward);
                 let delta = (4.0 * options.depth_error * depth).max(depth / (1u64 << 20) as f64);
+                // The rasterized surface's distance from `p` along the ray, when given.
+                let buffer_error = surface.as_ref().and_then(|s| s.depth).map_or(0.0, |z| {
+                    let zb = f64::from(z[y * width as usize + x]);
+                    // Reversed Z, infinite far plane: z = near / view depth.
+                    let db = if zb > 0.0 {
+                        camera.near / zb
+                    } else {
+                        f64::INFINITY
+                    };
+                    (db - depth).abs() / dir.dot(forward)
+                });
+                let window = delta.max(2.0 * buffer_error);
                 let class_at = |q: DVec3| {
                     classify(bvh, k, eye, q, delta, light, &light_rel, options.two_sided)
                 };
                 let c = class_at(p);
+                let sideways = |dx: f64, dy: f64| {
+                    let (px, py) = (x as f64 + 0.5 + dx, y as f64 + 0.5 + dy);
+                    let d = camera.ray_direction(px, py, width, height);
+                    let t = plane_distance(&bvh.rel(k), eye, d);
+                    t.is_finite() && class_at(eye + d * t) != c
+                };
+                let s = SNAP_PROBE_PX;
                 let ambiguous = c.is_compared()
-                    && (class_at(p - dir * delta) != c || class_at(p + dir * delta) != c);
+                    && (class_at(p - dir * window) != c
+                        || class_at(p + dir * window) != c
+                        || sideways(s, 0.0)
+                        || sideways(-s, 0.0)
+                        || sideways(0.0, s)
+                        || sideways(0.0, -s));
                 let nrm = (tri[1] - tri[0]).cross(tri[2] - tri[0]).normalize_or_zero();
                 let to_l = light_rel.toward_light(p).normalize_or_zero();
                 let side = if nrm.dot(eye - p) >= 0.0 { nrm } else { -nrm };

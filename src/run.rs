@@ -7,8 +7,10 @@
 
 use crate::config::{load_scene, resolve_camera, Job};
 use crate::error::io_err;
-use crate::reference::{reference_mask, ReferenceMask, TriangleBvh};
-use crate::stats::{FrameStats, ReferenceStats, SceneStats};
+use crate::frame::FrameRunner;
+use crate::mask::Mask;
+use crate::reference::ReferenceMask;
+use crate::stats::{CheckStats, FrameStats, ReferenceStats, ShadowStats};
 use crate::{Error, Result};
 use glam::{DVec3, Vec3};
 use scene::load::Loaded;
@@ -46,12 +48,18 @@ pub struct RunSummary {
     pub lights: Vec<Light>,
     /// Time to load or generate the scene and flatten it (ms).
     pub load_ms: f64,
-    /// Time to build the reference's triangle BVH (ms).
+    /// Time to build the reference's triangle BVH (ms; 0 when no frame ran it).
     pub bvh_ms: f64,
     /// Mean reference time per frame and light over the frames that ran it (ms).
     pub mean_reference_ms: f64,
-    /// Sum of every row's counters.
+    /// Mean pipeline time per frame and light (ms; the rows' `frame_ms`).
+    pub mean_frame_ms: f64,
+    /// Sum of every row's reference counters.
     pub totals: ReferenceStats,
+    /// Sum of every row's pipeline counters (times summed too).
+    pub shadow_totals: ShadowStats,
+    /// Sum of every row's comparison counters.
+    pub check_totals: CheckStats,
 }
 
 /// Loads the job's scene (with its optional ground quad) and flattens it.
@@ -90,6 +98,50 @@ pub fn prepare_scene(job: &Job, base: &Path) -> Result<(Loaded, Scene)> {
     Ok((loaded, scene))
 }
 
+/// Loads `job`'s scene (paths relative to `job_file`'s directory) and
+/// resolves its camera path.
+///
+/// # Errors
+/// Loader, graph and camera errors, naming the file or job field.
+pub fn load_scene_for_job(
+    job: &Job,
+    job_file: Option<&Path>,
+) -> Result<(Loaded, Scene, scene::CameraPath)> {
+    let base = job_file.and_then(Path::parent).unwrap_or(Path::new("."));
+    let file = job_file.unwrap_or(Path::new("<default job>"));
+    let (loaded, scene) = prepare_scene(job, base)?;
+    let path = resolve_camera(&job.camera, &loaded, &scene.bounds(), file)?;
+    Ok((loaded, scene, path))
+}
+
+/// The job's lights: its `lights`, else the scene's named lights, else one
+/// point light above the scene.
+///
+/// # Errors
+/// A light that fails validation or names a missing scene light.
+pub fn resolve_lights(
+    job: &Job,
+    loaded: &Loaded,
+    bounds: &scene::Aabb,
+    file: &Path,
+) -> Result<Vec<Light>> {
+    if !job.lights.is_empty() {
+        return job
+            .lights
+            .iter()
+            .enumerate()
+            .map(|(i, l)| l.resolve(loaded, bounds, i, file))
+            .collect();
+    }
+    if loaded.lights.is_empty() {
+        Ok(vec![
+            crate::config::LightSpec::AboveScene(1.5).resolve(loaded, bounds, 0, file)?
+        ])
+    } else {
+        Ok(loaded.lights.iter().map(|(_, l)| *l).collect())
+    }
+}
+
 /// Runs `job` (read from `job_file`, or the bundled default when `None`),
 /// calling `on_frame` after every frame-and-light row.
 ///
@@ -101,38 +153,22 @@ pub fn run_job(
     options: &RunOptions,
     on_frame: &mut dyn FnMut(&FrameStats, u32),
 ) -> Result<RunSummary> {
-    let base = job_file.and_then(Path::parent).unwrap_or(Path::new("."));
     let name = job_file
         .map(|p| p.display().to_string())
         .unwrap_or_else(|| "<default>".into());
     let file = job_file.unwrap_or(Path::new("<default job>"));
 
     let t0 = Instant::now();
-    let (loaded, scene) = prepare_scene(job, base)?;
+    let (loaded, scene, path) = load_scene_for_job(job, job_file)?;
     let load_ms = ms(t0);
     let bounds = scene.bounds();
-    let path = resolve_camera(&job.camera, &loaded, &bounds, file)?;
-    let lights = if job.lights.is_empty() {
-        if loaded.lights.is_empty() {
-            vec![crate::config::LightSpec::AboveScene(1.5).resolve(&loaded, &bounds, 0, file)?]
-        } else {
-            loaded.lights.iter().map(|(_, l)| *l).collect()
-        }
-    } else {
-        job.lights
-            .iter()
-            .enumerate()
-            .map(|(i, l)| l.resolve(&loaded, &bounds, i, file))
-            .collect::<Result<Vec<_>>>()?
-    };
+    let lights = resolve_lights(job, &loaded, &bounds, file)?;
     let frames = job
         .frame_count()
         .min(options.max_frames.unwrap_or(u32::MAX));
     let (w, h) = job.resolution;
 
-    let t1 = Instant::now();
-    let bvh = TriangleBvh::new(&scene);
-    let bvh_ms = ms(t1);
+    let mut runner = FrameRunner::new(&scene);
 
     let out = &options.out_dir;
     std::fs::create_dir_all(out).map_err(io_err(out))?;
@@ -146,69 +182,53 @@ pub fn run_job(
 
     let counts = scene.counts();
     let mut totals = ReferenceStats::default();
-    let mut ref_ms_sum = 0.0;
+    let mut shadow_totals = ShadowStats::default();
+    let mut check_totals = CheckStats::default();
     let mut ref_runs = 0u32;
+    let mut frame_ms_sum = 0.0;
     for frame in 0..frames {
-        let pose = path.at(frame).ok_or_else(|| Error::Job {
-            file: file.to_path_buf(),
-            location: "camera".into(),
-            message: format!("no pose for frame {frame}"),
-        })?;
-        let camera = pose.camera(w as f64 / h as f64).map_err(|e| Error::Job {
-            file: file.to_path_buf(),
-            location: format!("camera (frame {frame})"),
-            message: e.to_string(),
-        })?;
-        for (li, light) in lights.iter().enumerate() {
-            let tf = Instant::now();
-            let mut row = FrameStats {
-                frame,
-                light: li as u32,
-                scene: SceneStats {
-                    update_ms: 0.0,
-                    objects: counts.objects as u64,
-                    triangles: counts.drawn_triangles as u64,
-                },
-                ..Default::default()
-            };
-            let every = job.pipeline.reference_every;
-            if every > 0 && frame % every == 0 {
-                let tr = Instant::now();
-                let r = reference_mask(&bvh, &camera, light, w, h, &job.pipeline.reference, None);
-                row.reference.reference_ms = ms(tr);
-                let c = r.counts;
-                row.reference.lit = c.classes.lit;
-                row.reference.shadow = c.classes.shadow;
-                row.reference.unlit = c.classes.unlit;
-                row.reference.background = c.classes.background;
-                row.reference.ambiguous = c.ambiguous;
-                ref_ms_sum += row.reference.reference_ms;
-                ref_runs += 1;
-                if frame % job.outputs.image_every == 0 {
-                    if job.outputs.masks {
-                        let p = frames_dir.join(format!("{frame}_{li}_mask.png"));
+        let camera = frame_camera(&path, frame, (w, h), file)?;
+        let every = job.pipeline.reference_every;
+        let with_reference = every > 0 && frame % every == 0;
+        let results = runner.frame(
+            frame,
+            &camera,
+            &lights,
+            (w, h),
+            &job.pipeline,
+            with_reference,
+        )?;
+        for (li, lf) in results.iter().enumerate() {
+            let row = &lf.row;
+            if frame % job.outputs.image_every == 0 {
+                if job.outputs.masks {
+                    let p = frames_dir.join(format!("{frame}_{li}_mask.png"));
+                    atomic(&p, |tmp| lf.shadow.mask.write_png(tmp))?;
+                    if let Some(r) = &lf.reference {
+                        let p = frames_dir.join(format!("{frame}_{li}_reference.png"));
                         atomic(&p, |tmp| r.mask.write_png(tmp))?;
                     }
-                    if job.outputs.shaded {
-                        let p = frames_dir.join(format!("{frame}_{li}_shaded.png"));
-                        atomic(&p, |tmp| write_shaded(&r, tmp))?;
-                    }
+                }
+                if let (true, Some(r)) = (job.outputs.shaded, &lf.reference) {
+                    let p = frames_dir.join(format!("{frame}_{li}_shaded.png"));
+                    atomic(&p, |tmp| write_shaded(&lf.shadow.mask, r, tmp))?;
                 }
             }
-            row.frame_ms = ms(tf);
-            totals.lit += row.reference.lit;
-            totals.shadow += row.reference.shadow;
-            totals.unlit += row.reference.unlit;
-            totals.background += row.reference.background;
-            totals.ambiguous += row.reference.ambiguous;
-            totals.reference_ms += row.reference.reference_ms;
+            if lf.reference.is_some() {
+                ref_runs += 1;
+            }
+            add_reference(&mut totals, &row.reference);
+            add_shadow(&mut shadow_totals, &row.shadow);
+            add_check(&mut check_totals, &row.check);
+            frame_ms_sum += row.frame_ms;
             writeln!(csv, "{}", row.csv_row())
                 .and_then(|_| csv.flush())
                 .map_err(io_err(&csv_path))?;
             row.emit();
-            on_frame(&row, frames);
+            on_frame(row, frames);
         }
     }
+    let rows = (frames as usize * lights.len()).max(1) as f64;
     let summary = RunSummary {
         job: name,
         scene: counts,
@@ -218,13 +238,16 @@ pub fn run_job(
         frames,
         lights,
         load_ms,
-        bvh_ms,
+        bvh_ms: runner.bvh_ms,
         mean_reference_ms: if ref_runs > 0 {
-            ref_ms_sum / ref_runs as f64
+            totals.reference_ms / ref_runs as f64
         } else {
             0.0
         },
+        mean_frame_ms: frame_ms_sum / rows,
         totals,
+        shadow_totals,
+        check_totals,
     };
     let sp = out.join("summary.json");
     atomic(&sp, |tmp| {
@@ -234,12 +257,65 @@ pub fn run_job(
     Ok(summary)
 }
 
+/// The camera of `frame` for a `width × height` viewport.
+pub(crate) fn frame_camera(
+    path: &scene::CameraPath,
+    frame: u32,
+    (w, h): (u32, u32),
+    file: &Path,
+) -> Result<scene::Camera> {
+    let pose = path.at(frame).ok_or_else(|| Error::Job {
+        file: file.to_path_buf(),
+        location: "camera".into(),
+        message: format!("no pose for frame {frame}"),
+    })?;
+    pose.camera(w as f64 / h as f64).map_err(|e| Error::Job {
+        file: file.to_path_buf(),
+        location: format!("camera (frame {frame})"),
+        message: e.to_string(),
+    })
+}
+
+/// Adds `b`'s counters and times to `a`.
+fn add_reference(a: &mut ReferenceStats, b: &ReferenceStats) {
+    a.reference_ms += b.reference_ms;
+    a.lit += b.lit;
+    a.shadow += b.shadow;
+    a.unlit += b.unlit;
+    a.background += b.background;
+    a.ambiguous += b.ambiguous;
+}
+
+/// Adds `b`'s counters and times to `a`.
+fn add_shadow(a: &mut ShadowStats, b: &ShadowStats) {
+    a.eye_ms += b.eye_ms;
+    a.silhouette_ms += b.silhouette_ms;
+    a.volume_ms += b.volume_ms;
+    a.stencil_ms += b.stencil_ms;
+    a.volume_triangles += b.volume_triangles;
+    a.silhouette_edges += b.silhouette_edges;
+    a.zpass_casters += b.zpass_casters;
+    a.zfail_casters += b.zfail_casters;
+    a.zpplus_casters += b.zpplus_casters;
+    a.pixels_processed += b.pixels_processed;
+    a.stencil_updates += b.stencil_updates;
+    a.shadowed_pixels += b.shadowed_pixels;
+}
+
+/// Adds `b`'s counters to `a`.
+fn add_check(a: &mut CheckStats, b: &CheckStats) {
+    a.mismatch_pixels += b.mismatch_pixels;
+    a.mismatch_off_boundary += b.mismatch_off_boundary;
+    a.ambiguous_pixels += b.ambiguous_pixels;
+    a.compared_pixels += b.compared_pixels;
+}
+
 fn ms(t: Instant) -> f64 {
     t.elapsed().as_secs_f64() * 1e3
 }
 
 /// Writes `path` through a temporary file in the same directory and a rename.
-fn atomic(path: &Path, write: impl FnOnce(&Path) -> std::io::Result<()>) -> Result<()> {
+pub(crate) fn atomic(path: &Path, write: impl FnOnce(&Path) -> std::io::Result<()>) -> Result<()> {
     let mut tmp = path.as_os_str().to_owned();
     tmp.push(".tmp");
     let tmp = PathBuf::from(tmp);
@@ -248,11 +324,12 @@ fn atomic(path: &Path, write: impl FnOnce(&Path) -> std::io::Result<()>) -> Resu
 }
 
 /// A shaded RGB image: each object a muted colour of its own, Lambert-lit
-/// where the mask says lit, ambient only in shadow and unlit; background dark blue.
-fn write_shaded(r: &ReferenceMask, path: &Path) -> std::io::Result<()> {
+/// (the reference's cosines) where `mask` says lit, ambient only in shadow and
+/// unlit; background dark blue.
+fn write_shaded(mask: &Mask, r: &ReferenceMask, path: &Path) -> std::io::Result<()> {
     use crate::mask::PixelClass;
-    let mut rgb = Vec::with_capacity(r.mask.pixels.len() * 3);
-    for (i, class) in r.mask.pixels.iter().enumerate() {
+    let mut rgb = Vec::with_capacity(mask.pixels.len() * 3);
+    for (i, class) in mask.pixels.iter().enumerate() {
         let px = match (class, r.primitive[i]) {
             (PixelClass::Background, _) | (_, None) => [38, 44, 64],
             (c, Some((obj, _))) => {
@@ -272,7 +349,7 @@ fn write_shaded(r: &ReferenceMask, path: &Path) -> std::io::Result<()> {
         };
         rgb.extend_from_slice(&px);
     }
-    crate::mask::write_png(path, r.mask.width, r.mask.height, png::ColorType::Rgb, &rgb)
+    crate::mask::write_png(path, mask.width, mask.height, png::ColorType::Rgb, &rgb)
 }
 
 fn object_colour(id: u32) -> [u8; 3] {

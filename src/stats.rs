@@ -34,6 +34,50 @@ pub struct ReferenceStats {
     pub ambiguous: u64,
 }
 
+/// The shadow pipeline's counters of a frame and light.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct ShadowStats {
+    /// Eye pass: depth and primitive ids of every object (ms). Measured once
+    /// per frame; every light's row of the frame repeats it.
+    pub eye_ms: f64,
+    /// Silhouette extraction, cache lookups included (ms).
+    pub silhouette_ms: f64,
+    /// Method choice and volume construction (ms).
+    pub volume_ms: f64,
+    /// The whole stencil stage: clear, every volume, mask assembly (ms).
+    pub stencil_ms: f64,
+    /// Shadow-volume triangles drawn.
+    pub volume_triangles: u64,
+    /// Silhouette edges, with multiplicity.
+    pub silhouette_edges: u64,
+    /// Casters drawn with zpass.
+    pub zpass_casters: u64,
+    /// Casters drawn with zfail.
+    pub zfail_casters: u64,
+    /// Casters drawn with zp+.
+    pub zpplus_casters: u64,
+    /// Per-pixel stencil operations (after the scissor and, with `stencil: db`,
+    /// the depth-bounds test).
+    pub pixels_processed: u64,
+    /// Stencil values changed.
+    pub stencil_updates: u64,
+    /// Pixels the pipeline's mask classes shadow.
+    pub shadowed_pixels: u64,
+}
+
+/// The pipeline's mask against the reference's, on frames that run it.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct CheckStats {
+    /// Pixels lit or shadow in both masks, not ambiguous, that differ.
+    pub mismatch_pixels: u64,
+    /// Mismatches without a differently classified 4-neighbour in the reference.
+    pub mismatch_off_boundary: u64,
+    /// Pixels the reference calls ambiguous (excluded from the comparison).
+    pub ambiguous_pixels: u64,
+    /// Pixels compared (lit or shadow in both, not ambiguous).
+    pub compared_pixels: u64,
+}
+
 /// Everything measured for one frame and one light.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
 pub struct FrameStats {
@@ -45,7 +89,12 @@ pub struct FrameStats {
     pub scene: SceneStats,
     /// The reference.
     pub reference: ReferenceStats,
-    /// Whole frame-and-light time, including image output (ms).
+    /// The shadow pipeline.
+    pub shadow: ShadowStats,
+    /// The pipeline against the reference.
+    pub check: CheckStats,
+    /// The pipeline's time for this light: eye pass + silhouettes + volumes +
+    /// stencil (ms); scene load, the reference and image output excluded.
     pub frame_ms: f64,
 }
 
@@ -83,6 +132,22 @@ stats_row! {
     unlit: reference.unlit,
     background: reference.background,
     ambiguous: reference.ambiguous,
+    eye_ms: shadow.eye_ms,
+    silhouette_ms: shadow.silhouette_ms,
+    volume_ms: shadow.volume_ms,
+    stencil_ms: shadow.stencil_ms,
+    volume_triangles: shadow.volume_triangles,
+    silhouette_edges: shadow.silhouette_edges,
+    zpass_casters: shadow.zpass_casters,
+    zfail_casters: shadow.zfail_casters,
+    zpplus_casters: shadow.zpplus_casters,
+    pixels_processed: shadow.pixels_processed,
+    stencil_updates: shadow.stencil_updates,
+    shadowed_pixels: shadow.shadowed_pixels,
+    mismatch_pixels: check.mismatch_pixels,
+    mismatch_off_boundary: check.mismatch_off_boundary,
+    ambiguous_pixels: check.ambiguous_pixels,
+    compared_pixels: check.compared_pixels,
     frame_ms: frame_ms,
 }
 

@@ -1,4 +1,4 @@
-//! End-to-end tests of the `shadowcull` binary: `run` and `inspect`.
+//! End-to-end tests of the `shadowcull` binary: `run`, `compare` and `inspect`.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -218,7 +218,98 @@ fn run_writes_stats_summary_and_images() {
             .map(|c| v[idx(c)].parse::<u64>().unwrap())
             .sum();
         assert_eq!(sum, 64 * 48);
+        // The pipeline ran and matched the reference (ambiguous pixels aside).
+        let num = |c: &str| v[idx(c)].parse::<f64>().unwrap();
+        assert!(num("volume_triangles") > 0.0 && num("pixels_processed") > 0.0);
+        assert!(num("compared_pixels") > 0.0);
+        assert_eq!(num("mismatch_off_boundary"), 0.0, "{row}");
+        assert!(
+            num("mismatch_pixels") <= (64.0 * 48.0 * 1e-4f64).ceil(),
+            "{row}"
+        );
+        assert_eq!(num("shadowed_pixels") > 0.0, num("shadow") > 0.0, "{row}");
     }
+    for key in [
+        "mismatch_pixels",
+        "ambiguous_pixels",
+        "shadowed_pixels",
+        "pixels_processed",
+    ] {
+        assert!(cols.contains(&key), "stats.csv column {key}");
+    }
+}
+
+#[test]
+fn compare_writes_one_row_per_variant_and_a_plot() {
+    let dir = tmp_dir("compare");
+    let job = dir.join("job.ron");
+    let text = SMALL_JOB.replace(
+        "outputs: (masks: true, shaded: true),",
+        r#"pipelines: [
+            (name: "bf"),
+            (name: "db", pipeline: (stencil: db, scissor: true)),
+            (name: "zfail", pipeline: (method: zfail)),
+            (name: "zpass", pipeline: (method: zpass)),
+        ],"#,
+    );
+    std::fs::write(&job, text).unwrap();
+    let out = dir.join("out");
+    let o = bin()
+        .arg("compare")
+        .arg(&job)
+        .arg("--out")
+        .arg(&out)
+        .args(["--frames", "1"])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let csv = std::fs::read_to_string(out.join("compare.csv")).unwrap();
+    let lines: Vec<&str> = csv.lines().collect();
+    assert_eq!(lines.len(), 1 + 4, "{csv}");
+    let cols: Vec<&str> = lines[0].split(',').collect();
+    let idx = |name: &str| cols.iter().position(|c| *c == name).unwrap();
+    let rows: Vec<Vec<&str>> = lines[1..].iter().map(|l| l.split(',').collect()).collect();
+    let get = |r: usize, c: &str| rows[r][idx(c)].parse::<f64>().unwrap();
+    assert_eq!(rows[0][0], "bf");
+    for r in 0..3 {
+        assert_eq!(get(r, "mismatch_off_boundary"), 0.0, "{}", lines[r + 1]);
+        assert_eq!(get(r, "rows"), 2.0);
+    }
+    // Same masks, less per-pixel work with scissor and depth bounds.
+    assert_eq!(get(0, "shadowed_pixels"), get(1, "shadowed_pixels"));
+    assert!(get(1, "pixels_processed") <= get(0, "pixels_processed"));
+    for c in [
+        "frame_ms",
+        "stencil_ms",
+        "pixels_processed",
+        "ambiguous_pixels",
+    ] {
+        assert!(cols.contains(&c), "{c}");
+    }
+    let svg = std::fs::read_to_string(out.join("compare.svg")).unwrap();
+    assert!(
+        svg.contains("<svg") && svg.contains("zfail"),
+        "labelled plot"
+    );
+    // A bad variant names itself.
+    std::fs::write(
+        &job,
+        SMALL_JOB.replace(
+            "outputs: (masks: true, shaded: true),",
+            r#"pipelines: [(name: "x", pipeline: (stencil: hier))],"#,
+        ),
+    )
+    .unwrap();
+    let o = bin()
+        .arg("compare")
+        .arg(&job)
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("job.ron") && err.contains("hier"), "{err}");
 }
 
 #[test]

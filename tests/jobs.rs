@@ -80,8 +80,10 @@ fn shared_scene_views_show_their_scenes_and_shadows() {
                     "{} frame {frame}: the view misses the scene: {c:?}",
                     f.display()
                 );
+                // At most 5% of the compared pixels (one pixel allowed when a
+                // view shows fewer than 20 lit or shadowed pixels).
                 assert!(
-                    r.counts.ambiguous * 20 <= (c.lit + c.shadow).max(1),
+                    r.counts.ambiguous * 20 <= (c.lit + c.shadow).max(20),
                     "{} frame {frame} light {i}: too many ambiguous pixels: {:?}",
                     f.display(),
                     r.counts

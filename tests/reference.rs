@@ -343,6 +343,7 @@ fn given_eye_surface_gives_the_same_mask() {
         &ReferenceOptions::default(),
         Some(EyeSurface {
             primitive: &a.primitive,
+            depth: None,
         }),
     );
     let c = compare(&a.mask, &a.ambiguous, &b.mask);

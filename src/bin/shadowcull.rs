@@ -1,12 +1,14 @@
 //! `shadowcull`: run RON batch jobs and inspect scenes.
 //!
 //! - `shadowcull run [JOB.ron] [--out DIR] [--frames N] [--log-format text|json]`
+//! - `shadowcull compare JOB.ron [--out DIR] [--frames N]`
 //! - `shadowcull inspect SCENE [--json]`
 //!
 //! Exit status 0 on success, 1 on any error (one line on stderr naming the file).
 
 use anyhow::Context as _;
 use clap::{Parser, Subcommand, ValueEnum};
+use shadowcull::compare::{compare_job, CompareOptions};
 use shadowcull::config::{default_job, Job};
 use shadowcull::run::{run_job, RunOptions};
 use shadowcull::stats::FrameStats;
@@ -40,6 +42,17 @@ enum Command {
         /// How per-frame statistics are logged: plain text on stderr, or JSON lines on stdout.
         #[arg(long, value_enum, default_value_t = LogFormat::Text)]
         log_format: LogFormat,
+    },
+    /// Run the job's `pipelines` variants on the same frames; write compare.csv and compare.svg.
+    Compare {
+        /// The job file.
+        job: PathBuf,
+        /// Output directory (created if missing).
+        #[arg(long, default_value = "out")]
+        out: PathBuf,
+        /// Stop after the first N frames.
+        #[arg(long)]
+        frames: Option<u32>,
     },
     /// Print a scene's objects, meshes, triangles, bounds, topology and load warnings.
     Inspect {
@@ -99,12 +112,39 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
             frames,
             log_format,
         } => run(job.as_deref(), out, frames, log_format),
+        Command::Compare { job, out, frames } => compare(&job, out, frames),
         Command::Inspect {
             scene,
             json,
             objects,
         } => inspect(&scene, json, objects),
     }
+}
+
+fn compare(job_file: &Path, out: PathBuf, frames: Option<u32>) -> anyhow::Result<()> {
+    let job = Job::from_file(job_file)?;
+    let options = CompareOptions {
+        out_dir: out.clone(),
+        max_frames: frames,
+    };
+    let rows = compare_job(&job, Some(job_file), &options)?;
+    eprintln!(
+        "{:<16} {:>9} {:>9} {:>16} {:>10} {:>10}",
+        "variant", "frame_ms", "stencil", "pixels_processed", "mismatch", "ambiguous"
+    );
+    for r in &rows {
+        eprintln!(
+            "{:<16} {:>9.2} {:>9.2} {:>16} {:>10} {:>10}",
+            r.name,
+            r.frame_ms,
+            r.stencil_ms,
+            r.pixels_processed,
+            r.mismatch_pixels,
+            r.ambiguous_pixels
+        );
+    }
+    eprintln!("shadowcull: wrote {}", out.join("compare.csv").display());
+    Ok(())
 }
 
 fn run(
@@ -161,8 +201,8 @@ fn run(
             b.set_length(frames as u64 * nlights);
             b.inc(1);
             b.set_message(format!(
-                "frame {} light {}: reference {:.0} ms",
-                row.frame, row.light, row.reference.reference_ms
+                "frame {} light {}: pipeline {:.0} ms, reference {:.0} ms",
+                row.frame, row.light, row.frame_ms, row.reference.reference_ms
             ));
         }
     };
@@ -176,12 +216,15 @@ fn run(
     }
     if log_format == LogFormat::Text {
         eprintln!(
-            "shadowcull: {} objects, {} triangles; {} frames × {} lights; mean reference {:.1} ms; wrote {}",
+            "shadowcull: {} objects, {} triangles; {} frames × {} lights; mean pipeline {:.1} ms, mean reference {:.1} ms; {} mismatched pixels ({} off a shadow boundary); wrote {}",
             summary.scene.objects,
             summary.scene.triangles,
             summary.frames,
             summary.lights.len(),
+            summary.mean_frame_ms,
             summary.mean_reference_ms,
+            summary.check_totals.mismatch_pixels,
+            summary.check_totals.mismatch_off_boundary,
             out.display()
         );
     }

@@ -29,8 +29,8 @@ pub(crate) struct ClipPolygon {
 /// The six clip planes of a viewport, as coefficient vectors dotted with `(x, y, z, w)`.
 pub(crate) fn clip_planes(gx: f64, gy: f64) -> [DVec4; 6] {
     [
-        DVec4::new(0.0, 0.0, -1.0, 1.0), // near: w − z ≥ 0
-        DVec4::new(0.0, 0.0, 1.0, 0.0),  // far: z ≥ 0
+        NEAR_PLANE,                     // near: w − z ≥ 0
+        DVec4::new(0.0, 0.0, 1.0, 0.0), // far: z ≥ 0
         DVec4::new(-1.0, 0.0, 0.0, gx),
         DVec4::new(1.0, 0.0, 0.0, gx),
         DVec4::new(0.0, -1.0, 0.0, gy),
@@ -73,8 +73,12 @@ fn intersect(a: DVec4, da: f64, b: DVec4, db: f64) -> DVec4 {
     p + (q - p) * t
 }
 
-/// Clips the triangle `tri` (clip coordinates) against `planes`.
-pub(crate) fn clip_triangle(tri: [DVec4; 3], planes: &[DVec4; 6]) -> (ClipOutcome, ClipPolygon) {
+/// Clips the triangle `tri` (clip coordinates) against `planes` (at most six, so
+/// the polygon fits [`MAX_CLIPPED_VERTICES`]), in order.
+pub(crate) fn clip_triangle<const N: usize>(
+    tri: [DVec4; 3],
+    planes: &[DVec4; N],
+) -> (ClipOutcome, ClipPolygon) {
     let mut poly = ClipPolygon {
         v: [DVec4::ZERO; MAX_CLIPPED_VERTICES],
         len: 3,
@@ -116,6 +120,33 @@ pub(crate) fn clip_triangle(tri: [DVec4; 3], planes: &[DVec4; 6]) -> (ClipOutcom
         }
     }
     (ClipOutcome::Clipped, poly)
+}
+
+/// The near plane `w − z ≥ 0`, the first of [`clip_planes`].
+pub(crate) const NEAR_PLANE: DVec4 = DVec4::new(0.0, 0.0, -1.0, 1.0);
+
+/// The segment `(exit, entry)` that clipping the triangle `tri` against the near
+/// plane creates, oriented by the triangle's winding: walking `tri[0] → tri[1] →
+/// tri[2]`, `exit` is where the boundary leaves the kept side (`w − z ≥ 0`) and
+/// `entry` where it comes back, so the clipped polygon runs `… exit, entry …`.
+/// `None` when the near plane does not cut the triangle (all vertices kept, or none).
+///
+/// The points are bit-identical to the vertices [`clip_triangle`] creates on the
+/// near plane (it clips against the near plane first, with the same test and the
+/// same canonical-order intersection), and two triangles sharing an edge get the
+/// same point on it: one triangle's entry is its neighbour's exit.
+pub(crate) fn near_segment(tri: [DVec4; 3]) -> Option<(DVec4, DVec4)> {
+    let d = tri.map(|v| NEAR_PLANE.dot(v));
+    let (mut exit, mut entry) = (None, None);
+    for i in 0..3 {
+        let j = (i + 1) % 3;
+        match (d[i] >= 0.0, d[j] >= 0.0) {
+            (true, false) => exit = Some(intersect(tri[i], d[i], tri[j], d[j])),
+            (false, true) => entry = Some(intersect(tri[i], d[i], tri[j], d[j])),
+            _ => {}
+        }
+    }
+    Some((exit?, entry?))
 }
 
 #[cfg(test)]
@@ -172,5 +203,27 @@ mod tests {
         let (n1, n2) = (near(&p1), near(&p2));
         let x1 = n1.iter().filter(|v| n2.contains(v)).count();
         assert_eq!(x1, 1);
+    }
+
+    #[test]
+    fn near_segments_match_clipped_vertices_and_chain() {
+        let planes = clip_planes(2.0, 2.0);
+        assert_eq!(planes[0], NEAR_PLANE);
+        let a = DVec4::new(0.1, 0.3, 0.5, -0.7);
+        let b = DVec4::new(0.4, -0.2, 0.5, 3.1);
+        let c = DVec4::new(-0.4, 0.2, 0.5, 2.1);
+        let d = DVec4::new(0.9, 0.9, 0.5, 1.3);
+        // a is behind the near plane, b, c, d in front.
+        let (x1, n1) = near_segment([a, b, c]).unwrap();
+        let (x2, n2) = near_segment([b, a, d]).unwrap();
+        // [a, b, c] enters on a–b and leaves on c–a; [b, a, d] leaves on b–a.
+        assert_eq!(n1, x2);
+        assert_ne!(x1, n2);
+        let (_, p1) = clip_triangle([a, b, c], &planes);
+        let on = &p1.v[..p1.len];
+        let i = on.iter().position(|v| *v == x1).unwrap();
+        assert_eq!(on[(i + 1) % p1.len], n1);
+        assert!(near_segment([b, c, d]).is_none());
+        assert!(near_segment([a, a * 2.0, a * 3.0]).is_none());
     }
 }

@@ -51,9 +51,11 @@ mod draw;
 mod edge;
 mod error;
 mod hiz;
+mod near_cap;
 mod query;
 mod receivers;
 mod setup;
+mod span;
 mod stats;
 mod stencil;
 mod traverse;
@@ -72,7 +74,7 @@ pub use query::{meets_apex_region, QueryMode, QueryOptions, APEX_EPS, VISIBLE};
 pub use receivers::{ReceiverTarget, RECEIVER_EPS_PX};
 pub use setup::{facing, setup_triangle, Facing, Setup, SnappedVertex, SUBPIXEL};
 pub use stats::RasterStats;
-pub use stencil::{StencilBits, StencilStats, StencilTarget};
+pub use stencil::{StencilBits, StencilStats, StencilTarget, StencilTests};
 pub use volume_buffer::{VolumeBuffer, VolumeMethod, VolumeRange};
 
 /// Largest width or height of a target, in pixels.

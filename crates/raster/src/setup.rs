@@ -82,7 +82,12 @@ const SNAP_LIMIT: f64 = (1i64 << 23) as f64;
 /// the sign of `det[x y w]`, evaluated in f64.
 #[inline]
 pub fn facing(v: [Vec4; 3]) -> Option<Facing> {
-    let d = v.map(|p| p.as_dvec4());
+    facing_f64(v.map(|p| p.as_dvec4()))
+}
+
+/// [`facing`] of f64 clip-space vertices.
+#[inline(always)]
+pub(crate) fn facing_f64(d: [DVec4; 3]) -> Option<Facing> {
     let det = d[0].x * (d[1].y * d[2].w - d[2].y * d[1].w)
         - d[1].x * (d[0].y * d[2].w - d[2].y * d[0].w)
         + d[2].x * (d[0].y * d[1].w - d[1].y * d[0].w);
@@ -139,16 +144,27 @@ fn snap(p: DVec4, vp: &Viewport, out: &mut SnappedVertex) -> bool {
 /// [`setup_triangle`] into caller-owned storage (no copies of the polygon).
 #[inline(always)]
 pub(crate) fn setup_into(v: [Vec4; 3], vp: &Viewport, s: &mut Setup) {
-    s.facing = facing(v);
+    setup_planes(v.map(|p| p.as_dvec4()), &vp.planes, vp, s);
+}
+
+/// [`setup_into`] for a triangle given in f64 clip coordinates that lies in the near
+/// plane (`z = w` up to rounding, as [`crate::clip::near_segment`] makes them): it is
+/// clipped against the far and guard-band planes only, so the near-plane points keep
+/// exactly the values they have as vertices of near-clipped triangles.
+pub(crate) fn setup_near_plane_into(d: [DVec4; 3], vp: &Viewport, s: &mut Setup) {
+    let p = &vp.planes;
+    setup_planes(d, &[p[1], p[2], p[3], p[4], p[5]], vp, s);
+}
+
+#[inline(always)]
+fn setup_planes<const N: usize>(d: [DVec4; 3], planes: &[DVec4; N], vp: &Viewport, s: &mut Setup) {
+    s.facing = facing_f64(d);
     s.clipped = false;
     s.len = 0;
     if s.facing.is_none() {
         return;
     }
-    let d = v.map(|p| p.as_dvec4());
-    let inside = d
-        .iter()
-        .all(|p| vp.planes.iter().all(|pl| pl.dot(*p) >= 0.0));
+    let inside = d.iter().all(|p| planes.iter().all(|pl| pl.dot(*p) >= 0.0));
     if inside {
         for (p, out) in d.iter().zip(&mut s.vertices) {
             if !snap(*p, vp, out) {
@@ -158,7 +174,7 @@ pub(crate) fn setup_into(v: [Vec4; 3], vp: &Viewport, s: &mut Setup) {
         s.len = 3;
         return;
     }
-    let (outcome, poly) = clip_triangle(d, &vp.planes);
+    let (outcome, poly) = clip_triangle(d, planes);
     if outcome == ClipOutcome::Culled {
         return;
     }

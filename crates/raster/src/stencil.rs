@@ -18,15 +18,24 @@
 //! ([`crate::VolumeBuffer`]), so a front-facing fragment is an entry into the
 //! volume along the eye ray, a back-facing one an exit.
 //!
-//! Not here (yet): per-volume scissor and depth-bounds tests
-//! ([`crate::VolumeRange::scissor`], `depth_near`, `depth_far` are ignored), and
-//! zp+ near-plane initialization: [`crate::VolumeMethod::ZpPlus`] is counted
-//! with the zfail rule, which needs the same closed volume.
+//! Per-volume tests ([`StencilTests`], [EK "Exploit Bounds"]): the scissor
+//! rectangle [`crate::VolumeRange::scissor`] shrinks every triangle's pixel
+//! loop, and the depth-bounds test skips pixels whose stored depth lies outside
+//! `[depth_far, depth_near]`. Both are off by default; with conservative bounds
+//! they leave the stencil unchanged and only save work.
+//!
+//! [`crate::VolumeMethod::ZpPlus`] draws the near-plane cross-section of the
+//! closed volume as a fan of near-plane triangles counted by winding number,
+//! then counts the near-clipped volume with the zpass rule
+//! [EK "Zpass vs Zfail", Steiner §3.2.1]; the construction and why it is exact
+//! are in `near_cap.rs`.
 
-use crate::coverage::{edge_offsets, pixel_bounds, pixel_depth, Coverage};
+use crate::coverage::{edge_offsets, pixel_bounds, Coverage};
 use crate::depth_target::{DepthTarget, BACKGROUND};
-use crate::edge::for_each_fan_tri;
-use crate::setup::{setup_into, Facing, Setup, SnappedVertex, SUBPIXEL};
+use crate::edge::Tri;
+use crate::near_cap::fan_triangle;
+use crate::setup::{setup_into, setup_near_plane_into, Setup, SnappedVertex, SUBPIXEL};
+use crate::span::SpanWalker;
 use crate::volume_buffer::{VolumeBuffer, VolumeMethod, VolumeRange};
 use crate::{Error, Result, MAX_CLIPPED_VERTICES, MAX_TARGET_SIZE};
 use glam::{Mat4, Vec4};
@@ -43,16 +52,44 @@ pub enum StencilBits {
     Wide,
 }
 
+/// Per-volume tests [`StencilTarget::draw_volume`] applies before a fragment's
+/// stencil operation [EK "Exploit Bounds"]; both off by default.
+///
+/// They are meant for bounds that are conservative — every pixel they reject has
+/// its visible surface point outside the volume, so the volume's count there is 0
+/// (zfail, zp+, and zpass where zpass is legal) — and then leave the stencil
+/// unchanged and only save work. Bounds that are too tight change the result.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct StencilTests {
+    /// Scissor test: only pixels inside [`VolumeRange::scissor`] (`[x0, y0, x1, y1)`,
+    /// row 0 at the top, clamped to the target; [`VolumeRange::FULL_SCISSOR`] is
+    /// unbounded) are rasterized; every triangle's pixel loop is shrunk to it, and a
+    /// volume with an empty (or inverted) rectangle is not set up at all.
+    pub scissor: bool,
+    /// Depth-bounds test: a pixel whose stored eye depth `d` lies outside
+    /// `[depth_far, depth_near]` (reversed Z, bounds inclusive) is skipped.
+    pub depth_bounds: bool,
+}
+
 /// Counters of [`StencilTarget::draw_volume`].
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct StencilStats {
-    /// Per-pixel stencil operations: covered fragments on non-background pixels
-    /// (each is depth-tested).
+    /// Per-pixel stencil operations: fragments covered by a volume triangle (or a
+    /// zp+ near-cap fan triangle) on non-background pixels that pass the enabled
+    /// [`StencilTests`] — inside the scissor, and inside the depth bounds. Each is
+    /// depth-tested. Fragments the tests reject are not counted.
     pub pixels_processed: u64,
     /// Fragments that changed a stencil value (incremented or decremented).
     pub stencil_updates: u64,
-    /// Volume triangles submitted (before clipping and culling).
+    /// Volume triangles submitted (before clipping and culling; zp+ near-cap fan
+    /// triangles are not counted).
     pub triangles: u64,
+    /// Pixels this call updated for the first time since the target's last
+    /// [`StencilTarget::clear`] (or its creation). Summed over the calls on one
+    /// target since a clear, it is [`StencilTarget::touched_pixels`]: the number of
+    /// distinct pixels whose counter was incremented or decremented at least once
+    /// (even if it came back to its old value).
+    pub pixels_touched: u64,
 }
 
 impl StencilStats {
@@ -61,6 +98,7 @@ impl StencilStats {
         self.pixels_processed += other.pixels_processed;
         self.stencil_updates += other.stencil_updates;
         self.triangles += other.triangles;
+        self.pixels_touched += other.pixels_touched;
     }
 }
 
@@ -70,12 +108,29 @@ enum Counters {
     Wide(Vec<i32>),
 }
 
-/// A `width × height` stencil buffer, row-major from the top row.
+/// Where fragments are processed: an inclusive pixel rectangle and an inclusive
+/// depth range.
+#[derive(Clone, Copy, Debug)]
+struct Window {
+    x0: i64,
+    x1: i64,
+    y0: i64,
+    y1: i64,
+    dlo: f32,
+    dhi: f32,
+}
+
+/// A `width × height` stencil buffer, row-major from the top row, with a bitmap of
+/// the pixels updated since the last clear.
 #[derive(Clone, Debug)]
 pub struct StencilTarget {
     width: u32,
     height: u32,
     counters: Counters,
+    /// One bit per pixel (row-major): updated since the last clear.
+    /// 1 per pixel updated since the last clear, else 0 (bytes: branch-free updates).
+    touched: Vec<u8>,
+    touched_count: u64,
 }
 
 impl StencilTarget {
@@ -91,7 +146,8 @@ impl StencilTarget {
                 max: MAX_TARGET_SIZE,
             });
         }
-        let n = width as usize * height as usize;
+        // Padded to whole 8×8 tiles (see `StencilTarget::index`).
+        let n = (width.div_ceil(8) * height.div_ceil(8)) as usize * 64;
         let counters = match bits {
             StencilBits::Eight => Counters::Eight(vec![0; n]),
             StencilBits::Wide => Counters::Wide(vec![0; n]),
@@ -100,6 +156,8 @@ impl StencilTarget {
             width,
             height,
             counters,
+            touched: vec![0; n],
+            touched_count: 0,
         })
     }
 
@@ -121,12 +179,32 @@ impl StencilTarget {
         }
     }
 
-    /// Sets every counter to 0.
+    /// Sets every counter to 0 and forgets which pixels were touched.
     pub fn clear(&mut self) {
         match &mut self.counters {
             Counters::Eight(v) => v.fill(0),
             Counters::Wide(v) => v.fill(0),
         }
+        self.touched.fill(0);
+        self.touched_count = 0;
+    }
+
+    /// Number of distinct pixels whose counter was incremented or decremented at
+    /// least once since the last [`StencilTarget::clear`] (or creation), whatever
+    /// its value now (a pixel whose count went up and back to 0 is touched). The
+    /// sum of [`StencilStats::pixels_touched`] over the draws since then.
+    pub fn touched_pixels(&self) -> u64 {
+        self.touched_count
+    }
+
+    /// Whether the counter at `(x, y)` was updated since the last clear (see
+    /// [`StencilTarget::touched_pixels`]).
+    ///
+    /// # Panics
+    /// When `(x, y)` is outside the target.
+    pub fn touched(&self, x: u32, y: u32) -> bool {
+        let i = self.index(x, y);
+        self.touched[i] != 0
     }
 
     fn index(&self, x: u32, y: u32) -> usize {
@@ -134,7 +212,7 @@ impl StencilTarget {
             x < self.width && y < self.height,
             "pixel ({x}, {y}) outside the target"
         );
-        y as usize * self.width as usize + x as usize
+        tiled_index(self.width, x, y)
     }
 
     /// The counter at pixel `(x, y)` (row 0 at the top); with [`StencilBits::Eight`]
@@ -166,10 +244,17 @@ impl StencilTarget {
     /// - [`VolumeMethod::ZPass`]: passing fragments, front-facing +1, back-facing −1;
     /// - [`VolumeMethod::ZFail`]: failing fragments (not strictly nearer),
     ///   back-facing +1, front-facing −1;
-    /// - [`VolumeMethod::ZpPlus`]: counted as zfail until zp+ initialization exists.
+    /// - [`VolumeMethod::ZpPlus`]: the zpass rule, plus the near-plane
+    ///   initialization: for every triangle the near plane cuts, a fan triangle in
+    ///   the near plane (depth 1), counted +1 front-facing / −1 back-facing where it
+    ///   passes, so that the count starts at the number of volumes containing the
+    ///   pixel's near-plane point (see the module documentation). The range must be
+    ///   the closed volume, as for zfail.
     ///
     /// Background pixels of `eye` are never touched. Edge-on triangles (no facing)
-    /// draw nothing. The range's scissor and depth bounds are ignored.
+    /// draw nothing (for zp+ their near-plane segment still closes the cap).
+    /// `tests` switches the range's scissor and depth-bounds tests on
+    /// ([`StencilTests`]); with both off they are ignored.
     ///
     /// # Errors
     /// [`Error::SizeMismatch`] when `eye` has another size; [`Error::IndexOutOfRange`]
@@ -182,6 +267,7 @@ impl StencilTarget {
         clip_from_local: Mat4,
         buf: &VolumeBuffer,
         range: &VolumeRange,
+        tests: StencilTests,
         stats: &mut StencilStats,
     ) -> Result<()> {
         if (eye.width(), eye.height()) != (self.width, self.height) {
@@ -211,9 +297,18 @@ impl StencilTarget {
                 len: buf.positions.len(),
             });
         }
-        let zfail = match range.method {
-            VolumeMethod::ZPass => false,
-            VolumeMethod::ZFail | VolumeMethod::ZpPlus => true,
+        let mut st = StencilStats {
+            triangles: ntri as u64,
+            ..StencilStats::default()
+        };
+        let Some(win) = self.window(range, tests) else {
+            stats.add(&st);
+            return Ok(());
+        };
+        let (zfail, near_cap) = match range.method {
+            VolumeMethod::ZPass => (false, false),
+            VolumeMethod::ZFail => (true, false),
+            VolumeMethod::ZpPlus => (false, true),
         };
         let mut s = Setup {
             facing: None,
@@ -222,71 +317,231 @@ impl StencilTarget {
             len: 0,
         };
         let vp = eye.vp;
-        let mut st = StencilStats::default();
         for t in indices.chunks_exact(3) {
-            st.triangles += 1;
             let v =
                 [0, 1, 2].map(|k| clip_from_local * Vec4::from_array(buf.positions[t[k] as usize]));
             setup_into(v, &vp, &mut s);
-            let Some(facing) = s.facing else { continue };
-            // Which fragments count, and by how much.
-            let increment = matches!(
-                (zfail, facing),
-                (false, Facing::Front) | (true, Facing::Back)
-            );
-            self.fill_polygon(eye, s.polygon(), zfail, increment, &mut st);
+            if s.facing.is_some() {
+                // Each snapped fan piece counts by its own snapped orientation:
+                // snapping can turn a sliver (or a guard-band-clipped piece) over,
+                // and the count must be the winding number of what is rasterized.
+                self.fill_signed(eye, s.polygon(), &win, zfail, &mut st);
+            }
+            if near_cap {
+                if let Some(fan) = fan_triangle(v.map(|p| p.as_dvec4())) {
+                    setup_near_plane_into(fan, &vp, &mut s);
+                    self.fill_signed(eye, s.polygon(), &win, false, &mut st);
+                }
+            }
         }
+        self.touched_count += st.pixels_touched;
         stats.add(&st);
         Ok(())
     }
 
-    /// Increments (or decrements, `!increment`) every covered non-background pixel of the snapped polygon
-    /// whose fragment passes (zpass) or fails (zfail) the strict depth test.
-    fn fill_polygon(
+    /// The pixel rectangle and depth range `tests` allow for `range`; `None` when empty.
+    fn window(&self, range: &VolumeRange, tests: StencilTests) -> Option<Window> {
+        let (w, h) = (self.width, self.height);
+        let [x0, y0, x1, y1] = if tests.scissor {
+            let [x0, y0, x1, y1] = range.scissor;
+            [x0.min(w), y0.min(h), x1.min(w), y1.min(h)]
+        } else {
+            [0, 0, w, h]
+        };
+        let (dlo, dhi) = if tests.depth_bounds {
+            (range.depth_far, range.depth_near)
+        } else {
+            (f32::NEG_INFINITY, f32::INFINITY)
+        };
+        // NaN bounds are empty too (no depth lies within them).
+        let depth_empty = !matches!(
+            dlo.partial_cmp(&dhi),
+            Some(std::cmp::Ordering::Less | std::cmp::Ordering::Equal)
+        );
+        if x0 >= x1 || y0 >= y1 || depth_empty {
+            return None;
+        }
+        Some(Window {
+            x0: i64::from(x0),
+            x1: i64::from(x1) - 1,
+            y0: i64::from(y0),
+            y1: i64::from(y1) - 1,
+            dlo,
+            dhi,
+        })
+    }
+
+    /// Counts a snapped polygon (a volume triangle after clipping, or a zp+ near-cap
+    /// fan triangle) fan piece by fan piece, each by its own snapped orientation:
+    /// front-facing pieces (clockwise on screen, i.e. counter-clockwise in NDC with
+    /// y up) are entries, back-facing ones exits; zpass counts entries +1 and exits
+    /// −1 in front of the surface, zfail exits +1 and entries −1 behind it.
+    fn fill_signed(
         &mut self,
         eye: &DepthTarget,
         poly: &[SnappedVertex],
+        win: &Window,
+        zfail: bool,
+        st: &mut StencilStats,
+    ) {
+        for i in 1..poly.len().saturating_sub(1) {
+            let (v0, v1, v2) = (poly[0], poly[i], poly[i + 1]);
+            // Screen y points down: a negative area is clockwise seen on screen.
+            let area = (v1.x - v0.x) * (v2.y - v0.y) - (v1.y - v0.y) * (v2.x - v0.x);
+            if let Some(tri) = Tri::new(v0, v1, v2) {
+                // Front-facing (counter-clockwise in NDC, y up) is clockwise on
+                // screen: negative area. zpass: front +1; zfail: back +1.
+                self.fill_tri(eye, &tri, win, zfail, (area < 0) != zfail, st);
+            }
+        }
+    }
+
+    /// Increments (or decrements, `!increment`) every covered non-background pixel of
+    /// `tri` inside `win` whose fragment passes (zpass) or fails (zfail) the strict
+    /// depth test. Each row walks only its covered span ([`crate::span`]).
+    fn fill_tri(
+        &mut self,
+        eye: &DepthTarget,
+        tri: &Tri,
+        win: &Window,
         zfail: bool,
         increment: bool,
         st: &mut StencilStats,
     ) {
         let (w, h) = (self.width, self.height);
-        let layout = eye.layout;
-        let depth = &eye.depth;
-        let counters = &mut self.counters;
-        for_each_fan_tri(poly, |tri| {
-            let Some((x0, x1, y0, y1)) = pixel_bounds(tri, Coverage::Standard, w, h) else {
-                return;
-            };
-            let off = edge_offsets(tri, Coverage::Standard);
-            let step = tri.e.map(|e| e.a * SUBPIXEL);
-            for y in y0..=y1 {
-                let mut e = tri.e.map(|e| e.at_pixel(x0, y));
-                for x in x0..=x1 {
-                    let covered = e[0] + off[0] >= 0 && e[1] + off[1] >= 0 && e[2] + off[2] >= 0;
-                    if covered {
-                        let d = depth[layout.pixel_index(x as u32, y as u32)];
-                        if d != BACKGROUND {
-                            st.pixels_processed += 1;
-                            let z = pixel_depth(tri, Coverage::Standard, e);
-                            // Strict reversed-Z test: pass iff strictly nearer.
-                            if (z > d) != zfail {
-                                st.stencil_updates += 1;
-                                let i = y as usize * w as usize + x as usize;
-                                match (&mut *counters, increment) {
-                                    (Counters::Eight(c), true) => c[i] = c[i].wrapping_add(1),
-                                    (Counters::Eight(c), false) => c[i] = c[i].wrapping_sub(1),
-                                    (Counters::Wide(c), true) => c[i] = c[i].wrapping_add(1),
-                                    (Counters::Wide(c), false) => c[i] = c[i].wrapping_sub(1),
-                                }
-                            }
-                        }
-                    }
-                    for (e, s) in e.iter_mut().zip(&step) {
-                        *e += s;
-                    }
-                }
+        let Some((x0, x1, y0, y1)) = pixel_bounds(tri, Coverage::Standard, w, h) else {
+            return;
+        };
+        let (x0, x1) = (x0.max(win.x0), x1.min(win.x1));
+        let (y0, y1) = (y0.max(win.y0), y1.min(win.y1));
+        if x0 > x1 || y0 > y1 {
+            return;
+        }
+        let rect = Rect { x0, x1, y0, y1 };
+        let touched = &mut self.touched;
+        match &mut self.counters {
+            Counters::Eight(c) => {
+                let delta = if increment { 1 } else { u8::MAX };
+                fill_rows(c, touched, w, eye, tri, &rect, win, zfail, delta, st);
             }
-        });
+            Counters::Wide(c) => {
+                let delta = if increment { 1 } else { -1 };
+                fill_rows(c, touched, w, eye, tri, &rect, win, zfail, delta, st);
+            }
+        }
     }
+}
+
+/// Index of pixel `(x, y)` in a `width`-wide buffer stored in 8×8 tiles, tile
+/// rows of 8 pixels contiguous: a volume triangle is mostly a thin sliver, and
+/// with row-major storage every pixel row it covers would be another cache line.
+#[inline(always)]
+fn tiled_index(width: u32, x: u32, y: u32) -> usize {
+    let tiles_x = width.div_ceil(8) as usize;
+    (((y >> 3) as usize * tiles_x + (x >> 3) as usize) << 6) + (((y & 7) << 3) + (x & 7)) as usize
+}
+
+/// Inclusive pixel rectangle of one triangle's loop.
+struct Rect {
+    x0: i64,
+    x1: i64,
+    y0: i64,
+    y1: i64,
+}
+
+/// A stencil counter: adds with wrap-around.
+trait Counter: Copy {
+    fn wrapping(self, delta: Self) -> Self;
+}
+
+impl Counter for u8 {
+    #[inline(always)]
+    fn wrapping(self, delta: u8) -> u8 {
+        self.wrapping_add(delta)
+    }
+}
+
+impl Counter for i32 {
+    #[inline(always)]
+    fn wrapping(self, delta: i32) -> i32 {
+        self.wrapping_add(delta)
+    }
+}
+
+/// The per-pixel loop of [`StencilTarget::fill_tri`], monomorphized per counter type:
+/// adds `delta` (wrapping) to each covered pixel of `rect` that is not background,
+/// lies within the depth window and passes (zpass) or fails (zfail) the strict test.
+///
+/// Each row's covered span is walked in runs that stay inside one tile row, where
+/// the tiled depth buffer is contiguous, with a branch-free body. Edge values are
+/// carried as f64: they are integers below 2⁵³ (see `edge.rs`), so stepping them
+/// in f64 is exact and the depth `Σ E_i·z_i / area` is bit-identical to the eye
+/// pass's.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn fill_rows<C: Counter>(
+    counters: &mut [C],
+    touched: &mut [u8],
+    width: u32,
+    eye: &DepthTarget,
+    tri: &Tri,
+    rect: &Rect,
+    win: &Window,
+    zfail: bool,
+    delta: C,
+    st: &mut StencilStats,
+) {
+    let layout = eye.layout;
+    let depth = &eye.depth;
+    let off = edge_offsets(tri, Coverage::Standard);
+    let step = tri.e.map(|e| (e.a * SUBPIXEL) as f64);
+    let run = (1i64 << layout.shift).min(8);
+    let (z, inv) = (tri.z, tri.inv_area);
+    let (mut processed, mut updates, mut first) = (0u64, 0u64, 0u64);
+    let walker = SpanWalker::new(tri, &off, rect.x0, rect.x1, rect.y0);
+    for y in rect.y0..=rect.y1 {
+        let Some((a, b, e_a)) = walker.span(y) else {
+            continue;
+        };
+        let ty = (y >> layout.shift) as u32;
+        let mut x = a;
+        while x <= b {
+            // The run x..=xe lies in one tile row of the depth and of the
+            // stencil: contiguous in both.
+            let xe = b.min(x | (run - 1));
+            let n = (xe - x + 1) as usize;
+            // Skip runs in tiles with no written depth inside the window
+            // (all background, or outside the depth bounds).
+            let tb = &eye.tiles[layout.tile_index((x >> layout.shift) as u32, ty)];
+            if tb.zmax < win.dlo.max(0.0) || tb.zmin > win.dhi {
+                x = xe + 1;
+                continue;
+            }
+            let base = layout.pixel_index(x as u32, y as u32);
+            let ds = &depth[base..base + n];
+            let i0 = tiled_index(width, x as u32, y as u32);
+            let cs = &mut counters[i0..i0 + n];
+            let ts = &mut touched[i0..i0 + n];
+            let k0 = (x - a) as f64;
+            for (k, ((&d, c), t)) in ds.iter().zip(cs.iter_mut()).zip(ts.iter_mut()).enumerate() {
+                let kk = k0 + k as f64;
+                let e0 = e_a[0] + step[0] * kk;
+                let e1 = e_a[1] + step[1] * kk;
+                let e2 = e_a[2] + step[2] * kk;
+                let zp = ((e0 * z[0] + e1 * z[1] + e2 * z[2]) * inv) as f32;
+                let inside = d != BACKGROUND && d >= win.dlo && d <= win.dhi;
+                // Strict reversed-Z test: pass iff strictly nearer.
+                let update = inside && ((zp > d) != zfail);
+                processed += u64::from(inside);
+                updates += u64::from(update);
+                first += u64::from(update & (*t == 0));
+                *t |= u8::from(update);
+                *c = if update { c.wrapping(delta) } else { *c };
+            }
+            x = xe + 1;
+        }
+    }
+    st.pixels_processed += processed;
+    st.stencil_updates += updates;
+    st.pixels_touched += first;
 }

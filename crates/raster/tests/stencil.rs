@@ -1,7 +1,11 @@
 //! Stencil pass: zpass / zfail counting against brute-force references, 8-bit
-//! wrapping, background pixels, infinite volumes.
+//! wrapping, background pixels, infinite volumes; per-volume scissor and depth
+//! bounds against the untested pass; zp+ against zfail and legal zpass.
 
 use glam::{DMat4, DVec3, DVec4, Mat4, Vec3, Vec4};
+use proptest::prelude::*;
+use proptest::strategy::ValueTree;
+use proptest::test_runner::TestRunner;
 use raster::*;
 
 /// Reversed-Z infinite perspective as in the scene crate: clip = (x·f/a, y·f, near, −z).
@@ -72,7 +76,8 @@ fn stencil_of(
     let (buf, range) = volume(positions, tris, method);
     let mut s = StencilTarget::new(W, H, bits).unwrap();
     let mut st = StencilStats::default();
-    s.draw_volume(eye, m, &buf, &range, &mut st).unwrap();
+    s.draw_volume(eye, m, &buf, &range, StencilTests::default(), &mut st)
+        .unwrap();
     (s, st)
 }
 
@@ -404,21 +409,21 @@ fn errors_are_found_before_drawing() {
     ));
     let mut small = StencilTarget::new(W - 1, H, StencilBits::Eight).unwrap();
     assert!(matches!(
-        small.draw_volume(&eye, m, &buf, &range, &mut st),
+        small.draw_volume(&eye, m, &buf, &range, StencilTests::default(), &mut st),
         Err(Error::SizeMismatch { .. })
     ));
     let mut s = StencilTarget::new(W, H, StencilBits::Wide).unwrap();
     assert_eq!(s.bits(), StencilBits::Wide);
     range.index_count += 3;
     assert!(matches!(
-        s.draw_volume(&eye, m, &buf, &range, &mut st),
+        s.draw_volume(&eye, m, &buf, &range, StencilTests::default(), &mut st),
         Err(Error::IndexOutOfRange { .. })
     ));
     let mut bad = buf.clone();
     bad.indices[4] = 99;
     range.index_count -= 3;
     assert!(matches!(
-        s.draw_volume(&eye, m, &bad, &range, &mut st),
+        s.draw_volume(&eye, m, &bad, &range, StencilTests::default(), &mut st),
         Err(Error::IndexOutOfRange {
             triangle: 1,
             index: 99,
@@ -426,8 +431,658 @@ fn errors_are_found_before_drawing() {
         })
     ));
     assert_eq!(st, StencilStats::default());
-    s.draw_volume(&eye, m, &buf, &range, &mut st).unwrap();
+    s.draw_volume(&eye, m, &buf, &range, StencilTests::default(), &mut st)
+        .unwrap();
     assert!(st.stencil_updates == 0 && st.pixels_processed > 0 && st.triangles == 2);
     s.clear();
     assert!((0..H).all(|y| (0..W).all(|x| !s.nonzero(x, y))));
+}
+
+// ---------------------------------------------------------------------------
+// Random closed volumes, scissor / depth bounds, zp+.
+
+/// `det[P0 P1 P2 X]` of homogeneous points: positive when `(P0, P1, P2)` is
+/// counter-clockwise seen from the side away from the finite point `X` (valid for
+/// points at infinity too, as the limit of far finite points).
+fn det4(p: [Vec4; 3], x: DVec3) -> f64 {
+    DMat4::from_cols(
+        p[0].as_dvec4(),
+        p[1].as_dvec4(),
+        p[2].as_dvec4(),
+        x.extend(1.0),
+    )
+    .determinant()
+}
+
+/// Orients every triangle of a convex volume outward from `interior`; `None` when a
+/// triangle is (nearly) coplanar with it.
+fn orient_homogeneous(pos: &[Vec4], tris: &mut [[u32; 3]], interior: DVec3) -> Option<()> {
+    for t in tris.iter_mut() {
+        let d = det4(t.map(|i| pos[i as usize]), interior);
+        if d.abs() < 1e-6 {
+            return None;
+        }
+        if d < 0.0 {
+            t.swap(1, 2);
+        }
+    }
+    Some(())
+}
+
+/// A convex closed volume.
+#[derive(Clone, Debug)]
+enum Shape {
+    Box {
+        c: [f32; 3],
+        h: [f32; 3],
+    },
+    Tet([[f32; 3]; 4]),
+    /// An occluder triangle extruded away from a point light (light cap, dark cap
+    /// at infinity, sides).
+    PointLight {
+        tri: [[f32; 3]; 3],
+        light: [f32; 3],
+    },
+    /// An occluder triangle extruded along a direction (light cap, sides meeting in
+    /// one point at infinity).
+    Directional {
+        tri: [[f32; 3]; 3],
+        dir: [f32; 3],
+    },
+}
+
+/// A volume's positions and outward triangles, plus the occluder triangle (drawn
+/// in the eye pass, so its light cap has the surface's own depth) if any.
+struct Closed {
+    pos: Vec<Vec4>,
+    tris: Vec<[u32; 3]>,
+    occluder: Option<[Vec4; 3]>,
+}
+
+fn closed_volume(shape: &Shape) -> Option<Closed> {
+    let v = Vec3::from_array;
+    let (pos, mut tris, interior, occluder) = match shape {
+        Shape::Box { c, h } => {
+            let (c, h) = (v(*c), v(*h));
+            let pos = aabb_corners(c - h, c + h).to_vec();
+            (pos, AABB_TRIANGLES.to_vec(), c.as_dvec3(), None)
+        }
+        Shape::Tet(p) => {
+            let pos: Vec<Vec4> = p.iter().map(|p| v(*p).extend(1.0)).collect();
+            let c = p.iter().map(|p| v(*p).as_dvec3()).sum::<DVec3>() / 4.0;
+            (
+                pos,
+                vec![[0, 1, 2], [0, 1, 3], [0, 2, 3], [1, 2, 3]],
+                c,
+                None,
+            )
+        }
+        Shape::PointLight { tri, light } => {
+            let l = v(*light);
+            let p = tri.map(v);
+            let mut pos: Vec<Vec4> = p.iter().map(|p| p.extend(1.0)).collect();
+            pos.extend(p.iter().map(|p| (*p - l).extend(0.0)));
+            let mut tris = vec![[0, 1, 2], [3, 4, 5]];
+            for i in 0..3u32 {
+                let j = (i + 1) % 3;
+                tris.extend([[i, j, j + 3], [i, j + 3, i + 3]]);
+            }
+            let c = p.iter().map(|p| p.as_dvec3()).sum::<DVec3>() / 3.0;
+            let interior = c + (c - l.as_dvec3()) * 0.5;
+            let occ = [pos[0], pos[1], pos[2]];
+            (pos, tris, interior, Some(occ))
+        }
+        Shape::Directional { tri, dir } => {
+            let d = v(*dir);
+            let p = tri.map(v);
+            let mut pos: Vec<Vec4> = p.iter().map(|p| p.extend(1.0)).collect();
+            pos.push(d.extend(0.0));
+            let tris = vec![[0, 1, 2], [0, 1, 3], [1, 2, 3], [2, 0, 3]];
+            let c = p.iter().map(|p| p.as_dvec3()).sum::<DVec3>() / 3.0;
+            let interior = c + d.as_dvec3() * 0.5;
+            let occ = [pos[0], pos[1], pos[2]];
+            (pos, tris, interior, Some(occ))
+        }
+    };
+    orient_homogeneous(&pos, &mut tris, interior)?;
+    Some(Closed {
+        pos,
+        tris,
+        occluder,
+    })
+}
+
+/// A random scene: a camera near the origin looking roughly down −z, volumes
+/// around it (often cut by the near plane, sometimes around the eye), receiver
+/// planes at least 0.5 from the eye (stored depths stay below 1).
+#[derive(Clone, Debug)]
+struct SceneSpec {
+    eye: [f32; 3],
+    look: [f32; 2],
+    shapes: Vec<Shape>,
+    /// (normal, distance from the eye).
+    receivers: Vec<([f32; 3], f32)>,
+}
+
+fn shape_strategy() -> impl Strategy<Value = Shape> {
+    let pt = || [-2.0f32..2.0, -2.0f32..2.0, -3.0f32..1.0];
+    prop_oneof![
+        (
+            [-1.5f32..1.5, -1.5f32..1.5, -2.5f32..1.0],
+            [0.05f32..1.5, 0.05f32..1.5, 0.05f32..1.5]
+        )
+            .prop_map(|(c, h)| Shape::Box { c, h }),
+        [pt(), pt(), pt(), pt()].prop_map(Shape::Tet),
+        ([pt(), pt(), pt()], pt()).prop_map(|(tri, light)| Shape::PointLight { tri, light }),
+        (
+            [pt(), pt(), pt()],
+            [-1.0f32..1.0, -1.0f32..1.0, -1.0f32..1.0]
+        )
+            .prop_map(|(tri, dir)| Shape::Directional { tri, dir }),
+    ]
+}
+
+fn scene_strategy() -> impl Strategy<Value = SceneSpec> {
+    (
+        [-0.3f32..0.3, -0.3f32..0.3, -0.3f32..0.3],
+        [-0.6f32..0.6, -0.6f32..0.6],
+        prop::collection::vec(shape_strategy(), 1..4),
+        prop::collection::vec(
+            ([-1.0f32..1.0, -1.0f32..1.0, -1.0f32..1.0], 0.5f32..4.0),
+            1..3,
+        ),
+    )
+        .prop_map(|(eye, look, shapes, receivers)| SceneSpec {
+            eye,
+            look,
+            shapes,
+            receivers,
+        })
+}
+
+struct Built {
+    m: Mat4,
+    eye: DepthTarget,
+    volumes: Vec<Closed>,
+}
+
+fn build_scene(sc: &SceneSpec) -> Built {
+    let e = Vec3::from_array(sc.eye);
+    let m = camera(e, e + Vec3::new(sc.look[0], sc.look[1], -1.0));
+    let volumes: Vec<Closed> = sc.shapes.iter().filter_map(closed_volume).collect();
+    let mut quads = Vec::new();
+    for (n, dist) in &sc.receivers {
+        let n = Vec3::from_array(*n);
+        if n.length() < 0.1 {
+            continue;
+        }
+        let n = n.normalize();
+        let (u, v) = n.any_orthonormal_pair();
+        quads.push(quad(e + n * *dist, u * 60.0, v * 60.0));
+    }
+    let mut meshes: Vec<(&[Vec4], &[[u32; 3]])> =
+        quads.iter().map(|(p, t)| (&p[..], &t[..])).collect();
+    let occ_tri = [[0u32, 1, 2]];
+    for v in &volumes {
+        if let Some(o) = &v.occluder {
+            meshes.push((&o[..], &occ_tri[..]));
+        }
+    }
+    let eye = depth_of(m, &meshes);
+    Built { m, eye, volumes }
+}
+
+/// Whether every vertex lies strictly on the kept side of the near plane (`w > z`)
+/// with positive clip w: the volume misses the near plane, zpass is legal, and
+/// projecting the vertices bounds the volume's image.
+fn in_front(m: Mat4, pos: &[Vec4]) -> bool {
+    pos.iter().all(|p| {
+        let c = (m * *p).as_dvec4();
+        c.w > 0.0 && c.w - c.z > 0.0
+    })
+}
+
+/// Conservative scissor and depth bounds of a volume: projected vertices when every
+/// vertex has clip w > 0 (a point at infinity then projects to its vanishing
+/// point), widened by 2 pixels and 1e-5 relative; unbounded otherwise.
+fn conservative_bounds(m: Mat4, pos: &[Vec4]) -> ([u32; 4], f32, f32) {
+    let clip: Vec<DVec4> = pos.iter().map(|p| (m * *p).as_dvec4()).collect();
+    if clip.iter().any(|c| c.w <= 0.0) {
+        return (VolumeRange::FULL_SCISSOR, 1.0, 0.0);
+    }
+    let (mut x0, mut y0, mut x1, mut y1) = (f64::MAX, f64::MAX, f64::MIN, f64::MIN);
+    let (mut zlo, mut zhi) = (f64::MAX, f64::MIN);
+    for c in &clip {
+        let x = (c.x / c.w + 1.0) * 0.5 * W as f64;
+        let y = (1.0 - c.y / c.w) * 0.5 * H as f64;
+        let z = c.z / c.w;
+        (x0, x1, y0, y1) = (x0.min(x), x1.max(x), y0.min(y), y1.max(y));
+        (zlo, zhi) = (zlo.min(z), zhi.max(z));
+    }
+    let px = |v: f64, lim: u32| v.clamp(0.0, f64::from(lim)) as u32;
+    let scissor = [
+        px((x0 - 2.0).floor(), W),
+        px((y0 - 2.0).floor(), H),
+        px((x1 + 2.0).ceil(), W),
+        px((y1 + 2.0).ceil(), H),
+    ];
+    let near = (zhi * (1.0 + 1e-5)).min(1.0) as f32;
+    let far = (zlo * (1.0 - 1e-5)).max(0.0) as f32;
+    (scissor, near.next_up().min(1.0), far.next_down().max(0.0))
+}
+
+fn draw_one(
+    b: &Built,
+    v: &Closed,
+    method: VolumeMethod,
+    bounds: Option<([u32; 4], f32, f32)>,
+    tests: StencilTests,
+) -> (StencilTarget, StencilStats) {
+    let (buf, mut range) = volume(&v.pos, &v.tris, method);
+    if let Some((scissor, near, far)) = bounds {
+        range.scissor = scissor;
+        range.depth_near = near;
+        range.depth_far = far;
+    }
+    let mut s = StencilTarget::new(W, H, StencilBits::Wide).unwrap();
+    let mut st = StencilStats::default();
+    s.draw_volume(&b.eye, b.m, &buf, &range, tests, &mut st)
+        .unwrap();
+    (s, st)
+}
+
+/// Pixels where `a` and `b` differ, skipping pixels whose stored depth is exactly 1
+/// (a surface on the near plane, where the near cap's strict test fails).
+fn differing(b: &Built, a: &StencilTarget, c: &StencilTarget) -> Vec<(u32, u32, i32, i32)> {
+    let mut out = Vec::new();
+    for y in 0..H {
+        for x in 0..W {
+            if b.eye.depth_at(x, y) == Some(1.0) {
+                continue;
+            }
+            if a.value(x, y) != c.value(x, y) {
+                out.push((x, y, a.value(x, y), c.value(x, y)));
+            }
+        }
+    }
+    out
+}
+
+/// What a zp+ check saw, to show the tests are not vacuous.
+#[derive(Default, Debug)]
+struct ZpSeen {
+    volumes: u32,
+    /// Volumes the near plane cuts, where the near cap changed some pixel.
+    cap_matters: u32,
+    /// Volumes with a non-zero count somewhere.
+    shadowing: u32,
+    zpass_checked: u32,
+}
+
+/// zp+ == zfail pixel for pixel, and zpass == zfail where zpass is legal, per volume.
+fn check_zp_plus(sc: &SceneSpec, seen: &mut ZpSeen) -> std::result::Result<(), TestCaseError> {
+    let b = build_scene(sc);
+    for (k, v) in b.volumes.iter().enumerate() {
+        let none = StencilTests::default();
+        let (zf, _) = draw_one(&b, v, VolumeMethod::ZFail, None, none);
+        let (zp, _) = draw_one(&b, v, VolumeMethod::ZpPlus, None, none);
+        let (zpass, _) = draw_one(&b, v, VolumeMethod::ZPass, None, none);
+        let diff = differing(&b, &zp, &zf);
+        prop_assert!(
+            diff.is_empty(),
+            "volume {k}: zp+ != zfail at {} pixels, first (x, y, zp+, zfail) {:?}",
+            diff.len(),
+            &diff[..diff.len().min(8)]
+        );
+        seen.volumes += 1;
+        seen.shadowing += u32::from((0..H).any(|y| (0..W).any(|x| zf.nonzero(x, y))));
+        if in_front(b.m, &v.pos) {
+            let diff = differing(&b, &zpass, &zf);
+            prop_assert!(
+                diff.is_empty(),
+                "volume {k}: legal zpass != zfail at {:?}",
+                &diff[..diff.len().min(8)]
+            );
+            seen.zpass_checked += 1;
+        } else {
+            seen.cap_matters += u32::from(!differing(&b, &zpass, &zp).is_empty());
+        }
+    }
+    Ok(())
+}
+
+/// With conservative bounds, scissor and depth-bounds tests (each and both) leave the
+/// stencil bit for bit unchanged and never process more pixels.
+fn check_bounds(sc: &SceneSpec) -> std::result::Result<u64, TestCaseError> {
+    let b = build_scene(sc);
+    let mut saved = 0;
+    for (k, v) in b.volumes.iter().enumerate() {
+        let bounds = conservative_bounds(b.m, &v.pos);
+        let legal_zpass = in_front(b.m, &v.pos);
+        for method in [
+            VolumeMethod::ZFail,
+            VolumeMethod::ZpPlus,
+            VolumeMethod::ZPass,
+        ] {
+            if method == VolumeMethod::ZPass && !legal_zpass {
+                continue;
+            }
+            let (s0, st0) = draw_one(&b, v, method, Some(bounds), StencilTests::default());
+            prop_assert_eq!(st0.pixels_touched, s0.touched_pixels());
+            for (scissor, depth_bounds) in [(true, false), (false, true), (true, true)] {
+                let tests = StencilTests {
+                    scissor,
+                    depth_bounds,
+                };
+                let (s1, st1) = draw_one(&b, v, method, Some(bounds), tests);
+                for y in 0..H {
+                    for x in 0..W {
+                        prop_assert_eq!(
+                            s1.value(x, y),
+                            s0.value(x, y),
+                            "volume {} {:?} {:?} bounds {:?} pixel ({}, {})",
+                            k,
+                            method,
+                            tests,
+                            bounds,
+                            x,
+                            y
+                        );
+                        // Only pixels the untested pass touched can be touched.
+                        prop_assert!(!s1.touched(x, y) || s0.touched(x, y));
+                    }
+                }
+                prop_assert!(st1.pixels_processed <= st0.pixels_processed);
+                prop_assert_eq!(st1.triangles, st0.triangles);
+                prop_assert_eq!(st1.pixels_touched, s1.touched_pixels());
+                if scissor && depth_bounds {
+                    saved += st0.pixels_processed - st1.pixels_processed;
+                }
+            }
+        }
+    }
+    Ok(saved)
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(200))]
+
+    #[test]
+    fn zp_plus_equals_zfail_and_legal_zpass(sc in scene_strategy()) {
+        check_zp_plus(&sc, &mut ZpSeen::default())?;
+    }
+
+    #[test]
+    fn conservative_scissor_and_depth_bounds_keep_the_stencil(sc in scene_strategy()) {
+        check_bounds(&sc)?;
+    }
+}
+
+/// The random scenes above are not vacuous: over a fixed sample, the near plane
+/// cuts many volumes where the near cap matters, many volumes shadow something,
+/// zpass is checked often, and the tests save work.
+#[test]
+fn random_scenes_exercise_the_near_cap_and_the_bounds() {
+    let mut runner = TestRunner::deterministic();
+    let strategy = scene_strategy();
+    let mut seen = ZpSeen::default();
+    let mut saved = 0;
+    for _ in 0..150 {
+        let sc = strategy.new_tree(&mut runner).unwrap().current();
+        check_zp_plus(&sc, &mut seen).unwrap();
+        saved += check_bounds(&sc).unwrap();
+    }
+    assert!(seen.volumes > 200, "{seen:?}");
+    assert!(seen.cap_matters > 20, "{seen:?}");
+    assert!(seen.shadowing > 100, "{seen:?}");
+    assert!(seen.zpass_checked > 20, "{seen:?}");
+    assert!(saved > 10_000, "{saved}");
+}
+
+#[test]
+fn orientation_rule_matches_box_winding() {
+    let c = aabb_corners(Vec3::splat(-1.0), Vec3::new(2.0, 1.0, 0.5));
+    let mut tris = AABB_TRIANGLES.to_vec();
+    orient_homogeneous(&c, &mut tris, DVec3::new(0.5, 0.0, -0.2)).unwrap();
+    assert_eq!(tris, AABB_TRIANGLES.to_vec());
+}
+
+/// The eye inside a box: zpass alone misses the box everywhere, the near cap puts
+/// every pixel's count back, and zp+ equals zfail.
+#[test]
+fn zp_plus_with_the_eye_inside_a_box() {
+    let sc = SceneSpec {
+        eye: [0.1, -0.05, 0.0],
+        look: [0.1, 0.05],
+        shapes: vec![Shape::Box {
+            c: [0.2, 0.1, -0.5],
+            h: [1.0, 0.8, 1.2],
+        }],
+        receivers: vec![([0.1, 0.2, -1.0], 1.0), ([0.0, -1.0, 0.1], 0.6)],
+    };
+    let b = build_scene(&sc);
+    let v = &b.volumes[0];
+    let none = StencilTests::default();
+    let (zf, _) = draw_one(&b, v, VolumeMethod::ZFail, None, none);
+    let (zp, stp) = draw_one(&b, v, VolumeMethod::ZpPlus, None, none);
+    let (zpass, _) = draw_one(&b, v, VolumeMethod::ZPass, None, none);
+    assert!(differing(&b, &zp, &zf).is_empty());
+    let (mut inside, mut wrong_zpass) = (0, 0);
+    for y in 0..H {
+        for x in 0..W {
+            inside += u32::from(zf.value(x, y) == 1);
+            wrong_zpass += u32::from(zpass.value(x, y) != zf.value(x, y));
+        }
+    }
+    assert!(inside > W * H / 4, "{inside}");
+    assert!(wrong_zpass > W * H / 4, "{wrong_zpass}");
+    // The near cap updates every non-background pixel it covers: all of them here.
+    assert_eq!(stp.pixels_touched, zp.touched_pixels());
+    assert!(zp.touched_pixels() >= u64::from(inside));
+}
+
+/// An occluder triangle whose extrusion from a point light has a vertex with clip
+/// w = 0 on the near plane (direction perpendicular to the view direction), and a
+/// volume the near plane cuts: zp+ still equals zfail pixel for pixel.
+#[test]
+fn zp_plus_with_an_extruded_vertex_at_clip_w_zero_on_the_near_plane() {
+    // Camera at the origin looking down −z: clip w = −z_eye exactly.
+    let sc_eye = [0.0f32, 0.0, 0.0];
+    let light = [0.0f32, 0.0, -1.0];
+    let tri = [[0.5f32, 0.0, -1.0], [-0.2, 0.4, -1.3], [-0.2, -0.4, -0.6]];
+    let sc = SceneSpec {
+        eye: sc_eye,
+        look: [0.0, 0.0],
+        shapes: vec![Shape::PointLight { tri, light }],
+        receivers: vec![([0.0, 0.0, -1.0], 3.0), ([0.3, -1.0, -0.2], 0.8)],
+    };
+    let b = build_scene(&sc);
+    let v = &b.volumes[0];
+    // Vertex 3 is p0 − light = (0.5, 0, 0, 0): clip (x, y, 0, 0), on the near plane.
+    let c = b.m * v.pos[3];
+    assert_eq!((c.z, c.w), (0.0, 0.0), "{c}");
+    assert!(c.x != 0.0);
+    // The near plane cuts the volume (vertex 5 heads toward the eye and past it).
+    assert!(!in_front(b.m, &v.pos));
+    let none = StencilTests::default();
+    let (zf, _) = draw_one(&b, v, VolumeMethod::ZFail, None, none);
+    let (zp, _) = draw_one(&b, v, VolumeMethod::ZpPlus, None, none);
+    let (zpass, _) = draw_one(&b, v, VolumeMethod::ZPass, None, none);
+    let diff = differing(&b, &zp, &zf);
+    assert!(diff.is_empty(), "{:?}", &diff[..diff.len().min(8)]);
+    let count = |s: &StencilTarget| {
+        (0..H)
+            .flat_map(|y| (0..W).map(move |x| (x, y)))
+            .filter(|&(x, y)| s.nonzero(x, y))
+            .count()
+    };
+    assert!(count(&zf) > 50, "{}", count(&zf));
+    // The cap matters: zpass alone is wrong somewhere.
+    assert!(!differing(&b, &zpass, &zf).is_empty());
+    // Also with a directional light parallel to the near plane: every extruded
+    // point at infinity is on it.
+    let sc = SceneSpec {
+        shapes: vec![Shape::Directional {
+            tri,
+            dir: [1.0, 0.3, 0.0],
+        }],
+        ..sc
+    };
+    let b = build_scene(&sc);
+    let v = &b.volumes[0];
+    assert_eq!((b.m * v.pos[3]).w, 0.0);
+    let (zf, _) = draw_one(&b, v, VolumeMethod::ZFail, None, none);
+    let (zp, _) = draw_one(&b, v, VolumeMethod::ZpPlus, None, none);
+    let diff = differing(&b, &zp, &zf);
+    assert!(diff.is_empty(), "{:?}", &diff[..diff.len().min(8)]);
+    assert!(count(&zf) > 50, "{}", count(&zf));
+}
+
+/// Scissor and depth bounds on a fixed scene: conservative bounds keep the stencil
+/// and save work; a too-tight scissor or too-tight depth bounds change it; touched
+/// pixels are counted per draw and reset by `clear`.
+#[test]
+fn scissor_and_depth_bounds_save_work_and_too_tight_bounds_show() {
+    let occluder = [[0.7f32, 1.0, -2.0], [2.0, 0.9, -2.4], [1.2, 1.2, -3.2]];
+    let dir = [-0.2f32, -1.0, -0.3];
+    let sc = SceneSpec {
+        eye: [0.0, 0.8, 0.5],
+        look: [0.05, -0.35],
+        shapes: vec![
+            Shape::Box {
+                c: [0.3, -0.2, -3.0],
+                h: [0.6, 0.5, 0.7],
+            },
+            Shape::Tet([
+                [-1.2, 0.4, -2.0],
+                [-0.4, 0.9, -3.5],
+                [-1.5, -0.8, -3.2],
+                [-0.3, -0.6, -2.6],
+            ]),
+            Shape::Directional { tri: occluder, dir },
+        ],
+        // A floor at y = −0.2 through the box and the tetrahedron, a far wall.
+        receivers: vec![([0.0, -1.0, 0.0], 1.0), ([0.0, 0.0, -1.0], 8.5)],
+    };
+    let b = build_scene(&sc);
+    assert_eq!(b.volumes.len(), 3);
+    // The infinite volume: visible surface points inside it are on the occluder or
+    // on the floor in its shadow (it only meets the far wall below the floor), so
+    // the image of those bounds it.
+    let infinite_bounds = {
+        let (d, y) = (Vec3::from_array(dir), -0.2f32);
+        let mut pts: Vec<Vec4> = occluder.map(|p| Vec3::from_array(p).extend(1.0)).to_vec();
+        pts.extend(occluder.map(|p| {
+            let p = Vec3::from_array(p);
+            (p + d * ((y - p.y) / d.y)).extend(1.0)
+        }));
+        let (scissor, _, _) = conservative_bounds(b.m, &pts);
+        let (_, near, far) = conservative_bounds(b.m, &b.volumes[2].pos);
+        (scissor, near, far)
+    };
+    let both = StencilTests {
+        scissor: true,
+        depth_bounds: true,
+    };
+    let (mut processed_all, mut processed_tested) = (0, 0);
+    let mut total = StencilTarget::new(W, H, StencilBits::Eight).unwrap();
+    let mut total_stats = StencilStats::default();
+    for (k, v) in b.volumes.iter().enumerate() {
+        assert!(in_front(b.m, &v.pos));
+        let bounds = if k == 2 {
+            infinite_bounds
+        } else {
+            conservative_bounds(b.m, &v.pos)
+        };
+        assert!(bounds.0 != VolumeRange::FULL_SCISSOR && bounds.1 < 1.0);
+        for method in [
+            VolumeMethod::ZPass,
+            VolumeMethod::ZFail,
+            VolumeMethod::ZpPlus,
+        ] {
+            let (s0, st0) = draw_one(&b, v, method, Some(bounds), StencilTests::default());
+            let (s1, st1) = draw_one(&b, v, method, Some(bounds), both);
+            let shadowed = (0..H)
+                .flat_map(|y| (0..W).map(move |x| (x, y)))
+                .filter(|&(x, y)| s0.nonzero(x, y))
+                .count();
+            assert!(shadowed > 20, "{k} {method:?} {shadowed}");
+            assert!(differing(&b, &s0, &s1).is_empty(), "{method:?}");
+            assert!(
+                st1.pixels_processed < st0.pixels_processed,
+                "{k} {method:?} {st0:?} {st1:?}"
+            );
+            processed_all += st0.pixels_processed;
+            processed_tested += st1.pixels_processed;
+            if k == 2 {
+                // The scissor alone saves work on the infinite volume.
+                let scissor = StencilTests {
+                    scissor: true,
+                    depth_bounds: false,
+                };
+                let (s4, st4) = draw_one(&b, v, method, Some(bounds), scissor);
+                assert!(differing(&b, &s0, &s4).is_empty(), "{method:?}");
+                assert!(
+                    st4.pixels_processed * 4 < st0.pixels_processed * 3,
+                    "{method:?} {st0:?} {st4:?}"
+                );
+            }
+            assert_eq!(
+                st1.stencil_updates,
+                st1.stencil_updates.min(st0.stencil_updates)
+            );
+            // Too tight: a scissor ending in the middle of the shadowed pixels, or
+            // depth bounds that end just before the farthest shadowed pixel.
+            let shadow: Vec<(u32, u32)> = (0..H)
+                .flat_map(|y| (0..W).map(move |x| (x, y)))
+                .filter(|&(x, y)| s0.nonzero(x, y))
+                .collect();
+            let sx0 = shadow.iter().map(|p| p.0).min().unwrap();
+            let sx1 = shadow.iter().map(|p| p.0).max().unwrap();
+            let mid = (sx0 + sx1).div_ceil(2);
+            let [x0, y0, _, y1] = bounds.0;
+            let tight = ([x0, y0, mid, y1], bounds.1, bounds.2);
+            let (s2, _) = draw_one(&b, v, method, Some(tight), both);
+            assert!(
+                !differing(&b, &s0, &s2).is_empty(),
+                "{k} {method:?} tight scissor"
+            );
+            for y in 0..H {
+                for x in mid..W {
+                    assert!(!s2.touched(x, y));
+                }
+            }
+            let farthest = shadow
+                .iter()
+                .map(|&(x, y)| b.eye.depth_at(x, y).unwrap())
+                .fold(f32::INFINITY, f32::min);
+            let squeezed = (bounds.0, bounds.1, farthest.next_up());
+            let (s3, _) = draw_one(&b, v, method, Some(squeezed), both);
+            assert!(
+                !differing(&b, &s0, &s3).is_empty(),
+                "{k} {method:?} tight depth"
+            );
+        }
+        let (buf, mut range) = volume(&v.pos, &v.tris, VolumeMethod::ZFail);
+        (range.scissor, range.depth_near, range.depth_far) = bounds;
+        total
+            .draw_volume(&b.eye, b.m, &buf, &range, both, &mut total_stats)
+            .unwrap();
+    }
+    assert!(
+        processed_tested * 3 < processed_all * 2,
+        "{processed_tested} {processed_all}"
+    );
+    // Touched pixels: distinct pixels updated since the clear, summed over draws.
+    let touched = (0..H)
+        .flat_map(|y| (0..W).map(move |x| (x, y)))
+        .filter(|&(x, y)| total.touched(x, y))
+        .count() as u64;
+    assert_eq!(total.touched_pixels(), touched);
+    assert_eq!(total_stats.pixels_touched, touched);
+    assert!(touched > 40 && touched <= total_stats.stencil_updates);
+    assert!((0..H).all(|y| (0..W).all(|x| total.touched(x, y) || !total.nonzero(x, y))));
+    total.clear();
+    assert_eq!(total.touched_pixels(), 0);
+    assert!((0..H).all(|y| (0..W).all(|x| !total.touched(x, y))));
 }

@@ -19,8 +19,13 @@
 //! `BOUNDS_MARGIN · DEPTH_ERROR · R` (R the largest distance from the eye to a
 //! corner of the box) to cover the f32 rounding of the volume vertices and of
 //! `clip_from_local`; the rectangle by one pixel on every side; depths by the
-//! relative factor `1 ± BOUNDS_MARGIN · DEPTH_ERROR` (raster's ε_z). Spot cones
-//! are not used yet.
+//! relative factor `1 ± BOUNDS_MARGIN · DEPTH_ERROR` (raster's ε_z).
+//!
+//! Spot lights: surfaces outside the cone are unlit too, so the box is also
+//! cut to the exact box of the cone's spherical sector when the spot has a
+//! range, and the half-spaces include the eight side planes of the regular
+//! octagonal pyramid around the cone (apex at the light, each plane tangent to
+//! the cone): conservative, as every other cut.
 
 use glam::DVec3;
 use raster::DEPTH_ERROR;
@@ -93,6 +98,40 @@ pub fn volume_bounds(
             return nothing;
         }
     }
+    // A spot light's cone within its range: surfaces outside it are unlit too.
+    // The box of the spherical sector {l + t·w : angle(w, a) ≤ θ, 0 ≤ t ≤ R}
+    // is exact per axis: max w·e over the cone is 1 when e is within θ of the
+    // axis, else cos(φ − θ) with φ = angle(a, e); the apex bounds the rest.
+    let cone = match *light {
+        Light::Spot {
+            position,
+            direction,
+            apex_angle,
+            range,
+        } => {
+            let axis = direction.normalize();
+            let half = 0.5 * apex_angle;
+            if let Some(r) = range {
+                let reach = |c: f64| {
+                    let phi = c.clamp(-1.0, 1.0).acos();
+                    r * if phi <= half {
+                        1.0
+                    } else {
+                        (phi - half).cos().max(0.0)
+                    }
+                };
+                for k in 0..3 {
+                    hi[k] = hi[k].min(position[k] + reach(axis[k]));
+                    lo[k] = lo[k].max(position[k] - reach(-axis[k]));
+                }
+                if lo.cmpgt(hi).any() {
+                    return nothing;
+                }
+            }
+            Some((position, axis, half))
+        }
+        _ => None,
+    };
     // Eye-relative from here on (precision far from the origin).
     let eye = camera.position;
     let (lo, hi) = (lo - eye, hi - eye);
@@ -118,7 +157,7 @@ pub fn volume_bounds(
     }
 
     // Half-spaces n·x + d ≥ 0 holding the swept set H, each pushed out by m.
-    let mut planes = [(DVec3::ZERO, 0.0f64); 19];
+    let mut planes = [(DVec3::ZERO, 0.0f64); MAX_PLANES];
     let mut np = 0;
     let mut add = |n: DVec3, d: f64| {
         if n != DVec3::ZERO && n.is_finite() && d.is_finite() {
@@ -161,6 +200,20 @@ pub fn volume_bounds(
             } else if side.iter().all(|&v| v <= 0.0) {
                 add(-n, n.dot(a));
             }
+        }
+    }
+    // A spot light's cone: the regular octagonal pyramid around it, apex at
+    // the light, each side plane tangent to the cone along one generator
+    // (inside normal a·sin θ − s·cos θ, s ⟂ a a unit vector): it holds the cone.
+    if let Some((position, axis, half)) = cone {
+        let s0 = axis.any_orthonormal_vector();
+        let s1 = axis.cross(s0);
+        let apex = position - eye;
+        for k in 0..CONE_PLANES {
+            let t = std::f64::consts::TAU * k as f64 / CONE_PLANES as f64;
+            let s = s0 * t.cos() + s1 * t.sin();
+            let n = axis * half.sin() - s * half.cos();
+            add(n, -n.dot(apex));
         }
     }
     // The near plane: view distance ≥ near.
@@ -290,17 +343,26 @@ const FACES: [[usize; 4]; 6] = [
     [4, 6, 7, 5],
 ];
 
-/// A convex polygon of at most 32 vertices: 4 plus one per clipping plane
-/// (at most 6 + 19 − 1 of them).
+/// Side planes of the pyramid that bounds a spot light's cone.
+const CONE_PLANES: usize = 8;
+
+/// Half-spaces at most: 6 box faces, 12 light/edge planes, the cone's, near.
+const MAX_PLANES: usize = 6 + 12 + CONE_PLANES + 1;
+
+/// Vertices of a clipped face at most: 4 plus one per other clipping plane
+/// (6 box planes and `MAX_PLANES`, less the face's own).
+const POLY_VERTICES: usize = 4 + 6 + MAX_PLANES - 1;
+
+/// A convex polygon of at most [`POLY_VERTICES`] vertices.
 struct Poly {
-    v: [DVec3; 32],
+    v: [DVec3; POLY_VERTICES],
     n: usize,
 }
 
 impl Default for Poly {
     fn default() -> Self {
         Poly {
-            v: [DVec3::ZERO; 32],
+            v: [DVec3::ZERO; POLY_VERTICES],
             n: 0,
         }
     }
@@ -389,6 +451,53 @@ mod tests {
         // The column below the caster reaches y = −5: the scissor spans it.
         assert!(b.scissor[0] > 30 && b.scissor[2] < 70);
         assert!(b.scissor[1] < 50 && b.scissor[3] > 60);
+    }
+
+    #[test]
+    fn a_narrow_spot_cone_tightens_the_bounds() {
+        // A wide caster under a light; the cone covers only its middle.
+        let caster = Aabb::new(Vec3::new(-4.0, 1.0, -4.0), Vec3::new(4.0, 1.5, 4.0));
+        let scene = Aabb::new(Vec3::new(-20.0, -2.0, -20.0), Vec3::new(20.0, 8.0, 20.0));
+        let cam = Camera::look_at(
+            DVec3::new(0.0, 12.0, 6.0),
+            DVec3::ZERO,
+            DVec3::Y,
+            1.2,
+            1.0,
+            0.5,
+        )
+        .unwrap();
+        let position = DVec3::new(0.0, 6.0, 0.0);
+        let point = Light::Point {
+            position,
+            range: None,
+        };
+        let spot = |range| Light::Spot {
+            position,
+            direction: DVec3::NEG_Y,
+            apex_angle: 20f64.to_radians(),
+            range,
+        };
+        let area = |b: VolumeBounds| (b.scissor[2] - b.scissor[0]) * (b.scissor[3] - b.scissor[1]);
+        let p = volume_bounds(&cam, (100, 100), &point, &caster, &scene);
+        let s = volume_bounds(&cam, (100, 100), &spot(None), &caster, &scene);
+        assert!(area(s) * 4 < area(p), "{s:?} vs {p:?}");
+        assert!(s.depth_near <= p.depth_near && s.depth_far >= p.depth_far);
+        // Within range 6.5 the sector ends above y = −0.5.
+        let r = volume_bounds(&cam, (100, 100), &spot(Some(6.5)), &caster, &scene);
+        assert!(
+            area(r) <= area(s) && r.depth_far > s.depth_far,
+            "{r:?} vs {s:?}"
+        );
+        // A cone aimed away from the caster: nothing to draw.
+        let away = Light::Spot {
+            position,
+            direction: DVec3::Y,
+            apex_angle: 20f64.to_radians(),
+            range: None,
+        };
+        let b = volume_bounds(&cam, (100, 100), &away, &caster, &scene);
+        assert_eq!(area(b), 0);
     }
 
     #[test]

@@ -19,6 +19,12 @@ pub struct BuildOptions {
     /// scissor rectangle and depth bounds ([`crate::volume_bounds`], restricted
     /// to the scene bounds); when `None` they stay full (whole viewport, 1..0).
     pub viewport: Option<(u32, u32)>,
+    /// Point and spot lights with a range extrude finitely where the caster
+    /// allows it (`w = 1` far vertices at distance `D` from the light, always
+    /// with a dark cap, zpass included; see [`crate::LocalLight::finite`] and
+    /// the docs of [`crate::append_volume`]'s module). Default `false`: every
+    /// volume extrudes to infinity.
+    pub finite_extrusion: bool,
 }
 
 /// Counters and timings of one [`build_volumes`] call.
@@ -36,6 +42,8 @@ pub struct VolumeStats {
     pub cap_source_triangles: usize,
     /// Triangles written to the volume buffer.
     pub volume_triangles: usize,
+    /// Casters whose volume was extruded finitely ([`BuildOptions::finite_extrusion`]).
+    pub finite_volumes: usize,
     /// Casters drawn with zpass.
     pub zpass: usize,
     /// Casters drawn with zfail.
@@ -133,7 +141,11 @@ fn append_all(
             VolumeMethod::ZFail => stats.zfail += 1,
             VolumeMethod::ZpPlus => stats.zpplus += 1,
         }
-        let local = LocalLight::new(light, &object.world_from_local);
+        let local = if options.finite_extrusion {
+            LocalLight::finite(light, &object.world_from_local)
+        } else {
+            LocalLight::new(light, &object.world_from_local)
+        };
         let c = append_volume(
             out,
             scratch,
@@ -147,6 +159,7 @@ fn append_all(
         stats.silhouette_edges += sil.edge_count();
         stats.cap_source_triangles += sil.caps.len();
         stats.volume_triangles += c.side_triangles + c.cap_triangles;
+        stats.finite_volumes += usize::from(c.finite);
     }
     if let Some(viewport) = options.viewport {
         let scene_bounds = scene.bounds();

@@ -8,7 +8,9 @@
 //! - Facing is the one rule [`scene::faces_light`] on f64 world positions from
 //!   [`scene::Scene::world_triangle`]; a light in a triangle's plane does not face it.
 //! - Volume positions stay in each caster's local space (the eye pass's own f32
-//!   vertices, `w = 1`); extruded vertices are points at infinity, `w = 0`.
+//!   vertices, `w = 1`); extruded vertices are points at infinity, `w = 0`,
+//!   or, with [`BuildOptions::finite_extrusion`] and a ranged light, finite
+//!   points (`w = 1`) at a distance that covers the range.
 //!   Clip space is reversed Z with an infinite far plane, reached through the
 //!   one transform path `scene::transform::clip_from_local`.
 //! - Winding: volume triangles are counter-clockwise seen from outside the
@@ -17,7 +19,8 @@
 //!
 //! # What is here
 //! - [`silhouette()`] and [`SilhouetteCache`]: signed edge counters [AW §2.4].
-//! - [`append_volume`]: sides, light and dark caps, `w = 0` extrusion [EK, Steiner §4.1].
+//! - [`append_volume`]: sides, light and dark caps, `w = 0` extrusion [EK, Steiner §4.1],
+//!   or finite extrusion for ranged lights ([`LocalLight::finite`]).
 //! - [`MethodChoice`], [`zpass_is_safe`]: near-plane/light pyramid test [EK].
 //! - [`volume_bounds`]: per-volume scissor and depth bounds [EK "Exploit Bounds"].
 //! - [`build_volumes`]: all of the above for one light, with [`VolumeStats`].

@@ -204,6 +204,7 @@ fn build(s: &Scene, l: &Light, choice: MethodChoice) -> VolumeBuffer {
         method: choice,
         two_sided: false,
         viewport: None,
+        ..Default::default()
     };
     let st = build_volumes(&mut buf, s, &camera(), l, &ids, opts, &mut cache).unwrap();
     buf.check().unwrap();
@@ -398,6 +399,7 @@ fn open_and_non_manifold_volumes_are_closed() {
                 method: MethodChoice::ZFail,
                 two_sided,
                 viewport: None,
+                ..Default::default()
             };
             build_volumes(
                 &mut buf,
@@ -472,6 +474,7 @@ fn auto_chooses_zfail_when_the_camera_is_in_shadow() {
         method: MethodChoice::ZpPlus,
         two_sided: false,
         viewport: None,
+        ..Default::default()
     };
     build_volumes(&mut buf, &s, &camera(), &l, &ids, opts, &mut cache).unwrap();
     for r in &buf.ranges {
@@ -538,6 +541,7 @@ fn light_inside_a_closed_object_casts_nothing_one_sided() {
         method: MethodChoice::ZFail,
         two_sided: true,
         viewport: None,
+        ..Default::default()
     };
     build_volumes(
         &mut buf,
@@ -665,7 +669,7 @@ proptest! {
         let (e, q) = (slide(e, te), slide(q, tq));
         let mut buf = VolumeBuffer::new();
         let mut cache = SilhouetteCache::new();
-        let opts = BuildOptions { method: MethodChoice::ZFail, two_sided, viewport: None };
+        let opts = BuildOptions { method: MethodChoice::ZFail, two_sided, viewport: None, ..Default::default() };
         build_volumes(&mut buf, &s, &camera(), &l, &[ObjectId(0)], opts, &mut cache).unwrap();
         let r = &buf.ranges[0];
         let mut count = 0;
@@ -720,11 +724,14 @@ proptest! {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(512))]
+    #![proptest_config(ProptestConfig::with_cases(2048))]
 
     /// Every point in a caster's shadow, inside the scene bounds and in front
     /// of the near plane, projects into the volume's scissor rectangle and
-    /// depth bounds.
+    /// depth bounds — for point lights with or without range, directional
+    /// lights, and spot lights (often narrow cones aimed near the caster, so
+    /// that some shadowed points lie outside the cone: those are unlit and
+    /// need not be inside).
     #[test]
     fn shadowed_points_lie_within_scissor_and_depth_bounds(
         w in transform(),
@@ -732,6 +739,11 @@ proptest! {
         eye in prop::array::uniform3(-12.0f64..12.0),
         near in 0.05f64..2.0,
         range in prop::option::of(1.0f64..30.0),
+        spot in prop::option::weighted(0.6, (
+            prop::array::uniform3(-10.0f64..10.0),
+            prop::array::uniform3(-0.4f64..0.4),
+            prop_oneof![0.02f64..0.5, 0.5f64..3.0],
+        )),
         pts in prop::collection::vec((prop::array::uniform3(-0.2f64..1.2), 0.3f64..8.0), 16),
     ) {
         let mut g = SceneGraph::new();
@@ -741,11 +753,21 @@ proptest! {
             DVec3::new(30.0, 1.0, 30.0), DQuat::IDENTITY, DVec3::new(-15.0, -12.0, -15.0));
         g.add_instance("ground", m, Transform::Matrix(ground));
         let s = Scene::new(g).unwrap();
-        let l = match l {
-            Light::Point { position, .. } => Light::Point { position, range },
+        let centre = w.transform_point3(DVec3::splat(0.5));
+        let l = match (l, spot) {
+            (Light::Point { position, .. }, None) => Light::Point { position, range },
+            (Light::Point { .. }, Some((offset, tilt, apex_angle))) => {
+                // Nearer than the point lights, so that many shadowed points
+                // fall inside the scene bounds.
+                let position = centre + DVec3::from(offset);
+                let direction = (centre - position).normalize_or_zero() + DVec3::from(tilt);
+                if direction.length() < 1e-3 {
+                    return Ok(());
+                }
+                Light::Spot { position, direction, apex_angle, range }
+            }
             _ => l,
         };
-        let centre = w.transform_point3(DVec3::splat(0.5));
         let Ok(cam) = Camera::look_at(centre + DVec3::from(eye), centre, DVec3::Y, 1.0, 1.3, near) else {
             return Ok(());
         };
@@ -782,5 +804,217 @@ proptest! {
             }
             prop_assert!(z <= b.depth_near && z >= b.depth_far, "z {} {:?}", z, b);
         }
+    }
+}
+
+// ---------------------------------------------------------------- finite extrusion
+
+fn build_opts(s: &Scene, l: &Light, opts: BuildOptions) -> (VolumeBuffer, shadowgen::VolumeStats) {
+    let mut buf = VolumeBuffer::new();
+    let mut cache = SilhouetteCache::new();
+    let ids: Vec<ObjectId> = (0..s.objects().len() as u32).map(ObjectId).collect();
+    let st = build_volumes(&mut buf, s, &camera(), l, &ids, opts, &mut cache).unwrap();
+    buf.check().unwrap();
+    assert_eq!(st.volume_triangles, buf.triangle_count());
+    (buf, st)
+}
+
+fn finite_opts(method: MethodChoice) -> BuildOptions {
+    BuildOptions {
+        method,
+        finite_extrusion: true,
+        ..Default::default()
+    }
+}
+
+/// Signed crossings of the segment `e → q` with every triangle of range `r`;
+/// `None` when one is too close to degenerate to trust.
+fn range_crossings(buf: &VolumeBuffer, r: &VolumeRange, e: DVec3, q: DVec3) -> Option<i32> {
+    let mut count = 0;
+    for t in r.indices().step_by(3) {
+        let tri = buf.triangle(t / 3).map(|p| world(r, p));
+        count += crossing(e.extend(1.0), q.extend(1.0), tri)?;
+    }
+    Some(count)
+}
+
+#[test]
+fn ranged_point_light_extrudes_to_the_stated_distance() {
+    // A quad scaled by 2 (local ±1 → world ±2) and moved: D is in world units.
+    let w =
+        DMat4::from_translation(DVec3::new(3.0, 0.0, -1.0)) * DMat4::from_scale(DVec3::splat(2.0));
+    let quad =
+        scene::procedural::analytic::horizontal_quad("q", [-1.0, 1.0], [-1.0, 1.0], 0.0, true)
+            .unwrap();
+    let s = scene_with(quad, w);
+    let lp = DVec3::new(3.0, 10.0, -1.0);
+    let l = Light::Point {
+        position: lp,
+        range: Some(25.0),
+    };
+    // Corners at (±2, −10, ±2) from the light: the widest angle of a cap
+    // triangle is its diagonal, cos α = 92 / 108.
+    let d = 25.0 * 108.0 / 92.0;
+    for choice in [
+        MethodChoice::ZPass,
+        MethodChoice::ZFail,
+        MethodChoice::ZpPlus,
+    ] {
+        let (buf, st) = build_opts(&s, &l, finite_opts(choice));
+        assert_eq!(st.finite_volumes, 1);
+        let r = &buf.ranges[0];
+        assert_eq!(
+            r.dark_cap.len(),
+            3 * 2,
+            "{choice:?}: the dark cap is always there"
+        );
+        assert_eq!(r.light_cap.is_empty(), choice == MethodChoice::ZPass);
+        let mut far = 0;
+        for p in &buf.positions[r.first_vertex as usize..(r.first_vertex + r.vertex_count) as usize]
+        {
+            assert_eq!(p[3], 1.0, "finite extrusion: every vertex is finite");
+            let x = world(r, *p).truncate();
+            if (x.y).abs() > 1e-6 {
+                far += 1;
+                let dist = (x - lp).length();
+                assert!((dist - d).abs() < 1e-5 * d, "{dist} vs {d}");
+                // On the ray from the light through a corner (±2, 0, ±2) around (3, 0, −1).
+                let at_ground = lp + (x - lp) * (10.0 / (lp.y - x.y));
+                let c = at_ground - DVec3::new(3.0, 0.0, -1.0);
+                assert!(
+                    (c.x.abs() - 2.0).abs() < 1e-5 && (c.z.abs() - 2.0).abs() < 1e-5,
+                    "{c}"
+                );
+            }
+        }
+        assert_eq!(far, 4);
+        if choice != MethodChoice::ZPass {
+            assert!(boundary(&buf, r).is_empty());
+        }
+        // Below the quad within range: in shadow; beyond D: outside the volume.
+        let above = DVec3::new(3.2, 5.0, -1.1);
+        let inside = DVec3::new(3.5, -12.0, -0.5);
+        let beyond = DVec3::new(3.5, -40.0, -0.5);
+        if choice != MethodChoice::ZPass {
+            assert_eq!(range_crossings(&buf, r, above, inside), Some(1));
+            assert_eq!(range_crossings(&buf, r, above, beyond), Some(0));
+        }
+    }
+    // The light nearly in the quad's plane: the diagonal spans more than 90°,
+    // so the volume extrudes to infinity (no dark cap for zpass).
+    let low = Light::Point {
+        position: DVec3::new(3.0, 0.5, -1.0),
+        range: Some(25.0),
+    };
+    let (buf, st) = build_opts(&s, &low, finite_opts(MethodChoice::ZPass));
+    assert_eq!(st.finite_volumes, 0);
+    assert!(buf.ranges[0].dark_cap.is_empty());
+    assert!(buf.positions.iter().any(|p| p[3] == 0.0));
+    // Without a range, or without the option: infinite as before.
+    let (_, st) = build_opts(&s, &point(lp), finite_opts(MethodChoice::ZFail));
+    assert_eq!(st.finite_volumes, 0);
+    let (buf, st) = build_opts(&s, &l, BuildOptions::default());
+    assert_eq!(st.finite_volumes, 0);
+    assert!(
+        buf.ranges[0].dark_cap.is_empty(),
+        "zpass (Auto) without the option"
+    );
+    // A caster beyond the range: D comes from the farthest vertex.
+    let short = Light::Point {
+        position: lp,
+        range: Some(1.0),
+    };
+    let (buf, st) = build_opts(&s, &short, finite_opts(MethodChoice::ZFail));
+    assert_eq!(st.finite_volumes, 1);
+    let r = &buf.ranges[0];
+    let far = 108f64.sqrt() * (1.0 + 2f64.powi(-10));
+    for p in &buf.positions[r.first_vertex as usize..(r.first_vertex + r.vertex_count) as usize] {
+        let x = world(r, *p).truncate();
+        if x.y.abs() > 1e-6 {
+            assert!(((x - lp).length() - far).abs() < 1e-5 * far);
+        }
+    }
+    assert!(boundary(&buf, r).is_empty());
+}
+
+fn ranged_light() -> impl Strategy<Value = (DVec3, Option<(DVec3, f64)>)> {
+    (
+        prop::array::uniform3(-40.0f64..40.0),
+        prop::option::of((
+            prop::array::uniform3(-1.0f64..1.0)
+                .prop_filter("zero direction", |d| DVec3::from(*d).length() > 0.05),
+            0.2f64..3.0,
+        )),
+    )
+        .prop_map(|(p, spot)| (DVec3::from(p), spot.map(|(d, a)| (DVec3::from(d), a))))
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(512))]
+
+    /// Finite extrusion changes nothing within range: for any mesh, transform,
+    /// ranged point or spot light and method, the finite volume's signed
+    /// crossings along a segment between two points within range equal the
+    /// infinite volume's; closed methods give closed finite volumes.
+    #[test]
+    fn finite_volumes_count_as_infinite_ones_within_range(
+        pts in prop::collection::vec(prop::array::uniform3(-2.0f32..2.0), 4..9),
+        tris in prop::collection::vec(prop::array::uniform3(0u32..9), 1..14),
+        radii in prop::collection::vec(0.5f32..1.5, 7..20),
+        soup in any::<bool>(),
+        w in transform(),
+        (lp, spot) in ranged_light(),
+        offset in prop_oneof![Just(0.0), Just(1e5)],
+        e in prop::array::uniform3(-2.0f64..2.0),
+        q in prop::array::uniform3(-2.0f64..2.0),
+        te in 0.3f64..3.0,
+        tq in 0.3f64..3.0,
+        slack in prop_oneof![Just(1.0), 1.0f64..1.3],
+        method in 0usize..3,
+        two_sided in any::<bool>(),
+    ) {
+        let mesh = if soup {
+            let n = pts.len() as u32;
+            let pos: Vec<Vec3> = pts.into_iter().map(Vec3::from).collect();
+            let tris: Vec<[u32; 3]> = tris.into_iter().map(|t| t.map(|i| i % n)).collect();
+            match Mesh::new("soup", &pos, &tris) {
+                Ok(m) if !m.triangles().is_empty() => m,
+                _ => return Ok(()),
+            }
+        } else {
+            star_sphere(&radii, 4, 5)
+        };
+        let shift = DVec3::new(offset, 0.0, offset);
+        let w = DMat4::from_translation(shift) * w;
+        let lp = lp + shift;
+        let s = scene_with(mesh, w);
+        // Points near the caster, slid along the light's rays: often in shadow.
+        let slide = |p: [f64; 3], t: f64| lp + (w.transform_point3(DVec3::from(p)) - lp) * t;
+        let (e, q) = (slide(e, te), slide(q, tq));
+        let range = Some((e - lp).length().max((q - lp).length()) * slack);
+        let l = match spot {
+            None => Light::Point { position: lp, range },
+            Some((direction, apex_angle)) => Light::Spot { position: lp, direction, apex_angle, range },
+        };
+        let choice = [MethodChoice::ZPass, MethodChoice::ZFail, MethodChoice::ZpPlus][method];
+        let infinite = BuildOptions { method: choice, two_sided, ..Default::default() };
+        let finite = BuildOptions { finite_extrusion: true, ..infinite };
+        let (bi, _) = build_opts(&s, &l, infinite);
+        let (bf, st) = build_opts(&s, &l, finite);
+        let rf = &bf.ranges[0];
+        if st.finite_volumes == 1 {
+            prop_assert!(!rf.dark_cap.is_empty() || rf.light_cap.is_empty());
+            prop_assert!(bf.positions.iter().all(|p| p[3] == 1.0));
+        }
+        if choice != MethodChoice::ZPass {
+            prop_assert!(boundary(&bf, rf).is_empty(), "finite volume not closed");
+        }
+        let (Some(ci), Some(cf)) = (
+            range_crossings(&bi, &bi.ranges[0], e, q),
+            range_crossings(&bf, rf, e, q),
+        ) else {
+            return Ok(());
+        };
+        prop_assert_eq!(ci, cf);
     }
 }

@@ -1,6 +1,7 @@
 //! Laws of the built volumes on the shared scenes (`../shared/data`; skipped
 //! with a note when absent): every buffer is consistent, every closed-volume
-//! range (zfail, zp+) is a closed surface for any mesh, and the silhouettes
+//! range (zfail, zp+) is a closed surface for any mesh (finitely extruded
+//! ones included), and the silhouettes
 //! balance at every vertex.
 
 use glam::DVec3;
@@ -59,6 +60,8 @@ fn check_scene(name: &str, scene: &Scene, lights: &[Light]) {
                     method,
                     two_sided,
                     viewport: Some((64, 48)),
+                    // A no-op for lights without a range.
+                    finite_extrusion: true,
                 };
                 let st =
                     build_volumes(&mut buf, scene, &camera, l, &ids, opts, &mut cache).unwrap();
@@ -73,8 +76,8 @@ fn check_scene(name: &str, scene: &Scene, lights: &[Light]) {
                     }
                 }
                 eprintln!(
-                    "{name} light {i} {method:?} two_sided={two_sided}: {} edges, {} triangles, zpass {} zfail {}, sil {:.2} ms, vol {:.2} ms",
-                    st.silhouette_edges, st.volume_triangles, st.zpass, st.zfail, st.silhouette_ms, st.volume_ms
+                    "{name} light {i} {method:?} two_sided={two_sided}: {} edges, {} triangles, zpass {} zfail {}, finite {}, sil {:.2} ms, vol {:.2} ms",
+                    st.silhouette_edges, st.volume_triangles, st.zpass, st.zfail, st.finite_volumes, st.silhouette_ms, st.volume_ms
                 );
             }
         }
@@ -104,6 +107,11 @@ fn shared_meshes_and_city_build_closed_volumes() {
             Light::Point {
                 position: c,
                 range: None,
+            },
+            // Finitely extruded (BuildOptions::finite_extrusion).
+            Light::Point {
+                position: c + DVec3::new(-0.3, 0.8, 0.5) * r,
+                range: Some(1.5 * r),
             },
             Light::Directional {
                 direction: DVec3::new(-0.4, -1.0, 0.1),

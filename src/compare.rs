@@ -1,0 +1,264 @@
+//! `shadowcull compare`: the job's pipeline variants on the same frames, each
+//! measured on both sides of the speed/accuracy trade — median time per stage
+//! and pixels processed, against mismatches with the ray-cast reference.
+//!
+//! Writes `compare.csv` (one row per variant) and `compare.svg` (time against
+//! mismatch per variant). The reference of a frame and light is computed once
+//! and shared by every variant with the same reference options; each variant
+//! starts with cold silhouette caches so no variant inherits another's work.
+
+use crate::config::{Job, NamedPipeline, PipelineOptions, StencilBackend};
+use crate::error::io_err;
+use crate::frame::FrameRunner;
+use crate::run::{atomic, frame_camera, load_scene_for_job, resolve_lights};
+use crate::stats::FrameStats;
+use crate::{Error, Result};
+use serde::Serialize;
+use std::path::{Path, PathBuf};
+
+/// How to run a comparison.
+#[derive(Clone, Debug)]
+pub struct CompareOptions {
+    /// Output directory (created if missing).
+    pub out_dir: PathBuf,
+    /// Stop after this many frames.
+    pub max_frames: Option<u32>,
+}
+
+/// One variant's row of `compare.csv`.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct VariantRow {
+    /// Variant name.
+    pub name: String,
+    /// Frame-and-light rows measured.
+    pub rows: u64,
+    /// Median eye-pass time (ms).
+    pub eye_ms: f64,
+    /// Median silhouette time (ms).
+    pub silhouette_ms: f64,
+    /// Median volume-construction time (ms).
+    pub volume_ms: f64,
+    /// Median stencil-stage time (ms).
+    pub stencil_ms: f64,
+    /// Median pipeline time per frame and light (ms).
+    pub frame_ms: f64,
+    /// Shadow-volume triangles, summed over the rows.
+    pub volume_triangles: u64,
+    /// Per-pixel stencil operations, summed over the rows.
+    pub pixels_processed: u64,
+    /// Shadowed pixels of the pipeline's masks, summed.
+    pub shadowed_pixels: u64,
+    /// Mismatches against the reference, summed.
+    pub mismatch_pixels: u64,
+    /// Mismatches off a reference shadow boundary, summed.
+    pub mismatch_off_boundary: u64,
+    /// Ambiguous pixels (excluded), summed.
+    pub ambiguous_pixels: u64,
+    /// Pixels compared, summed.
+    pub compared_pixels: u64,
+}
+
+const CSV_HEADER: &str = "name,rows,eye_ms,silhouette_ms,volume_ms,stencil_ms,frame_ms,volume_triangles,pixels_processed,shadowed_pixels,mismatch_pixels,mismatch_off_boundary,ambiguous_pixels,compared_pixels";
+
+impl VariantRow {
+    fn from_rows(name: &str, rows: &[FrameStats]) -> Self {
+        let med = |f: fn(&FrameStats) -> f64| median(rows.iter().map(f).collect());
+        let sum = |f: fn(&FrameStats) -> u64| rows.iter().map(f).sum::<u64>();
+        VariantRow {
+            name: name.to_string(),
+            rows: rows.len() as u64,
+            eye_ms: med(|r| r.shadow.eye_ms),
+            silhouette_ms: med(|r| r.shadow.silhouette_ms),
+            volume_ms: med(|r| r.shadow.volume_ms),
+            stencil_ms: med(|r| r.shadow.stencil_ms),
+            frame_ms: med(|r| r.frame_ms),
+            volume_triangles: sum(|r| r.shadow.volume_triangles),
+            pixels_processed: sum(|r| r.shadow.pixels_processed),
+            shadowed_pixels: sum(|r| r.shadow.shadowed_pixels),
+            mismatch_pixels: sum(|r| r.check.mismatch_pixels),
+            mismatch_off_boundary: sum(|r| r.check.mismatch_off_boundary),
+            ambiguous_pixels: sum(|r| r.check.ambiguous_pixels),
+            compared_pixels: sum(|r| r.check.compared_pixels),
+        }
+    }
+
+    fn csv(&self) -> String {
+        format!(
+            "{},{},{:.3},{:.3},{:.3},{:.3},{:.3},{},{},{},{},{},{},{}",
+            csv_field(&self.name),
+            self.rows,
+            self.eye_ms,
+            self.silhouette_ms,
+            self.volume_ms,
+            self.stencil_ms,
+            self.frame_ms,
+            self.volume_triangles,
+            self.pixels_processed,
+            self.shadowed_pixels,
+            self.mismatch_pixels,
+            self.mismatch_off_boundary,
+            self.ambiguous_pixels,
+            self.compared_pixels
+        )
+    }
+}
+
+/// The variants a job compares: its `pipelines`, or when empty brute force,
+/// depth bounds, and scissor with depth bounds, each otherwise like `pipeline`.
+pub fn variants(job: &Job) -> Vec<NamedPipeline> {
+    if !job.pipelines.is_empty() {
+        return job.pipelines.clone();
+    }
+    let base = job.pipeline;
+    let with = |name: &str, stencil, scissor| NamedPipeline {
+        name: name.into(),
+        pipeline: PipelineOptions {
+            stencil,
+            scissor,
+            ..base
+        },
+    };
+    vec![
+        with("bf", StencilBackend::Bf, false),
+        with("db", StencilBackend::Db, false),
+        with("scissor_db", StencilBackend::Db, true),
+    ]
+}
+
+/// Runs every variant of `job` (from `job_file`; the bundled default when
+/// `None`) on the same frames, with the reference on every frame, and writes
+/// `compare.csv` and `compare.svg` into `options.out_dir`.
+///
+/// # Errors
+/// Scene, job, pipeline and I/O errors.
+pub fn compare_job(
+    job: &Job,
+    job_file: Option<&Path>,
+    options: &CompareOptions,
+) -> Result<Vec<VariantRow>> {
+    let file = job_file.unwrap_or(Path::new("<default job>"));
+    let (loaded, scene, path) = load_scene_for_job(job, job_file)?;
+    let lights = resolve_lights(job, &loaded, &scene.bounds(), file)?;
+    let frames = job
+        .frame_count()
+        .min(options.max_frames.unwrap_or(u32::MAX));
+    let res = job.resolution;
+    let mut runner = FrameRunner::new(&scene);
+    runner.cache_references(true);
+    let mut table = Vec::new();
+    for v in variants(job) {
+        runner.reset_caches();
+        let mut rows = Vec::new();
+        for frame in 0..frames {
+            let camera = frame_camera(&path, frame, res, file)?;
+            let out = runner
+                .frame(frame, &camera, &lights, res, &v.pipeline, true)
+                .map_err(|e| Error::Job {
+                    file: file.to_path_buf(),
+                    location: format!("pipelines ({})", v.name),
+                    message: e.to_string(),
+                })?;
+            rows.extend(out.into_iter().map(|lf| lf.row));
+        }
+        let row = VariantRow::from_rows(&v.name, &rows);
+        tracing::info!(target: "shadowcull::compare", variant = %row.name, frame_ms = row.frame_ms,
+            pixels_processed = row.pixels_processed, mismatch_pixels = row.mismatch_pixels);
+        table.push(row);
+    }
+    let out = &options.out_dir;
+    std::fs::create_dir_all(out).map_err(io_err(out))?;
+    let csv_path = out.join("compare.csv");
+    let mut text = String::from(CSV_HEADER);
+    text.push('\n');
+    for r in &table {
+        text.push_str(&r.csv());
+        text.push('\n');
+    }
+    atomic(&csv_path, |tmp| std::fs::write(tmp, &text))?;
+    let svg_path = out.join("compare.svg");
+    atomic(&svg_path, |tmp| {
+        plot(&table, tmp).map_err(|e| std::io::Error::other(e.to_string()))
+    })?;
+    Ok(table)
+}
+
+/// `compare.svg`: median pipeline time (x) against mismatched pixels (y), one
+/// labelled point per variant.
+fn plot(rows: &[VariantRow], path: &Path) -> std::result::Result<(), Box<dyn std::error::Error>> {
+    use plotters::prelude::*;
+    let root = SVGBackend::new(path, (800, 500)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let x_max = rows
+        .iter()
+        .map(|r| r.frame_ms)
+        .fold(0.0, f64::max)
+        .max(1e-3)
+        * 1.25;
+    let y_max = rows
+        .iter()
+        .map(|r| r.mismatch_pixels as f64)
+        .fold(0.0, f64::max)
+        .max(1.0)
+        * 1.25;
+    let mut chart = ChartBuilder::on(&root)
+        .caption("shadowcull compare: time vs mismatch", ("sans-serif", 20))
+        .margin(16)
+        .x_label_area_size(40)
+        .y_label_area_size(60)
+        .build_cartesian_2d(0.0..x_max, 0.0..y_max)?;
+    chart
+        .configure_mesh()
+        .x_desc("median frame time per light (ms)")
+        .y_desc("mismatched pixels vs reference")
+        .draw()?;
+    chart.draw_series(rows.iter().map(|r| {
+        EmptyElement::at((r.frame_ms, r.mismatch_pixels as f64))
+            + Circle::new((0, 0), 4, BLUE.filled())
+            + Text::new(r.name.clone(), (6, -14), ("sans-serif", 13))
+    }))?;
+    root.present()?;
+    Ok(())
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    if v.is_empty() {
+        return 0.0;
+    }
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+/// A CSV field, quoted when it holds a comma, quote or line break.
+fn csv_field(s: &str) -> String {
+    if s.contains([',', '"', '\n', '\r']) {
+        format!("\"{}\"", s.replace('"', "\"\""))
+    } else {
+        s.to_string()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn row_aggregates_medians_and_sums() {
+        let mut rows = vec![FrameStats::default(); 3];
+        for (i, r) in rows.iter_mut().enumerate() {
+            r.frame_ms = [5.0, 1.0, 3.0][i];
+            r.shadow.pixels_processed = 10 * (i as u64 + 1);
+            r.check.mismatch_pixels = i as u64;
+        }
+        let v = VariantRow::from_rows("a,b", &rows);
+        assert_eq!(v.frame_ms, 3.0);
+        assert_eq!(v.pixels_processed, 60);
+        assert_eq!(v.mismatch_pixels, 3);
+        assert_eq!(v.rows, 3);
+        let line = v.csv();
+        assert!(line.starts_with("\"a,b\",3,"), "{line}");
+        assert_eq!(
+            line.matches(',').count() - 1,
+            CSV_HEADER.matches(',').count()
+        );
+    }
+}

@@ -1,0 +1,214 @@
+//! One frame of a job through the shadow pipeline, for every light, with the
+//! reference check where the job asks for it: the piece `shadowcull run`,
+//! `shadowcull compare` and the benchmark example share.
+//!
+//! Per frame: the eye pass once (depth and primitive ids), then per light the
+//! shadow stage ([`crate::pipeline::shadow_mask`]); on reference frames the
+//! ray-cast reference is fed the same primitive ids (DESIGN.md "Visible
+//! surface"), so the comparison measures the shadow stage alone.
+
+use crate::config::PipelineOptions;
+use crate::mask::{compare, Mask};
+use crate::pipeline::{eye_pass, shadow_mask, EyePass, MeshCache, ShadowFrame, ShadowScratch};
+use crate::reference::{reference_mask, ReferenceMask, TriangleBvh};
+use crate::stats::{CheckStats, FrameStats, ReferenceStats, SceneStats, ShadowStats};
+use crate::Result;
+use scene::{Camera, Light, Scene};
+use std::collections::HashMap;
+use std::time::Instant;
+
+/// Cache key of a reference mask: frame, light index, reference options.
+type ReferenceKey = (u32, usize, (bool, u64));
+
+/// State kept across the frames of one run: per-mesh vertex data, the
+/// reference's BVH (built on first use) and per-light scratch (silhouette
+/// caches, volume buffers).
+#[derive(Debug)]
+pub struct FrameRunner<'s> {
+    scene: &'s Scene,
+    meshes: MeshCache,
+    bvh: Option<TriangleBvh>,
+    scratch: Vec<ShadowScratch>,
+    /// Reference masks by (frame, light, reference options), when caching.
+    references: Option<HashMap<ReferenceKey, ReferenceMask>>,
+    /// Time spent building the reference's BVH (ms), 0 until it is built.
+    pub bvh_ms: f64,
+}
+
+/// One light's result within a frame.
+#[derive(Debug)]
+pub struct LightFrame {
+    /// The statistics row (frame and light numbers, pipeline, reference, check).
+    pub row: FrameStats,
+    /// The shadow stage's output (mask and counters).
+    pub shadow: ShadowFrame,
+    /// The reference, on reference frames.
+    pub reference: Option<ReferenceMask>,
+}
+
+impl<'s> FrameRunner<'s> {
+    /// A runner over `scene`.
+    pub fn new(scene: &'s Scene) -> Self {
+        FrameRunner {
+            scene,
+            meshes: MeshCache::new(scene),
+            bvh: None,
+            scratch: Vec::new(),
+            references: None,
+            bvh_ms: 0.0,
+        }
+    }
+
+    /// Keeps every reference mask computed, keyed by frame, light and reference
+    /// options, and reuses it (for runs of several variants over the same frames;
+    /// the eye pass is deterministic, so the reference is too).
+    pub fn cache_references(&mut self, on: bool) {
+        self.references = on.then(HashMap::new);
+    }
+
+    /// Drops the shadow stage's per-light state (silhouette caches, volume
+    /// buffers) so the next frame starts cold; the BVH and cached references stay.
+    pub fn reset_caches(&mut self) {
+        self.scratch.clear();
+    }
+
+    /// Runs frame `frame` seen by `camera` at `width × height` for every light
+    /// of `lights` with `options`; computes the reference too when `reference`.
+    ///
+    /// # Errors
+    /// Rasterizer and shadow-stage errors (an invalid light names its field).
+    pub fn frame(
+        &mut self,
+        frame: u32,
+        camera: &Camera,
+        lights: &[Light],
+        (width, height): (u32, u32),
+        options: &PipelineOptions,
+        reference: bool,
+    ) -> Result<Vec<LightFrame>> {
+        let t = Instant::now();
+        let eye = eye_pass(self.scene, &self.meshes, camera, width, height)?;
+        let eye_ms = ms(t);
+        if self.scratch.len() < lights.len() {
+            self.scratch
+                .resize_with(lights.len(), ShadowScratch::default);
+        }
+        let shadow_options = options.shadow_options();
+        let counts = self.scene.counts();
+        let mut out = Vec::with_capacity(lights.len());
+        for (li, light) in lights.iter().enumerate() {
+            let shadow = shadow_mask(
+                self.scene,
+                camera,
+                light,
+                &eye,
+                &shadow_options,
+                &mut self.scratch[li],
+            )?;
+            let v = &shadow.volumes;
+            let mut row = FrameStats {
+                frame,
+                light: li as u32,
+                scene: SceneStats {
+                    update_ms: 0.0,
+                    objects: counts.objects as u64,
+                    triangles: counts.drawn_triangles as u64,
+                },
+                shadow: ShadowStats {
+                    eye_ms,
+                    silhouette_ms: v.silhouette_ms,
+                    volume_ms: v.volume_ms,
+                    stencil_ms: shadow.stencil_ms,
+                    volume_triangles: shadow.volume_triangles,
+                    silhouette_edges: v.silhouette_edges as u64,
+                    zpass_casters: v.zpass as u64,
+                    zfail_casters: v.zfail as u64,
+                    zpplus_casters: v.zpplus as u64,
+                    pixels_processed: shadow.stencil.pixels_processed,
+                    stencil_updates: shadow.stencil.stencil_updates,
+                    shadowed_pixels: shadow.mask.counts().shadow,
+                },
+                ..Default::default()
+            };
+            row.frame_ms = eye_ms + v.silhouette_ms + v.volume_ms + shadow.stencil_ms;
+            let reference = if reference {
+                let ro = options.reference_options();
+                let key = (frame, li, (ro.two_sided, ro.depth_error.to_bits()));
+                let cached = self.references.as_mut().and_then(|c| c.remove(&key));
+                let (r, reference_ms) = match cached {
+                    Some(r) => (r, 0.0),
+                    None => {
+                        let t = Instant::now();
+                        let r = self.reference(camera, light, &eye, options);
+                        (r, ms(t))
+                    }
+                };
+                row.reference = reference_stats(&r, reference_ms);
+                row.check = check_stats(&r, &shadow.mask);
+                if let Some(c) = self.references.as_mut() {
+                    c.insert(key, r.clone());
+                }
+                Some(r)
+            } else {
+                None
+            };
+            out.push(LightFrame {
+                row,
+                shadow,
+                reference,
+            });
+        }
+        Ok(out)
+    }
+
+    fn reference(
+        &mut self,
+        camera: &Camera,
+        light: &Light,
+        eye: &EyePass,
+        options: &PipelineOptions,
+    ) -> ReferenceMask {
+        let scene = self.scene;
+        let bvh = self.bvh.get_or_insert_with(|| {
+            let t = Instant::now();
+            let b = TriangleBvh::new(scene);
+            self.bvh_ms = ms(t);
+            b
+        });
+        reference_mask(
+            bvh,
+            camera,
+            light,
+            eye.target.width(),
+            eye.target.height(),
+            &options.reference_options(),
+            Some(eye.surface()),
+        )
+    }
+}
+
+fn reference_stats(r: &ReferenceMask, reference_ms: f64) -> ReferenceStats {
+    let c = &r.counts;
+    ReferenceStats {
+        reference_ms,
+        lit: c.classes.lit,
+        shadow: c.classes.shadow,
+        unlit: c.classes.unlit,
+        background: c.classes.background,
+        ambiguous: c.ambiguous,
+    }
+}
+
+fn check_stats(r: &ReferenceMask, mask: &Mask) -> CheckStats {
+    let c = compare(&r.mask, &r.ambiguous, mask);
+    CheckStats {
+        mismatch_pixels: c.mismatches,
+        mismatch_off_boundary: c.mismatches - c.mismatches_on_boundary,
+        ambiguous_pixels: c.ambiguous,
+        compared_pixels: c.compared,
+    }
+}
+
+fn ms(t: Instant) -> f64 {
+    t.elapsed().as_secs_f64() * 1e3
+}
