@@ -71,16 +71,20 @@ pub fn eye_pass(
     height: u32,
 ) -> Result<EyePass> {
     let mut target = DepthTarget::new(width, height, TileSize::T8, true)?;
-    for (i, o) in scene.objects().iter().enumerate() {
-        let mesh = &scene.graph().meshes()[o.mesh.0 as usize];
-        let item = DrawItem {
+    target.set_threads(rayon::current_num_threads());
+    let items: Vec<DrawItem> = scene
+        .objects()
+        .iter()
+        .enumerate()
+        .map(|(i, o)| DrawItem {
             clip_from_local: scene::transform::clip_from_local(camera, &o.world_from_local),
             positions: &meshes.positions[o.mesh.0 as usize],
-            triangles: mesh.triangles(),
+            triangles: scene.graph().meshes()[o.mesh.0 as usize].triangles(),
             object: i as u32,
-        };
-        target.draw(&item, Coverage::Standard)?;
-    }
+        })
+        .collect();
+    // One batch: bands of tile rows in parallel; equal to drawing one by one.
+    target.draw_batch(&items, Coverage::Standard)?;
     let mut primitive = Vec::with_capacity(width as usize * height as usize);
     for y in 0..height {
         for x in 0..width {

@@ -49,6 +49,20 @@ fn query_item_impl(
     Ok(count)
 }
 
+/// Whether the AVX2 builds may run (detected once; `SHADOWCULL_RASTER_SCALAR=1`
+/// forces the portable ones).
+#[inline]
+pub(crate) fn avx2_available() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        avx2::available()
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
+    }
+}
+
 /// Sets up and draws every triangle of `item` into the rows of `band`.
 pub(crate) fn draw_item(
     vp: &Viewport,

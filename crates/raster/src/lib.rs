@@ -58,6 +58,7 @@ mod setup;
 mod span;
 mod stats;
 mod stencil;
+mod stencil_run;
 mod traverse;
 mod volume_buffer;
 

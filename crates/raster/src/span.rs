@@ -2,16 +2,13 @@
 //!
 //! Along a row every edge function is affine in x with integer slope
 //! `a·SUBPIXEL`, so the pixels whose centres pass `E_i + off_i ≥ 0` for all
-//! three edges form one interval: loops that walk it do work proportional to
-//! the covered pixels, not to the bounding box (shadow-volume sides are long
-//! slivers that cover a small part of their box).
-//!
-//! Edge values at pixel centres are integers below 2⁵³ (`edge.rs`), so they
-//! and every product and sum formed here are exact in f64. Each edge's bound
-//! on x is estimated without a division per row — the real-valued crossing
-//! moves by a constant per row — and then corrected with exact tests, so the
-//! span is exactly the set of pixels the per-pixel test accepts
-//! (watertightness is unchanged).
+//! three edges form one interval, found with one exact integer division per
+//! edge: loops that walk it do work proportional to the covered pixels, not to
+//! the bounding box (shadow-volume sides are long slivers that cover a small
+//! part of their box). The span is exactly the set of pixels the per-pixel test
+//! accepts, so watertightness is unchanged. (An f64 estimate of the crossing
+//! with exact correction measured slower than the integer division on this
+//! machine kind: 2.5–3.0 s against 1.9–2.2 s for city_16384 `street`.)
 
 use crate::edge::Tri;
 use crate::setup::SUBPIXEL;
@@ -20,16 +17,12 @@ use crate::setup::SUBPIXEL;
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct SpanWalker {
     /// `E_i + off_i` at pixel `(lo, y0)`.
-    v0: [f64; 3],
+    v0: [i64; 3],
     /// Change of `E_i` per row.
-    dy: [f64; 3],
+    dy: [i64; 3],
     /// Change of `E_i` per pixel along x (`a·SUBPIXEL`).
-    dx: [f64; 3],
-    /// `−v0 / dx`: the real crossing of the edge at row `y0`, in pixels from `lo`.
-    c0: [f64; 3],
-    /// Change of the crossing per row.
-    cy: [f64; 3],
-    off: [f64; 3],
+    dx: [i64; 3],
+    off: [i64; 3],
     lo: i64,
     hi: i64,
     y0: i64,
@@ -40,18 +33,11 @@ impl SpanWalker {
     /// rule) over the columns `lo..=hi`, rows from `y0`.
     #[inline(always)]
     pub fn new(tri: &Tri, off: &[i64; 3], lo: i64, hi: i64, y0: i64) -> Self {
-        let v0 = [0, 1, 2].map(|i| (tri.e[i].at_pixel(lo, y0) + off[i]) as f64);
-        let dy = tri.e.map(|e| (e.b * SUBPIXEL) as f64);
-        let dx = tri.e.map(|e| (e.a * SUBPIXEL) as f64);
-        let c0 = [0, 1, 2].map(|i| if dx[i] != 0.0 { -v0[i] / dx[i] } else { 0.0 });
-        let cy = [0, 1, 2].map(|i| if dx[i] != 0.0 { -dy[i] / dx[i] } else { 0.0 });
         SpanWalker {
-            v0,
-            dy,
-            dx,
-            c0,
-            cy,
-            off: off.map(|o| o as f64),
+            v0: [0, 1, 2].map(|i| tri.e[i].at_pixel(lo, y0) + off[i]),
+            dy: tri.e.map(|e| e.b * SUBPIXEL),
+            dx: tri.e.map(|e| e.a * SUBPIXEL),
+            off: *off,
             lo,
             hi,
             y0,
@@ -59,58 +45,77 @@ impl SpanWalker {
     }
 
     /// The covered pixels `(a, b)` of row `y` (`a ≤ b`), with the raw edge
-    /// values `E_i` (no offsets) at pixel `a`; `None` when the row is empty.
+    /// values `E_i` (no offsets) at pixel `a` as f64 (exact: below 2⁵³);
+    /// `None` when the row is empty.
     #[inline(always)]
-    #[allow(clippy::needless_range_loop)] // four parallel per-edge arrays
     pub fn span(&self, y: i64) -> Option<(i64, i64, [f64; 3])> {
-        let r = (y - self.y0) as f64;
-        let n = (self.hi - self.lo) as f64;
-        let (mut k0, mut k1) = (0.0f64, n);
-        let mut v = [0.0; 3];
-        for i in 0..3 {
-            v[i] = self.v0[i] + self.dy[i] * r;
-            let (vi, s) = (v[i], self.dx[i]);
+        let r = y - self.y0;
+        let (mut k0, mut k1) = (0i64, self.hi - self.lo);
+        let v = [0, 1, 2].map(|i| self.v0[i] + self.dy[i] * r);
+        for (&vi, &s) in v.iter().zip(&self.dx) {
             // Pixel k (from lo) passes iff vi + s·k ≥ 0.
-            let pass = |k: f64| vi + s * k >= 0.0;
-            if s == 0.0 {
-                if vi < 0.0 {
+            if s == 0 {
+                if vi < 0 {
                     return None;
                 }
-                continue;
-            }
-            // Estimate of the crossing (within one pixel, or clamped to just
-            // outside the row; truncation, as `floor`/`ceil` are library calls
-            // without SSE4.1), then the exact first/last passing pixel.
-            let mut k = (self.c0[i] + self.cy[i] * r).clamp(-2.0, n + 2.0) as i64 as f64;
-            if s > 0.0 {
-                if vi < 0.0 {
-                    while k <= n && !pass(k) {
-                        k += 1.0;
-                    }
-                    while k > 0.0 && pass(k - 1.0) {
-                        k -= 1.0;
-                    }
-                    k0 = k0.max(k);
+            } else if s > 0 {
+                // k ≥ ⌈−vi / s⌉.
+                if vi < 0 {
+                    k0 = k0.max((-vi + s - 1) / s);
                 }
             } else {
-                if vi < 0.0 {
+                // k ≤ ⌊vi / −s⌋.
+                if vi < 0 {
                     return None;
                 }
-                while k >= 0.0 && !pass(k) {
-                    k -= 1.0;
-                }
-                while k < n && pass(k + 1.0) {
-                    k += 1.0;
-                }
-                k1 = k1.min(k);
+                k1 = k1.min(vi / -s);
             }
         }
         if k0 > k1 {
             return None;
         }
-        let e = [0, 1, 2].map(|i| v[i] - self.off[i] + self.dx[i] * k0);
-        Some((self.lo + k0 as i64, self.lo + k1 as i64, e))
+        let e = [0, 1, 2].map(|i| (v[i] - self.off[i] + self.dx[i] * k0) as f64);
+        Some((self.lo + k0, self.lo + k1, e))
     }
+}
+
+/// Conservative pixel columns `(x0, x1)` the triangle can cover on the rows
+/// `ya..=yb`: the exact x-extent of the triangle within the strip of those rows'
+/// pixel centres (found on its edges, clipped to the strip), widened by one
+/// pixel each side; `None` when the triangle misses the strip.
+pub(crate) fn band_extent(tri: &Tri, ya: i64, yb: i64) -> Option<(i64, i64)> {
+    let half = SUBPIXEL / 2;
+    let (ylo, yhi) = ((ya * SUBPIXEL + half) as f64, (yb * SUBPIXEL + half) as f64);
+    // Vertices: edge i runs from vertex i + 1 to vertex i + 2 (see `Tri::new`).
+    let v = tri.e.map(|e| (e.ox as f64, e.oy as f64));
+    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    for i in 0..3 {
+        let (p, q) = (v[i], v[(i + 1) % 3]);
+        let (pmin, pmax) = (p.1.min(q.1), p.1.max(q.1));
+        if pmax < ylo || pmin > yhi {
+            continue;
+        }
+        let x_at = |y: f64| {
+            if q.1 == p.1 {
+                return (p.0.min(q.0), p.0.max(q.0));
+            }
+            let yc = y.clamp(pmin, pmax);
+            let x = p.0 + (q.0 - p.0) * ((yc - p.1) / (q.1 - p.1));
+            (x, x)
+        };
+        for (a, b) in [x_at(ylo), x_at(yhi)] {
+            lo = lo.min(a);
+            hi = hi.max(b);
+        }
+    }
+    if lo > hi {
+        return None;
+    }
+    let s = SUBPIXEL as f64;
+    Some((
+        ((lo - half as f64) / s) as i64 - 2,
+        ((hi - half as f64) / s) as i64 + 2,
+    ))
 }
 
 #[cfg(test)]
@@ -121,6 +126,28 @@ mod tests {
     use proptest::prelude::*;
 
     proptest! {
+        #[test]
+        fn band_extent_holds_every_covered_pixel(
+            p in prop::array::uniform6(-30000i64..300000),
+            shrink in 1i64..200,
+            ya in -3i64..100,
+            rows in 0i64..12,
+        ) {
+            let v = |i: usize| SnappedVertex { x: p[2 * i] / shrink, y: p[2 * i + 1] / (4 * shrink), z: 0.5 };
+            let Some(tri) = Tri::new(v(0), v(1), v(2)) else { return Ok(()) };
+            let off = edge_offsets(&tri, Coverage::Standard);
+            let yb = ya + rows;
+            let ext = band_extent(&tri, ya, yb);
+            for y in ya..=yb {
+                for x in -10i64..1600 {
+                    if tri.e.iter().zip(&off).all(|(e, o)| e.at_pixel(x, y) + o >= 0) {
+                        let (a, b) = ext.expect("a covered pixel in the band");
+                        prop_assert!(a <= x && x <= b, "pixel {x},{y} outside {a}..={b}");
+                    }
+                }
+            }
+        }
+
         #[test]
         fn span_is_exactly_the_covered_pixels(
             p in prop::array::uniform6(-30000i64..300000),

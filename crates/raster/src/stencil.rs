@@ -31,11 +31,12 @@
 //! are in `near_cap.rs`.
 
 use crate::coverage::{edge_offsets, pixel_bounds, Coverage};
-use crate::depth_target::{DepthTarget, BACKGROUND};
+use crate::depth_target::DepthTarget;
 use crate::edge::Tri;
 use crate::near_cap::fan_triangle;
 use crate::setup::{setup_into, setup_near_plane_into, Setup, SnappedVertex, SUBPIXEL};
-use crate::span::SpanWalker;
+use crate::span::{band_extent, SpanWalker};
+use crate::stencil_run::{run_masks, RunPlane};
 use crate::volume_buffer::{VolumeBuffer, VolumeMethod, VolumeRange};
 use crate::{Error, Result, MAX_CLIPPED_VERTICES, MAX_TARGET_SIZE};
 use glam::{Mat4, Vec4};
@@ -422,11 +423,11 @@ impl StencilTarget {
         match &mut self.counters {
             Counters::Eight(c) => {
                 let delta = if increment { 1 } else { u8::MAX };
-                fill_rows(c, touched, w, eye, tri, &rect, win, zfail, delta, st);
+                fill_rows_dispatch(c, touched, w, eye, tri, &rect, win, zfail, delta, st);
             }
             Counters::Wide(c) => {
                 let delta = if increment { 1 } else { -1 };
-                fill_rows(c, touched, w, eye, tri, &rect, win, zfail, delta, st);
+                fill_rows_dispatch(c, touched, w, eye, tri, &rect, win, zfail, delta, st);
             }
         }
     }
@@ -450,7 +451,7 @@ struct Rect {
 }
 
 /// A stencil counter: adds with wrap-around.
-trait Counter: Copy {
+trait Counter: Copy + Default {
     fn wrapping(self, delta: Self) -> Self;
 }
 
@@ -466,6 +467,58 @@ impl Counter for i32 {
     fn wrapping(self, delta: i32) -> i32 {
         self.wrapping_add(delta)
     }
+}
+
+/// [`fill_rows`], in its AVX2 build when the CPU has it: the run kernel
+/// ([`crate::stencil_run`]) then inlines into the row loop.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn fill_rows_dispatch<C: Counter>(
+    counters: &mut [C],
+    touched: &mut [u8],
+    width: u32,
+    eye: &DepthTarget,
+    tri: &Tri,
+    rect: &Rect,
+    win: &Window,
+    zfail: bool,
+    delta: C,
+    st: &mut StencilStats,
+) {
+    #[cfg(target_arch = "x86_64")]
+    if crate::dispatch::avx2_available() {
+        // SAFETY: `fill_rows_avx2` only requires AVX2, detected at runtime.
+        unsafe {
+            fill_rows_avx2(
+                counters, touched, width, eye, tri, rect, win, zfail, delta, st,
+            )
+        };
+        return;
+    }
+    fill_rows(
+        counters, touched, width, eye, tri, rect, win, zfail, delta, st,
+    );
+}
+
+/// [`fill_rows`] compiled with AVX2 enabled.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[allow(clippy::too_many_arguments)]
+unsafe fn fill_rows_avx2<C: Counter>(
+    counters: &mut [C],
+    touched: &mut [u8],
+    width: u32,
+    eye: &DepthTarget,
+    tri: &Tri,
+    rect: &Rect,
+    win: &Window,
+    zfail: bool,
+    delta: C,
+    st: &mut StencilStats,
+) {
+    fill_rows(
+        counters, touched, width, eye, tri, rect, win, zfail, delta, st,
+    );
 }
 
 /// The per-pixel loop of [`StencilTarget::fill_tri`], monomorphized per counter type:
@@ -497,12 +550,46 @@ fn fill_rows<C: Counter>(
     let step = tri.e.map(|e| (e.a * SUBPIXEL) as f64);
     let run = (1i64 << layout.shift).min(8);
     let (z, inv) = (tri.z, tri.inv_area);
+    let (dlo, dhi) = (win.dlo, win.dhi);
+    let zero = C::default();
     let (mut processed, mut updates, mut first) = (0u64, 0u64, 0u64);
     let walker = SpanWalker::new(tri, &off, rect.x0, rect.x1, rect.y0);
+    let tile = 1i64 << layout.shift;
+    let active = |tb: &crate::depth_target::TileBounds| !(tb.zmax < dlo.max(0.0) || tb.zmin > dhi);
+    let mut band_lo = rect.x0;
+    let mut band_hi = rect.x1;
     for y in rect.y0..=rect.y1 {
-        let Some((a, b, e_a)) = walker.span(y) else {
+        if y == rect.y0 || y & (tile - 1) == 0 {
+            // A new band of tile rows: the columns the triangle can reach there,
+            // narrowed to the first and last tile with written depth inside
+            // the window; the band is skipped when there is none.
+            let yb = rect.y1.min(y | (tile - 1));
+            let (ty, tiles_x) = ((y >> layout.shift) as u32, layout.tiles_x as i64);
+            let (mut lo, mut hi) = band_extent(tri, y, yb).unwrap_or((1, 0));
+            lo = lo.max(rect.x0);
+            hi = hi.min(rect.x1);
+            let (mut t0, mut t1) = (lo.max(0) >> layout.shift, hi.max(-1) >> layout.shift);
+            t1 = t1.min(tiles_x - 1);
+            while t0 <= t1 && !active(&eye.tiles[layout.tile_index(t0 as u32, ty)]) {
+                t0 += 1;
+            }
+            while t1 >= t0 && !active(&eye.tiles[layout.tile_index(t1 as u32, ty)]) {
+                t1 -= 1;
+            }
+            band_lo = lo.max(t0 * tile);
+            band_hi = hi.min(t1 * tile + tile - 1);
+        }
+        if band_lo > band_hi {
+            continue;
+        }
+        let Some((a0, b0, e0)) = walker.span(y) else {
             continue;
         };
+        let (a, b) = (a0.max(band_lo), b0.min(band_hi));
+        if a > b {
+            continue;
+        }
+        let e_a = [0, 1, 2].map(|i| e0[i] + step[i] * (a - a0) as f64);
         let ty = (y >> layout.shift) as u32;
         let mut x = a;
         while x <= b {
@@ -513,7 +600,7 @@ fn fill_rows<C: Counter>(
             // Skip runs in tiles with no written depth inside the window
             // (all background, or outside the depth bounds).
             let tb = &eye.tiles[layout.tile_index((x >> layout.shift) as u32, ty)];
-            if tb.zmax < win.dlo.max(0.0) || tb.zmin > win.dhi {
+            if !active(tb) {
                 x = xe + 1;
                 continue;
             }
@@ -522,21 +609,34 @@ fn fill_rows<C: Counter>(
             let i0 = tiled_index(width, x as u32, y as u32);
             let cs = &mut counters[i0..i0 + n];
             let ts = &mut touched[i0..i0 + n];
+            // Edge values at the run's first pixel (exact integers).
             let k0 = (x - a) as f64;
-            for (k, ((&d, c), t)) in ds.iter().zip(cs.iter_mut()).zip(ts.iter_mut()).enumerate() {
-                let kk = k0 + k as f64;
-                let e0 = e_a[0] + step[0] * kk;
-                let e1 = e_a[1] + step[1] * kk;
-                let e2 = e_a[2] + step[2] * kk;
-                let zp = ((e0 * z[0] + e1 * z[1] + e2 * z[2]) * inv) as f32;
-                let inside = d != BACKGROUND && d >= win.dlo && d <= win.dhi;
-                // Strict reversed-Z test: pass iff strictly nearer.
-                let update = inside && ((zp > d) != zfail);
-                processed += u64::from(inside);
-                updates += u64::from(update);
-                first += u64::from(update & (*t == 0));
-                *t |= u8::from(update);
-                *c = if update { c.wrapping(delta) } else { *c };
+            let plane = RunPlane {
+                e: [0, 1, 2].map(|i| e_a[i] + step[i] * k0),
+                step,
+                z,
+                inv,
+                dlo,
+                dhi,
+                zfail,
+            };
+            let (ins, upd) = run_masks(&plane, ds);
+            processed += u64::from(ins.count_ones());
+            updates += u64::from(upd.count_ones());
+            if upd == (1 << n) - 1 {
+                // Every pixel of the run updates (a branch-free, vectorizable loop).
+                for (c, t) in cs.iter_mut().zip(ts.iter_mut()) {
+                    first += u64::from(*t == 0);
+                    *t = 1;
+                    *c = c.wrapping(delta);
+                }
+            } else if upd != 0 {
+                for (k, (c, t)) in cs.iter_mut().zip(ts.iter_mut()).enumerate() {
+                    let u = (upd >> k) & 1 != 0;
+                    first += u64::from(u & (*t == 0));
+                    *t |= u8::from(u);
+                    *c = c.wrapping(if u { delta } else { zero });
+                }
             }
             x = xe + 1;
         }
