@@ -231,6 +231,8 @@ pub struct PipelineOptions {
     pub stencil_bits: StencilBitsSpec,
     /// Every triangle casts (back-facing ones flipped); the reference uses the same rule.
     pub two_sided: bool,
+    /// Lights with a range extrude their shadow volumes finitely (always closed).
+    pub finite_extrusion: bool,
     /// Compute the reference mask every n-th frame (0 = never).
     pub reference_every: u32,
     /// The reference's options (depth-error bound; its `two_sided` must equal
@@ -246,6 +248,7 @@ impl Default for PipelineOptions {
             scissor: false,
             stencil_bits: StencilBitsSpec::Eight,
             two_sided: false,
+            finite_extrusion: false,
             reference_every: 1,
             reference: Default::default(),
         }
@@ -264,6 +267,7 @@ impl PipelineOptions {
             },
             scissor: self.scissor,
             depth_bounds: self.stencil == StencilBackend::Db,
+            finite_extrusion: self.finite_extrusion,
         }
     }
 

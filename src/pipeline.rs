@@ -112,6 +112,9 @@ pub struct ShadowOptions {
     pub scissor: bool,
     /// Per-volume depth-bounds test (`stencil: db`).
     pub depth_bounds: bool,
+    /// Point and spot lights with a range extrude their volumes finitely
+    /// ([`shadowgen::BuildOptions::finite_extrusion`]).
+    pub finite_extrusion: bool,
 }
 
 impl Default for ShadowOptions {
@@ -122,6 +125,7 @@ impl Default for ShadowOptions {
             bits: StencilBits::Eight,
             scissor: false,
             depth_bounds: false,
+            finite_extrusion: false,
         }
     }
 }
@@ -179,7 +183,7 @@ pub fn shadow_mask(
         two_sided: options.two_sided,
         // Scissor rectangles and depth bounds cost time; only computed when used.
         viewport: (options.scissor || options.depth_bounds).then_some((w, h)),
-        finite_extrusion: false,
+        finite_extrusion: options.finite_extrusion,
     };
     let volumes = build_volumes(
         &mut scratch.volumes,

@@ -5,7 +5,8 @@
 //! Positions are homogeneous and stay in each caster's local space: finite
 //! vertices are the caster's own f32 vertices with `w = 1` (bit-identical to
 //! what the eye pass draws, so a light cap has the depth of the surface it
-//! caps), extruded vertices are points at infinity with `w = 0`. Every range
+//! caps), extruded vertices are points at infinity with `w = 0` (or, for a
+//! finitely extruded volume of a ranged light, finite points with `w = 1`). Every range
 //! carries the `world_from_local` its vertices are drawn with through the one
 //! transform path (`clip_from_local`).
 //!
@@ -58,8 +59,10 @@ pub struct VolumeRange {
     /// caster's light-facing triangles, finite vertices); empty for zpass.
     pub light_cap: Range<u32>,
     /// Absolute range in [`VolumeBuffer::indices`] of the dark cap (the light
-    /// cap projected to infinity, reversed); empty for zpass and for
-    /// directional lights (their extrusion meets in one point at infinity).
+    /// cap projected to infinity, reversed, or to the finite extrusion distance
+    /// of a ranged light); empty for an infinitely extruded zpass volume and
+    /// for directional lights (their extrusion meets in one point at infinity).
+    /// A finitely extruded volume always has its dark cap, zpass included.
     pub dark_cap: Range<u32>,
     /// Depth-bounds test, reversed Z (`depth_near ≥ depth_far`): a pixel whose
     /// stored surface depth lies outside `[depth_far, depth_near]` has its surface

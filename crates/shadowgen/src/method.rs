@@ -31,6 +31,14 @@ use scene::{Aabb, Camera, Light};
 )]
 pub enum MethodChoice {
     /// zpass where [`zpass_is_safe`], else zfail.
+    ///
+    /// zfail rather than zp+ where zpass is not safe: both draw the same closed
+    /// volume, and zp+ adds near-plane fan triangles from the viewport centre
+    /// to every near-clipped edge — including the dark caps' edges at clip
+    /// w = 0 for extrusions pointing behind the eye — whose fragments cancel
+    /// but cost work. Measured on city_16384 `street` at 1280×1024 with every
+    /// caster forced (`shadow_bench --method zfail|zpplus`): 123 M against 234 M
+    /// pixels processed, 2.1 s against 3.4 s of brute-force stencil.
     #[default]
     Auto,
     /// zpass everywhere (wrong where a volume meets the near rectangle; for comparison).
