@@ -5,7 +5,9 @@
 //! [--reference] [--mask OUT.png] [--reps R]`
 //!
 //! SCENE is a box-city file (`../shared/data/bench/*.txt`; CAMERA one of its camera
-//! names, its light) or any scene file, with `--light x,y,z` (point light) or
+//! names, its light), `city` (the bundled default job's procedural city; CAMERA
+//! `street` or `bird`, the first pose of that path; a point light 1.5 scene
+//! heights above the ground, as the default job's first light) or any scene file, with `--light x,y,z` (point light) or
 //! `--sun dx,dy,dz` (the direction the light travels) and `--eye x,y,z --target
 //! x,y,z` (fovy 60° and near 0.1 unless `--fovy`, `--near`; CAMERA may then be `-`).
 //!
@@ -204,7 +206,28 @@ fn view(a: &Args, loaded: &Loaded) -> anyhow::Result<(LookAt, Light)> {
 
 fn main() -> anyhow::Result<()> {
     let a = parse()?;
-    let loaded = scene::load::load_path(&a.scene)?;
+    let loaded = if a.scene.as_os_str() == "city" {
+        let mut l = scene::procedural::city::city(&Default::default())?;
+        // The default job's views: the first pose of each camera path.
+        for (name, path) in l.paths.clone() {
+            if let Some(pose) = path.at(0) {
+                l.cameras.push((name, pose));
+            }
+        }
+        if l.lights.is_empty() {
+            let b = Scene::new(l.graph.clone())?.bounds();
+            let light = shadowcull::config::LightSpec::AboveScene(1.5).resolve(
+                &l,
+                &b,
+                0,
+                std::path::Path::new("city"),
+            )?;
+            l.lights.push(("above".into(), light));
+        }
+        l
+    } else {
+        scene::load::load_path(&a.scene)?
+    };
     let (look, light) = view(&a, &loaded)?;
     let camera = look.camera(a.width as f64 / a.height as f64)?;
     let scene = Scene::new(loaded.graph.clone())?;

@@ -201,19 +201,15 @@ pub fn shadow_mask(
         scissor: options.scissor,
         depth_bounds: options.depth_bounds,
     };
-    let mut volume_triangles = 0;
-    for range in &scratch.volumes.ranges {
-        let clip_from_local = scene::transform::clip_from_local(camera, &range.world_from_local);
-        stencil.draw_volume(
-            &eye.target,
-            clip_from_local,
-            &scratch.volumes,
-            range,
-            tests,
-            &mut stats,
-        )?;
-        volume_triangles += u64::from(range.index_count / 3);
-    }
+    let clip: Vec<glam::Mat4> = scratch
+        .volumes
+        .ranges
+        .iter()
+        .map(|r| scene::transform::clip_from_local(camera, &r.world_from_local))
+        .collect();
+    let ranges: Vec<_> = clip.iter().copied().zip(&scratch.volumes.ranges).collect();
+    stencil.draw_volumes(&eye.target, &ranges, &scratch.volumes, tests, &mut stats)?;
+    let volume_triangles = stats.triangles;
     let raw_nonzero: Vec<bool> = (0..h)
         .flat_map(|y| (0..w).map(move |x| (x, y)))
         .map(|(x, y)| stencil.nonzero(x, y))

@@ -271,69 +271,133 @@ impl StencilTarget {
         tests: StencilTests,
         stats: &mut StencilStats,
     ) -> Result<()> {
+        self.draw_volumes(eye, &[(clip_from_local, range)], buf, tests, stats)
+    }
+
+    /// [`StencilTarget::draw_volume`] for many ranges at once, each with its own
+    /// `clip_from_local`; the result is the same as drawing them one by one (the
+    /// stencil operations commute). The target is split into bands of tile rows
+    /// drawn in parallel (one per rayon thread, with the `parallel` feature):
+    /// every band sets up every triangle and fills only its own rows.
+    ///
+    /// # Errors
+    /// As [`StencilTarget::draw_volume`], for the first bad range; then nothing is drawn.
+    pub fn draw_volumes(
+        &mut self,
+        eye: &DepthTarget,
+        volumes: &[(Mat4, &VolumeRange)],
+        buf: &VolumeBuffer,
+        tests: StencilTests,
+        stats: &mut StencilStats,
+    ) -> Result<()> {
+        self.draw_volumes_banded(eye, volumes, buf, tests, stats, BAND_TILE_ROWS)
+    }
+
+    /// [`StencilTarget::draw_volumes`] with bands of `band_tile_rows` tile rows.
+    fn draw_volumes_banded(
+        &mut self,
+        eye: &DepthTarget,
+        volumes: &[(Mat4, &VolumeRange)],
+        buf: &VolumeBuffer,
+        tests: StencilTests,
+        stats: &mut StencilStats,
+        band_tile_rows: usize,
+    ) -> Result<()> {
         if (eye.width(), eye.height()) != (self.width, self.height) {
             return Err(Error::SizeMismatch {
                 expected: (eye.width(), eye.height()),
                 got: (self.width, self.height),
             });
         }
-        let first = range.first_index as usize;
-        let ntri = range.index_count as usize / 3;
-        let end = first + 3 * ntri;
-        if end > buf.indices.len() {
-            return Err(Error::IndexOutOfRange {
-                triangle: (buf.indices.len().max(first) - first) / 3,
-                index: u32::try_from(end - 1).unwrap_or(u32::MAX),
-                len: buf.indices.len(),
-            });
+        for (_, range) in volumes {
+            check_range(buf, range)?;
         }
-        let indices = &buf.indices[first..end];
-        if let Some(k) = indices
+        let jobs: Vec<(Mat4, &VolumeRange, Window)> = volumes
             .iter()
-            .position(|&i| i as usize >= buf.positions.len())
-        {
-            return Err(Error::IndexOutOfRange {
-                triangle: k / 3,
-                index: indices[k],
-                len: buf.positions.len(),
-            });
-        }
+            .filter_map(|&(m, r)| self.window(r, tests).map(|w| (m, r, w)))
+            .collect();
         let mut st = StencilStats {
-            triangles: ntri as u64,
+            triangles: volumes.iter().map(|(_, r)| r.index_count as u64 / 3).sum(),
             ..StencilStats::default()
         };
-        let Some(win) = self.window(range, tests) else {
-            stats.add(&st);
-            return Ok(());
-        };
-        let (zfail, near_cap) = match range.method {
-            VolumeMethod::ZPass => (false, false),
-            VolumeMethod::ZFail => (true, false),
-            VolumeMethod::ZpPlus => (false, true),
-        };
+        let tiles_x = self.width.div_ceil(8) as usize;
+        let (width, height) = (self.width, self.height);
+        // Bands of `band_tile_rows` tile rows; contiguous in the tiled storage.
+        let chunk = band_tile_rows * tiles_x * 64;
+        let vp = eye.vp;
+        let mut pieces: Vec<Piece> = Vec::with_capacity(PIECE_BATCH + MAX_CLIPPED_VERTICES * 2);
+        let mut parts: Vec<StencilStats> = Vec::new();
         let mut s = Setup {
             facing: None,
             clipped: false,
             vertices: [SnappedVertex::default(); MAX_CLIPPED_VERTICES],
             len: 0,
         };
-        let vp = eye.vp;
-        for t in indices.chunks_exact(3) {
-            let v =
-                [0, 1, 2].map(|k| clip_from_local * Vec4::from_array(buf.positions[t[k] as usize]));
-            setup_into(v, &vp, &mut s);
-            if s.facing.is_some() {
-                // Each snapped fan piece counts by its own snapped orientation:
-                // snapping can turn a sliver (or a guard-band-clipped piece) over,
-                // and the count must be the winding number of what is rasterized.
-                self.fill_signed(eye, s.polygon(), &win, zfail, &mut st);
-            }
-            if near_cap {
-                if let Some(fan) = fan_triangle(v.map(|p| p.as_dvec4())) {
-                    setup_near_plane_into(fan, &vp, &mut s);
-                    self.fill_signed(eye, s.polygon(), &win, false, &mut st);
+        let mut flush = |pieces: &mut Vec<Piece>, target: &mut StencilTarget| {
+            let draw_band = |k: usize, counters: CountersMut<'_>, touched: &mut [u8]| {
+                let y0 = (k * band_tile_rows * 8) as i64;
+                let mut band = Band {
+                    counters,
+                    touched,
+                    width,
+                    height,
+                    y0,
+                    y1: (y0 + band_tile_rows as i64 * 8).min(i64::from(height)) - 1,
+                    base: k * chunk,
+                };
+                let mut bst = StencilStats::default();
+                for p in pieces.iter() {
+                    if p.y1 >= band.y0 && p.y0 <= band.y1 {
+                        let win = &jobs[p.job as usize].2;
+                        band.fill_tri(eye, &p.tri, win, p.zfail, p.increment, &mut bst);
+                    }
+                }
+                bst
+            };
+            parts.extend(match &mut target.counters {
+                Counters::Eight(c) => run_bands(c, &mut target.touched, chunk, |k, c, t| {
+                    draw_band(k, CountersMut::Eight(c), t)
+                }),
+                Counters::Wide(c) => run_bands(c, &mut target.touched, chunk, |k, c, t| {
+                    draw_band(k, CountersMut::Wide(c), t)
+                }),
+            });
+            pieces.clear();
+        };
+        for (j, (m, range, _)) in jobs.iter().enumerate() {
+            let (zfail, near_cap) = match range.method {
+                VolumeMethod::ZPass => (false, false),
+                VolumeMethod::ZFail => (true, false),
+                VolumeMethod::ZpPlus => (false, true),
+            };
+            for t in buf.indices[range.indices()].chunks_exact(3) {
+                let v = [0, 1, 2].map(|k| *m * Vec4::from_array(buf.positions[t[k] as usize]));
+                setup_into(v, &vp, &mut s);
+                if s.facing.is_some() {
+                    // Each snapped fan piece counts by its own snapped orientation:
+                    // snapping can turn a sliver (or a guard-band-clipped piece)
+                    // over, and the count must be the winding number of what is
+                    // rasterized.
+                    push_pieces(s.polygon(), zfail, j as u32, &mut pieces);
+                }
+                if near_cap {
+                    if let Some(fan) = fan_triangle(v.map(|p| p.as_dvec4())) {
+                        setup_near_plane_into(fan, &vp, &mut s);
+                        push_pieces(s.polygon(), false, j as u32, &mut pieces);
+                    }
+                }
+                if pieces.len() >= PIECE_BATCH {
+                    flush(&mut pieces, self);
                 }
             }
+        }
+        if !pieces.is_empty() {
+            flush(&mut pieces, self);
+        }
+        for p in &parts {
+            st.pixels_processed += p.pixels_processed;
+            st.stencil_updates += p.stencil_updates;
+            st.pixels_touched += p.pixels_touched;
         }
         self.touched_count += st.pixels_touched;
         stats.add(&st);
@@ -371,32 +435,72 @@ impl StencilTarget {
             dhi,
         })
     }
+}
 
-    /// Counts a snapped polygon (a volume triangle after clipping, or a zp+ near-cap
-    /// fan triangle) fan piece by fan piece, each by its own snapped orientation:
-    /// front-facing pieces (clockwise on screen, i.e. counter-clockwise in NDC with
-    /// y up) are entries, back-facing ones exits; zpass counts entries +1 and exits
-    /// −1 in front of the surface, zfail exits +1 and entries −1 behind it.
-    fn fill_signed(
-        &mut self,
-        eye: &DepthTarget,
-        poly: &[SnappedVertex],
-        win: &Window,
-        zfail: bool,
-        st: &mut StencilStats,
-    ) {
-        for i in 1..poly.len().saturating_sub(1) {
-            let (v0, v1, v2) = (poly[0], poly[i], poly[i + 1]);
-            // Screen y points down: a negative area is clockwise seen on screen.
-            let area = (v1.x - v0.x) * (v2.y - v0.y) - (v1.y - v0.y) * (v2.x - v0.x);
-            if let Some(tri) = Tri::new(v0, v1, v2) {
-                // Front-facing (counter-clockwise in NDC, y up) is clockwise on
-                // screen: negative area. zpass: front +1; zfail: back +1.
-                self.fill_tri(eye, &tri, win, zfail, (area < 0) != zfail, st);
-            }
+/// Mutable counters of one band.
+enum CountersMut<'a> {
+    Eight(&'a mut [u8]),
+    Wide(&'a mut [i32]),
+}
+
+/// The rows `y0..=y1` of a [`StencilTarget`]: whole tile rows, whose counters
+/// and touched flags are the contiguous slices starting at tiled index `base`.
+struct Band<'a> {
+    counters: CountersMut<'a>,
+    touched: &'a mut [u8],
+    width: u32,
+    height: u32,
+    y0: i64,
+    y1: i64,
+    base: usize,
+}
+
+/// Tiles rows per band of [`StencilTarget::draw_volumes`] (64 pixel rows: small
+/// enough that the bands balance across threads, large enough that a band's
+/// share of a volume triangle is more than a few rows).
+const BAND_TILE_ROWS: usize = 8;
+
+/// Fan pieces set up before the bands fill them (bounded memory).
+const PIECE_BATCH: usize = 4096;
+
+/// A set-up fan piece of a volume triangle (or zp+ near-cap fan triangle): its
+/// edge functions, counting rule and direction, rows and volume.
+struct Piece {
+    tri: Tri,
+    zfail: bool,
+    increment: bool,
+    y0: i64,
+    y1: i64,
+    job: u32,
+}
+
+/// Appends the fan pieces of a snapped polygon (a volume triangle after
+/// clipping, or a zp+ near-cap fan triangle), each counted by its own snapped
+/// orientation: front-facing pieces (clockwise on screen, i.e. counter-clockwise
+/// in NDC with y up) are entries, back-facing ones exits; zpass counts entries
+/// +1 and exits −1 in front of the surface, zfail exits +1 and entries −1
+/// behind it.
+fn push_pieces(poly: &[SnappedVertex], zfail: bool, job: u32, out: &mut Vec<Piece>) {
+    for i in 1..poly.len().saturating_sub(1) {
+        let (v0, v1, v2) = (poly[0], poly[i], poly[i + 1]);
+        // Screen y points down: a negative area is clockwise seen on screen.
+        let area = (v1.x - v0.x) * (v2.y - v0.y) - (v1.y - v0.y) * (v2.x - v0.x);
+        if let Some(tri) = Tri::new(v0, v1, v2) {
+            // Rows whose pixel centres the piece can cover (inclusive, unclamped).
+            let half = SUBPIXEL / 2;
+            out.push(Piece {
+                y0: (tri.ymin - half).div_euclid(SUBPIXEL),
+                y1: (tri.ymax - half).div_euclid(SUBPIXEL) + 1,
+                tri,
+                zfail,
+                increment: (area < 0) != zfail,
+                job,
+            });
         }
     }
+}
 
+impl Band<'_> {
     /// Increments (or decrements, `!increment`) every covered non-background pixel of
     /// `tri` inside `win` whose fragment passes (zpass) or fails (zfail) the strict
     /// depth test. Each row walks only its covered span ([`crate::span`]).
@@ -414,23 +518,79 @@ impl StencilTarget {
             return;
         };
         let (x0, x1) = (x0.max(win.x0), x1.min(win.x1));
-        let (y0, y1) = (y0.max(win.y0), y1.min(win.y1));
+        let (y0, y1) = (y0.max(win.y0).max(self.y0), y1.min(win.y1).min(self.y1));
         if x0 > x1 || y0 > y1 {
             return;
         }
         let rect = Rect { x0, x1, y0, y1 };
-        let touched = &mut self.touched;
+        let touched = &mut *self.touched;
+        let base = self.base;
         match &mut self.counters {
-            Counters::Eight(c) => {
+            CountersMut::Eight(c) => {
                 let delta = if increment { 1 } else { u8::MAX };
-                fill_rows_dispatch(c, touched, w, eye, tri, &rect, win, zfail, delta, st);
+                fill_rows_dispatch(c, touched, base, w, eye, tri, &rect, win, zfail, delta, st);
             }
-            Counters::Wide(c) => {
+            CountersMut::Wide(c) => {
                 let delta = if increment { 1 } else { -1 };
-                fill_rows_dispatch(c, touched, w, eye, tri, &rect, win, zfail, delta, st);
+                fill_rows_dispatch(c, touched, base, w, eye, tri, &rect, win, zfail, delta, st);
             }
         }
     }
+}
+
+/// Checks that `range` names only indices inside `buf` and positions that exist.
+fn check_range(buf: &VolumeBuffer, range: &VolumeRange) -> Result<()> {
+    let first = range.first_index as usize;
+    let ntri = range.index_count as usize / 3;
+    let end = first + 3 * ntri;
+    if end > buf.indices.len() {
+        return Err(Error::IndexOutOfRange {
+            triangle: (buf.indices.len().max(first) - first) / 3,
+            index: u32::try_from(end - 1).unwrap_or(u32::MAX),
+            len: buf.indices.len(),
+        });
+    }
+    let indices = &buf.indices[first..end];
+    if let Some(k) = indices
+        .iter()
+        .position(|&i| i as usize >= buf.positions.len())
+    {
+        return Err(Error::IndexOutOfRange {
+            triangle: k / 3,
+            index: indices[k],
+            len: buf.positions.len(),
+        });
+    }
+    Ok(())
+}
+
+/// Runs `f(k, counters, touched)` on consecutive chunks of `chunk` entries, in
+/// parallel with the `parallel` feature; returns each chunk's result in order.
+fn run_bands<C: Send, R: Send>(
+    counters: &mut [C],
+    touched: &mut [u8],
+    chunk: usize,
+    f: impl Fn(usize, &mut [C], &mut [u8]) -> R + Sync,
+) -> Vec<R> {
+    let chunk = chunk.max(1);
+    #[cfg(feature = "parallel")]
+    {
+        use rayon::prelude::*;
+        if counters.len() > chunk {
+            return counters
+                .par_chunks_mut(chunk)
+                .zip(touched.par_chunks_mut(chunk))
+                .enumerate()
+                .map(|(k, (c, t))| f(k, c, t))
+                .collect();
+        }
+    }
+    counters
+        .chunks_mut(chunk)
+        .zip(touched.chunks_mut(chunk))
+        .enumerate()
+        .map(|(k, (c, t))| f(k, c, t))
+        .collect()
 }
 
 /// Index of pixel `(x, y)` in a `width`-wide buffer stored in 8×8 tiles, tile
@@ -476,6 +636,7 @@ impl Counter for i32 {
 fn fill_rows_dispatch<C: Counter>(
     counters: &mut [C],
     touched: &mut [u8],
+    base: usize,
     width: u32,
     eye: &DepthTarget,
     tri: &Tri,
@@ -490,13 +651,13 @@ fn fill_rows_dispatch<C: Counter>(
         // SAFETY: `fill_rows_avx2` only requires AVX2, detected at runtime.
         unsafe {
             fill_rows_avx2(
-                counters, touched, width, eye, tri, rect, win, zfail, delta, st,
+                counters, touched, base, width, eye, tri, rect, win, zfail, delta, st,
             )
         };
         return;
     }
     fill_rows(
-        counters, touched, width, eye, tri, rect, win, zfail, delta, st,
+        counters, touched, base, width, eye, tri, rect, win, zfail, delta, st,
     );
 }
 
@@ -507,6 +668,7 @@ fn fill_rows_dispatch<C: Counter>(
 unsafe fn fill_rows_avx2<C: Counter>(
     counters: &mut [C],
     touched: &mut [u8],
+    base: usize,
     width: u32,
     eye: &DepthTarget,
     tri: &Tri,
@@ -517,7 +679,7 @@ unsafe fn fill_rows_avx2<C: Counter>(
     st: &mut StencilStats,
 ) {
     fill_rows(
-        counters, touched, width, eye, tri, rect, win, zfail, delta, st,
+        counters, touched, base, width, eye, tri, rect, win, zfail, delta, st,
     );
 }
 
@@ -535,6 +697,7 @@ unsafe fn fill_rows_avx2<C: Counter>(
 fn fill_rows<C: Counter>(
     counters: &mut [C],
     touched: &mut [u8],
+    base: usize,
     width: u32,
     eye: &DepthTarget,
     tri: &Tri,
@@ -604,9 +767,9 @@ fn fill_rows<C: Counter>(
                 x = xe + 1;
                 continue;
             }
-            let base = layout.pixel_index(x as u32, y as u32);
-            let ds = &depth[base..base + n];
-            let i0 = tiled_index(width, x as u32, y as u32);
+            let di = layout.pixel_index(x as u32, y as u32);
+            let ds = &depth[di..di + n];
+            let i0 = tiled_index(width, x as u32, y as u32) - base;
             let cs = &mut counters[i0..i0 + n];
             let ts = &mut touched[i0..i0 + n];
             // Edge values at the run's first pixel (exact integers).
@@ -644,4 +807,116 @@ fn fill_rows<C: Counter>(
     st.pixels_processed += processed;
     st.stencil_updates += updates;
     st.pixels_touched += first;
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::{aabb_corners, Coverage, DrawItem, TileSize, AABB_TRIANGLES};
+    use glam::{DMat4, Vec3};
+
+    /// Bands (several, drawn in parallel) give the same counters and counts as
+    /// one band over the whole target, for every method, zp+ near caps included.
+    #[test]
+    fn bands_equal_one_band() {
+        let (w, h) = (150u32, 420u32);
+        // Reversed-Z infinite perspective (fov_y 1 rad, near 0.1) looking down −z
+        // from (0.4, 0.3, 2.5), slightly tilted down.
+        let f = 1.0 / 0.5f32.tan();
+        let proj = Mat4::from_cols(
+            Vec4::new(f * h as f32 / w as f32, 0.0, 0.0, 0.0),
+            Vec4::new(0.0, f, 0.0, 0.0),
+            Vec4::new(0.0, 0.0, 0.0, -1.0),
+            Vec4::new(0.0, 0.0, 0.1, 0.0),
+        );
+        let (c, sn) = (0.15f32.cos(), 0.15f32.sin());
+        let tilt = Mat4::from_cols(
+            Vec4::new(1.0, 0.0, 0.0, 0.0),
+            Vec4::new(0.0, c, -sn, 0.0),
+            Vec4::new(0.0, sn, c, 0.0),
+            Vec4::new(0.0, 0.0, 0.0, 1.0),
+        );
+        let view = proj * tilt * Mat4::from_translation(-Vec3::new(0.4, 0.3, 2.5));
+        let mut eye = DepthTarget::new(w, h, TileSize::T8, false).unwrap();
+        let ground = [
+            Vec4::new(-30.0, -1.0, -30.0, 1.0),
+            Vec4::new(30.0, -1.0, -30.0, 1.0),
+            Vec4::new(30.0, -1.5, 30.0, 1.0),
+            Vec4::new(-30.0, -1.5, 30.0, 1.0),
+        ];
+        let quad = [[0u32, 1, 2], [0, 2, 3]];
+        let item = DrawItem {
+            clip_from_local: view,
+            positions: &ground,
+            triangles: &quad,
+            object: 0,
+        };
+        eye.draw(&item, Coverage::Standard).unwrap();
+        let mut buf = VolumeBuffer::new();
+        let boxes = [
+            (Vec3::new(-1.0, -2.0, -3.0), Vec3::new(0.5, 0.2, -1.0)),
+            (Vec3::new(-0.2, -1.2, 1.5), Vec3::new(0.6, 0.4, 3.0)), // the eye inside
+            (Vec3::new(0.8, -3.0, -9.0), Vec3::new(2.0, -0.5, -2.0)),
+        ];
+        for (k, (lo, hi)) in boxes.iter().enumerate() {
+            let first_vertex = buf.positions.len() as u32;
+            buf.positions
+                .extend(aabb_corners(*lo, *hi).iter().map(|v| v.to_array()));
+            let first_index = buf.indices.len() as u32;
+            for t in AABB_TRIANGLES {
+                buf.indices.extend(t.map(|i| first_vertex + i));
+            }
+            for method in [
+                VolumeMethod::ZFail,
+                VolumeMethod::ZpPlus,
+                VolumeMethod::ZPass,
+            ] {
+                buf.ranges.push(VolumeRange {
+                    object: k as u32,
+                    segment: 0,
+                    world_from_local: DMat4::IDENTITY,
+                    method,
+                    first_vertex,
+                    vertex_count: 8,
+                    first_index,
+                    index_count: 36,
+                    light_cap: first_index..first_index,
+                    dark_cap: first_index..first_index,
+                    depth_near: 1.0,
+                    depth_far: 0.0,
+                    scissor: VolumeRange::FULL_SCISSOR,
+                });
+            }
+        }
+        let vols: Vec<(Mat4, &VolumeRange)> = buf.ranges.iter().map(|r| (view, r)).collect();
+        let draw = |band_tile_rows| {
+            let mut s = StencilTarget::new(w, h, StencilBits::Wide).unwrap();
+            let mut st = StencilStats::default();
+            s.draw_volumes_banded(
+                &eye,
+                &vols,
+                &buf,
+                StencilTests::default(),
+                &mut st,
+                band_tile_rows,
+            )
+            .unwrap();
+            (s, st)
+        };
+        let (one, st1) = draw(1000);
+        for rows in [1, 3, 8] {
+            let (many, st) = draw(rows);
+            assert_eq!(st, st1, "{rows} tile rows per band");
+            for y in 0..h {
+                for x in 0..w {
+                    assert_eq!(
+                        many.value(x, y),
+                        one.value(x, y),
+                        "pixel ({x}, {y}), {rows} tile rows per band"
+                    );
+                }
+            }
+        }
+        assert!(st1.stencil_updates > 1000 && one.touched_pixels() > 1000);
+    }
 }
