@@ -217,9 +217,9 @@ pub fn run_job(
             if lf.reference.is_some() {
                 ref_runs += 1;
             }
-            add_reference(&mut totals, &row.reference);
-            add_shadow(&mut shadow_totals, &row.shadow);
-            add_check(&mut check_totals, &row.check);
+            totals.add(&row.reference);
+            shadow_totals.add(&row.shadow);
+            check_totals.add(&row.check);
             frame_ms_sum += row.frame_ms;
             writeln!(csv, "{}", row.csv_row())
                 .and_then(|_| csv.flush())
@@ -274,40 +274,6 @@ pub(crate) fn frame_camera(
         location: format!("camera (frame {frame})"),
         message: e.to_string(),
     })
-}
-
-/// Adds `b`'s counters and times to `a`.
-fn add_reference(a: &mut ReferenceStats, b: &ReferenceStats) {
-    a.reference_ms += b.reference_ms;
-    a.lit += b.lit;
-    a.shadow += b.shadow;
-    a.unlit += b.unlit;
-    a.background += b.background;
-    a.ambiguous += b.ambiguous;
-}
-
-/// Adds `b`'s counters and times to `a`.
-fn add_shadow(a: &mut ShadowStats, b: &ShadowStats) {
-    a.eye_ms += b.eye_ms;
-    a.silhouette_ms += b.silhouette_ms;
-    a.volume_ms += b.volume_ms;
-    a.stencil_ms += b.stencil_ms;
-    a.volume_triangles += b.volume_triangles;
-    a.silhouette_edges += b.silhouette_edges;
-    a.zpass_casters += b.zpass_casters;
-    a.zfail_casters += b.zfail_casters;
-    a.zpplus_casters += b.zpplus_casters;
-    a.pixels_processed += b.pixels_processed;
-    a.stencil_updates += b.stencil_updates;
-    a.shadowed_pixels += b.shadowed_pixels;
-}
-
-/// Adds `b`'s counters to `a`.
-fn add_check(a: &mut CheckStats, b: &CheckStats) {
-    a.mismatch_pixels += b.mismatch_pixels;
-    a.mismatch_off_boundary += b.mismatch_off_boundary;
-    a.ambiguous_pixels += b.ambiguous_pixels;
-    a.compared_pixels += b.compared_pixels;
 }
 
 fn ms(t: Instant) -> f64 {

@@ -98,6 +98,47 @@ pub struct FrameStats {
     pub frame_ms: f64,
 }
 
+/// `add` for summing rows into run totals, over the named fields.
+macro_rules! summable {
+    ($t:ty { $($f:ident),* $(,)? }) => {
+        impl $t {
+            /// Adds `other`'s counters (and times) to `self`.
+            pub fn add(&mut self, other: &Self) {
+                $(self.$f += other.$f;)*
+            }
+        }
+    };
+}
+
+summable!(ReferenceStats {
+    reference_ms,
+    lit,
+    shadow,
+    unlit,
+    background,
+    ambiguous
+});
+summable!(ShadowStats {
+    eye_ms,
+    silhouette_ms,
+    volume_ms,
+    stencil_ms,
+    volume_triangles,
+    silhouette_edges,
+    zpass_casters,
+    zfail_casters,
+    zpplus_casters,
+    pixels_processed,
+    stencil_updates,
+    shadowed_pixels,
+});
+summable!(CheckStats {
+    mismatch_pixels,
+    mismatch_off_boundary,
+    ambiguous_pixels,
+    compared_pixels,
+});
+
 /// Defines the flattened row once, so the CSV header, the CSV values and
 /// the tracing event can never disagree.
 macro_rules! stats_row {
@@ -212,6 +253,31 @@ mod tests {
         let sub = tracing_subscriber::registry().with(Capture(names.clone()));
         tracing::subscriber::with_default(sub, || FrameStats::default().emit());
         assert_eq!(*names.lock().unwrap(), FrameStats::COLUMNS);
+    }
+
+    #[test]
+    fn totals_add_every_field() {
+        let mut a = ShadowStats {
+            pixels_processed: 5,
+            stencil_ms: 1.5,
+            ..Default::default()
+        };
+        let b = ShadowStats {
+            pixels_processed: 7,
+            stencil_ms: 2.0,
+            shadowed_pixels: 3,
+            ..Default::default()
+        };
+        a.add(&b);
+        assert_eq!((a.pixels_processed, a.shadowed_pixels), (12, 3));
+        assert_eq!(a.stencil_ms, 3.5);
+        let mut c = CheckStats::default();
+        c.add(&CheckStats {
+            mismatch_pixels: 2,
+            compared_pixels: 9,
+            ..Default::default()
+        });
+        assert_eq!((c.mismatch_pixels, c.compared_pixels), (2, 9));
     }
 
     #[test]

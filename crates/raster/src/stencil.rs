@@ -525,15 +525,28 @@ impl Band<'_> {
         let rect = Rect { x0, x1, y0, y1 };
         let touched = &mut *self.touched;
         let base = self.base;
+        macro_rules! fill {
+            ($c:expr, $delta:expr) => {
+                fill_rows_dispatch(
+                    Fill {
+                        counters: $c,
+                        touched,
+                        base,
+                        width: w,
+                        eye,
+                        tri,
+                        rect,
+                        win,
+                        zfail,
+                        delta: $delta,
+                    },
+                    st,
+                )
+            };
+        }
         match &mut self.counters {
-            CountersMut::Eight(c) => {
-                let delta = if increment { 1 } else { u8::MAX };
-                fill_rows_dispatch(c, touched, base, w, eye, tri, &rect, win, zfail, delta, st);
-            }
-            CountersMut::Wide(c) => {
-                let delta = if increment { 1 } else { -1 };
-                fill_rows_dispatch(c, touched, base, w, eye, tri, &rect, win, zfail, delta, st);
-            }
+            CountersMut::Eight(c) => fill!(c, if increment { 1 } else { u8::MAX }),
+            CountersMut::Wide(c) => fill!(c, if increment { 1 } else { -1 }),
         }
     }
 }
@@ -629,61 +642,42 @@ impl Counter for i32 {
     }
 }
 
-/// [`fill_rows`], in its AVX2 build when the CPU has it: the run kernel
-/// ([`crate::stencil_run`]) then inlines into the row loop.
-#[allow(clippy::too_many_arguments)]
-#[inline(always)]
-fn fill_rows_dispatch<C: Counter>(
-    counters: &mut [C],
-    touched: &mut [u8],
+/// One triangle's fill in one band: where it writes, what it tests and adds.
+struct Fill<'a, C> {
+    /// The band's counters and touched flags, from tiled index `base`.
+    counters: &'a mut [C],
+    touched: &'a mut [u8],
     base: usize,
     width: u32,
-    eye: &DepthTarget,
-    tri: &Tri,
-    rect: &Rect,
-    win: &Window,
+    eye: &'a DepthTarget,
+    tri: &'a Tri,
+    rect: Rect,
+    win: &'a Window,
     zfail: bool,
     delta: C,
-    st: &mut StencilStats,
-) {
+}
+
+/// [`fill_rows`], in its AVX2 build when the CPU has it: the run kernel
+/// ([`crate::stencil_run`]) then inlines into the row loop.
+#[inline(always)]
+fn fill_rows_dispatch<C: Counter>(f: Fill<'_, C>, st: &mut StencilStats) {
     #[cfg(target_arch = "x86_64")]
     if crate::dispatch::avx2_available() {
         // SAFETY: `fill_rows_avx2` only requires AVX2, detected at runtime.
-        unsafe {
-            fill_rows_avx2(
-                counters, touched, base, width, eye, tri, rect, win, zfail, delta, st,
-            )
-        };
+        unsafe { fill_rows_avx2(f, st) };
         return;
     }
-    fill_rows(
-        counters, touched, base, width, eye, tri, rect, win, zfail, delta, st,
-    );
+    fill_rows(f, st);
 }
 
 /// [`fill_rows`] compiled with AVX2 enabled.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-#[allow(clippy::too_many_arguments)]
-unsafe fn fill_rows_avx2<C: Counter>(
-    counters: &mut [C],
-    touched: &mut [u8],
-    base: usize,
-    width: u32,
-    eye: &DepthTarget,
-    tri: &Tri,
-    rect: &Rect,
-    win: &Window,
-    zfail: bool,
-    delta: C,
-    st: &mut StencilStats,
-) {
-    fill_rows(
-        counters, touched, base, width, eye, tri, rect, win, zfail, delta, st,
-    );
+unsafe fn fill_rows_avx2<C: Counter>(f: Fill<'_, C>, st: &mut StencilStats) {
+    fill_rows(f, st);
 }
 
-/// The per-pixel loop of [`StencilTarget::fill_tri`], monomorphized per counter type:
+/// The per-pixel loop of [`Band::fill_tri`], monomorphized per counter type:
 /// adds `delta` (wrapping) to each covered pixel of `rect` that is not background,
 /// lies within the depth window and passes (zpass) or fails (zfail) the strict test.
 ///
@@ -692,21 +686,20 @@ unsafe fn fill_rows_avx2<C: Counter>(
 /// carried as f64: they are integers below 2⁵³ (see `edge.rs`), so stepping them
 /// in f64 is exact and the depth `Σ E_i·z_i / area` is bit-identical to the eye
 /// pass's.
-#[allow(clippy::too_many_arguments)]
 #[inline(always)]
-fn fill_rows<C: Counter>(
-    counters: &mut [C],
-    touched: &mut [u8],
-    base: usize,
-    width: u32,
-    eye: &DepthTarget,
-    tri: &Tri,
-    rect: &Rect,
-    win: &Window,
-    zfail: bool,
-    delta: C,
-    st: &mut StencilStats,
-) {
+fn fill_rows<C: Counter>(f: Fill<'_, C>, st: &mut StencilStats) {
+    let Fill {
+        counters,
+        touched,
+        base,
+        width,
+        eye,
+        tri,
+        rect,
+        win,
+        zfail,
+        delta,
+    } = f;
     let layout = eye.layout;
     let depth = &eye.depth;
     let off = edge_offsets(tri, Coverage::Standard);
