@@ -105,11 +105,12 @@ pub fn assemble(
         "primitive ids size"
     );
     let mut mask = Mask::filled(width, height, PixelClass::Background);
+    let rays = camera.rays(width, height);
     for (i, p) in primitive.iter().enumerate() {
         let Some((obj, t)) = *p else { continue };
         let tri = scene.world_triangle(obj, t as usize);
         let (x, y) = (i as u32 % width, i as u32 / width);
-        let dir = camera.ray_direction(x as f64 + 0.5, y as f64 + 0.5, width, height);
+        let dir = rays.direction(x as f64 + 0.5, y as f64 + 0.5);
         // Eye-relative plane intersection keeps precision far from the origin.
         let e = camera.position;
         let n = (tri[1] - tri[0]).cross(tri[2] - tri[0]);

@@ -72,10 +72,20 @@ pub fn eye_pass(
 ) -> Result<EyePass> {
     let mut target = DepthTarget::new(width, height, TileSize::T8, true)?;
     target.set_threads(rayon::current_num_threads());
-    let items: Vec<DrawItem> = scene
+    // Front to back (by the distance from the eye to each object's bounds centre), so
+    // hierarchical z rejects most hidden triangles; the depth and ids do not
+    // depend on the order (nearest depth, then smallest id, wins).
+    let mut order: Vec<(f64, usize)> = scene
         .objects()
         .iter()
         .enumerate()
+        .map(|(i, o)| (o.world_bounds.center().distance_squared(camera.position), i))
+        .collect();
+    order.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let objects = scene.objects();
+    let items: Vec<DrawItem> = order
+        .iter()
+        .map(|&(_, i)| (i, &objects[i]))
         .map(|(i, o)| DrawItem {
             clip_from_local: scene::transform::clip_from_local(camera, &o.world_from_local),
             positions: &meshes.positions[o.mesh.0 as usize],

@@ -386,13 +386,14 @@ pub fn reference_mask(
         },
         Light::Directional { direction } => Light::Directional { direction },
     };
+    let rays = camera.rays(width, height);
     let mut out: Vec<(PixelClass, bool, Option<PrimitiveId>, f32)> =
         vec![(PixelClass::Background, false, None, 0.0); n];
     out.par_chunks_mut(width.max(1) as usize)
         .enumerate()
         .for_each(|(y, row)| {
             for (x, px) in row.iter_mut().enumerate() {
-                let dir = camera.ray_direction(x as f64 + 0.5, y as f64 + 0.5, width, height);
+                let dir = rays.direction(x as f64 + 0.5, y as f64 + 0.5);
                 let hit = match (&surface, &lookup) {
                     (Some(s), Some(l)) => s.primitive[y * width as usize + x].map(|id| {
                         let k = *l
@@ -429,7 +430,7 @@ pub fn reference_mask(
                 let c = class_at(p);
                 let sideways = |dx: f64, dy: f64| {
                     let (px, py) = (x as f64 + 0.5 + dx, y as f64 + 0.5 + dy);
-                    let d = camera.ray_direction(px, py, width, height);
+                    let d = rays.direction(px, py);
                     let t = plane_distance(&bvh.rel(k), eye, d);
                     t.is_finite() && class_at(eye + d * t) != c
                 };

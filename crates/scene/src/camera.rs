@@ -166,11 +166,19 @@ impl Camera {
     /// World-space unit direction of the ray through pixel centre `(px, py)`
     /// (pixel units, row 0 at the top) of a `width × height` viewport.
     pub fn ray_direction(&self, px: f64, py: f64, width: u32, height: u32) -> DVec3 {
-        let ndc_x = 2.0 * px / width as f64 - 1.0;
-        let ndc_y = 1.0 - 2.0 * py / height as f64;
-        let t = (0.5 * self.fov_y).tan();
-        let d = DVec3::new(ndc_x * t * self.aspect, ndc_y * t, -1.0);
-        (self.orientation * d).normalize()
+        self.rays(width, height).direction(px, py)
+    }
+
+    /// [`Camera::ray_direction`] for many pixels of one viewport, with the
+    /// per-viewport terms computed once (same results, bit for bit).
+    pub fn rays(&self, width: u32, height: u32) -> Rays {
+        Rays {
+            orientation: self.orientation,
+            tan_half_fov: (0.5 * self.fov_y).tan(),
+            aspect: self.aspect,
+            width: width as f64,
+            height: height as f64,
+        }
     }
 
     /// The view frustum (far end at infinity), planes with unit inside normals.
@@ -203,6 +211,29 @@ impl Camera {
             near_corners,
             far_directions,
         }
+    }
+}
+
+/// Eye-ray directions of one camera and viewport ([`Camera::rays`]).
+#[derive(Clone, Copy, Debug)]
+pub struct Rays {
+    orientation: DQuat,
+    tan_half_fov: f64,
+    aspect: f64,
+    width: f64,
+    height: f64,
+}
+
+impl Rays {
+    /// World-space unit direction through pixel position `(px, py)` (pixel
+    /// units, row 0 at the top).
+    #[inline]
+    pub fn direction(&self, px: f64, py: f64) -> DVec3 {
+        let ndc_x = 2.0 * px / self.width - 1.0;
+        let ndc_y = 1.0 - 2.0 * py / self.height;
+        let t = self.tan_half_fov;
+        let d = DVec3::new(ndc_x * t * self.aspect, ndc_y * t, -1.0);
+        (self.orientation * d).normalize()
     }
 }
 

@@ -34,7 +34,7 @@ mod scene;
 pub mod transform;
 
 pub use aabb::Aabb;
-pub use camera::{Camera, LookAt};
+pub use camera::{Camera, LookAt, Rays};
 pub use camera_path::CameraPath;
 pub use error::{Error, Result};
 pub use facing::faces_light;
