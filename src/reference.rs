@@ -30,11 +30,19 @@
 //!   eye-ray direction) differs from the class at `p`: coplanar casters,
 //!   grazing light, a light in a face's plane, points on a shadow edge within
 //!   the depth error; or when the class differs at the points of the surface's
-//!   plane seen through the pixel centre moved by ±[`SNAP_PROBE_PX`] in x or y.
+//!   plane seen through the pixel centre moved by ±[`SNAP_PROBE_PX`] in x or y;
+//!   or when the eye ray crosses the boundary of the visible triangle's own
+//!   shadow prism (a plane through one of its edges along the light direction)
+//!   within that window of `p` — a terminator under grazing light, where the
+//!   surface and a side of its own shadow volume nearly coincide and the
+//!   rasterizer's order of the two decides the count (the reference never
+//!   lets a triangle shadow itself, so its class cannot show this).
 //!   The rasterizer snaps every vertex to 1/256 pixel, moving each projected
 //!   edge and each interpolated plane by up to half of that sideways (an error
 //!   ε_z does not cover: on a grazing surface it is many δ along the ray), so
 //!   a pixel whose class flips within that distance can go either way.
+//!   Along the ray the window is δ, widened to twice the distance between `p`
+//!   and the rasterized surface when the eye buffer's depth is given.
 //!   Ambiguous pixels are excluded from comparisons and counted.
 //!
 //! Both δ terms scale with depth, so the rule is the same at scene scales
@@ -436,7 +444,8 @@ pub fn reference_mask(
                 };
                 let s = SNAP_PROBE_PX;
                 let ambiguous = c.is_compared()
-                    && (class_at(p - dir * window) != c
+                    && (near_own_prism(&tri, eye, dir, t, window, &light_rel)
+                        || class_at(p - dir * window) != c
                         || class_at(p + dir * window) != c
                         || sideways(s, 0.0)
                         || sideways(-s, 0.0)
@@ -474,6 +483,40 @@ pub fn reference_mask(
         lambert,
         counts,
     }
+}
+
+/// Whether the eye ray `eye + t·dir` crosses the boundary of the visible
+/// triangle's own shadow prism — a plane through one of its edges along the
+/// light direction — within `window` of the surface point at `t_surface`.
+///
+/// There the surface and a side of its own shadow volume (present wherever that
+/// edge is a silhouette edge) are within the depth error of each other, and
+/// which one the rasterizer puts in front changes the stencil count by one; the
+/// reference, which never lets a triangle shadow itself, cannot see it. Away
+/// from grazing light the planes meet the surface steeply, so this flags only
+/// pixel centres within a hair of an edge; under grazing light (the light
+/// nearly in the surface's plane: the terminator) it flags the band where the
+/// prism side and the surface are closer than the window.
+fn near_own_prism(
+    tri: &[DVec3; 3],
+    eye: DVec3,
+    dir: DVec3,
+    t_surface: f64,
+    window: f64,
+    light_rel: &Light,
+) -> bool {
+    let p = eye + dir * t_surface;
+    let to_light = light_rel.toward_light(p);
+    (0..3).any(|i| {
+        let (u, v) = (tri[i], tri[(i + 1) % 3]);
+        let m = (v - u).cross(to_light);
+        let den = m.dot(dir);
+        if den == 0.0 || m == DVec3::ZERO {
+            return false;
+        }
+        let t = m.dot(u - eye) / den;
+        (t - t_surface).abs() <= window
+    })
 }
 
 /// Distance along the ray to the triangle's plane (infinite when parallel).

@@ -257,27 +257,20 @@ fn far_from_the_origin_and_scaled() {
 /// (320×240), with its criterion unchanged: no mismatch off a reference shadow
 /// boundary and at most 0.01% of the image on one; for Auto, forced zfail and
 /// forced zp+ (whose masks must also equal Auto's on every pixel), one- and
-/// two-sided. Run with `cargo test --release --test stencil_exact -- --ignored
-/// --nocapture shared_jobs` for the table (about 30 s in release).
+/// two-sided. `cargo test --release --test stencil_exact -- --nocapture
+/// shared_jobs` prints the table (about 35 s in release).
 ///
-/// State: 63 of the 64 views (8 jobs × 2 cameras × 4 lights) pass in all six
-/// variants, and the methods agree on every pixel of every view. One pixel of
-/// one view fails, the same in all six variants: bunny,
-/// camera 1, light 3 (sun), pixel (135, 85). The reference says shadow (caster
-/// triangle 35747, 12% margin); the stencil says lit because the zpass side
-/// face of volume triangle 2722 (a silhouette edge of the visible surface's own
-/// light-facing region, a terminator) crosses the eye ray 0.3·δ *behind* the
-/// surface in exact arithmetic, and the rasterized face lands in front of the
-/// rasterized surface. The reference's ±δ probes do not flag it as ambiguous,
-/// because behind the surface they ignore what lies before the surface's
-/// plane, which the volume model does not (`diagnose_one_pixel` with
-/// `SHADOWCULL_DIAG_PIXEL=bunny,1,3,135,85` prints the analysis).
-/// Fixed on the way here: the stencil now counts every snapped fan piece by its
-/// own snapped orientation (rocker-arm, engine), OBJ geometry far from the origin
-/// is recentred (city.obj), and the reference's ambiguity covers 1/256-pixel
-/// vertex snapping and the eye buffer's measured depth error.
+/// All 64 views pass in all six variants, and the methods agree on every
+/// pixel of every view. On the way here: the stencil counts every snapped fan
+/// piece by its own snapped orientation (rocker-arm, engine), OBJ geometry far
+/// from the origin is recentred (city.obj), and the reference's ambiguity covers
+/// 1/256-pixel vertex snapping, the eye buffer's measured depth error and the
+/// boundary of the visible triangle's own shadow prism (bunny, camera 1, light
+/// 3, pixel (135, 85): the sun at n·l = 4·10⁻⁵ to the surface, where the
+/// surface's own volume side passes 0.3·δ behind it;
+/// `SHADOWCULL_DIAG_PIXEL=bunny,1,3,135,85` with `diagnose_one_pixel` prints
+/// such a pixel's analysis).
 #[test]
-#[ignore = "one bunny pixel (camera 1, light 3, (135, 85)) off a boundary; see the doc comment"]
 fn shared_jobs_match_the_reference() {
     use shadowcull::config::{resolve_camera, Job};
     use shadowcull::run::prepare_scene;
