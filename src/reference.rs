@@ -432,10 +432,23 @@ pub fn reference_mask(
                     (db - depth).abs() / dir.dot(forward)
                 });
                 let window = delta.max(2.0 * buffer_error);
-                let class_at = |q: DVec3| {
-                    classify(bvh, k, eye, q, delta, light, &light_rel, options.two_sided)
+                let classify_at = |q: DVec3, behind_rule: bool| {
+                    classify(
+                        bvh,
+                        k,
+                        eye,
+                        q,
+                        delta,
+                        light,
+                        &light_rel,
+                        options.two_sided,
+                        behind_rule,
+                    )
                 };
-                let c = class_at(p);
+                let c = classify_at(p, true);
+                // Probes ask what the class would be were the surface there: only
+                // the surface's own triangle and hits within δ are ignored.
+                let class_at = |q: DVec3| classify_at(q, false);
                 let sideways = |dx: f64, dy: f64| {
                     let (px, py) = (x as f64 + 0.5 + dx, y as f64 + 0.5 + dy);
                     let d = rays.direction(px, py);
@@ -541,6 +554,7 @@ fn classify(
     light: &Light,
     light_rel: &Light,
     two_sided: bool,
+    behind_rule: bool,
 ) -> PixelClass {
     let c = bvh.center;
     if is_unlit(&bvh.tris[k], eye + c, light, q + c, two_sided) {
@@ -563,7 +577,7 @@ fn classify(
     let side_eye = n.dot(eye - tri[0]).signum();
     let behind = n.dot(q - tri[0]) * side_eye; // < 0: q behind the visible side
     let mut tmin = delta;
-    if behind < 0.0 {
+    if behind_rule && behind < 0.0 {
         let den = n.dot(dir);
         if den != 0.0 {
             let t_plane = n.dot(tri[0] - q) / den;

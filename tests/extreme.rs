@@ -1215,28 +1215,26 @@ fn stacks_under_a_grazing_sun(lift: f32) {
 }
 
 #[test]
-#[ignore = "exactly coplanar stacks under a sun 0.057 deg above the horizon: 13-15 pixels per view \
-            off the reference boundary, pipeline Shadow where the reference says Lit (not ambiguous), \
-            on receivers 0.003-0.2 downwind of a coplanar caster's edge (e.g. sheet a at \
-            (-2.47, 2, -0.19) for sun (0, -0.001, -1), ground at (1.056, 0, 3.069) for sun (1, -0.001, 0.2)); \
-            the reference reports 0 ambiguous pixels"]
+#[ignore = "exactly coplanar stacks under a sun 0.057 deg above the horizon: 4-8 pixels per view \
+            off the reference boundary, pipeline Shadow where the reference says Lit, on receivers \
+            0.003-0.2 downwind of a coplanar caster's edge where the caster's volume side runs \
+            3e-6..5e-5 under the receiver (up to ~6 delta along the eye ray, beyond the reference's \
+            ambiguity window: the rasterizer's real error on such faces exceeds DEPTH_ERROR)"]
 fn coplanar_stacks_under_a_grazing_sun() {
     stacks_under_a_grazing_sun(0.0);
 }
 
 #[test]
-#[ignore = "sheet 1e-5 above the ground under a sun 0.057 deg above the horizon: 161-171 pixels off \
-            the reference boundary (231-237 mismatches): the eye pass shows the ground through the \
-            sheet (1.2 delta nearer along the eye ray), the reference shadows that ground point, the \
-            stencil leaves it Lit; plus the coplanar-stack pixels of coplanar_stacks_under_a_grazing_sun"]
+#[ignore = "sheet 1e-5 above the ground under a sun 0.057 deg above the horizon: 5-11 pixels per \
+            view off the reference boundary, the pixels of coplanar_stacks_under_a_grazing_sun"]
 fn stacks_lifted_1e_5_under_a_grazing_sun() {
     stacks_under_a_grazing_sun(1e-5);
 }
 
 #[test]
-#[ignore = "sheet 1e-3 above the ground under a sun 0.057 deg above the horizon: 16-18 mismatches per \
-            view (> 1 allowed), 9 off the reference boundary for sun (0, -0.001, -1) (sheet a at \
-            y = 2 downwind of sheet b's edge, as in coplanar_stacks_under_a_grazing_sun)"]
+#[ignore = "sheet 1e-3 above the ground under a sun 0.057 deg above the horizon: 8-14 mismatches per \
+            view (> 1 allowed), 2 off the reference boundary for sun (0, -0.001, -1), as in \
+            coplanar_stacks_under_a_grazing_sun"]
 fn stacks_lifted_1e_3_under_a_grazing_sun() {
     stacks_under_a_grazing_sun(1e-3);
 }
