@@ -298,6 +298,7 @@ fn main() -> anyhow::Result<()> {
         "zpplus_casters": row.shadow.zpplus_casters,
         "pixels_processed": row.shadow.pixels_processed,
         "stencil_updates": row.shadow.stencil_updates,
+        "pixels_touched": row.shadow.pixels_touched,
         "shadowed_pixels": row.shadow.shadowed_pixels,
     });
     if a.reference {

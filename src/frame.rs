@@ -126,6 +126,7 @@ impl<'s> FrameRunner<'s> {
                     zpplus_casters: v.zpplus as u64,
                     pixels_processed: shadow.stencil.pixels_processed,
                     stencil_updates: shadow.stencil.stencil_updates,
+                    pixels_touched: shadow.stencil.pixels_touched,
                     shadowed_pixels: shadow.mask.counts().shadow,
                 },
                 ..Default::default()

@@ -25,25 +25,27 @@
 //! - The shadow ray from a point `q` ignores the surface's own triangle and
 //!   every hit nearer than `δ` (self-shadow), and — when `q` lies behind the
 //!   surface's plane — every hit before the ray has crossed that plane plus `δ`
-//!   (what lies behind the visible surface cannot shadow it).
-//! - A pixel is *ambiguous* when the class at `p − δ·e` or `p + δ·e` (e the unit
-//!   eye-ray direction) differs from the class at `p`: coplanar casters,
-//!   grazing light, a light in a face's plane, points on a shadow edge within
-//!   the depth error; or when the class differs at the points of the surface's
-//!   plane seen through the pixel centre moved by ±[`SNAP_PROBE_PX`] in x or y;
-//!   or when the eye ray crosses the boundary of the visible triangle's own
-//!   shadow prism (a plane through one of its edges along the light direction)
-//!   within that window of `p` — a terminator under grazing light, where the
-//!   surface and a side of its own shadow volume nearly coincide and the
-//!   rasterizer's order of the two decides the count (the reference never
-//!   lets a triangle shadow itself, so its class cannot show this).
-//!   The rasterizer snaps every vertex to 1/256 pixel, moving each projected
-//!   edge and each interpolated plane by up to half of that sideways (an error
-//!   ε_z does not cover: on a grazing surface it is many δ along the ray), so
-//!   a pixel whose class flips within that distance can go either way.
-//!   Along the ray the window is δ, widened to twice the distance between `p`
-//!   and the rasterized surface when the eye buffer's depth is given.
-//!   Ambiguous pixels are excluded from comparisons and counted.
+//!   (what lies behind the visible surface cannot shadow it). The ambiguity
+//!   probes below classify as if the surface were at the probe point: only
+//!   its own triangle and hits nearer than `δ` are ignored there.
+//! - A pixel is *ambiguous* when one of these holds (ambiguous pixels are
+//!   excluded from comparisons and counted):
+//!   - along the eye ray, the class at `p ± w·e` differs from `p`'s (e the unit eye-ray direction), with the
+//!     window `w = δ`, widened to twice the distance between `p` and the
+//!     rasterized surface when the eye buffer's depth is given: coplanar
+//!     casters, grazing light, a light in a face's plane, points on a shadow
+//!     edge within the depth error;
+//!   - across the screen, the class differs at the points of the surface's
+//!     plane seen through the pixel centre moved by ±[`SNAP_PROBE_PX`] in x or y: the rasterizer
+//!     snaps every vertex to 1/256 pixel, moving each projected edge and each
+//!     interpolated plane by up to half of that sideways (an error ε_z does not
+//!     cover: on a grazing surface it is many δ along the ray);
+//!   - the eye ray crosses a plane through an edge of the
+//!     visible triangle along the light direction within `w` of `p` — a
+//!     terminator under grazing light, where the surface and a side of its own
+//!     shadow volume nearly coincide and the rasterizer's order of the two
+//!     decides the count (the reference never lets a triangle shadow itself,
+//!     so its class cannot show this).
 //!
 //! Both δ terms scale with depth, so the rule is the same at scene scales
 //! 1e-3 and 1e3 and at coordinates of 1e5 and 1e6.

@@ -61,6 +61,8 @@ pub struct ShadowStats {
     pub pixels_processed: u64,
     /// Stencil values changed.
     pub stencil_updates: u64,
+    /// Distinct pixels whose stencil value was changed at least once.
+    pub pixels_touched: u64,
     /// Pixels the pipeline's mask classes shadow.
     pub shadowed_pixels: u64,
 }
@@ -130,6 +132,7 @@ summable!(ShadowStats {
     zpplus_casters,
     pixels_processed,
     stencil_updates,
+    pixels_touched,
     shadowed_pixels,
 });
 summable!(CheckStats {
@@ -184,6 +187,7 @@ stats_row! {
     zpplus_casters: shadow.zpplus_casters,
     pixels_processed: shadow.pixels_processed,
     stencil_updates: shadow.stencil_updates,
+    pixels_touched: shadow.pixels_touched,
     shadowed_pixels: shadow.shadowed_pixels,
     mismatch_pixels: check.mismatch_pixels,
     mismatch_off_boundary: check.mismatch_off_boundary,
