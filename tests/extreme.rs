@@ -6,7 +6,7 @@
 
 mod common;
 
-use common::scene_of;
+use common::{boxes_on_ground, scene_of};
 use glam::{DMat4, DQuat, DVec3, Vec3};
 use scene::procedural::analytic;
 use scene::{Camera, Light, Mesh, ObjectId, Scene, SceneGraph, Transform};
@@ -21,24 +21,6 @@ const W: u32 = 160;
 const H: u32 = 120;
 
 // ---------------------------------------------------------------- scenes
-
-/// The ground, a tower, a slab and an open awning (as in `stencil_exact`).
-fn boxes_on_ground(root: Transform) -> Scene {
-    scene_of(
-        vec![
-            analytic::horizontal_quad("ground", [-10.0, 10.0], [-10.0, 10.0], 0.0, true).unwrap(),
-            analytic::box_mesh(
-                "tower",
-                Vec3::new(-1.0, 0.0, -1.0),
-                Vec3::new(1.0, 3.0, 1.0),
-            )
-            .unwrap(),
-            analytic::box_mesh("slab", Vec3::new(2.0, 1.0, 2.0), Vec3::new(3.0, 1.5, 4.0)).unwrap(),
-            analytic::horizontal_quad("awning", [-4.0, -2.0], [1.0, 3.0], 2.0, true).unwrap(),
-        ],
-        root,
-    )
-}
 
 fn ground(half: f32) -> Mesh {
     analytic::horizontal_quad("ground", [-half, half], [-half, half], 0.0, true).unwrap()

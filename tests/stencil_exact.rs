@@ -5,31 +5,13 @@
 
 mod common;
 
-use common::scene_of;
-use glam::{DMat4, DVec3, Vec3};
-use scene::procedural::analytic;
+use common::{boxes_on_ground, overview_camera};
+use glam::{DMat4, DVec3};
 use scene::{Camera, Light, Scene, Transform};
 use shadowcull::mask::compare;
 use shadowcull::pipeline::{eye_pass, shadow_mask, MeshCache, ShadowOptions, ShadowScratch};
 use shadowcull::reference::{reference_mask, ReferenceOptions, TriangleBvh};
 use shadowgen::MethodChoice;
-
-fn boxes_on_ground(root: Transform) -> Scene {
-    scene_of(
-        vec![
-            analytic::horizontal_quad("ground", [-10.0, 10.0], [-10.0, 10.0], 0.0, true).unwrap(),
-            analytic::box_mesh(
-                "tower",
-                Vec3::new(-1.0, 0.0, -1.0),
-                Vec3::new(1.0, 3.0, 1.0),
-            )
-            .unwrap(),
-            analytic::box_mesh("slab", Vec3::new(2.0, 1.0, 2.0), Vec3::new(3.0, 1.5, 4.0)).unwrap(),
-            analytic::horizontal_quad("awning", [-4.0, -2.0], [1.0, 3.0], 2.0, true).unwrap(),
-        ],
-        root,
-    )
-}
 
 /// Runs pipeline and reference on one view; returns (mismatches, off-boundary, compared).
 fn check(
@@ -100,15 +82,7 @@ fn assert_exact(what: &str, (mism, off, compared): (u64, u64, u64)) {
 #[test]
 fn stencil_mask_matches_the_reference_for_every_method() {
     let s = boxes_on_ground(Transform::default());
-    let cam = Camera::look_at(
-        DVec3::new(2.0, 9.0, 12.0),
-        DVec3::ZERO,
-        DVec3::Y,
-        50f64.to_radians(),
-        4.0 / 3.0,
-        0.05,
-    )
-    .unwrap();
+    let cam = overview_camera();
     for (li, light) in lights().iter().enumerate() {
         for method in [MethodChoice::Auto, MethodChoice::ZFail] {
             assert_exact(
@@ -192,15 +166,7 @@ fn finite_extrusion_gives_the_infinite_volumes_mask_within_range() {
     // extruded (closed) volumes must give the infinite volumes' mask, for every
     // method, and match the reference.
     let s = boxes_on_ground(Transform::default());
-    let cam = Camera::look_at(
-        DVec3::new(2.0, 9.0, 12.0),
-        DVec3::ZERO,
-        DVec3::Y,
-        50f64.to_radians(),
-        4.0 / 3.0,
-        0.05,
-    )
-    .unwrap();
+    let cam = overview_camera();
     let (w, h) = (160u32, 120u32);
     let meshes = MeshCache::new(&s);
     let eye = eye_pass(&s, &meshes, &cam, w, h).unwrap();

@@ -1,6 +1,8 @@
 //! Helpers shared by the facade's integration-test binaries.
 
-use scene::{Mesh, Scene, SceneGraph, Transform};
+use glam::{DVec3, Vec3};
+use scene::procedural::analytic;
+use scene::{Camera, Mesh, Scene, SceneGraph, Transform};
 
 /// A scene of one root node with `root`'s transform drawing every mesh once.
 pub fn scene_of(meshes: Vec<Mesh>, root: Transform) -> Scene {
@@ -13,4 +15,37 @@ pub fn scene_of(meshes: Vec<Mesh>, root: Transform) -> Scene {
         children: vec![],
     });
     Scene::new(g).unwrap()
+}
+
+/// The ground, a tower, a slab and an open awning: the stencil tests' scene.
+#[allow(dead_code)] // not every test binary uses it
+pub fn boxes_on_ground(root: Transform) -> Scene {
+    scene_of(
+        vec![
+            analytic::horizontal_quad("ground", [-10.0, 10.0], [-10.0, 10.0], 0.0, true).unwrap(),
+            analytic::box_mesh(
+                "tower",
+                Vec3::new(-1.0, 0.0, -1.0),
+                Vec3::new(1.0, 3.0, 1.0),
+            )
+            .unwrap(),
+            analytic::box_mesh("slab", Vec3::new(2.0, 1.0, 2.0), Vec3::new(3.0, 1.5, 4.0)).unwrap(),
+            analytic::horizontal_quad("awning", [-4.0, -2.0], [1.0, 3.0], 2.0, true).unwrap(),
+        ],
+        root,
+    )
+}
+
+/// The view of [`boxes_on_ground`] from above and in front (4:3, fov_y 50°).
+#[allow(dead_code)] // not every test binary uses it
+pub fn overview_camera() -> Camera {
+    Camera::look_at(
+        DVec3::new(2.0, 9.0, 12.0),
+        DVec3::ZERO,
+        DVec3::Y,
+        50f64.to_radians(),
+        4.0 / 3.0,
+        0.05,
+    )
+    .unwrap()
 }
