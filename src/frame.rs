@@ -9,7 +9,9 @@
 
 use crate::config::PipelineOptions;
 use crate::mask::{compare, Mask};
-use crate::pipeline::{eye_pass, shadow_mask, EyePass, MeshCache, ShadowFrame, ShadowScratch};
+use crate::pipeline::{
+    eye_pass_reusing, shadow_mask, EyePass, MeshCache, ShadowFrame, ShadowScratch,
+};
 use crate::reference::{reference_mask, ReferenceMask, TriangleBvh};
 use crate::stats::{CheckStats, FrameStats, ReferenceStats, SceneStats, ShadowStats};
 use crate::Result;
@@ -29,6 +31,8 @@ pub struct FrameRunner<'s> {
     meshes: MeshCache,
     bvh: Option<TriangleBvh>,
     scratch: Vec<ShadowScratch>,
+    /// The last frame's eye pass, whose buffers the next one reuses.
+    eye: Option<EyePass>,
     /// Reference masks by (frame, light, reference options), when caching.
     references: Option<HashMap<ReferenceKey, ReferenceMask>>,
     /// Time spent building the reference's BVH (ms), 0 until it is built.
@@ -54,6 +58,7 @@ impl<'s> FrameRunner<'s> {
             meshes: MeshCache::new(scene),
             bvh: None,
             scratch: Vec::new(),
+            eye: None,
             references: None,
             bvh_ms: 0.0,
         }
@@ -87,7 +92,8 @@ impl<'s> FrameRunner<'s> {
         reference: bool,
     ) -> Result<Vec<LightFrame>> {
         let t = Instant::now();
-        let eye = eye_pass(self.scene, &self.meshes, camera, width, height)?;
+        let previous = self.eye.take();
+        let eye = eye_pass_reusing(self.scene, &self.meshes, camera, width, height, previous)?;
         let eye_ms = ms(t);
         if self.scratch.len() < lights.len() {
             self.scratch
@@ -159,6 +165,7 @@ impl<'s> FrameRunner<'s> {
                 reference,
             });
         }
+        self.eye = Some(eye);
         Ok(out)
     }
 

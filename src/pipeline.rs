@@ -70,7 +70,34 @@ pub fn eye_pass(
     width: u32,
     height: u32,
 ) -> Result<EyePass> {
-    let mut target = DepthTarget::new(width, height, TileSize::T8, true)?;
+    eye_pass_reusing(scene, meshes, camera, width, height, None)
+}
+
+/// [`eye_pass`], reusing `previous`'s buffers when it has the same size (a
+/// frame's fresh multi-megabyte buffers otherwise cost page faults every frame).
+///
+/// # Errors
+/// As [`eye_pass`].
+pub fn eye_pass_reusing(
+    scene: &Scene,
+    meshes: &MeshCache,
+    camera: &Camera,
+    width: u32,
+    height: u32,
+    previous: Option<EyePass>,
+) -> Result<EyePass> {
+    let (mut target, mut primitive, mut depth) = match previous {
+        Some(p) if (p.target.width(), p.target.height()) == (width, height) => {
+            let mut t = p.target;
+            t.clear();
+            (t, p.primitive, p.depth)
+        }
+        _ => (
+            DepthTarget::new(width, height, TileSize::T8, true)?,
+            Vec::new(),
+            Vec::new(),
+        ),
+    };
     target.set_threads(rayon::current_num_threads());
     // Front to back (by the distance from the eye to each object's bounds centre), so
     // hierarchical z rejects most hidden triangles; the depth and ids do not
@@ -95,13 +122,19 @@ pub fn eye_pass(
         .collect();
     // One batch: bands of tile rows in parallel; equal to drawing one by one.
     target.draw_batch(&items, Coverage::Standard)?;
-    let mut primitive = Vec::with_capacity(width as usize * height as usize);
+    primitive.clear();
+    primitive.reserve(width as usize * height as usize);
     for y in 0..height {
         for x in 0..width {
             primitive.push(target.id_at(x, y).map(|(o, t)| (ObjectId(o), t)));
         }
     }
-    let depth = target.depth_rows();
+    depth.clear();
+    depth.extend(
+        (0..height)
+            .flat_map(|y| (0..width).map(move |x| (x, y)))
+            .map(|(x, y)| target.depth_at(x, y).unwrap_or(raster::BACKGROUND)),
+    );
     Ok(EyePass {
         target,
         primitive,
@@ -163,6 +196,7 @@ pub struct ShadowFrame {
 pub struct ShadowScratch {
     cache: SilhouetteCache,
     volumes: VolumeBuffer,
+    stencil: Option<StencilTarget>,
 }
 
 impl std::fmt::Debug for ShadowScratch {
@@ -205,7 +239,13 @@ pub fn shadow_mask(
         &mut scratch.cache,
     )?;
     let t = std::time::Instant::now();
-    let mut stencil = StencilTarget::new(w, h, options.bits)?;
+    let mut stencil = match scratch.stencil.take() {
+        Some(mut s) if (s.width(), s.height(), s.bits()) == (w, h, options.bits) => {
+            s.clear();
+            s
+        }
+        _ => StencilTarget::new(w, h, options.bits)?,
+    };
     let mut stats = StencilStats::default();
     let tests = raster::StencilTests {
         scissor: options.scissor,
@@ -235,6 +275,7 @@ pub fn shadow_mask(
         shadowed,
         options.two_sided,
     );
+    scratch.stencil = Some(stencil);
     Ok(ShadowFrame {
         mask,
         volumes,
