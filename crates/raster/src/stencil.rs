@@ -721,7 +721,12 @@ fn fill_rows<C: Counter>(f: Fill<'_, C>, st: &mut StencilStats) {
             // the window; the band is skipped when there is none.
             let yb = rect.y1.min(y | (tile - 1));
             let (ty, tiles_x) = ((y >> layout.shift) as u32, layout.tiles_x as i64);
-            let (mut lo, mut hi) = band_extent(tri, y, yb).unwrap_or((1, 0));
+            // Narrow pieces: their own columns are as good as the band's extent.
+            let (mut lo, mut hi) = if rect.x1 - rect.x0 < 32 {
+                (rect.x0, rect.x1)
+            } else {
+                band_extent(tri, y, yb).unwrap_or((1, 0))
+            };
             lo = lo.max(rect.x0);
             hi = hi.min(rect.x1);
             let (mut t0, mut t1) = (lo.max(0) >> layout.shift, hi.max(-1) >> layout.shift);
