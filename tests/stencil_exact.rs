@@ -282,6 +282,26 @@ fn far_from_the_origin_and_scaled() {
     }
 }
 
+/// The shared-scene jobs (`data/jobs/shared_*.ron`) whose name contains
+/// `pick`, sorted; none (with a note) when `../shared/data` is absent.
+fn shared_jobs(pick: &str) -> Vec<std::path::PathBuf> {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    if !root.join("../shared/data").is_dir() {
+        println!("note: ../shared/data is absent; skipping the shared-scene jobs");
+        return Vec::new();
+    }
+    let mut files: Vec<_> = std::fs::read_dir(root.join("data/jobs"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| {
+            let n = p.file_name().unwrap().to_str().unwrap();
+            n.starts_with("shared_") && n.contains(pick)
+        })
+        .collect();
+    files.sort();
+    files
+}
+
 /// Issue 4's exactness matrix on every shared job at the job's resolution
 /// (320×240), with its criterion unchanged: no mismatch off a reference shadow
 /// boundary and at most 0.01% of the image on one; for Auto, forced zfail and
@@ -301,33 +321,15 @@ fn far_from_the_origin_and_scaled() {
 /// such a pixel's analysis).
 #[test]
 fn shared_jobs_match_the_reference() {
-    use shadowcull::config::{resolve_camera, Job};
-    use shadowcull::run::prepare_scene;
-    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
-    if !root.join("../shared/data").is_dir() {
-        println!("note: ../shared/data is absent; skipping the shared-scene jobs");
-        return;
-    }
-    let mut files: Vec<_> = std::fs::read_dir(root.join("data/jobs"))
-        .unwrap()
-        .map(|e| e.unwrap().path())
-        .filter(|p| {
-            p.file_name()
-                .unwrap()
-                .to_str()
-                .unwrap()
-                .starts_with("shared_")
-        })
-        .collect();
-    files.sort();
+    use shadowcull::config::Job;
+    use shadowcull::run::load_scene_for_job;
     let mut failures = Vec::new();
-    for f in files {
+    for f in shared_jobs("") {
         let job = Job::from_file(&f).unwrap();
         // The job's own image: the bound is 0.01% of its pixels.
         let (w, h) = job.resolution;
-        let (loaded, scene) = prepare_scene(&job, f.parent().unwrap()).unwrap();
+        let (loaded, scene, path) = load_scene_for_job(&job, Some(&f)).unwrap();
         let bounds = scene.bounds();
-        let path = resolve_camera(&job.camera, &loaded, &bounds, &f).unwrap();
         let meshes = MeshCache::new(&scene);
         let bvh = TriangleBvh::new(&scene);
         let mut scratch = ShadowScratch::default();
@@ -403,28 +405,14 @@ fn shared_jobs_match_the_reference() {
 #[ignore = "diagnostic for shared_jobs_match_the_reference"]
 fn diagnose_shared_job_mismatches() {
     use scene::{faces_light, ObjectId};
-    use shadowcull::config::{resolve_camera, Job};
-    use shadowcull::run::prepare_scene;
-    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
-    if !root.join("../shared/data").is_dir() {
-        return;
-    }
+    use shadowcull::config::Job;
+    use shadowcull::run::load_scene_for_job;
     let pick = std::env::var("SHADOWCULL_DIAG").unwrap_or_default();
-    let mut files: Vec<_> = std::fs::read_dir(root.join("data/jobs"))
-        .unwrap()
-        .map(|e| e.unwrap().path())
-        .filter(|p| {
-            let n = p.file_name().unwrap().to_str().unwrap();
-            n.starts_with("shared_") && n.contains(pick.as_str())
-        })
-        .collect();
-    files.sort();
-    for f in files {
+    for f in shared_jobs(&pick) {
         let job = Job::from_file(&f).unwrap();
         let (w, h) = job.resolution;
-        let (loaded, scene) = prepare_scene(&job, f.parent().unwrap()).unwrap();
+        let (loaded, scene, path) = load_scene_for_job(&job, Some(&f)).unwrap();
         let bounds = scene.bounds();
-        let path = resolve_camera(&job.camera, &loaded, &bounds, &f).unwrap();
         let meshes = MeshCache::new(&scene);
         let bvh = TriangleBvh::new(&scene);
         let mut scratch = ShadowScratch::default();
@@ -644,8 +632,8 @@ fn diagnose_shared_job_mismatches() {
 #[ignore = "diagnostic for shared_jobs_match_the_reference"]
 fn diagnose_one_pixel() {
     use scene::{faces_light, ObjectId};
-    use shadowcull::config::{resolve_camera, Job};
-    use shadowcull::run::prepare_scene;
+    use shadowcull::config::Job;
+    use shadowcull::run::load_scene_for_job;
     let Ok(spec) = std::env::var("SHADOWCULL_DIAG_PIXEL") else {
         return;
     };
@@ -657,20 +645,14 @@ fn diagnose_one_pixel() {
         parts[3].parse().unwrap(),
         parts[4].parse().unwrap(),
     );
-    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
-    let f = std::fs::read_dir(root.join("data/jobs"))
-        .unwrap()
-        .map(|e| e.unwrap().path())
-        .find(|p| {
-            let n = p.file_name().unwrap().to_str().unwrap();
-            n.starts_with("shared_") && n.contains(pick)
-        })
-        .unwrap();
+    let f = shared_jobs(pick)
+        .into_iter()
+        .next()
+        .expect("a shared job matching the pick");
     let job = Job::from_file(&f).unwrap();
     let (w, h) = job.resolution;
-    let (loaded, scene) = prepare_scene(&job, f.parent().unwrap()).unwrap();
+    let (loaded, scene, path) = load_scene_for_job(&job, Some(&f)).unwrap();
     let bounds = scene.bounds();
-    let path = resolve_camera(&job.camera, &loaded, &bounds, &f).unwrap();
     let meshes = MeshCache::new(&scene);
     let cam = path.at(frame).unwrap().camera(w as f64 / h as f64).unwrap();
     let eye = eye_pass(&scene, &meshes, &cam, w, h).unwrap();
