@@ -308,6 +308,66 @@ impl DepthTarget {
         self.tiles[self.layout.tile_index(tx, ty)].background
     }
 
+    /// Turns every pixel with `keep == false` into background (depth
+    /// [`BACKGROUND`], id [`NO_ID`] when the id target exists) and recomputes the
+    /// hierarchical-z bounds of every changed tile from its pixels, so they are
+    /// exactly what drawing only the kept pixels would have produced.
+    ///
+    /// This is the computation mask of [ChanDurand04 computation mask]: stencil passes skip
+    /// background pixels and tiles without written depth, so a masked eye target
+    /// makes shadow-volume rasterization work only at the kept (shadow-silhouette)
+    /// pixels. `keep` is row-major, row 0 at the top, one entry per pixel.
+    ///
+    /// # Errors
+    /// [`Error::MaskLength`] when `keep` does not hold `width × height` entries
+    /// (the target is then unchanged).
+    pub fn keep_only(&mut self, keep: &[bool]) -> Result<()> {
+        let l = self.layout;
+        let n = l.width as usize * l.height as usize;
+        if keep.len() != n {
+            return Err(Error::MaskLength {
+                expected: n,
+                got: keep.len(),
+                width: l.width,
+                height: l.height,
+            });
+        }
+        let mut band = Band {
+            layout: l,
+            ty0: 0,
+            ty1: l.tiles_y,
+            depth: &mut self.depth,
+            ids: self.ids.as_deref_mut(),
+            tiles: &mut self.tiles,
+        };
+        for ty in 0..l.tiles_y {
+            for tx in 0..l.tiles_x {
+                let (x0, x1, y0, y1) = l.tile_rect(tx, ty);
+                let mut changed = false;
+                for y in y0..=y1 {
+                    let row = &keep[(y * l.width) as usize..][..l.width as usize];
+                    for x in x0..=x1 {
+                        if row[x as usize] {
+                            continue;
+                        }
+                        let i = l.pixel_index(x, y);
+                        if band.depth[i] != BACKGROUND {
+                            band.depth[i] = BACKGROUND;
+                            changed = true;
+                        }
+                        if let Some(ids) = band.ids.as_deref_mut() {
+                            ids[i] = u64::MAX;
+                        }
+                    }
+                }
+                if changed {
+                    band.refresh_tile(tx, ty);
+                }
+            }
+        }
+        Ok(())
+    }
+
     /// Counters accumulated since the last call; resets them.
     pub fn take_stats(&mut self) -> RasterStats {
         std::mem::take(&mut self.stats)
@@ -359,5 +419,154 @@ impl Band<'_> {
             zmax,
             background: bg,
         };
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::{Coverage, DrawItem};
+    use glam::{Mat4, Vec4};
+
+    /// Two overlapping triangles with sloped depth over a target whose size is not
+    /// a multiple of the tile size.
+    fn drawn(with_ids: bool) -> DepthTarget {
+        let mut t = DepthTarget::new(37, 29, TileSize::T8, with_ids).unwrap();
+        let positions = [
+            Vec4::new(-1.2, -1.1, 0.2, 1.0),
+            Vec4::new(0.9, -0.8, 0.7, 1.0),
+            Vec4::new(-0.3, 1.0, 0.4, 1.0),
+            Vec4::new(-0.5, 0.9, 0.9, 1.0),
+            Vec4::new(0.2, -0.95, 0.1, 1.0),
+            Vec4::new(0.6, 0.5, 0.3, 1.0),
+        ];
+        let triangles = [[0, 1, 2], [3, 4, 5]];
+        t.draw(
+            &DrawItem {
+                clip_from_local: Mat4::IDENTITY,
+                positions: &positions,
+                triangles: &triangles,
+                object: 3,
+            },
+            Coverage::Standard,
+        )
+        .unwrap();
+        t
+    }
+
+    /// Bounds recomputed directly from the pixels of every tile.
+    fn recomputed(t: &DepthTarget) -> Vec<(Option<(f32, f32)>, u32)> {
+        let (tx_n, ty_n) = t.tile_counts();
+        let mut out = Vec::new();
+        for ty in 0..ty_n {
+            for tx in 0..tx_n {
+                let (x0, x1, y0, y1) = t.layout.tile_rect(tx, ty);
+                let (mut lo, mut hi, mut bg) = (f32::INFINITY, f32::NEG_INFINITY, 0);
+                for y in y0..=y1 {
+                    for x in x0..=x1 {
+                        match t.depth_at(x, y) {
+                            Some(d) => {
+                                lo = lo.min(d);
+                                hi = hi.max(d);
+                            }
+                            None => bg += 1,
+                        }
+                    }
+                }
+                out.push(((hi > f32::NEG_INFINITY).then_some((lo, hi)), bg));
+            }
+        }
+        out
+    }
+
+    fn stored(t: &DepthTarget) -> Vec<(Option<(f32, f32)>, u32)> {
+        let (tx_n, ty_n) = t.tile_counts();
+        (0..ty_n)
+            .flat_map(|ty| (0..tx_n).map(move |tx| (tx, ty)))
+            .map(|(tx, ty)| (t.tile_bounds(tx, ty), t.tile_background(tx, ty)))
+            .collect()
+    }
+
+    #[test]
+    fn keep_only_masks_pixels_and_recomputes_tile_bounds() {
+        for with_ids in [false, true] {
+            let full = drawn(with_ids);
+            let (w, h) = (full.width(), full.height());
+            // A scattered pattern plus a block of whole tiles dropped.
+            let keep: Vec<bool> = (0..h)
+                .flat_map(|y| (0..w).map(move |x| (x, y)))
+                .map(|(x, y)| (x * 7 + y * 13) % 5 != 0 && !(x < 16 && (8..16).contains(&y)))
+                .collect();
+            let mut t = full.clone();
+            t.keep_only(&keep).unwrap();
+            for y in 0..h {
+                for x in 0..w {
+                    let k = keep[(y * w + x) as usize];
+                    let want = if k { full.depth_at(x, y) } else { None };
+                    assert_eq!(t.depth_at(x, y), want, "pixel ({x}, {y})");
+                    if with_ids {
+                        let want = if k { full.id_at(x, y) } else { None };
+                        assert_eq!(t.id_at(x, y), want, "id at ({x}, {y})");
+                    }
+                }
+            }
+            assert_eq!(stored(&t), recomputed(&t));
+            // Tiles the block covered are all background now.
+            assert_eq!(t.tile_bounds(0, 1), None);
+            assert_eq!(t.tile_background(1, 1), 64);
+            // Some tile changed its bounds (the mask did something).
+            assert_ne!(stored(&t), stored(&full));
+            // Keeping everything changes nothing.
+            let mut same = full.clone();
+            same.keep_only(&vec![true; (w * h) as usize]).unwrap();
+            assert_eq!(same.depth_rows(), full.depth_rows());
+            assert_eq!(stored(&same), stored(&full));
+            // Keeping nothing leaves all-background tiles, as after a clear.
+            let mut none = full.clone();
+            none.keep_only(&vec![false; (w * h) as usize]).unwrap();
+            let mut cleared = full.clone();
+            cleared.clear();
+            assert_eq!(stored(&none), stored(&cleared));
+            assert!(none.depth_rows().iter().all(|&d| d == BACKGROUND));
+            assert!(stored(&none).iter().all(|(b, _)| b.is_none()));
+            // A wrong length is an error and leaves the target alone.
+            let mut bad = full.clone();
+            assert_eq!(
+                bad.keep_only(&keep[1..]),
+                Err(Error::MaskLength {
+                    expected: (w * h) as usize,
+                    got: (w * h) as usize - 1,
+                    width: w,
+                    height: h,
+                })
+            );
+            assert_eq!(bad.depth_rows(), full.depth_rows());
+        }
+    }
+
+    #[test]
+    fn keep_only_matches_drawing_only_the_kept_pixels_of_a_whole_tile_region() {
+        // Masking whole tiles: the kept tiles' bounds equal the unmasked drawing's.
+        let full = drawn(true);
+        let (w, h) = (full.width(), full.height());
+        let keep: Vec<bool> = (0..h)
+            .flat_map(|y| (0..w).map(move |x| (x, y)))
+            .map(|(x, y)| (x / 8 + y / 8) % 2 == 0)
+            .collect();
+        let mut t = full.clone();
+        t.keep_only(&keep).unwrap();
+        let (tx_n, ty_n) = t.tile_counts();
+        for ty in 0..ty_n {
+            for tx in 0..tx_n {
+                if (tx + ty) % 2 == 0 {
+                    assert_eq!(t.tile_bounds(tx, ty), full.tile_bounds(tx, ty));
+                    assert_eq!(t.tile_background(tx, ty), full.tile_background(tx, ty));
+                } else {
+                    assert_eq!(t.tile_bounds(tx, ty), None);
+                    let (x0, x1, y0, y1) = t.layout.tile_rect(tx, ty);
+                    assert_eq!(t.tile_background(tx, ty), (x1 - x0 + 1) * (y1 - y0 + 1));
+                }
+            }
+        }
     }
 }

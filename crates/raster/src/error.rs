@@ -33,6 +33,19 @@ pub enum Error {
         /// (width, height) of the receiver target.
         got: (u32, u32),
     },
+    /// A per-pixel mask does not have one entry per pixel of the target.
+    /// Pass `width × height` entries, row-major, row 0 at the top.
+    #[error("per-pixel mask has {got} entries, the {width}x{height} target needs {expected}")]
+    MaskLength {
+        /// `width × height` of the target.
+        expected: usize,
+        /// Entries passed.
+        got: usize,
+        /// Target width.
+        width: u32,
+        /// Target height.
+        height: u32,
+    },
 }
 
 /// Result with the crate's [`Error`].

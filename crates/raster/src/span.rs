@@ -84,38 +84,75 @@ impl SpanWalker {
 /// pixel centres (found on its edges, clipped to the strip), widened by one
 /// pixel each side; `None` when the triangle misses the strip.
 pub(crate) fn band_extent(tri: &Tri, ya: i64, yb: i64) -> Option<(i64, i64)> {
-    let half = SUBPIXEL / 2;
-    let (ylo, yhi) = ((ya * SUBPIXEL + half) as f64, (yb * SUBPIXEL + half) as f64);
-    // Vertices: edge i runs from vertex i + 1 to vertex i + 2 (see `Tri::new`).
-    let v = tri.e.map(|e| (e.ox as f64, e.oy as f64));
-    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
-    for i in 0..3 {
-        let (p, q) = (v[i], v[(i + 1) % 3]);
-        let (pmin, pmax) = (p.1.min(q.1), p.1.max(q.1));
-        if pmax < ylo || pmin > yhi {
-            continue;
-        }
-        let x_at = |y: f64| {
-            if q.1 == p.1 {
-                return (p.0.min(q.0), p.0.max(q.0));
+    StripExtents::new(tri).extent(ya, yb)
+}
+
+/// [`band_extent`] for many strips of one triangle: the edges' slopes are
+/// computed once (a multiplication per strip and edge instead of a division;
+/// the rounding difference is far inside the two-pixel widening).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct StripExtents {
+    /// Per edge: start x, start y, dx/dy (0 for horizontal edges), y range, x range.
+    edges: [[f64; 7]; 3],
+}
+
+impl StripExtents {
+    #[inline(always)]
+    pub fn new(tri: &Tri) -> Self {
+        // Vertices: edge i runs from vertex i + 1 to vertex i + 2 (see `Tri::new`).
+        let v = tri.e.map(|e| (e.ox as f64, e.oy as f64));
+        let edges = [0, 1, 2].map(|i| {
+            let (p, q) = (v[i], v[(i + 1) % 3]);
+            let slope = if q.1 == p.1 {
+                0.0
+            } else {
+                (q.0 - p.0) / (q.1 - p.1)
+            };
+            [
+                p.0,
+                p.1,
+                slope,
+                p.1.min(q.1),
+                p.1.max(q.1),
+                p.0.min(q.0),
+                p.0.max(q.0),
+            ]
+        });
+        StripExtents { edges }
+    }
+
+    /// Conservative pixel columns the triangle can cover on rows `ya..=yb` (see
+    /// [`band_extent`]).
+    #[inline(always)]
+    pub fn extent(&self, ya: i64, yb: i64) -> Option<(i64, i64)> {
+        let half = SUBPIXEL / 2;
+        let (ylo, yhi) = ((ya * SUBPIXEL + half) as f64, (yb * SUBPIXEL + half) as f64);
+        let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+        for e in &self.edges {
+            let [px, py, slope, ymin, ymax, xmin, xmax] = *e;
+            if ymax < ylo || ymin > yhi {
+                continue;
             }
-            let yc = y.clamp(pmin, pmax);
-            let x = p.0 + (q.0 - p.0) * ((yc - p.1) / (q.1 - p.1));
-            (x, x)
-        };
-        for (a, b) in [x_at(ylo), x_at(yhi)] {
-            lo = lo.min(a);
-            hi = hi.max(b);
+            if ymin == ymax {
+                lo = lo.min(xmin);
+                hi = hi.max(xmax);
+                continue;
+            }
+            for y in [ylo, yhi] {
+                let x = (px + slope * (y.clamp(ymin, ymax) - py)).clamp(xmin, xmax);
+                lo = lo.min(x);
+                hi = hi.max(x);
+            }
         }
+        if lo > hi {
+            return None;
+        }
+        let s = SUBPIXEL as f64;
+        Some((
+            ((lo - half as f64) / s) as i64 - 2,
+            ((hi - half as f64) / s) as i64 + 2,
+        ))
     }
-    if lo > hi {
-        return None;
-    }
-    let s = SUBPIXEL as f64;
-    Some((
-        ((lo - half as f64) / s) as i64 - 2,
-        ((hi - half as f64) / s) as i64 + 2,
-    ))
 }
 
 #[cfg(test)]

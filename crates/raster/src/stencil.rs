@@ -91,6 +91,28 @@ pub struct StencilStats {
     /// distinct pixels whose counter was incremented or decremented at least once
     /// (even if it came back to its old value).
     pub pixels_touched: u64,
+    /// Hierarchical stencil only: volume fragments rasterized per pixel inside
+    /// boundary tiles (covered, non-background, inside the enabled tests) — the
+    /// brute-force count restricted to the boundary tiles. For the hierarchical
+    /// stencil `pixels_processed` is instead tile area × boundary tiles, summed
+    /// over volumes, as [Aila04 Table 1] counts it.
+    pub h_fragments: u64,
+    /// Hierarchical stencil only: stage-1 visits of a (volume triangle piece, tile) pair.
+    pub tile_tests: u64,
+    /// Hierarchical stencil only: tiles a volume reached and classified lit,
+    /// summed over volumes.
+    pub tiles_lit: u64,
+    /// Tiles a volume classified wholly inside it (whole-tile update), summed over volumes.
+    pub tiles_shadow: u64,
+    /// Tiles a volume classified as boundary (per-pixel work), summed over volumes.
+    pub tiles_boundary: u64,
+    /// Modeled memory traffic of per-pixel buffers in bytes (depth reads,
+    /// stencil reads and writes, the mask resolve's stencil reads); the model is
+    /// stated in `hstencil.rs`.
+    pub pixel_bytes: u64,
+    /// Modeled memory traffic of per-tile buffers in bytes (tile depth bounds,
+    /// the PSV records, Smin/Smax/offset and FS bits); 0 for brute force.
+    pub tile_bytes: u64,
 }
 
 impl StencilStats {
@@ -100,11 +122,23 @@ impl StencilStats {
         self.stencil_updates += other.stencil_updates;
         self.triangles += other.triangles;
         self.pixels_touched += other.pixels_touched;
+        self.h_fragments += other.h_fragments;
+        self.tile_tests += other.tile_tests;
+        self.tiles_lit += other.tiles_lit;
+        self.tiles_shadow += other.tiles_shadow;
+        self.tiles_boundary += other.tiles_boundary;
+        self.pixel_bytes += other.pixel_bytes;
+        self.tile_bytes += other.tile_bytes;
+    }
+
+    /// Total modeled bandwidth: per-pixel plus per-tile bytes.
+    pub fn bandwidth_bytes(&self) -> u64 {
+        self.pixel_bytes + self.tile_bytes
     }
 }
 
 #[derive(Clone, Debug)]
-enum Counters {
+pub(crate) enum Counters {
     Eight(Vec<u8>),
     Wide(Vec<i32>),
 }
@@ -112,13 +146,13 @@ enum Counters {
 /// Where fragments are processed: an inclusive pixel rectangle and an inclusive
 /// depth range.
 #[derive(Clone, Copy, Debug)]
-struct Window {
-    x0: i64,
-    x1: i64,
-    y0: i64,
-    y1: i64,
-    dlo: f32,
-    dhi: f32,
+pub(crate) struct Window {
+    pub x0: i64,
+    pub x1: i64,
+    pub y0: i64,
+    pub y1: i64,
+    pub dlo: f32,
+    pub dhi: f32,
 }
 
 /// A `width × height` stencil buffer, row-major from the top row, with a bitmap of
@@ -127,11 +161,11 @@ struct Window {
 pub struct StencilTarget {
     width: u32,
     height: u32,
-    counters: Counters,
+    pub(crate) counters: Counters,
     /// One bit per pixel (row-major): updated since the last clear.
     /// 1 per pixel updated since the last clear, else 0 (bytes: branch-free updates).
-    touched: Vec<u8>,
-    touched_count: u64,
+    pub(crate) touched: Vec<u8>,
+    pub(crate) touched_count: u64,
 }
 
 impl StencilTarget {
@@ -235,6 +269,37 @@ impl StencilTarget {
     /// When `(x, y)` is outside the target.
     pub fn nonzero(&self, x: u32, y: u32) -> bool {
         self.value(x, y) != 0
+    }
+
+    /// The mask resolve: per pixel (row-major, row 0 at the top) whether the counter
+    /// is non-zero, false on `eye`'s background pixels. Adds the stencil reads of the
+    /// non-background pixels to `stats.pixel_bytes`.
+    ///
+    /// # Errors
+    /// [`Error::SizeMismatch`] when `eye` has another size.
+    pub fn resolve(
+        &self,
+        eye: &DepthTarget,
+        out: &mut Vec<bool>,
+        stats: &mut StencilStats,
+    ) -> Result<()> {
+        if (eye.width(), eye.height()) != (self.width, self.height) {
+            return Err(Error::SizeMismatch {
+                expected: (eye.width(), eye.height()),
+                got: (self.width, self.height),
+            });
+        }
+        out.clear();
+        let mut read = 0u64;
+        for y in 0..self.height {
+            for x in 0..self.width {
+                let written = eye.depth[eye.layout.pixel_index(x, y)] != crate::BACKGROUND;
+                read += u64::from(written);
+                out.push(written && self.nonzero(x, y));
+            }
+        }
+        stats.pixel_bytes += read * counter_bytes(self.bits());
+        Ok(())
     }
 
     /// Rasterizes every triangle of `range` (indices
@@ -399,13 +464,14 @@ impl StencilTarget {
             st.stencil_updates += p.stencil_updates;
             st.pixels_touched += p.pixels_touched;
         }
+        st.pixel_bytes = pass_bytes(self.bits(), st.pixels_processed, st.stencil_updates);
         self.touched_count += st.pixels_touched;
         stats.add(&st);
         Ok(())
     }
 
     /// The pixel rectangle and depth range `tests` allow for `range`; `None` when empty.
-    fn window(&self, range: &VolumeRange, tests: StencilTests) -> Option<Window> {
+    pub(crate) fn window(&self, range: &VolumeRange, tests: StencilTests) -> Option<Window> {
         let (w, h) = (self.width, self.height);
         let [x0, y0, x1, y1] = if tests.scissor {
             let [x0, y0, x1, y1] = range.scissor;
@@ -438,40 +504,40 @@ impl StencilTarget {
 }
 
 /// Mutable counters of one band.
-enum CountersMut<'a> {
+pub(crate) enum CountersMut<'a> {
     Eight(&'a mut [u8]),
     Wide(&'a mut [i32]),
 }
 
 /// The rows `y0..=y1` of a [`StencilTarget`]: whole tile rows, whose counters
 /// and touched flags are the contiguous slices starting at tiled index `base`.
-struct Band<'a> {
-    counters: CountersMut<'a>,
-    touched: &'a mut [u8],
-    width: u32,
-    height: u32,
-    y0: i64,
-    y1: i64,
-    base: usize,
+pub(crate) struct Band<'a> {
+    pub counters: CountersMut<'a>,
+    pub touched: &'a mut [u8],
+    pub width: u32,
+    pub height: u32,
+    pub y0: i64,
+    pub y1: i64,
+    pub base: usize,
 }
 
 /// Tiles rows per band of [`StencilTarget::draw_volumes`] (64 pixel rows: small
 /// enough that the bands balance across threads, large enough that a band's
 /// share of a volume triangle is more than a few rows).
-const BAND_TILE_ROWS: usize = 8;
+pub(crate) const BAND_TILE_ROWS: usize = 8;
 
 /// Fan pieces set up before the bands fill them (bounded memory).
-const PIECE_BATCH: usize = 4096;
+pub(crate) const PIECE_BATCH: usize = 4096;
 
 /// A set-up fan piece of a volume triangle (or zp+ near-cap fan triangle): its
 /// edge functions, counting rule and direction, rows and volume.
-struct Piece {
-    tri: Tri,
-    zfail: bool,
-    increment: bool,
-    y0: i64,
-    y1: i64,
-    job: u32,
+pub(crate) struct Piece {
+    pub tri: Tri,
+    pub zfail: bool,
+    pub increment: bool,
+    pub y0: i64,
+    pub y1: i64,
+    pub job: u32,
 }
 
 /// Appends the fan pieces of a snapped polygon (a volume triangle after
@@ -480,7 +546,7 @@ struct Piece {
 /// in NDC with y up) are entries, back-facing ones exits; zpass counts entries
 /// +1 and exits −1 in front of the surface, zfail exits +1 and entries −1
 /// behind it.
-fn push_pieces(poly: &[SnappedVertex], zfail: bool, job: u32, out: &mut Vec<Piece>) {
+pub(crate) fn push_pieces(poly: &[SnappedVertex], zfail: bool, job: u32, out: &mut Vec<Piece>) {
     for i in 1..poly.len().saturating_sub(1) {
         let (v0, v1, v2) = (poly[0], poly[i], poly[i + 1]);
         // Screen y points down: a negative area is clockwise seen on screen.
@@ -513,12 +579,32 @@ impl Band<'_> {
         increment: bool,
         st: &mut StencilStats,
     ) {
+        let all = (i64::MIN, i64::MAX, i64::MIN, i64::MAX);
+        self.fill_tri_within(eye, tri, win, zfail, increment, all, st);
+    }
+
+    /// [`Band::fill_tri`] restricted to the inclusive pixel rectangle
+    /// `(x0, x1, y0, y1)` (the hierarchical stencil's boundary tiles).
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn fill_tri_within(
+        &mut self,
+        eye: &DepthTarget,
+        tri: &Tri,
+        win: &Window,
+        zfail: bool,
+        increment: bool,
+        clip: (i64, i64, i64, i64),
+        st: &mut StencilStats,
+    ) {
         let (w, h) = (self.width, self.height);
         let Some((x0, x1, y0, y1)) = pixel_bounds(tri, Coverage::Standard, w, h) else {
             return;
         };
-        let (x0, x1) = (x0.max(win.x0), x1.min(win.x1));
-        let (y0, y1) = (y0.max(win.y0).max(self.y0), y1.min(win.y1).min(self.y1));
+        let (x0, x1) = (x0.max(win.x0).max(clip.0), x1.min(win.x1).min(clip.1));
+        let (y0, y1) = (
+            y0.max(win.y0).max(self.y0).max(clip.2),
+            y1.min(win.y1).min(self.y1).min(clip.3),
+        );
         if x0 > x1 || y0 > y1 {
             return;
         }
@@ -551,8 +637,23 @@ impl Band<'_> {
     }
 }
 
+/// Bytes of one stencil counter: 1 for 8 bits, 4 for wide counters.
+pub(crate) fn counter_bytes(bits: StencilBits) -> u64 {
+    match bits {
+        StencilBits::Eight => 1,
+        StencilBits::Wide => 4,
+    }
+}
+
+/// Modeled per-pixel traffic of a stencil pass (see `hstencil.rs`): every processed
+/// fragment reads its 4-byte depth and its counter, every update writes the counter.
+pub(crate) fn pass_bytes(bits: StencilBits, processed: u64, updates: u64) -> u64 {
+    let s = counter_bytes(bits);
+    (4 + s) * processed + s * updates
+}
+
 /// Checks that `range` names only indices inside `buf` and positions that exist.
-fn check_range(buf: &VolumeBuffer, range: &VolumeRange) -> Result<()> {
+pub(crate) fn check_range(buf: &VolumeBuffer, range: &VolumeRange) -> Result<()> {
     let first = range.first_index as usize;
     let ntri = range.index_count as usize / 3;
     let end = first + 3 * ntri;
@@ -610,7 +711,7 @@ fn run_bands<C: Send, R: Send>(
 /// rows of 8 pixels contiguous: a volume triangle is mostly a thin sliver, and
 /// with row-major storage every pixel row it covers would be another cache line.
 #[inline(always)]
-fn tiled_index(width: u32, x: u32, y: u32) -> usize {
+pub(crate) fn tiled_index(width: u32, x: u32, y: u32) -> usize {
     let tiles_x = width.div_ceil(8) as usize;
     (((y >> 3) as usize * tiles_x + (x >> 3) as usize) << 6) + (((y & 7) << 3) + (x & 7)) as usize
 }

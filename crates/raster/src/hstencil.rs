@@ -1,0 +1,1289 @@
+//! Hierarchical shadow volumes [Aila04]: per-pixel stencil work only in tiles a
+//! shadow volume's boundary may cross.
+//!
+//! For every volume (one [`VolumeRange`], between [Aila04]'s BSV and ESV):
+//!
+//! 1. **Stage 1** ([Aila04 §3.2.1, App. A]). Every set-up piece of the
+//!    volume's triangles (the brute-force pass's own setup: clipping, snapping,
+//!    fans, zp+ near-cap fans) visits the tiles it can cover. Per tile the
+//!    per-shadow-volume (PSV) record holds a count, a boundary flag and a
+//!    first-visit stamp. A piece that may cross the tile's 3D box (pixel
+//!    rectangle × written depths `[zmin, zmax]`, background ignored) marks the
+//!    tile boundary; a piece wholly in front (zpass, zp+) or wholly behind
+//!    (zfail) adds its ±1 to the count if it covers the tile's sample pixel.
+//!    The test is exact with respect to the rasterizer's arithmetic
+//!    (`tile_class.rs`). Open edges of the volume's surface (silhouette edges of
+//!    zpass volumes, near-plane cuts) mark the tiles they cross
+//!    (`open_edges.rs`, which also proves why one sample per tile suffices).
+//!    A non-zero count on a tile that the scissor or depth-bounds window covers
+//!    only in part also makes it a boundary tile.
+//! 2. **Stage 2** ([Aila04 §3.2.2, §4.1.1]). Boundary tiles get the brute-force
+//!    per-pixel rasterization of the volume's pieces, clipped to the tile;
+//!    tiles wholly inside get their count added to the tile's offset without
+//!    touching pixels; lit tiles get nothing.
+//!
+//! The hierarchical stencil: per tile an offset and `Smin`/`Smax` of its
+//! written pixels' per-pixel counters ([Aila04 §4.1]); a pixel's value is the
+//! offset plus its counter (wrapping in 8 bits). The mask resolve reads
+//! per-pixel counters only where `Smin ≠ Smax`. With the full-shadow (FS) bit
+//! ([Aila04 §4.3.2]) a tile wholly inside a volume with a positive count, or
+//! found at a volume's first visit with every written pixel already shadowed,
+//! is in shadow for good and skipped by every later volume; without it the
+//! result equals the brute-force pass bit for bit (the stencil operations
+//! commute and the offsets add what the pixels would have added).
+//!
+//! Volumes are processed in order; the target is split into bands of 64 pixel
+//! rows processed in parallel (with the `parallel` feature), each running both
+//! stages for every volume on its own rows.
+//!
+//! # Sample pixel
+//! The first written pixel of the tile in row-major order ([Aila04] allows any
+//! point of the tile; by the argument in `open_edges.rs` every pixel centre of
+//! a non-boundary tile has the same count).
+//!
+//! # Bandwidth model ([Aila04 Table 1])
+//! `S` is the counter size (1 byte in 8-bit mode, 4 wide). Per-pixel buffers
+//! ([`StencilStats::pixel_bytes`]): every fragment stage 2 processes reads its
+//! depth (4 bytes, uncompressed) and counter (`S`), every update writes its
+//! counter (`S`) — as for brute force; after stage 2 a boundary tile's written
+//! counters are read again for `Smin`/`Smax` (`S` each); the resolve reads `S`
+//! per written pixel of a tile with `Smin ≠ Smax` (brute force: per written
+//! pixel). Per-tile buffers ([`StencilStats::tile_bytes`]): every stage-1 visit
+//! reads the tile's depth bounds (8 bytes) and reads and writes its PSV record
+//! (`S + 1` bytes: count and flags, so `2·(S + 1)`); the end of a volume reads
+//! the PSV record of every tile it reached (`S + 1`) and reads and writes the
+//! tile's hierarchical entry (offset, `Smin`, `Smax`: `3·S`, plus a byte for the
+//! FS bit: `2·(3·S + 1)`); the resolve reads every written tile's entry
+//! (`3·S + 1`).
+
+use crate::coverage::{pixel_bounds, Coverage};
+use crate::depth_target::{DepthTarget, TileSize, BACKGROUND};
+use crate::edge::Tri;
+use crate::near_cap::fan_triangle;
+use crate::open_edges::{open_edges, push_piece_edges, EdgeRec, Segment};
+use crate::setup::{setup_into, setup_near_plane_into, Setup, SnappedVertex};
+use crate::span::StripExtents;
+use crate::stencil::{
+    check_range, counter_bytes, pass_bytes, tiled_index, Band, Counters, CountersMut, Piece,
+    Window, BAND_TILE_ROWS,
+};
+use crate::tile_class::{PiecePlane, Side};
+use crate::volume_buffer::{VolumeBuffer, VolumeMethod, VolumeRange};
+use crate::MAX_CLIPPED_VERTICES;
+use crate::{Error, Result, StencilBits, StencilStats, StencilTarget, StencilTests};
+use glam::{Mat4, Vec4};
+
+/// Options of a [`HierarchicalStencil`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct HierarchicalOptions {
+    /// Tile size of the classification and of `Smin`/`Smax` (8×8 in [Aila04]).
+    pub tile: TileSize,
+    /// Counter width of the per-pixel stencil and the tile offsets.
+    pub bits: StencilBits,
+    /// The full-shadow bit [Aila04 §4.3.2]: faster; may differ from brute force
+    /// where rounding gave some volume a negative count, and in 8-bit mode where
+    /// the wide count is a non-zero multiple of 256 (see the module documentation).
+    pub full_shadow: bool,
+}
+
+impl Default for HierarchicalOptions {
+    fn default() -> Self {
+        HierarchicalOptions {
+            tile: TileSize::T8,
+            bits: StencilBits::Eight,
+            full_shadow: true,
+        }
+    }
+}
+
+/// A tile's classification over a frame ([`HierarchicalStencil::tile_classes`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum TileClass {
+    /// No written pixel (skipped by every volume).
+    Background,
+    /// Never a boundary tile, and lit at the end.
+    Lit,
+    /// Never a boundary tile, and in shadow at the end (FS bit, or a uniform non-zero value).
+    Shadow,
+    /// A boundary tile of at least one volume (per-pixel work).
+    Boundary,
+}
+
+/// A tile's stage-1 state, kept small (16 bytes) because stage 1 visits
+/// millions of (piece, tile) pairs: the depth box (from the eye target, per
+/// draw; `zmax` is [`BACKGROUND`] for tiles every volume skips — no written
+/// pixel, or the FS bit set) and the PSV record of the volume being drawn.
+#[derive(Clone, Copy, Debug, Default)]
+struct Hot {
+    zmin: f32,
+    zmax: f32,
+    /// `stamp << 1 | boundary`: the volume (1-based) of the last visit and the boundary flag.
+    psv: u32,
+    /// Count at the sample pixel.
+    count: i32,
+}
+
+/// A tile's hierarchical stencil entry and its fixed data.
+#[derive(Clone, Copy, Debug, Default)]
+struct Cold {
+    /// Written (non-background) pixels of the tile.
+    written: u32,
+    /// In-target pixels of the tile.
+    area: u32,
+    sample_x: u32,
+    sample_y: u32,
+    /// Offset added to every per-pixel counter of the tile (wrapped to 8 bits in 8-bit mode).
+    base: i32,
+    /// Smallest and largest per-pixel counter over the written pixels (without `base`).
+    smin: i32,
+    smax: i32,
+    fs: bool,
+    ever_boundary: bool,
+}
+
+/// Pieces set up before the bands process them (whole volumes; a batch is one
+/// parallel pass, so fewer, larger batches than brute force's).
+const H_PIECE_BATCH: usize = 1 << 16;
+
+/// Pixel rows per band (the unit of parallel work and of the top level).
+const BAND_ROWS: usize = BAND_TILE_ROWS * 8;
+
+/// Tiles per block of the coarse level: a block holds the smallest `zmin` and
+/// largest `zmax` of up to this many tiles of one tile row, so one test can
+/// dismiss a piece over all of them.
+const BLOCK: usize = 8;
+
+/// A hierarchical stencil buffer [Aila04 §4.1] with the two-stage volume pass.
+#[derive(Clone, Debug)]
+pub struct HierarchicalStencil {
+    options: HierarchicalOptions,
+    pixels: StencilTarget,
+    hot: Vec<Hot>,
+    cold: Vec<Cold>,
+    /// Per tile row, per block of [`BLOCK`] tiles: `[min zmin, max zmax]` of its
+    /// tiles that volumes visit (`[+∞, BACKGROUND]` when none).
+    blocks: Vec<[f32; 2]>,
+    /// The same per band of 64 pixel rows: the level above `blocks`.
+    bands: Vec<[f32; 2]>,
+    tiles_x: u32,
+    tiles_y: u32,
+    shift: u32,
+}
+
+/// Per-volume pieces and open edges inside one batch.
+#[derive(Clone)]
+struct VolumeJob {
+    job: u32,
+    pieces: std::ops::Range<usize>,
+    open: std::ops::Range<usize>,
+    zfail: bool,
+    /// Smallest and largest vertex depth of its pieces: every point of every
+    /// piece lies in between.
+    zlo: f64,
+    zhi: f64,
+    /// Pixel columns its pieces can reach (inclusive).
+    x0: i64,
+    x1: i64,
+}
+
+impl HierarchicalStencil {
+    /// A cleared target.
+    ///
+    /// # Errors
+    /// [`Error::InvalidSize`] when a side is 0 or too large.
+    pub fn new(width: u32, height: u32, options: HierarchicalOptions) -> Result<Self> {
+        let pixels = StencilTarget::new(width, height, options.bits)?;
+        let shift = options.tile.pixels().trailing_zeros();
+        let (tiles_x, tiles_y) = (width.div_ceil(1 << shift), height.div_ceil(1 << shift));
+        let n = (tiles_x * tiles_y) as usize;
+        Ok(HierarchicalStencil {
+            options,
+            pixels,
+            hot: vec![Hot::default(); n],
+            cold: vec![Cold::default(); n],
+            blocks: vec![[f32::INFINITY, BACKGROUND]; tiles_y as usize * blocks_per_row(tiles_x)],
+            bands: vec![
+                [f32::INFINITY, BACKGROUND];
+                height.div_ceil(BAND_ROWS as u32) as usize * blocks_per_row(tiles_x)
+            ],
+            tiles_x,
+            tiles_y,
+            shift,
+        })
+    }
+
+    /// Width in pixels.
+    pub fn width(&self) -> u32 {
+        self.pixels.width()
+    }
+
+    /// Height in pixels.
+    pub fn height(&self) -> u32 {
+        self.pixels.height()
+    }
+
+    /// The options it was made with.
+    pub fn options(&self) -> HierarchicalOptions {
+        self.options
+    }
+
+    /// Tiles across and down.
+    pub fn tile_counts(&self) -> (u32, u32) {
+        (self.tiles_x, self.tiles_y)
+    }
+
+    /// Clears every counter, offset and FS bit.
+    pub fn clear(&mut self) {
+        self.pixels.clear();
+        self.cold.fill(Cold::default());
+    }
+
+    fn wrap(&self, v: i32) -> i32 {
+        wrap(self.options.bits, v)
+    }
+
+    fn cold_of(&self, x: u32, y: u32) -> &Cold {
+        &self.cold[((y >> self.shift) * self.tiles_x + (x >> self.shift)) as usize]
+    }
+
+    /// The stencil value at `(x, y)`: the tile's offset plus the pixel's counter
+    /// (wrapped to `0..=255` in 8-bit mode). Meaningless in tiles whose FS bit
+    /// is set ([`HierarchicalStencil::full_shadow`]): later volumes skip them.
+    ///
+    /// # Panics
+    /// When `(x, y)` is outside the target.
+    pub fn value(&self, x: u32, y: u32) -> i32 {
+        let p = self.pixels.value(x, y);
+        self.wrap(self.cold_of(x, y).base.wrapping_add(p))
+    }
+
+    /// Whether the tile containing pixel `(x, y)` has its FS bit set.
+    ///
+    /// # Panics
+    /// When `(x, y)` is outside the target.
+    pub fn full_shadow(&self, x: u32, y: u32) -> bool {
+        assert!(x < self.width() && y < self.height());
+        self.cold_of(x, y).fs
+    }
+
+    /// Whether pixel `(x, y)` is in shadow: FS bit, or a non-zero value.
+    ///
+    /// # Panics
+    /// When `(x, y)` is outside the target.
+    pub fn nonzero(&self, x: u32, y: u32) -> bool {
+        self.full_shadow(x, y) || self.value(x, y) != 0
+    }
+
+    /// Per tile (row-major) its class over everything drawn since the last clear
+    /// (the written pixels are those of the eye target of the last draw).
+    pub fn tile_classes(&self) -> Vec<TileClass> {
+        self.cold
+            .iter()
+            .map(|t| {
+                if t.written == 0 {
+                    TileClass::Background
+                } else if t.ever_boundary {
+                    TileClass::Boundary
+                } else if t.fs || self.wrap(t.base.wrapping_add(t.smin)) != 0 {
+                    TileClass::Shadow
+                } else {
+                    TileClass::Lit
+                }
+            })
+            .collect()
+    }
+
+    /// The mask resolve [Aila04 §4.1.2]: per pixel (row-major, row 0 at the top)
+    /// whether it is in shadow, false on `eye`'s background pixels; per-pixel
+    /// counters are read only in tiles with `Smin ≠ Smax` (and no FS bit). Adds
+    /// the modeled reads to `stats`.
+    ///
+    /// # Errors
+    /// [`Error::SizeMismatch`] when `eye` has another size.
+    pub fn resolve(
+        &self,
+        eye: &DepthTarget,
+        out: &mut Vec<bool>,
+        stats: &mut StencilStats,
+    ) -> Result<()> {
+        let (w, h) = (self.width(), self.height());
+        if (eye.width(), eye.height()) != (w, h) {
+            return Err(Error::SizeMismatch {
+                expected: (eye.width(), eye.height()),
+                got: (w, h),
+            });
+        }
+        let s = counter_bytes(self.options.bits);
+        out.clear();
+        out.resize((w * h) as usize, false);
+        let size = 1u32 << self.shift;
+        for ty in 0..self.tiles_y {
+            for tx in 0..self.tiles_x {
+                let t = &self.cold[(ty * self.tiles_x + tx) as usize];
+                stats.tile_bytes += 3 * s + 1;
+                let uniform = t.fs || t.smin == t.smax;
+                let value = t.fs || self.wrap(t.base.wrapping_add(t.smin)) != 0;
+                if uniform && !value {
+                    continue;
+                }
+                for y in ty * size..((ty + 1) * size).min(h) {
+                    for x in tx * size..((tx + 1) * size).min(w) {
+                        if eye.depth[eye.layout.pixel_index(x, y)] == BACKGROUND {
+                            continue;
+                        }
+                        out[(y * w + x) as usize] = if uniform {
+                            value
+                        } else {
+                            stats.pixel_bytes += s;
+                            self.wrap(t.base.wrapping_add(self.pixels.value(x, y))) != 0
+                        };
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Draws shadow volumes as [`StencilTarget::draw_volumes`] does (same
+    /// counting rules per [`VolumeMethod`], same `tests`), hierarchically: with
+    /// the FS bit off the values equal the brute-force pass's at every written
+    /// pixel. Counters: `pixels_processed` = tile area × boundary tiles summed
+    /// over volumes; `h_fragments`, `stencil_updates`, `pixels_touched` from the
+    /// per-pixel work; `tile_tests`, `tiles_*`, `pixel_bytes`, `tile_bytes`.
+    ///
+    /// # Errors
+    /// As [`StencilTarget::draw_volumes`].
+    pub fn draw_volumes(
+        &mut self,
+        eye: &DepthTarget,
+        volumes: &[(Mat4, &VolumeRange)],
+        buf: &VolumeBuffer,
+        tests: StencilTests,
+        stats: &mut StencilStats,
+    ) -> Result<()> {
+        let (width, height) = (self.width(), self.height());
+        if (eye.width(), eye.height()) != (width, height) {
+            return Err(Error::SizeMismatch {
+                expected: (eye.width(), eye.height()),
+                got: (width, height),
+            });
+        }
+        for (_, range) in volumes {
+            check_range(buf, range)?;
+        }
+        let jobs: Vec<(Mat4, &VolumeRange, Window)> = volumes
+            .iter()
+            .filter_map(|&(m, r)| self.pixels.window(r, tests).map(|w| (m, r, w)))
+            .collect();
+        let mut st = StencilStats {
+            triangles: volumes.iter().map(|(_, r)| r.index_count as u64 / 3).sum(),
+            ..StencilStats::default()
+        };
+        self.tile_bounds(eye);
+        let geo = Geometry {
+            width,
+            height,
+            shift: self.shift,
+            tiles_x: self.tiles_x,
+            options: self.options,
+        };
+        let vp = eye.vp;
+        // Batches of whole volumes of about `H_PIECE_BATCH` triangles; each batch
+        // is set up in parallel chunks (in volume order), then both stages run.
+        let mut next = 0;
+        while next < jobs.len() {
+            let (first, mut end, mut est) = (next, next, 0usize);
+            while end < jobs.len() && est < H_PIECE_BATCH {
+                est += jobs[end].1.index_count as usize / 3;
+                end += 1;
+            }
+            next = end;
+            let chunk = (end - first).div_ceil(SETUP_CHUNKS).max(1);
+            let ranges: Vec<std::ops::Range<usize>> = (first..end)
+                .step_by(chunk)
+                .map(|a| a..(a + chunk).min(end))
+                .collect();
+            let setup = |r: std::ops::Range<usize>| set_up(&jobs, r, buf, &vp);
+            #[cfg(feature = "parallel")]
+            let parts: Vec<SetUp> = {
+                use rayon::prelude::*;
+                ranges.into_par_iter().map(setup).collect()
+            };
+            #[cfg(not(feature = "parallel"))]
+            let parts: Vec<SetUp> = ranges.into_iter().map(setup).collect();
+            // One index space over the chunks' pieces and open edges.
+            let (mut vols, mut pieces, mut open) = (Vec::new(), Vec::new(), Vec::new());
+            for p in &parts {
+                let (dp, dopen) = (pieces.len(), open.len());
+                vols.extend(p.vols.iter().map(|v| VolumeJob {
+                    pieces: v.pieces.start + dp..v.pieces.end + dp,
+                    open: v.open.start + dopen..v.open.end + dopen,
+                    ..v.clone()
+                }));
+                pieces.extend(p.pieces.iter());
+                open.extend(p.open.iter());
+            }
+            self.flush(eye, &geo, &jobs, &vols, &pieces, &open, &mut st);
+        }
+        self.pixels.touched_count += st.pixels_touched;
+        stats.add(&st);
+        Ok(())
+    }
+
+    /// Recomputes every tile's depth box, sample pixel and the block level from
+    /// `eye`, and resets the PSV records. Tiles with no written pixel or the FS
+    /// bit get `zmax = BACKGROUND`, which every volume's depth window rejects.
+    fn tile_bounds(&mut self, eye: &DepthTarget) {
+        let (w, h, shift, tx_n) = (
+            self.width(),
+            self.height(),
+            self.shift,
+            self.tiles_x as usize,
+        );
+        let size = 1u32 << shift;
+        let nb = blocks_per_row(self.tiles_x);
+        let row = |ty: u32, hot: &mut [Hot], cold: &mut [Cold], blocks: &mut [[f32; 2]]| {
+            for (tx, (t, c)) in hot.iter_mut().zip(cold.iter_mut()).enumerate() {
+                let tx = tx as u32;
+                let (mut zmin, mut zmax, mut written) = (f32::INFINITY, BACKGROUND, 0u32);
+                let (mut sx, mut sy) = (tx * size, ty * size);
+                let (x1, y1) = (((tx + 1) * size).min(w), ((ty + 1) * size).min(h));
+                for y in ty * size..y1 {
+                    for x in tx * size..x1 {
+                        let d = eye.depth[eye.layout.pixel_index(x, y)];
+                        if d != BACKGROUND {
+                            if written == 0 {
+                                (sx, sy) = (x, y);
+                            }
+                            written += 1;
+                            zmin = zmin.min(d);
+                            zmax = zmax.max(d);
+                        }
+                    }
+                }
+                c.written = written;
+                c.area = (x1 - tx * size) * (y1 - ty * size);
+                c.sample_x = sx;
+                c.sample_y = sy;
+                *t = Hot {
+                    zmin,
+                    zmax: if c.fs { BACKGROUND } else { zmax },
+                    psv: 0,
+                    count: 0,
+                };
+            }
+            for (b, out) in blocks.iter_mut().enumerate() {
+                let ts = &hot[b * BLOCK..((b + 1) * BLOCK).min(hot.len())];
+                *out = ts
+                    .iter()
+                    .filter(|t| t.zmax >= 0.0)
+                    .fold([f32::INFINITY, BACKGROUND], |[lo, hi], t| {
+                        [lo.min(t.zmin), hi.max(t.zmax)]
+                    });
+            }
+        };
+        let it = self
+            .hot
+            .chunks_mut(tx_n)
+            .zip(self.cold.chunks_mut(tx_n))
+            .zip(self.blocks.chunks_mut(nb))
+            .enumerate();
+        #[cfg(feature = "parallel")]
+        {
+            use rayon::prelude::*;
+            it.collect::<Vec<_>>()
+                .into_par_iter()
+                .for_each(|(ty, ((hot, cold), blocks))| row(ty as u32, hot, cold, blocks));
+        }
+        #[cfg(not(feature = "parallel"))]
+        for (ty, ((hot, cold), blocks)) in it {
+            row(ty as u32, hot, cold, blocks);
+        }
+        let rows_per_band = BAND_ROWS >> shift;
+        for (k, out) in self.bands.chunks_mut(nb).enumerate() {
+            let rows = &self.blocks[k * rows_per_band * nb..]
+                [..(rows_per_band * nb).min(self.blocks.len() - k * rows_per_band * nb)];
+            for (b, o) in out.iter_mut().enumerate() {
+                *o = rows
+                    .chunks(nb)
+                    .fold([f32::INFINITY, BACKGROUND], |[lo, hi], r| {
+                        [lo.min(r[b][0]), hi.max(r[b][1])]
+                    });
+            }
+        }
+    }
+
+    /// Runs both stages for the batch's volumes, bands of 64 rows in parallel.
+    #[allow(clippy::too_many_arguments)]
+    fn flush(
+        &mut self,
+        eye: &DepthTarget,
+        geo: &Geometry,
+        jobs: &[(Mat4, &VolumeRange, Window)],
+        vols: &[VolumeJob],
+        pieces: &[&Piece],
+        open: &[&Segment],
+        st: &mut StencilStats,
+    ) {
+        let band_rows = BAND_ROWS;
+        let rows_per_band = band_rows >> self.shift as usize;
+        let tiles_per_band = rows_per_band * self.tiles_x as usize;
+        let blocks_per_band = rows_per_band * blocks_per_row(self.tiles_x);
+        let px_chunk = BAND_TILE_ROWS * (self.width().div_ceil(8) as usize) * 64;
+        let self_bands = &self.bands;
+        let nbands = self.height().div_ceil(band_rows as u32) as usize;
+        let piece_bins = Bins::new(nbands, pieces.iter().map(|p| (p.y0, p.y1)));
+        let open_bins = Bins::new(nbands, open.iter().map(|e| (e.y0, e.y1)));
+        let run = |k: usize, counters: CountersMut<'_>, parts: BandParts<'_>| {
+            let y0 = (k * band_rows) as i64;
+            let mut band = HBand {
+                px: Band {
+                    counters,
+                    touched: parts.touched,
+                    width: geo.width,
+                    height: geo.height,
+                    y0,
+                    y1: (y0 + band_rows as i64).min(i64::from(geo.height)) - 1,
+                    base: k * px_chunk,
+                },
+                hot: parts.hot,
+                cold: parts.cold,
+                blocks: parts.blocks,
+                band_blocks: &self_bands[k * blocks_per_row(geo.tiles_x)..]
+                    [..blocks_per_row(geo.tiles_x)],
+                band_range: self_bands[k * blocks_per_row(geo.tiles_x)..]
+                    [..blocks_per_row(geo.tiles_x)]
+                    .iter()
+                    .fold([f32::INFINITY, BACKGROUND], |[lo, hi], b| {
+                        [lo.min(b[0]), hi.max(b[1])]
+                    }),
+                tile0: k * tiles_per_band,
+                ty0: (k * rows_per_band) as i64,
+                geo,
+            };
+            let mut bst = StencilStats::default();
+            let mut scratch = Scratch::default();
+            let (mut bp, mut bo) = (piece_bins.band(k), open_bins.band(k));
+            for v in vols {
+                let win = &jobs[v.job as usize].2;
+                // This band's pieces and open edges of the volume (ascending indices).
+                let np = bp.partition_point(|&i| (i as usize) < v.pieces.end);
+                let no = bo.partition_point(|&i| (i as usize) < v.open.end);
+                let (vp, vo) = ((&bp[..np], pieces), (&bo[..no], open));
+                band.volume(eye, v, win, vp, vo, &mut scratch, &mut bst);
+                (bp, bo) = (&bp[np..], &bo[no..]);
+            }
+            bst
+        };
+        let chunks = Chunks {
+            px: px_chunk,
+            tiles: tiles_per_band,
+            blocks: blocks_per_band,
+        };
+        let (touched, hot, cold, blocks) = (
+            &mut self.pixels.touched,
+            &mut self.hot,
+            &mut self.cold,
+            &mut self.blocks,
+        );
+        let parts = match &mut self.pixels.counters {
+            Counters::Eight(c) => run_h_bands(c, touched, hot, cold, blocks, chunks, |k, c, p| {
+                run(k, CountersMut::Eight(c), p)
+            }),
+            Counters::Wide(c) => run_h_bands(c, touched, hot, cold, blocks, chunks, |k, c, p| {
+                run(k, CountersMut::Wide(c), p)
+            }),
+        };
+        for p in &parts {
+            st.add(p);
+        }
+    }
+}
+
+/// Indices of items (pieces, open edges) per band of [`BAND_ROWS`] rows, in
+/// ascending order: a band walks only what reaches its rows.
+struct Bins {
+    start: Vec<usize>,
+    ids: Vec<u32>,
+}
+
+impl Bins {
+    /// Bins items with inclusive pixel rows `(y0, y1)` into `n` bands.
+    fn new(n: usize, rows: impl Iterator<Item = (i64, i64)> + Clone) -> Self {
+        let band = |y: i64| (y.max(0) as usize / BAND_ROWS).min(n.saturating_sub(1));
+        let mut count = vec![0usize; n + 1];
+        for (y0, y1) in rows.clone() {
+            if y1 >= 0 && y0 <= y1 {
+                for k in band(y0)..=band(y1) {
+                    count[k + 1] += 1;
+                }
+            }
+        }
+        for k in 0..n {
+            count[k + 1] += count[k];
+        }
+        let mut fill = count.clone();
+        let mut ids = vec![0u32; count[n]];
+        for (i, (y0, y1)) in rows.enumerate() {
+            if y1 >= 0 && y0 <= y1 {
+                for k in band(y0)..=band(y1) {
+                    ids[fill[k]] = i as u32;
+                    fill[k] += 1;
+                }
+            }
+        }
+        Bins { start: count, ids }
+    }
+
+    fn band(&self, k: usize) -> &[u32] {
+        &self.ids[self.start[k]..self.start[k + 1]]
+    }
+}
+
+/// Chunks a batch's set-up is split into (for the threads to share).
+const SETUP_CHUNKS: usize = 16;
+
+/// Set-up pieces and open edges of some volumes.
+#[derive(Default)]
+struct SetUp {
+    pieces: Vec<Piece>,
+    open: Vec<Segment>,
+    vols: Vec<VolumeJob>,
+}
+
+/// Sets up the volumes `jobs[range]`: their fan pieces (as the brute-force
+/// pass), zp+ near-cap fans, and open edges.
+fn set_up(
+    jobs: &[(Mat4, &VolumeRange, Window)],
+    range: std::ops::Range<usize>,
+    buf: &VolumeBuffer,
+    vp: &crate::setup::Viewport,
+) -> SetUp {
+    let mut out = SetUp::default();
+    let mut edges: Vec<EdgeRec> = Vec::new();
+    let mut s = Setup {
+        facing: None,
+        clipped: false,
+        vertices: [SnappedVertex::default(); MAX_CLIPPED_VERTICES],
+        len: 0,
+    };
+    for j in range {
+        let (m, range, _) = &jobs[j];
+        let (zfail, near_cap) = match range.method {
+            VolumeMethod::ZPass => (false, false),
+            VolumeMethod::ZFail => (true, false),
+            VolumeMethod::ZpPlus => (false, true),
+        };
+        let (p0, o0) = (out.pieces.len(), out.open.len());
+        edges.clear();
+        for t in buf.indices[range.indices()].chunks_exact(3) {
+            let v = [0, 1, 2].map(|k| *m * Vec4::from_array(buf.positions[t[k] as usize]));
+            setup_into(v, vp, &mut s);
+            if s.facing.is_some() {
+                push_h_pieces(s.polygon(), zfail, j as u32, &mut out.pieces, &mut edges);
+            }
+            if near_cap {
+                if let Some(fan) = fan_triangle(v.map(|p| p.as_dvec4())) {
+                    setup_near_plane_into(fan, vp, &mut s);
+                    push_h_pieces(s.polygon(), false, j as u32, &mut out.pieces, &mut edges);
+                }
+            }
+        }
+        open_edges(&mut edges, &mut out.open);
+        let ps = &out.pieces[p0..];
+        let sub = crate::setup::SUBPIXEL;
+        out.vols.push(VolumeJob {
+            job: j as u32,
+            pieces: p0..out.pieces.len(),
+            open: o0..out.open.len(),
+            zfail,
+            zlo: ps.iter().map(|p| p.tri.zlo).fold(f64::INFINITY, f64::min),
+            zhi: ps
+                .iter()
+                .map(|p| p.tri.zhi)
+                .fold(f64::NEG_INFINITY, f64::max),
+            x0: ps
+                .iter()
+                .map(|p| p.tri.xmin)
+                .min()
+                .unwrap_or(0)
+                .div_euclid(sub)
+                - 1,
+            x1: ps
+                .iter()
+                .map(|p| p.tri.xmax)
+                .max()
+                .unwrap_or(-sub)
+                .div_euclid(sub)
+                + 1,
+        });
+    }
+    out
+}
+
+/// Blocks of [`BLOCK`] tiles per tile row.
+fn blocks_per_row(tiles_x: u32) -> usize {
+    (tiles_x as usize).div_ceil(BLOCK)
+}
+
+/// Target constants the bands share.
+struct Geometry {
+    width: u32,
+    height: u32,
+    shift: u32,
+    tiles_x: u32,
+    options: HierarchicalOptions,
+}
+
+/// Per-band scratch reused across volumes: tiles reached, (piece, tile) pairs for stage 2.
+#[derive(Default)]
+struct Scratch {
+    touched: Vec<u32>,
+    pairs: Vec<(u32, u32)>,
+    /// Per block column of the band: the piece's side over it (band level).
+    sides: Vec<Option<Side>>,
+}
+
+/// One band's share of the per-pixel flags and of the tile arrays.
+struct BandParts<'a> {
+    touched: &'a mut [u8],
+    hot: &'a mut [Hot],
+    cold: &'a mut [Cold],
+    blocks: &'a mut [[f32; 2]],
+}
+
+/// Chunk lengths of one band in each array.
+#[derive(Clone, Copy)]
+struct Chunks {
+    px: usize,
+    tiles: usize,
+    blocks: usize,
+}
+
+/// One band of 64 pixel rows: its per-pixel counters and its tiles.
+struct HBand<'a, 'g> {
+    px: Band<'a>,
+    hot: &'a mut [Hot],
+    cold: &'a mut [Cold],
+    blocks: &'a mut [[f32; 2]],
+    /// The band level: per block column `[min zmin, max zmax]` over the band.
+    band_blocks: &'a [[f32; 2]],
+    /// `[min zmin, max zmax]` over the whole band.
+    band_range: [f32; 2],
+    /// Global index of `hot[0]`.
+    tile0: usize,
+    /// First tile row of the band.
+    ty0: i64,
+    geo: &'g Geometry,
+}
+
+/// Inclusive pixel rectangle of tile `idx` (global index) inside the target.
+fn tile_rect(g: &Geometry, idx: usize) -> (i64, i64, i64, i64) {
+    let (tx, ty) = (
+        (idx % g.tiles_x as usize) as i64,
+        (idx / g.tiles_x as usize) as i64,
+    );
+    let s = 1i64 << g.shift;
+    (
+        tx * s,
+        (tx * s + s).min(i64::from(g.width)) - 1,
+        ty * s,
+        (ty * s + s).min(i64::from(g.height)) - 1,
+    )
+}
+
+impl HBand<'_, '_> {
+    /// Both stages of one volume on this band's rows.
+    #[allow(clippy::too_many_arguments)]
+    fn volume(
+        &mut self,
+        eye: &DepthTarget,
+        v: &VolumeJob,
+        win: &Window,
+        (piece_ids, pieces): (&[u32], &[&Piece]),
+        (open_ids, open): (&[u32], &[&Segment]),
+        sc: &mut Scratch,
+        st: &mut StencilStats,
+    ) {
+        let g = self.geo;
+        let fs_on = g.options.full_shadow;
+        let sbytes = counter_bytes(g.options.bits);
+        let stamp = (v.job + 1) << 1;
+        let (ya, yb) = (self.px.y0.max(win.y0), self.px.y1.min(win.y1));
+        if ya > yb {
+            return;
+        }
+        sc.touched.clear();
+        sc.pairs.clear();
+        let shift = g.shift;
+        let s = 1i64 << shift;
+        let tiles_x = g.tiles_x as i64;
+        let nb = blocks_per_row(g.tiles_x) as i64;
+        // Written depths lie in [0, 1]: skipped tiles (zmax = BACKGROUND) fail `zmax ≥ dlo`.
+        let (dlo, dhi) = (win.dlo.max(0.0), win.dhi);
+        // The whole volume against the band's tiles under it: dismissed when
+        // all of it lies on its uncounted side (a zpass volume hidden behind
+        // the visible surface).
+        let range = self.depth_range(v.x0.max(win.x0), v.x1.min(win.x1));
+        if dismissed(v.zfail, v.zlo, v.zhi, range, dlo, dhi) {
+            return;
+        }
+        let mut tests = 0u64;
+        // Stage 1: classify.
+        for &pi in piece_ids {
+            let p = pieces[pi as usize];
+            let (y0, y1) = (p.y0.max(ya), p.y1.min(yb));
+            if y0 > y1 {
+                continue;
+            }
+            let Some((px0, px1, _, _)) =
+                pixel_bounds(&p.tri, Coverage::Standard, g.width, g.height)
+            else {
+                continue;
+            };
+            let (px0, px1) = (px0.max(win.x0), px1.min(win.x1));
+            if px0 > px1 {
+                continue;
+            }
+            // The piece by its vertex depths, against the tiles of its columns.
+            if dismissed(
+                p.zfail,
+                p.tri.zlo,
+                p.tri.zhi,
+                self.depth_range(px0, px1),
+                dlo,
+                dhi,
+            ) {
+                continue;
+            }
+            let plane = PiecePlane::new(&p.tri);
+            let strips = StripExtents::new(&p.tri);
+            let narrow = px1 - px0 < 2 * s;
+            let counted = if p.zfail { Side::Behind } else { Side::Front };
+            let delta = if p.increment { 1 } else { -1 };
+            // The band level: the piece over each block column's tiles in the
+            // band; `None` where it can be dismissed (no visited tile, or the
+            // uncounted side of all of them).
+            let (lo, hi) = if narrow {
+                (px0, px1)
+            } else {
+                match strips.extent(y0, y1) {
+                    Some((lo, hi)) => (lo.max(px0), hi.min(px1)),
+                    None => continue,
+                }
+            };
+            if lo > hi {
+                continue;
+            }
+            let (t0, t1) = (lo >> shift, hi >> shift);
+            let (b0, b1) = (t0 / BLOCK as i64, t1 / BLOCK as i64);
+            sc.sides.clear();
+            let (wy0, wy1) = (
+                ((y0 >> shift) * s).max(win.y0),
+                ((y1 >> shift) * s + s - 1).min(win.y1),
+            );
+            // First the whole span against the band's depth range.
+            let span = (
+                (t0 * s).max(win.x0),
+                (t1 * s + s - 1).min(win.x1).min(i64::from(g.width) - 1),
+                wy0,
+                wy1,
+            );
+            let [z0, z1] = self.band_range;
+            if z1 < dlo || z0 > dhi {
+                continue;
+            }
+            match plane.side(span, z0, z1) {
+                Side::Crossing => {}
+                side if side == counted => {}
+                _ => continue,
+            }
+            let mut any = false;
+            for b in b0..=b1 {
+                let [bz0, bz1] = self.band_blocks[b as usize];
+                let side = if bz1 < dlo || bz0 > dhi {
+                    None
+                } else {
+                    let (bt0, bt1) = (
+                        t0.max(b * BLOCK as i64),
+                        t1.min(b * BLOCK as i64 + BLOCK as i64 - 1),
+                    );
+                    let rect = (
+                        (bt0 * s).max(win.x0),
+                        (bt1 * s + s - 1).min(win.x1).min(i64::from(g.width) - 1),
+                        wy0,
+                        wy1,
+                    );
+                    match plane.side(rect, bz0, bz1) {
+                        Side::Crossing => Some(Side::Crossing),
+                        side if side == counted => Some(counted),
+                        _ => None,
+                    }
+                };
+                any |= side.is_some();
+                sc.sides.push(side);
+            }
+            if !any {
+                continue;
+            }
+            for ty in (y0 >> shift)..=(y1 >> shift) {
+                let (lo, hi) = if narrow {
+                    (px0, px1)
+                } else {
+                    let (ry0, ry1) = ((ty * s).max(y0), (ty * s + s - 1).min(y1));
+                    match strips.extent(ry0, ry1) {
+                        Some((lo, hi)) => (lo.max(px0), hi.min(px1)),
+                        None => continue,
+                    }
+                };
+                if lo > hi {
+                    continue;
+                }
+                // Rows of the tile row inside the window (the rectangles classified).
+                let (wy0, wy1) = ((ty * s).max(win.y0), (ty * s + s - 1).min(win.y1));
+                let (t0, t1) = (lo >> shift, hi >> shift);
+                let row = (ty - self.ty0) * tiles_x;
+                let brow = (ty - self.ty0) * nb;
+                let mut b = t0 / BLOCK as i64;
+                while b * BLOCK as i64 <= t1 {
+                    let (bt0, bt1) = (
+                        t0.max(b * BLOCK as i64),
+                        t1.min(b * BLOCK as i64 + BLOCK as i64 - 1),
+                    );
+                    b += 1;
+                    let Some(band_side) = sc.sides[(b - 1 - b0) as usize] else {
+                        continue;
+                    };
+                    let [bz0, bz1] = self.blocks[(brow + b - 1) as usize];
+                    if bz1 < dlo || bz0 > dhi {
+                        continue;
+                    }
+                    // The block level: the piece over these tiles' rectangles.
+                    let rect = (
+                        (bt0 * s).max(win.x0),
+                        (bt1 * s + s - 1).min(win.x1).min(i64::from(g.width) - 1),
+                        wy0,
+                        wy1,
+                    );
+                    let block_side = if band_side == counted {
+                        counted
+                    } else {
+                        plane.side(rect, bz0, bz1)
+                    };
+                    if block_side != Side::Crossing && block_side != counted {
+                        continue;
+                    }
+                    for tx in bt0..=bt1 {
+                        let li = (row + tx) as usize;
+                        let t = &mut self.hot[li];
+                        if t.zmax < dlo || t.zmin > dhi {
+                            continue;
+                        }
+                        tests += 1;
+                        if t.psv & !1 != stamp {
+                            t.psv = stamp;
+                            t.count = 0;
+                            sc.touched.push(li as u32);
+                            let c = &mut self.cold[li];
+                            if fs_on && all_shadowed(c, g.options.bits) {
+                                c.fs = true;
+                                t.zmax = BACKGROUND;
+                                continue;
+                            }
+                        }
+                        if t.psv & 1 != 0 {
+                            sc.pairs.push((pi, li as u32));
+                            continue;
+                        }
+                        let r = (
+                            (tx * s).max(win.x0),
+                            (tx * s + s - 1).min(win.x1).min(i64::from(g.width) - 1),
+                            wy0,
+                            wy1,
+                        );
+                        let side = if block_side == counted {
+                            counted
+                        } else {
+                            match plane.side(r, t.zmin, t.zmax) {
+                                Side::Crossing => {
+                                    match plane.side_clipped(&p.tri, r, t.zmin, t.zmax) {
+                                        Some(side) => side,
+                                        None => continue,
+                                    }
+                                }
+                                side => side,
+                            }
+                        };
+                        if side == Side::Crossing {
+                            t.psv |= 1;
+                            sc.pairs.push((pi, li as u32));
+                        } else if side == counted {
+                            sc.pairs.push((pi, li as u32));
+                            let c = &self.cold[li];
+                            let (sx, sy) = (
+                                i64::from(c.sample_x).clamp(r.0, r.1),
+                                i64::from(c.sample_y).clamp(r.2, r.3),
+                            );
+                            if plane.covers(&p.tri, sx, sy) {
+                                t.count += delta;
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        st.tile_tests += tests;
+        st.tile_bytes += tests * (8 + 2 * (sbytes + 1));
+        // Open edges of the volume's surface.
+        for e in open_ids.iter().map(|&i| open[i as usize]) {
+            let (y0, y1) = (e.y0.max(ya), e.y1.min(yb));
+            if y0 > y1 {
+                continue;
+            }
+            for ty in (y0 >> shift)..=(y1 >> shift) {
+                let (ry0, ry1) = ((ty * s).max(y0), (ty * s + s - 1).min(y1));
+                let Some((lo, hi)) = e.columns(ry0, ry1) else {
+                    continue;
+                };
+                let (lo, hi) = (
+                    lo.max(win.x0).max(0),
+                    hi.min(win.x1).min(i64::from(g.width) - 1),
+                );
+                if lo > hi {
+                    continue;
+                }
+                for tx in (lo >> shift)..=(hi >> shift) {
+                    let idx = (ty as usize) * g.tiles_x as usize + tx as usize;
+                    let rect = clip_rect(tile_rect(g, idx), win);
+                    let t = &mut self.hot[idx - self.tile0];
+                    if t.psv != stamp || t.zmax < 0.0 {
+                        continue;
+                    }
+                    if e.marks(rect, t.zmin, t.zmax, v.zfail) {
+                        t.psv |= 1;
+                    }
+                }
+            }
+        }
+        // A count over a tile the window covers only in part needs per-pixel work.
+        for &li in &sc.touched {
+            let r = tile_rect(g, li as usize + self.tile0);
+            let t = &mut self.hot[li as usize];
+            if t.zmax < 0.0 || t.psv & 1 != 0 || t.count == 0 {
+                continue;
+            }
+            let inside = r.0 >= win.x0
+                && r.1 <= win.x1
+                && r.2 >= win.y0
+                && r.3 <= win.y1
+                && t.zmin >= win.dlo
+                && t.zmax <= win.dhi;
+            if !inside {
+                t.psv |= 1;
+            }
+        }
+        // Stage 2: per-pixel work in boundary tiles.
+        let mut frag = StencilStats::default();
+        for &(pi, li) in &sc.pairs {
+            let t = &self.hot[li as usize];
+            if t.psv & 1 == 0 || t.zmax < 0.0 {
+                continue;
+            }
+            let p = pieces[pi as usize];
+            let r = tile_rect(g, li as usize + self.tile0);
+            self.px
+                .fill_tri_within(eye, &p.tri, win, p.zfail, p.increment, r, &mut frag);
+        }
+        st.h_fragments += frag.pixels_processed;
+        st.stencil_updates += frag.stencil_updates;
+        st.pixels_touched += frag.pixels_touched;
+        st.pixel_bytes += pass_bytes(g.options.bits, frag.pixels_processed, frag.stencil_updates);
+        // Hierarchical updates.
+        for &li in &sc.touched {
+            let idx = li as usize + self.tile0;
+            st.tile_bytes += (sbytes + 1) + 2 * (3 * sbytes + 1);
+            let t = self.hot[li as usize];
+            if self.cold[li as usize].fs {
+                continue;
+            }
+            if t.psv & 1 != 0 {
+                st.tiles_boundary += 1;
+                st.pixels_processed += u64::from(self.cold[li as usize].area);
+                let (smin, smax, read) = self.pixel_range(eye, idx);
+                st.pixel_bytes += read * sbytes;
+                let c = &mut self.cold[li as usize];
+                c.smin = smin;
+                c.smax = smax;
+                c.ever_boundary = true;
+            } else if t.count != 0 {
+                st.tiles_shadow += 1;
+                let c = &mut self.cold[li as usize];
+                if fs_on && t.count > 0 {
+                    c.fs = true;
+                    self.hot[li as usize].zmax = BACKGROUND;
+                } else {
+                    c.base = wrap(g.options.bits, c.base.wrapping_add(t.count));
+                }
+            } else {
+                st.tiles_lit += 1;
+            }
+        }
+    }
+
+    /// `[min zmin, max zmax]` over the band's blocks that pixel columns
+    /// `x0..=x1` reach.
+    fn depth_range(&self, x0: i64, x1: i64) -> [f32; 2] {
+        let w = i64::from(self.geo.width) - 1;
+        let (x0, x1) = (x0.clamp(0, w), x1.clamp(0, w));
+        let per = (BLOCK as i64) << self.geo.shift;
+        self.band_blocks[(x0 / per) as usize..=(x1 / per) as usize]
+            .iter()
+            .fold([f32::INFINITY, BACKGROUND], |[lo, hi], b| {
+                [lo.min(b[0]), hi.max(b[1])]
+            })
+    }
+
+    /// `(Smin, Smax, pixels read)` of the per-pixel counters over tile `idx`'s written pixels.
+    fn pixel_range(&self, eye: &DepthTarget, idx: usize) -> (i32, i32, u64) {
+        let (x0, x1, y0, y1) = tile_rect(self.geo, idx);
+        let (mut lo, mut hi, mut n) = (i32::MAX, i32::MIN, 0u64);
+        for y in y0..=y1 {
+            for x in x0..=x1 {
+                let (x, y) = (x as u32, y as u32);
+                if eye.depth[eye.layout.pixel_index(x, y)] == BACKGROUND {
+                    continue;
+                }
+                let i = tiled_index(self.geo.width, x, y) - self.px.base;
+                let v = match &self.px.counters {
+                    CountersMut::Eight(c) => i32::from(c[i]),
+                    CountersMut::Wide(c) => c[i],
+                };
+                lo = lo.min(v);
+                hi = hi.max(v);
+                n += 1;
+            }
+        }
+        if n == 0 {
+            (0, 0, 0)
+        } else {
+            (lo, hi, n)
+        }
+    }
+}
+
+/// Whether geometry whose every point has depth in `[zlo, zhi]` lies wholly on
+/// the uncounted side of tiles with written depths in `range` (behind them for
+/// zpass and zp+, in front for zfail), or misses the depth window `[dlo, dhi]`
+/// of every such tile: its fragments then change no counter there and no edge
+/// of it can bound a counted piece (`open_edges.rs`). The f64 fragment depth
+/// errs by less than `2⁻⁵⁰` relative inside the piece, far inside the `2⁻⁴⁰`
+/// widening; rounding to f32 is monotone.
+fn dismissed(zfail: bool, zlo: f64, zhi: f64, range: [f32; 2], dlo: f32, dhi: f32) -> bool {
+    let [zmin, zmax] = range;
+    if zmax < dlo || zmin > dhi {
+        return true;
+    }
+    const W: f64 = 1.0 / 1_099_511_627_776.0;
+    if zfail {
+        ((zlo - zlo.abs() * W) as f32) > zmax
+    } else {
+        ((zhi + zhi.abs() * W) as f32) <= zmin
+    }
+}
+
+/// `v` wrapped to the counter width.
+fn wrap(bits: StencilBits, v: i32) -> i32 {
+    match bits {
+        StencilBits::Eight => v & 0xFF,
+        StencilBits::Wide => v,
+    }
+}
+
+/// Whether every written pixel of `t` is already in shadow (`Smin > Sclear`,
+/// [Aila04 §4.3.2]): wide counters all positive; 8-bit counters all non-zero,
+/// known here only for a uniform tile.
+fn all_shadowed(t: &Cold, bits: StencilBits) -> bool {
+    match bits {
+        StencilBits::Wide => t.base.wrapping_add(t.smin) > 0,
+        StencilBits::Eight => t.smin == t.smax && wrap(bits, t.base.wrapping_add(t.smin)) != 0,
+    }
+}
+
+/// A tile's pixel rectangle clipped to the window's.
+fn clip_rect(r: (i64, i64, i64, i64), win: &Window) -> (i64, i64, i64, i64) {
+    (
+        r.0.max(win.x0),
+        r.1.min(win.x1),
+        r.2.max(win.y0),
+        r.3.min(win.y1),
+    )
+}
+
+/// Appends the fan pieces of a snapped polygon (as the brute-force pass does,
+/// `stencil::push_pieces`) and the directed edges of those with non-zero area.
+fn push_h_pieces(
+    poly: &[SnappedVertex],
+    zfail: bool,
+    job: u32,
+    pieces: &mut Vec<Piece>,
+    edges: &mut Vec<EdgeRec>,
+) {
+    let before = pieces.len();
+    crate::stencil::push_pieces(poly, zfail, job, pieces);
+    if pieces.len() == before {
+        return;
+    }
+    for i in 1..poly.len().saturating_sub(1) {
+        let (v0, v1, v2) = (poly[0], poly[i], poly[i + 1]);
+        if Tri::new(v0, v1, v2).is_some() {
+            push_piece_edges([v0, v1, v2], edges);
+        }
+    }
+}
+
+/// Runs `f(k, counters, parts)` on the bands' chunks of every array, in parallel
+/// with the `parallel` feature; each band's result in order.
+fn run_h_bands<C: Send, R: Send>(
+    counters: &mut [C],
+    touched: &mut [u8],
+    hot: &mut [Hot],
+    cold: &mut [Cold],
+    blocks: &mut [[f32; 2]],
+    n: Chunks,
+    f: impl Fn(usize, &mut [C], BandParts<'_>) -> R + Sync,
+) -> Vec<R> {
+    let bands: Vec<(&mut [C], BandParts<'_>)> = counters
+        .chunks_mut(n.px)
+        .zip(touched.chunks_mut(n.px))
+        .zip(hot.chunks_mut(n.tiles))
+        .zip(cold.chunks_mut(n.tiles))
+        .zip(blocks.chunks_mut(n.blocks))
+        .map(|((((c, touched), hot), cold), blocks)| {
+            (
+                c,
+                BandParts {
+                    touched,
+                    hot,
+                    cold,
+                    blocks,
+                },
+            )
+        })
+        .collect();
+    #[cfg(feature = "parallel")]
+    {
+        use rayon::prelude::*;
+        if bands.len() > 1 {
+            return bands
+                .into_par_iter()
+                .enumerate()
+                .map(|(k, (c, p))| f(k, c, p))
+                .collect();
+        }
+    }
+    bands
+        .into_iter()
+        .enumerate()
+        .map(|(k, (c, p))| f(k, c, p))
+        .collect()
+}
