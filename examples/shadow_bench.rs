@@ -1,8 +1,10 @@
 //! One view through the stencil shadow pipeline, timed per stage.
 //!
-//! `cargo run --release --example shadow_bench -- SCENE CAMERA WxH [--stencil bf|db]
-//! [--scissor on|off] [--method auto|zpass|zfail|zpplus] [--bits 8|wide] [--two-sided]
-//! [--reference] [--mask OUT.png] [--reps R]`
+//! `cargo run --release --example shadow_bench -- SCENE CAMERA WxH [--stencil bf|db|h|hybrid]
+//! [--scissor on|off] [--method auto|zpass|zfail|zpplus] [--counters 8|wide] [--tile 4|8|16]
+//! [--full-shadow on|off] [--map N] [--two-sided] [--reference] [--mask OUT.png] [--reps R]`
+//! (defaults `--tile 8 --counters 8 --map 2048 --full-shadow on`; `--bits` is another
+//! name for `--counters`).
 //!
 //! SCENE is a box-city file (`../shared/data/bench/*.txt`; CAMERA one of its camera
 //! names, its light), `city` (the bundled default job's procedural city; CAMERA
@@ -16,7 +18,9 @@
 //! repetitions of `eye_ms`, `silhouette_ms`, `volume_ms`, `stencil_ms` and
 //! `frame_ms` (their sum), `silhouette_cached_ms` (the silhouette stage once more
 //! with a warm cache), the counters of the first repetition (`volume_triangles`,
-//! `pixels_processed`, `stencil_updates`, `shadowed_pixels`, ...) and with
+//! `pixels_processed`, `stencil_updates`, `shadowed_pixels`, `h_fragments`,
+//! `tile_tests`, `tiles_lit`, `tiles_shadow`, `tiles_boundary`, `bandwidth_bytes`,
+//! `pixel_bytes`, `tile_bytes`, `silhouette_pixels`, `map_ms`, ...) and with
 //! `--reference` `mismatch_pixels`, `mismatch_off_boundary`, `ambiguous_pixels`.
 //! `--mask` writes the raw stencil result as an 8-bit PNG: 255 where the stencil
 //! is non-zero on any surface, 0 elsewhere, row 0 at the top. Logs go to stderr.
@@ -29,8 +33,10 @@ use shadowcull::config::{Method, PipelineOptions, StencilBackend, StencilBitsSpe
 use shadowcull::frame::FrameRunner;
 use std::path::PathBuf;
 
-const USAGE: &str = "usage: shadow_bench SCENE CAMERA WxH [--stencil bf|db] [--scissor on|off] \
-[--method auto|zpass|zfail|zpplus] [--bits 8|wide] [--two-sided] [--reference] [--mask OUT.png] \
+const USAGE: &str =
+    "usage: shadow_bench SCENE CAMERA WxH [--stencil bf|db|h|hybrid] [--scissor on|off] \
+[--method auto|zpass|zfail|zpplus] [--counters 8|wide] [--tile 4|8|16] [--full-shadow on|off] \
+[--map N] [--two-sided] [--reference] [--mask OUT.png] \
 [--reps R] [--light x,y,z | --sun dx,dy,dz] [--eye x,y,z --target x,y,z] [--fovy DEG] [--near D]";
 
 struct Args {
@@ -106,7 +112,30 @@ fn parse() -> anyhow::Result<Args> {
                 p.stencil = match v.as_str() {
                     "bf" => StencilBackend::Bf,
                     "db" => StencilBackend::Db,
-                    _ => bail!("--stencil must be bf or db"),
+                    "h" => StencilBackend::H,
+                    "hybrid" => StencilBackend::Hybrid,
+                    _ => bail!("--stencil must be bf, db, h or hybrid"),
+                }
+            }
+            "--tile" => {
+                p.tile = match v.as_str() {
+                    "4" => 4,
+                    "8" => 8,
+                    "16" => 16,
+                    _ => bail!("--tile must be 4, 8 or 16"),
+                }
+            }
+            "--map" => {
+                p.map_size = v.parse().context("--map")?;
+                if !(16..=raster::MAX_TARGET_SIZE).contains(&p.map_size) {
+                    bail!("--map must lie in 16..={}", raster::MAX_TARGET_SIZE);
+                }
+            }
+            "--full-shadow" => {
+                p.full_shadow = match v.as_str() {
+                    "on" => true,
+                    "off" => false,
+                    _ => bail!("--full-shadow must be on or off"),
                 }
             }
             "--scissor" => {
@@ -125,11 +154,11 @@ fn parse() -> anyhow::Result<Args> {
                     _ => bail!("--method must be auto, zpass, zfail or zpplus"),
                 }
             }
-            "--bits" => {
-                p.stencil_bits = match v.as_str() {
+            "--counters" | "--bits" => {
+                p.counters = match v.as_str() {
                     "8" => StencilBitsSpec::Eight,
                     "wide" => StencilBitsSpec::Wide,
-                    _ => bail!("--bits must be 8 or wide"),
+                    _ => bail!("{flag} must be 8 or wide"),
                 }
             }
             "--mask" => a.mask = Some(PathBuf::from(v)),
@@ -280,8 +309,17 @@ fn main() -> anyhow::Result<()> {
         "width": a.width,
         "height": a.height,
         "reps": a.reps,
-        "stencil": if a.pipeline.stencil == StencilBackend::Db { "db" } else { "bf" },
+        "stencil": match a.pipeline.stencil {
+            StencilBackend::Bf => "bf",
+            StencilBackend::Db => "db",
+            StencilBackend::H => "h",
+            StencilBackend::Hybrid => "hybrid",
+        },
         "scissor": a.pipeline.scissor,
+        "tile": a.pipeline.tile,
+        "counters": if a.pipeline.counters == StencilBitsSpec::Wide { "wide" } else { "8" },
+        "full_shadow": a.pipeline.full_shadow,
+        "map": a.pipeline.map_size,
         "method": format!("{:?}", a.pipeline.method).to_lowercase(),
         "eye_ms": median(&mut eye),
         "silhouette_ms": median(&mut sil),
@@ -300,6 +338,16 @@ fn main() -> anyhow::Result<()> {
         "stencil_updates": row.shadow.stencil_updates,
         "pixels_touched": row.shadow.pixels_touched,
         "shadowed_pixels": row.shadow.shadowed_pixels,
+        "h_fragments": row.shadow.h_fragments,
+        "tile_tests": row.shadow.tile_tests,
+        "tiles_lit": row.shadow.tiles_lit,
+        "tiles_shadow": row.shadow.tiles_shadow,
+        "tiles_boundary": row.shadow.tiles_boundary,
+        "bandwidth_bytes": row.shadow.bandwidth_bytes,
+        "pixel_bytes": row.shadow.pixel_bytes,
+        "tile_bytes": row.shadow.tile_bytes,
+        "silhouette_pixels": row.shadow.silhouette_pixels,
+        "map_ms": row.shadow.map_ms,
     });
     if a.reference {
         let m = line.as_object_mut().context("json object")?;

@@ -204,14 +204,19 @@ pub enum StencilBackend {
     Bf,
     /// Brute force with the per-volume depth-bounds test [EK "Computing Depth Bounds"].
     Db,
+    /// Hierarchical shadow volumes [Aila04] (`tile`, `full_shadow`).
+    H,
+    /// Shadow map plus volumes at its silhouette pixels [ChanDurand04] (`map_size`).
+    Hybrid,
 }
 
-/// Stencil counter width (`stencil_bits: eight`).
+/// Stencil counter width (`counters: bits8`; `stencil_bits: eight` is the older spelling).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize, serde::Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum StencilBitsSpec {
     /// 8-bit wrapping counters, as a GPU.
     #[default]
+    #[serde(rename = "bits8", alias = "eight")]
     Eight,
     /// Wide counters (shows where 8 bits alias).
     Wide,
@@ -227,8 +232,17 @@ pub struct PipelineOptions {
     pub stencil: StencilBackend,
     /// Per-volume scissor rectangles.
     pub scissor: bool,
-    /// Stencil counter width.
-    pub stencil_bits: StencilBitsSpec,
+    /// Per-volume depth-bounds test for any backend (`stencil: db` is `bf` with it).
+    pub depth_bounds: bool,
+    /// Stencil counter width (`bits8` or `wide`).
+    #[serde(alias = "stencil_bits")]
+    pub counters: StencilBitsSpec,
+    /// Tile size of the hierarchical stencil: 4, 8 or 16.
+    pub tile: u32,
+    /// The hierarchical stencil's full-shadow bit [Aila04 §4.3.2].
+    pub full_shadow: bool,
+    /// Shadow-map size of the hybrid (texels per side).
+    pub map_size: u32,
     /// Every triangle casts (back-facing ones flipped); the reference uses the same rule.
     pub two_sided: bool,
     /// Lights with a range extrude their shadow volumes finitely (always closed).
@@ -246,7 +260,11 @@ impl Default for PipelineOptions {
             method: Method::Auto,
             stencil: StencilBackend::Bf,
             scissor: false,
-            stencil_bits: StencilBitsSpec::Eight,
+            depth_bounds: false,
+            counters: StencilBitsSpec::Eight,
+            tile: 8,
+            full_shadow: true,
+            map_size: 2048,
             two_sided: false,
             finite_extrusion: false,
             reference_every: 1,
@@ -261,12 +279,26 @@ impl PipelineOptions {
         crate::pipeline::ShadowOptions {
             method: self.method.choice(),
             two_sided: self.two_sided,
-            bits: match self.stencil_bits {
+            backend: match self.stencil {
+                StencilBackend::Bf | StencilBackend::Db => crate::pipeline::Backend::Brute,
+                StencilBackend::H => crate::pipeline::Backend::Hierarchical {
+                    tile: match self.tile {
+                        4 => raster::TileSize::T4,
+                        16 => raster::TileSize::T16,
+                        _ => raster::TileSize::T8,
+                    },
+                    full_shadow: self.full_shadow,
+                },
+                StencilBackend::Hybrid => crate::pipeline::Backend::Hybrid {
+                    map_size: self.map_size,
+                },
+            },
+            bits: match self.counters {
                 StencilBitsSpec::Eight => raster::StencilBits::Eight,
                 StencilBitsSpec::Wide => raster::StencilBits::Wide,
             },
             scissor: self.scissor,
-            depth_bounds: self.stencil == StencilBackend::Db,
+            depth_bounds: self.depth_bounds || self.stencil == StencilBackend::Db,
             finite_extrusion: self.finite_extrusion,
         }
     }
@@ -366,6 +398,18 @@ impl Job {
                 return Err(bad(
                     &format!("{at}.reference.depth_error"),
                     "must lie in [0, 0.01)".into(),
+                ));
+            }
+            if ![4, 8, 16].contains(&p.tile) {
+                return Err(bad(
+                    &format!("{at}.tile"),
+                    format!("{} is not 4, 8 or 16", p.tile),
+                ));
+            }
+            if !(16..=raster::MAX_TARGET_SIZE).contains(&p.map_size) {
+                return Err(bad(
+                    &format!("{at}.map_size"),
+                    format!("{} is not in 16..={}", p.map_size, raster::MAX_TARGET_SIZE),
                 ));
             }
             if p.reference.two_sided && !p.two_sided {
@@ -703,6 +747,18 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("hier"), "{e}");
+        let e = parse("(scene: Obj(\"a.obj\"), pipeline: (stencil: h, tile: 12))")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("pipeline.tile") && e.contains("12"), "{e}");
+        let e = parse("(scene: Obj(\"a.obj\"), pipeline: (stencil: hybrid, map_size: 5))")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("pipeline.map_size"), "{e}");
+        let e = parse("(scene: Obj(\"a.obj\"), pipeline: (counters: bits16))")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("bits16"), "{e}");
         let e = parse("(scene: Obj(\"a.obj\"), pipeline: (reference: (two_sided: true)))")
             .unwrap_err()
             .to_string();

@@ -134,6 +134,16 @@ impl<'s> FrameRunner<'s> {
                     stencil_updates: shadow.stencil.stencil_updates,
                     pixels_touched: shadow.stencil.pixels_touched,
                     shadowed_pixels: shadow.mask.counts().shadow,
+                    h_fragments: shadow.stencil.h_fragments,
+                    tile_tests: shadow.stencil.tile_tests,
+                    tiles_lit: shadow.stencil.tiles_lit,
+                    tiles_shadow: shadow.stencil.tiles_shadow,
+                    tiles_boundary: shadow.stencil.tiles_boundary,
+                    pixel_bytes: shadow.stencil.pixel_bytes,
+                    tile_bytes: shadow.stencil.tile_bytes,
+                    bandwidth_bytes: shadow.stencil.bandwidth_bytes(),
+                    silhouette_pixels: shadow.silhouette_pixels,
+                    map_ms: shadow.map_ms,
                 },
                 ..Default::default()
             };

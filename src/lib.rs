@@ -16,6 +16,7 @@ pub mod compare;
 pub mod config;
 mod error;
 pub mod frame;
+pub mod hybrid;
 pub mod mask;
 pub mod pipeline;
 pub mod reference;

@@ -54,9 +54,12 @@ pub fn is_unlit(
     point: DVec3,
     two_sided: bool,
 ) -> bool {
-    if !light.reaches(point) {
-        return true;
-    }
+    !light.reaches(point) || unlit_by_facing(tri, eye, light, two_sided)
+}
+
+/// The part of [`is_unlit`] that does not depend on the surface point: the
+/// triangle's facing to the light and the eye.
+fn unlit_by_facing(tri: &[DVec3; 3], eye: DVec3, light: &Light, two_sided: bool) -> bool {
     if two_sided {
         let [a, b, c] = *tri;
         let n = (b - a).cross(c - a);
@@ -96,7 +99,7 @@ pub fn assemble(
     width: u32,
     height: u32,
     primitive: &[Option<(ObjectId, u32)>],
-    shadowed: impl Fn(usize) -> bool,
+    shadowed: impl Fn(usize) -> bool + Sync,
     two_sided: bool,
 ) -> Mask {
     assert_eq!(
@@ -106,29 +109,55 @@ pub fn assemble(
     );
     let mut mask = Mask::filled(width, height, PixelClass::Background);
     let rays = camera.rays(width, height);
-    for (i, p) in primitive.iter().enumerate() {
-        let Some((obj, t)) = *p else { continue };
-        let tri = scene.world_triangle(obj, t as usize);
-        let (x, y) = (i as u32 % width, i as u32 / width);
-        let dir = rays.direction(x as f64 + 0.5, y as f64 + 0.5);
-        // Eye-relative plane intersection keeps precision far from the origin.
-        let e = camera.position;
-        let n = (tri[1] - tri[0]).cross(tri[2] - tri[0]);
-        let den = n.dot(dir);
-        let t_hit = if den != 0.0 {
-            n.dot(tri[0] - e) / den
-        } else {
-            0.0
-        };
-        let point = e + dir * t_hit;
-        mask.pixels[i] = if is_unlit(&tri, e, light, point, two_sided) {
-            PixelClass::Unlit
-        } else if shadowed(i) {
-            PixelClass::Shadow
-        } else {
-            PixelClass::Lit
-        };
-    }
+    // Only spot lights and ranged point lights depend on the surface point.
+    let everywhere = matches!(
+        light,
+        Light::Point { range: None, .. } | Light::Directional { .. }
+    );
+    let e = camera.position;
+    let row = |y: usize, out: &mut [PixelClass]| {
+        // Neighbouring pixels mostly show the same triangle: its facing is
+        // computed once per run.
+        let mut last: Option<((ObjectId, u32), [DVec3; 3], bool)> = None;
+        for (x, px) in out.iter_mut().enumerate() {
+            let i = y * width as usize + x;
+            let Some(id) = primitive[i] else { continue };
+            let (tri, facing_unlit) = match last {
+                Some((l, tri, f)) if l == id => (tri, f),
+                _ => {
+                    let tri = scene.world_triangle(id.0, id.1 as usize);
+                    let f = unlit_by_facing(&tri, e, light, two_sided);
+                    last = Some((id, tri, f));
+                    (tri, f)
+                }
+            };
+            let unlit = facing_unlit
+                || (!everywhere && {
+                    let dir = rays.direction(x as f64 + 0.5, y as f64 + 0.5);
+                    // Eye-relative plane intersection keeps precision far from the origin.
+                    let n = (tri[1] - tri[0]).cross(tri[2] - tri[0]);
+                    let den = n.dot(dir);
+                    let t_hit = if den != 0.0 {
+                        n.dot(tri[0] - e) / den
+                    } else {
+                        0.0
+                    };
+                    !light.reaches(e + dir * t_hit)
+                });
+            *px = if unlit {
+                PixelClass::Unlit
+            } else if shadowed(i) {
+                PixelClass::Shadow
+            } else {
+                PixelClass::Lit
+            };
+        }
+    };
+    use rayon::prelude::*;
+    mask.pixels
+        .par_chunks_mut(width as usize)
+        .enumerate()
+        .for_each(|(y, out)| row(y, out));
     mask
 }
 

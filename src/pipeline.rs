@@ -9,8 +9,8 @@ use crate::reference::PrimitiveId;
 use crate::Result;
 use glam::Vec4;
 use raster::{
-    Coverage, DepthTarget, DrawItem, StencilBits, StencilStats, StencilTarget, TileSize,
-    VolumeBuffer,
+    Coverage, DepthTarget, DrawItem, HierarchicalOptions, HierarchicalStencil, StencilBits,
+    StencilStats, StencilTarget, TileClass, TileSize, VolumeBuffer,
 };
 use scene::{Camera, Light, ObjectId, Scene};
 use shadowgen::{build_volumes, BuildOptions, MethodChoice, SilhouetteCache, VolumeStats};
@@ -142,9 +142,64 @@ pub fn eye_pass_reusing(
     })
 }
 
+/// Which stencil backend draws the volumes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Backend {
+    /// Brute force: every volume fragment ([`StencilTarget`]).
+    Brute,
+    /// Hierarchical shadow volumes [Aila04] ([`HierarchicalStencil`]).
+    Hierarchical {
+        /// Tile size of the classification.
+        tile: TileSize,
+        /// The full-shadow bit [Aila04 §4.3.2].
+        full_shadow: bool,
+    },
+    /// A shadow map decides every pixel whose four nearest map comparisons
+    /// agree; brute-force volumes only at the others [ChanDurand04]. Not exact.
+    Hybrid {
+        /// Shadow-map texels per side (per cube face for point lights).
+        map_size: u32,
+    },
+}
+
+/// The tile classification of a hierarchical frame ([Aila04 Fig. 1]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct TileImage {
+    /// Tile side in pixels.
+    pub tile: u32,
+    /// Tiles across and down.
+    pub tiles_x: u32,
+    /// Tiles down.
+    pub tiles_y: u32,
+    /// Row-major classes.
+    pub classes: Vec<TileClass>,
+}
+
+impl TileImage {
+    /// RGB pixels of a `width × height` image: every pixel takes its tile's
+    /// colour — lit white, shadow dark blue, boundary orange, background black.
+    pub fn rgb(&self, width: u32, height: u32) -> Vec<u8> {
+        let mut out = Vec::with_capacity((width * height * 3) as usize);
+        for y in 0..height {
+            for x in 0..width {
+                let c = self.classes[((y / self.tile) * self.tiles_x + x / self.tile) as usize];
+                out.extend_from_slice(match c {
+                    TileClass::Background => &[0, 0, 0],
+                    TileClass::Lit => &[235, 235, 235],
+                    TileClass::Shadow => &[40, 60, 140],
+                    TileClass::Boundary => &[245, 150, 40],
+                });
+            }
+        }
+        out
+    }
+}
+
 /// Options of the shadow stage.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ShadowOptions {
+    /// Stencil backend.
+    pub backend: Backend,
     /// Volume method per caster.
     pub method: MethodChoice,
     /// Every triangle casts (matches the reference's two-sided mode).
@@ -163,6 +218,7 @@ pub struct ShadowOptions {
 impl Default for ShadowOptions {
     fn default() -> Self {
         ShadowOptions {
+            backend: Backend::Brute,
             method: MethodChoice::Auto,
             two_sided: false,
             bits: StencilBits::Eight,
@@ -187,8 +243,16 @@ pub struct ShadowFrame {
     /// Per pixel (row-major, row 0 at the top): the raw stencil is non-zero,
     /// whatever the surface's facing.
     pub raw_nonzero: Vec<bool>,
-    /// Wall time of the stencil stage: clearing, every volume drawn, mask assembly (ms).
+    /// Wall time of the stencil stage: clearing, every volume drawn (for the
+    /// hierarchical backend its tile bounds, both stages), the resolve, mask
+    /// assembly (ms).
     pub stencil_ms: f64,
+    /// The hierarchical backend's tile classification.
+    pub tiles: Option<TileImage>,
+    /// Hybrid: pixels left to the volumes (the shadow map's silhouette pixels).
+    pub silhouette_pixels: u64,
+    /// Hybrid: shadow-map rendering and classification (ms), inside `stencil_ms`.
+    pub map_ms: f64,
 }
 
 /// Scratch kept across frames: the silhouette cache and the volume buffer.
@@ -197,6 +261,7 @@ pub struct ShadowScratch {
     cache: SilhouetteCache,
     volumes: VolumeBuffer,
     stencil: Option<StencilTarget>,
+    hierarchical: Option<HierarchicalStencil>,
 }
 
 impl std::fmt::Debug for ShadowScratch {
@@ -239,13 +304,6 @@ pub fn shadow_mask(
         &mut scratch.cache,
     )?;
     let t = std::time::Instant::now();
-    let mut stencil = match scratch.stencil.take() {
-        Some(mut s) if (s.width(), s.height(), s.bits()) == (w, h, options.bits) => {
-            s.clear();
-            s
-        }
-        _ => StencilTarget::new(w, h, options.bits)?,
-    };
     let mut stats = StencilStats::default();
     let tests = raster::StencilTests {
         scissor: options.scissor,
@@ -258,12 +316,72 @@ pub fn shadow_mask(
         .map(|r| scene::transform::clip_from_local(camera, &r.world_from_local))
         .collect();
     let ranges: Vec<_> = clip.iter().copied().zip(&scratch.volumes.ranges).collect();
-    stencil.draw_volumes(&eye.target, &ranges, &scratch.volumes, tests, &mut stats)?;
+    let mut raw_nonzero = Vec::new();
+    let mut tiles = None;
+    let (mut silhouette_pixels, mut map_ms) = (0, 0.0);
+    match options.backend {
+        Backend::Brute => {
+            let mut stencil = match scratch.stencil.take() {
+                Some(mut s) if (s.width(), s.height(), s.bits()) == (w, h, options.bits) => {
+                    s.clear();
+                    s
+                }
+                _ => StencilTarget::new(w, h, options.bits)?,
+            };
+            stencil.draw_volumes(&eye.target, &ranges, &scratch.volumes, tests, &mut stats)?;
+            stencil.resolve(&eye.target, &mut raw_nonzero, &mut stats)?;
+            scratch.stencil = Some(stencil);
+        }
+        Backend::Hierarchical { tile, full_shadow } => {
+            let want = HierarchicalOptions {
+                tile,
+                bits: options.bits,
+                full_shadow,
+            };
+            let mut stencil = match scratch.hierarchical.take() {
+                Some(mut s) if (s.width(), s.height(), s.options()) == (w, h, want) => {
+                    s.clear();
+                    s
+                }
+                _ => HierarchicalStencil::new(w, h, want)?,
+            };
+            stencil.draw_volumes(&eye.target, &ranges, &scratch.volumes, tests, &mut stats)?;
+            stencil.resolve(&eye.target, &mut raw_nonzero, &mut stats)?;
+            let (tiles_x, tiles_y) = stencil.tile_counts();
+            tiles = Some(TileImage {
+                tile: tile.pixels(),
+                tiles_x,
+                tiles_y,
+                classes: stencil.tile_classes(),
+            });
+            scratch.hierarchical = Some(stencil);
+        }
+        Backend::Hybrid { map_size } => {
+            let class =
+                crate::hybrid::classify(scene, camera, light, eye, map_size, options.two_sided)?;
+            // The computation mask: volumes see only the silhouette pixels' depth.
+            let mut masked = eye.target.clone();
+            masked.keep_only(&class.silhouette)?;
+            let mut stencil = match scratch.stencil.take() {
+                Some(mut s) if (s.width(), s.height(), s.bits()) == (w, h, options.bits) => {
+                    s.clear();
+                    s
+                }
+                _ => StencilTarget::new(w, h, options.bits)?,
+            };
+            stencil.draw_volumes(&masked, &ranges, &scratch.volumes, tests, &mut stats)?;
+            stencil.resolve(&masked, &mut raw_nonzero, &mut stats)?;
+            for (i, r) in raw_nonzero.iter_mut().enumerate() {
+                if !class.silhouette[i] {
+                    *r = class.shadowed[i];
+                }
+            }
+            scratch.stencil = Some(stencil);
+            silhouette_pixels = class.silhouette_pixels;
+            map_ms = class.map_ms;
+        }
+    }
     let volume_triangles = stats.triangles;
-    let raw_nonzero: Vec<bool> = (0..h)
-        .flat_map(|y| (0..w).map(move |x| (x, y)))
-        .map(|(x, y)| stencil.nonzero(x, y))
-        .collect();
     let shadowed = |i: usize| raw_nonzero[i];
     let mask = assemble(
         scene,
@@ -275,7 +393,6 @@ pub fn shadow_mask(
         shadowed,
         options.two_sided,
     );
-    scratch.stencil = Some(stencil);
     Ok(ShadowFrame {
         mask,
         volumes,
@@ -283,5 +400,8 @@ pub fn shadow_mask(
         stencil: stats,
         raw_nonzero,
         stencil_ms: t.elapsed().as_secs_f64() * 1e3,
+        tiles,
+        silhouette_pixels,
+        map_ms,
     })
 }

@@ -65,6 +65,26 @@ pub struct ShadowStats {
     pub pixels_touched: u64,
     /// Pixels the pipeline's mask classes shadow.
     pub shadowed_pixels: u64,
+    /// Hierarchical stencil: volume fragments rasterized inside boundary tiles.
+    pub h_fragments: u64,
+    /// Hierarchical stencil: stage-1 (piece, tile) visits.
+    pub tile_tests: u64,
+    /// Hierarchical stencil: tiles classified lit, summed over volumes.
+    pub tiles_lit: u64,
+    /// Hierarchical stencil: tiles classified wholly in shadow, summed over volumes.
+    pub tiles_shadow: u64,
+    /// Hierarchical stencil: boundary tiles, summed over volumes.
+    pub tiles_boundary: u64,
+    /// Modeled per-pixel buffer traffic in bytes ([`raster::StencilStats::pixel_bytes`]).
+    pub pixel_bytes: u64,
+    /// Modeled per-tile buffer traffic in bytes ([`raster::StencilStats::tile_bytes`]).
+    pub tile_bytes: u64,
+    /// `pixel_bytes + tile_bytes`.
+    pub bandwidth_bytes: u64,
+    /// Hybrid: eye pixels the shadow map leaves to the volumes.
+    pub silhouette_pixels: u64,
+    /// Hybrid: shadow map rendering and classification (ms), part of `stencil_ms`.
+    pub map_ms: f64,
 }
 
 /// The pipeline's mask against the reference's, on frames that run it.
@@ -134,6 +154,16 @@ summable!(ShadowStats {
     stencil_updates,
     pixels_touched,
     shadowed_pixels,
+    h_fragments,
+    tile_tests,
+    tiles_lit,
+    tiles_shadow,
+    tiles_boundary,
+    pixel_bytes,
+    tile_bytes,
+    bandwidth_bytes,
+    silhouette_pixels,
+    map_ms,
 });
 summable!(CheckStats {
     mismatch_pixels,
@@ -189,6 +219,16 @@ stats_row! {
     stencil_updates: shadow.stencil_updates,
     pixels_touched: shadow.pixels_touched,
     shadowed_pixels: shadow.shadowed_pixels,
+    h_fragments: shadow.h_fragments,
+    tile_tests: shadow.tile_tests,
+    tiles_lit: shadow.tiles_lit,
+    tiles_shadow: shadow.tiles_shadow,
+    tiles_boundary: shadow.tiles_boundary,
+    pixel_bytes: shadow.pixel_bytes,
+    tile_bytes: shadow.tile_bytes,
+    bandwidth_bytes: shadow.bandwidth_bytes,
+    silhouette_pixels: shadow.silhouette_pixels,
+    map_ms: shadow.map_ms,
     mismatch_pixels: check.mismatch_pixels,
     mismatch_off_boundary: check.mismatch_off_boundary,
     ambiguous_pixels: check.ambiguous_pixels,
