@@ -8,6 +8,7 @@ mod common;
 
 use common::{boxes_on_ground, scene_of};
 use glam::{DMat4, DQuat, DVec3, Vec3};
+use raster::TileSize;
 use scene::procedural::analytic;
 use scene::{Camera, Light, Mesh, ObjectId, Scene, SceneGraph, Transform};
 use shadowcull::mask::{compare, Comparison, Mask, PixelClass};
@@ -130,6 +131,18 @@ fn try_run(
         reference.counts.classes.background
     );
     let cmp = compare(&reference.mask, &reference.ambiguous, &frame.mask);
+    // The hierarchical stencil reproduces brute force here too (tiles 4, 8, 16);
+    // where its FS bit changes a pixel, the reference calls the pixel ambiguous.
+    let tiles = [TileSize::T4, TileSize::T8, TileSize::T16];
+    let (_, differing) =
+        common::check_hierarchical(scene, cam, light, &eye.target, method, two_sided, &tiles)
+            .unwrap_or_else(|e| panic!("hierarchical stencil: {e}"));
+    for i in differing {
+        assert!(
+            reference.ambiguous[i],
+            "FS changed pixel {i}, which the reference does not call ambiguous"
+        );
+    }
     Ok(Run {
         mask: frame.mask,
         reference,

@@ -56,12 +56,11 @@
 //! FS bit: `2·(3·S + 1)`); the resolve reads every written tile's entry
 //! (`3·S + 1`).
 
-use crate::coverage::{pixel_bounds, Coverage};
 use crate::depth_target::{DepthTarget, TileSize, BACKGROUND};
 use crate::edge::Tri;
 use crate::near_cap::fan_triangle;
 use crate::open_edges::{open_edges, push_piece_edges, EdgeRec, Segment};
-use crate::setup::{setup_into, setup_near_plane_into, Setup, SnappedVertex};
+use crate::setup::{setup_into, setup_near_plane_into, Setup, SnappedVertex, SUBPIXEL};
 use crate::span::StripExtents;
 use crate::stencil::{
     check_range, counter_bytes, pass_bytes, tiled_index, Band, Counters, CountersMut, Piece,
@@ -836,11 +835,13 @@ impl HBand<'_, '_> {
             if y0 > y1 {
                 continue;
             }
-            let Some((px0, px1, _, _)) =
-                pixel_bounds(&p.tri, Coverage::Standard, g.width, g.height)
-            else {
-                continue;
-            };
+            // Columns of every pixel-centre rectangle the closed triangle can
+            // meet, not only of the centres it covers: a sliver between two
+            // rows of centres covers none, yet its edges may bound counted
+            // pieces, so it must be classified like any other piece.
+            let half = SUBPIXEL / 2;
+            let px0 = (p.tri.xmin - half).div_euclid(SUBPIXEL).max(0);
+            let px1 = ((p.tri.xmax - half).div_euclid(SUBPIXEL) + 1).min(i64::from(g.width) - 1);
             let (px0, px1) = (px0.max(win.x0), px1.min(win.x1));
             if px0 > px1 {
                 continue;
