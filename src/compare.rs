@@ -56,9 +56,19 @@ pub struct VariantRow {
     pub ambiguous_pixels: u64,
     /// Pixels compared, summed.
     pub compared_pixels: u64,
+    /// Hierarchical stencil: fragments inside boundary tiles, summed.
+    pub h_fragments: u64,
+    /// Hierarchical stencil: stage-1 tile visits, summed.
+    pub tile_tests: u64,
+    /// Hierarchical stencil: boundary tiles over all volumes, summed.
+    pub tiles_boundary: u64,
+    /// Modeled bandwidth (per-pixel plus per-tile bytes), summed.
+    pub bandwidth_bytes: u64,
+    /// Hybrid: pixels left to the volumes, summed.
+    pub silhouette_pixels: u64,
 }
 
-const CSV_HEADER: &str = "name,rows,eye_ms,silhouette_ms,volume_ms,stencil_ms,frame_ms,volume_triangles,pixels_processed,shadowed_pixels,mismatch_pixels,mismatch_off_boundary,ambiguous_pixels,compared_pixels";
+const CSV_HEADER: &str = "name,rows,eye_ms,silhouette_ms,volume_ms,stencil_ms,frame_ms,volume_triangles,pixels_processed,shadowed_pixels,mismatch_pixels,mismatch_off_boundary,ambiguous_pixels,compared_pixels,h_fragments,tile_tests,tiles_boundary,bandwidth_bytes,silhouette_pixels";
 
 impl VariantRow {
     fn from_rows(name: &str, rows: &[FrameStats]) -> Self {
@@ -79,12 +89,17 @@ impl VariantRow {
             mismatch_off_boundary: sum(|r| r.check.mismatch_off_boundary),
             ambiguous_pixels: sum(|r| r.check.ambiguous_pixels),
             compared_pixels: sum(|r| r.check.compared_pixels),
+            h_fragments: sum(|r| r.shadow.h_fragments),
+            tile_tests: sum(|r| r.shadow.tile_tests),
+            tiles_boundary: sum(|r| r.shadow.tiles_boundary),
+            bandwidth_bytes: sum(|r| r.shadow.bandwidth_bytes),
+            silhouette_pixels: sum(|r| r.shadow.silhouette_pixels),
         }
     }
 
     fn csv(&self) -> String {
         format!(
-            "{},{},{:.3},{:.3},{:.3},{:.3},{:.3},{},{},{},{},{},{},{}",
+            "{},{},{:.3},{:.3},{:.3},{:.3},{:.3},{},{},{},{},{},{},{},{},{},{},{},{}",
             csv_field(&self.name),
             self.rows,
             self.eye_ms,
@@ -98,30 +113,41 @@ impl VariantRow {
             self.mismatch_pixels,
             self.mismatch_off_boundary,
             self.ambiguous_pixels,
-            self.compared_pixels
+            self.compared_pixels,
+            self.h_fragments,
+            self.tile_tests,
+            self.tiles_boundary,
+            self.bandwidth_bytes,
+            self.silhouette_pixels
         )
     }
 }
 
 /// The variants a job compares: its `pipelines`, or when empty brute force,
-/// depth bounds, and scissor with depth bounds, each otherwise like `pipeline`.
+/// depth bounds, scissor with depth bounds, the hierarchical stencil with
+/// tiles 4, 8 and 16, and the shadow-map hybrid, each otherwise like `pipeline`.
 pub fn variants(job: &Job) -> Vec<NamedPipeline> {
     if !job.pipelines.is_empty() {
         return job.pipelines.clone();
     }
     let base = job.pipeline;
-    let with = |name: &str, stencil, scissor| NamedPipeline {
+    let with = |name: &str, stencil, scissor, tile| NamedPipeline {
         name: name.into(),
         pipeline: PipelineOptions {
             stencil,
             scissor,
+            tile,
             ..base
         },
     };
     vec![
-        with("bf", StencilBackend::Bf, false),
-        with("db", StencilBackend::Db, false),
-        with("scissor_db", StencilBackend::Db, true),
+        with("bf", StencilBackend::Bf, false, 8),
+        with("db", StencilBackend::Db, false, 8),
+        with("scissor_db", StencilBackend::Db, true, 8),
+        with("h_tile4", StencilBackend::H, false, 4),
+        with("h", StencilBackend::H, false, 8),
+        with("h_tile16", StencilBackend::H, false, 16),
+        with("hybrid", StencilBackend::Hybrid, false, 8),
     ]
 }
 

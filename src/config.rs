@@ -154,6 +154,10 @@ pub struct Outputs {
     pub masks: bool,
     /// `frames/<frame>_<light>_shaded.png`: a shaded image of the frame.
     pub shaded: bool,
+    /// `frames/<frame>_<light>_tiles.png`: the hierarchical stencil's tile
+    /// classification (lit white, shadow blue, boundary orange, background
+    /// black; [Aila04 Fig. 1]); only with `pipeline.stencil: h`.
+    pub tile_image: bool,
     /// Write images only for every n-th frame (1 = all).
     pub image_every: u32,
 }
@@ -163,6 +167,7 @@ impl Default for Outputs {
         Outputs {
             masks: false,
             shaded: false,
+            tile_image: false,
             image_every: 1,
         }
     }
@@ -655,9 +660,13 @@ pub fn default_job() -> Job {
         outputs: Outputs {
             masks: true,
             shaded: true,
+            tile_image: true,
             image_every: 1,
         },
-        pipeline: PipelineOptions::default(),
+        pipeline: PipelineOptions {
+            stencil: StencilBackend::H,
+            ..PipelineOptions::default()
+        },
         pipelines: Vec::new(),
     }
 }

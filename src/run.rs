@@ -173,7 +173,7 @@ pub fn run_job(
     let out = &options.out_dir;
     std::fs::create_dir_all(out).map_err(io_err(out))?;
     let frames_dir = out.join("frames");
-    if job.outputs.masks || job.outputs.shaded {
+    if job.outputs.masks || job.outputs.shaded || job.outputs.tile_image {
         std::fs::create_dir_all(&frames_dir).map_err(io_err(&frames_dir))?;
     }
     let csv_path = out.join("stats.csv");
@@ -208,6 +208,14 @@ pub fn run_job(
                         let p = frames_dir.join(format!("{frame}_{li}_reference.png"));
                         atomic(&p, |tmp| r.mask.write_png(tmp))?;
                     }
+                }
+                if let (true, Some(t)) = (job.outputs.tile_image, &lf.shadow.tiles) {
+                    // [Aila04 Fig. 1]: lit, shadow and boundary tiles of the frame.
+                    let p = frames_dir.join(format!("{frame}_{li}_tiles.png"));
+                    let rgb = t.rgb(w, h);
+                    atomic(&p, |tmp| {
+                        crate::mask::write_png(tmp, w, h, png::ColorType::Rgb, &rgb)
+                    })?;
                 }
                 if let (true, Some(r)) = (job.outputs.shaded, &lf.reference) {
                     let p = frames_dir.join(format!("{frame}_{li}_shaded.png"));

@@ -171,7 +171,14 @@ const SMALL_JOB: &str = r#"(
 fn run_writes_stats_summary_and_images() {
     let dir = tmp_dir("run");
     let job = dir.join("job.ron");
-    std::fs::write(&job, SMALL_JOB).unwrap();
+    std::fs::write(
+        &job,
+        SMALL_JOB.replace(
+            "outputs: (masks: true, shaded: true),",
+            "outputs: (masks: true, shaded: true, tile_image: true),\n    pipeline: (stencil: h),",
+        ),
+    )
+    .unwrap();
     let out = dir.join("out/nested");
     std::fs::create_dir_all(&out).unwrap();
     std::fs::write(out.join("keep.txt"), "other file").unwrap();
@@ -201,6 +208,8 @@ fn run_writes_stats_summary_and_images() {
         "0_1_mask.png",
         "1_0_shaded.png",
         "1_1_shaded.png",
+        "0_0_tiles.png",
+        "1_1_tiles.png",
     ] {
         assert!(out.join("frames").join(f).exists(), "{f}");
     }
@@ -250,6 +259,8 @@ fn compare_writes_one_row_per_variant_and_a_plot() {
             (name: "db", pipeline: (stencil: db, scissor: true)),
             (name: "zfail", pipeline: (method: zfail)),
             (name: "zpass", pipeline: (method: zpass)),
+            (name: "h", pipeline: (stencil: h, full_shadow: false, tile: 4)),
+            (name: "hybrid", pipeline: (stencil: hybrid, map_size: 512)),
         ],"#,
     );
     std::fs::write(&job, text).unwrap();
@@ -265,7 +276,7 @@ fn compare_writes_one_row_per_variant_and_a_plot() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let csv = std::fs::read_to_string(out.join("compare.csv")).unwrap();
     let lines: Vec<&str> = csv.lines().collect();
-    assert_eq!(lines.len(), 1 + 4, "{csv}");
+    assert_eq!(lines.len(), 1 + 6, "{csv}");
     let cols: Vec<&str> = lines[0].split(',').collect();
     let idx = |name: &str| cols.iter().position(|c| *c == name).unwrap();
     let rows: Vec<Vec<&str>> = lines[1..].iter().map(|l| l.split(',').collect()).collect();
@@ -278,6 +289,14 @@ fn compare_writes_one_row_per_variant_and_a_plot() {
     // Same masks, less per-pixel work with scissor and depth bounds.
     assert_eq!(get(0, "shadowed_pixels"), get(1, "shadowed_pixels"));
     assert!(get(1, "pixels_processed") <= get(0, "pixels_processed"));
+    // The hierarchical stencil without FS: brute force's mask, fewer pixels.
+    assert_eq!(get(4, "shadowed_pixels"), get(0, "shadowed_pixels"));
+    assert_eq!(get(4, "mismatch_pixels"), get(0, "mismatch_pixels"));
+    assert!(get(4, "pixels_processed") < get(0, "pixels_processed"));
+    assert!(get(4, "tile_tests") > 0.0 && get(4, "bandwidth_bytes") > 0.0);
+    // The hybrid runs volumes only at its silhouette pixels.
+    assert!(get(5, "silhouette_pixels") > 0.0);
+    assert!(get(5, "pixels_processed") < get(0, "pixels_processed"));
     for c in [
         "frame_ms",
         "stencil_ms",
