@@ -63,6 +63,12 @@
 //! of the lit pixels self-shadow; with only one of the two terms 0.4–1.7 %
 //! still do; with both, none do, and still none with each term 8× smaller.
 //!
+//! A receiver seen from the light at a grazing angle is undersampled: its
+//! four texel rays meet its plane far from the point (beyond the caster's own
+//! edge, say, where the roof above a wall answers "shadowed"). Where any of
+//! them lands more than [`GRAZING_TEXELS`] texel footprints from the point,
+//! the pixel is left to the volumes.
+//!
 //! Where a receiver meets another surface in a concave corner (a wall
 //! standing on the ground), the texels next to the corner show the other
 //! surface nearer than the receiver's plane: a band about one texel wide
@@ -84,6 +90,14 @@ use glam::{DMat3, DMat4, DVec3, DVec4, Vec4};
 use raster::{Coverage, DepthTarget, DrawItem, RasterStats, TileSize};
 use rayon::prelude::*;
 use scene::{faces_light, Camera, Light, ObjectId, Scene};
+
+/// Footprint reach, in texels: a texel ray meeting the receiver plane farther
+/// than this from the surface point marks a grazing receiver, left to the
+/// volumes (see [`classify_point`]). A receiver facing the light meets its
+/// four rays within √2 texels; 4 admits planes up to about 70° from the
+/// light. Measured on city_16384 `street` at 1280×1024 with a 1024² cube: a
+/// wall lit at 85° was classified shadowed on 4,374 pixels without this rule.
+const GRAZING_TEXELS: f64 = 4.0;
 
 /// Depth-relative part of the comparison bias (see the module docs).
 pub const DEPTH_BIAS_REL: f64 = 1.0 / 65536.0;
@@ -257,6 +271,16 @@ impl MapView {
         match self.proj {
             Proj::Persp { near, .. } => (z > 0.0).then(|| near / z),
             Proj::Ortho { near, far, .. } => Some(far - z * (far - near)),
+        }
+    }
+
+    /// Side of one texel's footprint, in world units, on a surface facing the
+    /// light at view distance `d`.
+    fn texel_size(&self, d: f64) -> f64 {
+        let n = f64::from(self.target.width());
+        match self.proj {
+            Proj::Persp { f, .. } => 2.0 * d.abs() / (f * n),
+            Proj::Ortho { hx, hy, .. } => 2.0 * hx.max(hy) / n,
         }
     }
 
@@ -567,6 +591,11 @@ fn classify_point(
     let av = view.view(a);
     let d_point = -pv.z;
     let mut d_plane = [0.0f64; 4];
+    // Where the footprint's rays meet the receiver plane farther from the
+    // point than this, the plane is seen at a grazing angle and the four
+    // samples describe other parts of it (or the caster's own top beyond its
+    // edge): the map cannot decide, the volumes must.
+    let reach = GRAZING_TEXELS * view.texel_size(d_point);
     for (k, d) in d_plane.iter_mut().enumerate() {
         let (o, dir) = view.texel_ray(i0 + (k as u32 & 1), j0 + (k as u32 >> 1));
         let den = nv.dot(dir);
@@ -574,11 +603,10 @@ fn classify_point(
         // Plane parallel to the ray, or behind its origin: fall back to the
         // point's own depth.
         let ahead = t > 0.0 || matches!(view.proj, Proj::Ortho { .. });
-        *d = if den != 0.0 && t.is_finite() && ahead {
-            t
-        } else {
-            d_point
-        };
+        if !(den != 0.0 && t.is_finite() && ahead) || (o + dir * t - pv).length() > reach {
+            return None;
+        }
+        *d = t;
     }
     let slope = [(0, 1), (2, 3), (0, 2), (1, 3)]
         .iter()
@@ -687,7 +715,7 @@ mod tests {
         false_shadow: u64,
         silhouette: u64,
         /// Silhouette pixels with both a reference lit and a reference shadow
-        /// pixel within `NEAR_PX` (Chebyshev).
+        /// pixel within `NEAR_PX` (Chebyshev), or on a receiver the light grazes.
         silhouette_near_boundary: u64,
         map_ms: f64,
     }
@@ -744,7 +772,16 @@ mod tests {
                         }
                     }
                 }
-                m.silhouette_near_boundary += u64::from(lit && shadow);
+                // Or a receiver the light grazes (more than 60° from its
+                // normal), which the map leaves to the volumes on purpose.
+                let i = (y * W as i64 + x) as usize;
+                let grazing = eye.primitive[i].is_some_and(|(o, t)| {
+                    let tri = scene.world_triangle(o, t as usize);
+                    let n = (tri[1] - tri[0]).cross(tri[2] - tri[0]).normalize();
+                    let to_light = light.toward_light(tri[0]).normalize();
+                    n.dot(to_light).abs() < 0.5
+                });
+                m.silhouette_near_boundary += u64::from((lit && shadow) || grazing);
             }
         }
         (m, class, r)

@@ -155,7 +155,8 @@ pub enum Backend {
         full_shadow: bool,
     },
     /// A shadow map decides every pixel whose four nearest map comparisons
-    /// agree; brute-force volumes only at the others [ChanDurand04]. Not exact.
+    /// agree; the volumes (hierarchical stencil, 8×8 tiles, FS on) run only at
+    /// the others [ChanDurand04]. Not exact.
     Hybrid {
         /// Shadow-map texels per side (per cube face for point lights).
         map_size: u32,
@@ -360,14 +361,21 @@ pub fn shadow_mask(
             let class =
                 crate::hybrid::classify(scene, camera, light, eye, map_size, options.two_sided)?;
             // The computation mask: volumes see only the silhouette pixels' depth.
+            // The hierarchical stencil then skips every tile without one, as a
+            // GPU's hierarchical z rejects them [ChanDurand04].
             let mut masked = eye.target.clone();
             masked.keep_only(&class.silhouette)?;
-            let mut stencil = match scratch.stencil.take() {
-                Some(mut s) if (s.width(), s.height(), s.bits()) == (w, h, options.bits) => {
+            let want = HierarchicalOptions {
+                tile: TileSize::T8,
+                bits: options.bits,
+                full_shadow: true,
+            };
+            let mut stencil = match scratch.hierarchical.take() {
+                Some(mut s) if (s.width(), s.height(), s.options()) == (w, h, want) => {
                     s.clear();
                     s
                 }
-                _ => StencilTarget::new(w, h, options.bits)?,
+                _ => HierarchicalStencil::new(w, h, want)?,
             };
             stencil.draw_volumes(&masked, &ranges, &scratch.volumes, tests, &mut stats)?;
             stencil.resolve(&masked, &mut raw_nonzero, &mut stats)?;
@@ -376,7 +384,7 @@ pub fn shadow_mask(
                     *r = class.shadowed[i];
                 }
             }
-            scratch.stencil = Some(stencil);
+            scratch.hierarchical = Some(stencil);
             silhouette_pixels = class.silhouette_pixels;
             map_ms = class.map_ms;
         }

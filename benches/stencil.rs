@@ -1,0 +1,109 @@
+//! The stencil stage per backend [Aila04 Table 1, ChanDurand04]: brute force
+//! (BF), depth bounds (DB), the hierarchical stencil (H) with tiles 4, 8 and
+//! 16, and the shadow-map hybrid (map 2048), on the default city (`street`,
+//! `bird`) and box-city `city_16384` (`street`, `bird`), at 1280×1024 and
+//! 2048×1536. Ids `res/scene/camera/backend`.
+//!
+//! Each measurement is one light's [`shadowcull::pipeline::shadow_mask`] on a
+//! fixed eye pass with a warm silhouette cache: volume construction (the same
+//! for every backend) plus the stencil stage (H: tile bounds, both stages,
+//! resolve; hybrid: shadow map and classification too) plus mask assembly.
+//! Settings as the goals: `Method::Auto`, wide counters, scissor off.
+//! The counters (pixels processed, bandwidth, tiles) come from
+//! `shadow_bench`, which prints them: `cargo bench --bench stencil`.
+#![allow(missing_docs)] // criterion_group!/criterion_main! generate undocumented items
+
+use criterion::{criterion_group, criterion_main, Criterion};
+use raster::{StencilBits, TileSize};
+use scene::procedural::city::{city, CityParams};
+use scene::{Camera, Light, Scene};
+use shadowcull::pipeline::{
+    eye_pass, shadow_mask, Backend, MeshCache, ShadowOptions, ShadowScratch,
+};
+use std::path::Path;
+
+const RESOLUTIONS: [(u32, u32); 2] = [(1280, 1024), (2048, 1536)];
+
+fn backends() -> Vec<(&'static str, Backend, bool)> {
+    let h = |tile| Backend::Hierarchical {
+        tile,
+        full_shadow: true,
+    };
+    vec![
+        ("bf", Backend::Brute, false),
+        ("db", Backend::Brute, true),
+        ("h_tile4", h(TileSize::T4), false),
+        ("h_tile8", h(TileSize::T8), false),
+        ("h_tile16", h(TileSize::T16), false),
+        ("hybrid_2048", Backend::Hybrid { map_size: 2048 }, false),
+    ]
+}
+
+/// `camera` gives the view's camera for an image size (its aspect ratio).
+fn bench_view(
+    c: &mut Criterion,
+    group: &str,
+    scene: &Scene,
+    camera: &dyn Fn(u32, u32) -> Camera,
+    light: Light,
+) {
+    let meshes = MeshCache::new(scene);
+    for (w, h) in RESOLUTIONS {
+        let camera = &camera(w, h);
+        let eye = eye_pass(scene, &meshes, camera, w, h).expect("eye pass");
+        let mut g = c.benchmark_group(format!("{w}x{h}/{group}"));
+        g.sample_size(10);
+        for (name, backend, depth_bounds) in backends() {
+            let options = ShadowOptions {
+                backend,
+                bits: StencilBits::Wide,
+                depth_bounds,
+                ..Default::default()
+            };
+            let mut scratch = ShadowScratch::default();
+            g.bench_function(name, |b| {
+                b.iter(|| {
+                    shadow_mask(scene, camera, &light, &eye, &options, &mut scratch)
+                        .expect("shadow stage")
+                })
+            });
+        }
+        g.finish();
+    }
+}
+
+fn bench_city(c: &mut Criterion) {
+    let loaded = city(&CityParams::default()).expect("default city");
+    let scene = Scene::new(loaded.graph.clone()).expect("flatten");
+    let b = scene.bounds();
+    let c0 = b.center();
+    let light = Light::Point {
+        position: glam::DVec3::new(c0.x, b.min.y as f64 + 1.5 * b.size().y as f64, c0.z),
+        range: None,
+    };
+    for cam in ["street", "bird"] {
+        let path = &loaded.paths.iter().find(|(n, _)| n == cam).expect(cam).1;
+        let pose = path.at(0).expect("pose");
+        let camera = |w: u32, h: u32| pose.camera(w as f64 / h as f64).expect("camera");
+        bench_view(c, &format!("city/{cam}"), &scene, &camera, light);
+    }
+}
+
+fn bench_box_city(c: &mut Criterion) {
+    let file = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/bench/city_16384.txt");
+    if !file.exists() {
+        println!("note: {} is absent; skipping city_16384", file.display());
+        return;
+    }
+    let loaded = scene::load::box_city::load_box_city(&file).expect("box city");
+    let light = loaded.lights[0].1;
+    let scene = Scene::new(loaded.graph.clone()).expect("flatten");
+    for cam in ["street", "bird"] {
+        let look = &loaded.cameras.iter().find(|(n, _)| n == cam).expect(cam).1;
+        let camera = |w: u32, h: u32| look.camera(w as f64 / h as f64).expect("camera");
+        bench_view(c, &format!("city_16384/{cam}"), &scene, &camera, light);
+    }
+}
+
+criterion_group!(benches, bench_city, bench_box_city);
+criterion_main!(benches);
