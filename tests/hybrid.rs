@@ -34,7 +34,7 @@ fn poles() -> scene::Scene {
         let x = 2.0 + k as f32 * 0.8;
         meshes.push(
             analytic::box_mesh(
-                &format!("pole{k}"),
+                format!("pole{k}"),
                 Vec3::new(x, 0.0, 2.0),
                 Vec3::new(x + 0.02, 3.0, 2.02),
             )
