@@ -58,19 +58,18 @@
 
 use crate::depth_target::{DepthTarget, TileSize, BACKGROUND};
 use crate::edge::Tri;
-use crate::near_cap::fan_triangle;
 use crate::open_edges::{open_edges, push_piece_edges, EdgeRec, Segment};
-use crate::setup::{setup_into, setup_near_plane_into, Setup, SnappedVertex, SUBPIXEL};
+use crate::setup::{Setup, SnappedVertex, SUBPIXEL};
 use crate::span::StripExtents;
 use crate::stencil::{
-    check_range, counter_bytes, pass_bytes, tiled_index, Band, Counters, CountersMut, Piece,
+    counter_bytes, pass_bytes, tiled_index, volume_polygons, Band, Counters, CountersMut, Piece,
     Window, BAND_TILE_ROWS,
 };
 use crate::tile_class::{PiecePlane, Side};
 use crate::volume_buffer::{VolumeBuffer, VolumeMethod, VolumeRange};
 use crate::MAX_CLIPPED_VERTICES;
 use crate::{Error, Result, StencilBits, StencilStats, StencilTarget, StencilTests};
-use glam::{Mat4, Vec4};
+use glam::Mat4;
 
 /// Options of a [`HierarchicalStencil`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -361,23 +360,7 @@ impl HierarchicalStencil {
         stats: &mut StencilStats,
     ) -> Result<()> {
         let (width, height) = (self.width(), self.height());
-        if (eye.width(), eye.height()) != (width, height) {
-            return Err(Error::SizeMismatch {
-                expected: (eye.width(), eye.height()),
-                got: (width, height),
-            });
-        }
-        for (_, range) in volumes {
-            check_range(buf, range)?;
-        }
-        let jobs: Vec<(Mat4, &VolumeRange, Window)> = volumes
-            .iter()
-            .filter_map(|&(m, r)| self.pixels.window(r, tests).map(|w| (m, r, w)))
-            .collect();
-        let mut st = StencilStats {
-            triangles: volumes.iter().map(|(_, r)| r.index_count as u64 / 3).sum(),
-            ..StencilStats::default()
-        };
+        let (jobs, mut st) = self.pixels.prepare(eye, volumes, buf, tests)?;
         self.tile_bounds(eye);
         let geo = Geometry {
             width,
@@ -668,26 +651,12 @@ fn set_up(
     };
     for j in range {
         let (m, range, _) = &jobs[j];
-        let (zfail, near_cap) = match range.method {
-            VolumeMethod::ZPass => (false, false),
-            VolumeMethod::ZFail => (true, false),
-            VolumeMethod::ZpPlus => (false, true),
-        };
+        let zfail = range.method == VolumeMethod::ZFail;
         let (p0, o0) = (out.pieces.len(), out.open.len());
         edges.clear();
-        for t in buf.indices[range.indices()].chunks_exact(3) {
-            let v = [0, 1, 2].map(|k| *m * Vec4::from_array(buf.positions[t[k] as usize]));
-            setup_into(v, vp, &mut s);
-            if s.facing.is_some() {
-                push_h_pieces(s.polygon(), zfail, j as u32, &mut out.pieces, &mut edges);
-            }
-            if near_cap {
-                if let Some(fan) = fan_triangle(v.map(|p| p.as_dvec4())) {
-                    setup_near_plane_into(fan, vp, &mut s);
-                    push_h_pieces(s.polygon(), false, j as u32, &mut out.pieces, &mut edges);
-                }
-            }
-        }
+        volume_polygons(*m, range, buf, vp, &mut s, |poly, zfail| {
+            push_h_pieces(poly, zfail, j as u32, &mut out.pieces, &mut edges);
+        });
         open_edges(&mut edges, &mut out.open);
         let ps = &out.pieces[p0..];
         let sub = crate::setup::SUBPIXEL;

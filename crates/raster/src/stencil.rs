@@ -34,7 +34,7 @@ use crate::coverage::{edge_offsets, pixel_bounds, Coverage};
 use crate::depth_target::DepthTarget;
 use crate::edge::Tri;
 use crate::near_cap::fan_triangle;
-use crate::setup::{setup_into, setup_near_plane_into, Setup, SnappedVertex, SUBPIXEL};
+use crate::setup::{setup_into, setup_near_plane_into, Setup, SnappedVertex, Viewport, SUBPIXEL};
 use crate::span::{band_extent, SpanWalker};
 use crate::stencil_run::{run_masks, RunPlane};
 use crate::volume_buffer::{VolumeBuffer, VolumeMethod, VolumeRange};
@@ -368,23 +368,7 @@ impl StencilTarget {
         stats: &mut StencilStats,
         band_tile_rows: usize,
     ) -> Result<()> {
-        if (eye.width(), eye.height()) != (self.width, self.height) {
-            return Err(Error::SizeMismatch {
-                expected: (eye.width(), eye.height()),
-                got: (self.width, self.height),
-            });
-        }
-        for (_, range) in volumes {
-            check_range(buf, range)?;
-        }
-        let jobs: Vec<(Mat4, &VolumeRange, Window)> = volumes
-            .iter()
-            .filter_map(|&(m, r)| self.window(r, tests).map(|w| (m, r, w)))
-            .collect();
-        let mut st = StencilStats {
-            triangles: volumes.iter().map(|(_, r)| r.index_count as u64 / 3).sum(),
-            ..StencilStats::default()
-        };
+        let (jobs, mut st) = self.prepare(eye, volumes, buf, tests)?;
         let tiles_x = self.width.div_ceil(8) as usize;
         let (width, height) = (self.width, self.height);
         // Bands of `band_tile_rows` tile rows; contiguous in the tiled storage.
@@ -430,31 +414,16 @@ impl StencilTarget {
             pieces.clear();
         };
         for (j, (m, range, _)) in jobs.iter().enumerate() {
-            let (zfail, near_cap) = match range.method {
-                VolumeMethod::ZPass => (false, false),
-                VolumeMethod::ZFail => (true, false),
-                VolumeMethod::ZpPlus => (false, true),
-            };
-            for t in buf.indices[range.indices()].chunks_exact(3) {
-                let v = [0, 1, 2].map(|k| *m * Vec4::from_array(buf.positions[t[k] as usize]));
-                setup_into(v, &vp, &mut s);
-                if s.facing.is_some() {
-                    // Each snapped fan piece counts by its own snapped orientation:
-                    // snapping can turn a sliver (or a guard-band-clipped piece)
-                    // over, and the count must be the winding number of what is
-                    // rasterized.
-                    push_pieces(s.polygon(), zfail, j as u32, &mut pieces);
-                }
-                if near_cap {
-                    if let Some(fan) = fan_triangle(v.map(|p| p.as_dvec4())) {
-                        setup_near_plane_into(fan, &vp, &mut s);
-                        push_pieces(s.polygon(), false, j as u32, &mut pieces);
-                    }
-                }
+            volume_polygons(*m, range, buf, &vp, &mut s, |poly, zfail| {
+                // Each snapped fan piece counts by its own snapped orientation:
+                // snapping can turn a sliver (or a guard-band-clipped piece)
+                // over, and the count must be the winding number of what is
+                // rasterized.
+                push_pieces(poly, zfail, j as u32, &mut pieces);
                 if pieces.len() >= PIECE_BATCH {
                     flush(&mut pieces, self);
                 }
-            }
+            });
         }
         if !pieces.is_empty() {
             flush(&mut pieces, self);
@@ -468,6 +437,37 @@ impl StencilTarget {
         self.touched_count += st.pixels_touched;
         stats.add(&st);
         Ok(())
+    }
+
+    /// What both stencil passes check and derive first: `eye`'s size, every
+    /// range's indices (before anything is drawn), each volume with its window
+    /// (volumes with an empty one dropped), and the stats with `triangles` set.
+    #[allow(clippy::type_complexity)]
+    pub(crate) fn prepare<'v>(
+        &self,
+        eye: &DepthTarget,
+        volumes: &[(Mat4, &'v VolumeRange)],
+        buf: &VolumeBuffer,
+        tests: StencilTests,
+    ) -> Result<(Vec<(Mat4, &'v VolumeRange, Window)>, StencilStats)> {
+        if (eye.width(), eye.height()) != (self.width, self.height) {
+            return Err(Error::SizeMismatch {
+                expected: (eye.width(), eye.height()),
+                got: (self.width, self.height),
+            });
+        }
+        for (_, range) in volumes {
+            check_range(buf, range)?;
+        }
+        let jobs = volumes
+            .iter()
+            .filter_map(|&(m, r)| self.window(r, tests).map(|w| (m, r, w)))
+            .collect();
+        let st = StencilStats {
+            triangles: volumes.iter().map(|(_, r)| r.index_count as u64 / 3).sum(),
+            ..StencilStats::default()
+        };
+        Ok((jobs, st))
     }
 
     /// The pixel rectangle and depth range `tests` allow for `range`; `None` when empty.
@@ -637,6 +637,39 @@ impl Band<'_> {
     }
 }
 
+/// Sets up every triangle of `range` with `clip_from_local` (the rasterizer's
+/// own clipping and snapping) and hands each snapped polygon to `emit` with its
+/// counting rule (`zfail`): the triangle's own (edge-on triangles, with no
+/// facing, draw nothing) and, for [`VolumeMethod::ZpPlus`], its near-cap fan
+/// triangle (zpass rule; see `near_cap.rs`).
+pub(crate) fn volume_polygons(
+    clip_from_local: Mat4,
+    range: &VolumeRange,
+    buf: &VolumeBuffer,
+    vp: &Viewport,
+    s: &mut Setup,
+    mut emit: impl FnMut(&[SnappedVertex], bool),
+) {
+    let (zfail, near_cap) = match range.method {
+        VolumeMethod::ZPass => (false, false),
+        VolumeMethod::ZFail => (true, false),
+        VolumeMethod::ZpPlus => (false, true),
+    };
+    for t in buf.indices[range.indices()].chunks_exact(3) {
+        let v = [0, 1, 2].map(|k| clip_from_local * Vec4::from_array(buf.positions[t[k] as usize]));
+        setup_into(v, vp, s);
+        if s.facing.is_some() {
+            emit(s.polygon(), zfail);
+        }
+        if near_cap {
+            if let Some(fan) = fan_triangle(v.map(|p| p.as_dvec4())) {
+                setup_near_plane_into(fan, vp, s);
+                emit(s.polygon(), false);
+            }
+        }
+    }
+}
+
 /// Bytes of one stencil counter: 1 for 8 bits, 4 for wide counters.
 pub(crate) fn counter_bytes(bits: StencilBits) -> u64 {
     match bits {
@@ -653,7 +686,7 @@ pub(crate) fn pass_bytes(bits: StencilBits, processed: u64, updates: u64) -> u64
 }
 
 /// Checks that `range` names only indices inside `buf` and positions that exist.
-pub(crate) fn check_range(buf: &VolumeBuffer, range: &VolumeRange) -> Result<()> {
+fn check_range(buf: &VolumeBuffer, range: &VolumeRange) -> Result<()> {
     let first = range.first_index as usize;
     let ntri = range.index_count as usize / 3;
     let end = first + 3 * ntri;
