@@ -1,0 +1,446 @@
+//! Hierarchical visibility traversals over an [`OcclusionBackend`]
+//! [Steiner §2.5.1]: no culling, view-frustum culling, exact stop-and-wait
+//! occlusion culling, and coherent hierarchical culling (CHC) [Bittner,
+//! Wimmer, Piringer, Purgathofer 2004; Steiner Listing 2.1].
+//!
+//! Every traversal renders the objects it finds visible into the backend's
+//! depth target, front to back, and reports them. Occlusion queries test a
+//! node's box against the depth rendered so far (GEQUAL, the backend's
+//! semantics): with threshold 0 a box with no passing sample holds only
+//! geometry behind the current depth, which can only come nearer, so every
+//! culled object is hidden in the final image — the rendered set's depth
+//! buffer is the unculled one. A threshold above 0 is aggressive.
+//!
+//! CHC keeps per node, across frames, whether it was visible and when it was
+//! last visited. Previously visible inner nodes are opened without a query;
+//! previously visible leaves are rendered at once and queried without waiting
+//! for the result; previously invisible nodes (the termination nodes) are
+//! queried and their results handled as they arrive, interleaved with the
+//! front-to-back traversal; a visible result pulls visibility up to the root.
+
+use crate::hierarchy::{Hierarchy, Node, NONE};
+use crate::Result;
+use glam::{DMat4, DVec3, Mat4, Vec3, Vec4};
+use raster::{Coverage, DrawCommand, OcclusionBackend, QueryCommand, QueryId, QueryOptions};
+use scene::{ObjectId, Plane, Scene};
+use std::cmp::Ordering;
+use std::collections::{BinaryHeap, VecDeque};
+use std::sync::Arc;
+use std::time::Instant;
+
+/// Which traversal a view runs.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum Culling {
+    /// Render every object.
+    #[default]
+    None,
+    /// Render every object whose box may meet the view's planes.
+    Frustum,
+    /// Query every node in the frustum front to back and wait for each
+    /// result before going on (stop-and-wait).
+    Exact,
+    /// Coherent hierarchical culling [Bittner et al. 2004].
+    Chc,
+}
+
+/// Per-mesh vertex data in the backend's form (`w = 1`, shared with draw commands).
+#[derive(Clone, Debug)]
+pub struct MeshData {
+    positions: Vec<Arc<[Vec4]>>,
+    triangles: Vec<Arc<[[u32; 3]]>>,
+}
+
+impl MeshData {
+    /// Converts every mesh of `scene`.
+    pub fn from_scene(scene: &Scene) -> Self {
+        let meshes = scene.graph().meshes();
+        MeshData {
+            positions: meshes
+                .iter()
+                .map(|m| m.positions().iter().map(|p| p.extend(1.0)).collect())
+                .collect(),
+            triangles: meshes.iter().map(|m| m.triangles().into()).collect(),
+        }
+    }
+}
+
+/// One view: how objects and boxes reach its clip space, its culling planes,
+/// and the coverage of its draws and queries.
+pub struct ViewSetup<'a> {
+    /// `clip_from_local` for an object's `world_from_local` (the one transform path).
+    pub clip_from_local: &'a dyn Fn(&DMat4) -> Mat4,
+    /// Boxes are sent relative to this point (f64 subtraction, rounded
+    /// outward), with [`ViewSetup::clip_from_origin`].
+    pub origin: DVec3,
+    /// `clip_from_local` of the translation to `origin`.
+    pub clip_from_origin: Mat4,
+    /// The view's planes (inside positive), for frustum culling.
+    pub planes: Vec<Plane>,
+    /// Where front-to-back distances are measured from (the centre of projection).
+    pub apex: DVec3,
+    /// Coverage of occluder draws.
+    pub draw_coverage: Coverage,
+    /// Coverage and mode of box queries.
+    pub query: QueryOptions,
+    /// A node is visible when more than this many samples pass (0: conservative).
+    pub threshold: u32,
+}
+
+/// Counters of one traversal.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct TraversalStats {
+    /// Nodes taken from the traversal queue.
+    pub nodes_visited: u64,
+    /// Occlusion queries issued.
+    pub queries: u64,
+    /// Waits for a query result.
+    pub waits: u64,
+    /// Time spent waiting (ms).
+    pub wait_ms: f64,
+    /// Objects drawn.
+    pub objects_rendered: u64,
+    /// Objects found visible (drawn and, where queried, confirmed).
+    pub objects_visible: u64,
+}
+
+/// The objects a traversal found, and its counters.
+#[derive(Clone, Debug, Default)]
+pub struct CullResult {
+    /// Objects drawn into the view, in drawing order.
+    pub rendered: Vec<ObjectId>,
+    /// Counters.
+    pub stats: TraversalStats,
+}
+
+/// Per-node state a view keeps across frames.
+#[derive(Clone, Copy, Debug, Default)]
+struct NodeState {
+    visible: bool,
+    /// Frame of the last visit, plus one (0: never).
+    visited: u32,
+}
+
+/// One view's persistent culling state [Steiner §4.3.2: the eye and every
+/// light view own their instance].
+#[derive(Clone, Debug, Default)]
+pub struct ViewCuller {
+    state: Vec<NodeState>,
+    frame: u32,
+}
+
+/// A node in the front-to-back queue: nearer first, then lower index.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Queued {
+    dist: f64,
+    node: u32,
+}
+
+impl Eq for Queued {}
+
+impl Ord for Queued {
+    fn cmp(&self, o: &Self) -> Ordering {
+        o.dist
+            .total_cmp(&self.dist)
+            .then_with(|| o.node.cmp(&self.node))
+    }
+}
+
+impl PartialOrd for Queued {
+    fn partial_cmp(&self, o: &Self) -> Option<Ordering> {
+        Some(self.cmp(o))
+    }
+}
+
+/// Squared distance from `p` to the box.
+fn box_distance2(n: &Node, p: DVec3) -> f64 {
+    let (lo, hi) = (n.min.as_dvec3(), n.max.as_dvec3());
+    let d = (lo - p).max(p - hi).max(DVec3::ZERO);
+    d.length_squared()
+}
+
+/// Conservative box-vs-planes test: false only when the box lies wholly
+/// outside one plane.
+fn in_planes(planes: &[Plane], n: &Node) -> bool {
+    let (lo, hi) = (n.min.as_dvec3(), n.max.as_dvec3());
+    planes.iter().all(|pl| {
+        let m = pl.normal;
+        let far = DVec3::new(
+            if m.x >= 0.0 { hi.x } else { lo.x },
+            if m.y >= 0.0 { hi.y } else { lo.y },
+            if m.z >= 0.0 { hi.z } else { lo.z },
+        );
+        pl.signed_distance(far) >= 0.0
+    })
+}
+
+/// `v` rounded to f32 toward −∞ (`up` false) or +∞.
+fn round_f32(v: f64, up: bool) -> f32 {
+    let r = v as f32;
+    match (up, f64::from(r).partial_cmp(&v)) {
+        (true, Some(Ordering::Less)) => r.next_up(),
+        (false, Some(Ordering::Greater)) => r.next_down(),
+        _ => r,
+    }
+}
+
+/// The traversal of one frame: the view, the backend, what was rendered.
+struct Run<'a, 'b> {
+    h: &'a Hierarchy,
+    scene: &'a Scene,
+    meshes: &'a MeshData,
+    view: &'a ViewSetup<'b>,
+    backend: &'a mut dyn OcclusionBackend,
+    out: CullResult,
+}
+
+impl Run<'_, '_> {
+    fn render(&mut self, node: &Node) -> Result<()> {
+        let id = ObjectId(node.object);
+        let o = self.scene.object(id);
+        let mesh = o.mesh.0 as usize;
+        self.backend.draw(DrawCommand {
+            clip_from_local: (self.view.clip_from_local)(&o.world_from_local),
+            positions: self.meshes.positions[mesh].clone(),
+            triangles: self.meshes.triangles[mesh].clone(),
+            object: node.object,
+            coverage: self.view.draw_coverage,
+        })?;
+        self.out.rendered.push(id);
+        self.out.stats.objects_rendered += 1;
+        Ok(())
+    }
+
+    fn query(&mut self, node: &Node) -> Result<QueryId> {
+        let o = self.view.origin;
+        let (lo, hi) = (node.min.as_dvec3() - o, node.max.as_dvec3() - o);
+        let min = Vec3::new(
+            round_f32(lo.x, false),
+            round_f32(lo.y, false),
+            round_f32(lo.z, false),
+        );
+        let max = Vec3::new(
+            round_f32(hi.x, true),
+            round_f32(hi.y, true),
+            round_f32(hi.z, true),
+        );
+        self.out.stats.queries += 1;
+        Ok(self.backend.issue_query(QueryCommand::Aabb {
+            clip_from_local: self.view.clip_from_origin,
+            min,
+            max,
+            options: self.view.query,
+        })?)
+    }
+
+    fn wait(&mut self, id: QueryId) -> u32 {
+        let t = Instant::now();
+        let r = self.backend.wait(id);
+        self.out.stats.waits += 1;
+        self.out.stats.wait_ms += t.elapsed().as_secs_f64() * 1e3;
+        r
+    }
+
+    fn visible(&self, samples: u32) -> bool {
+        samples > self.view.threshold
+    }
+
+    fn push_children(&self, q: &mut BinaryHeap<Queued>, n: &Node) {
+        for c in [n.first, n.first + 1] {
+            let child = &self.h.nodes[c as usize];
+            q.push(Queued {
+                dist: box_distance2(child, self.view.apex),
+                node: c,
+            });
+        }
+    }
+}
+
+impl ViewCuller {
+    /// A view with no history (every node previously invisible).
+    pub fn new() -> Self {
+        ViewCuller::default()
+    }
+
+    /// Forgets all history (after the hierarchy was rebuilt).
+    pub fn reset(&mut self) {
+        self.state.clear();
+        self.frame = 0;
+    }
+
+    /// Runs one frame of `culling` for `view`: clears the backend's target,
+    /// renders the visible objects front to back, and reports them. Per-node
+    /// state carries over to the next call (CHC's coherence).
+    ///
+    /// # Errors
+    /// Backend errors (a bad mesh index).
+    pub fn cull(
+        &mut self,
+        h: &Hierarchy,
+        scene: &Scene,
+        meshes: &MeshData,
+        view: &ViewSetup<'_>,
+        culling: Culling,
+        backend: &mut dyn OcclusionBackend,
+    ) -> Result<CullResult> {
+        if self.state.len() != h.len() {
+            self.state = vec![NodeState::default(); h.len()];
+        }
+        self.frame += 1;
+        backend.clear();
+        let mut run = Run {
+            h,
+            scene,
+            meshes,
+            view,
+            backend,
+            out: CullResult::default(),
+        };
+        if !h.is_empty() {
+            match culling {
+                Culling::None | Culling::Frustum => {
+                    self.plain(&mut run, culling == Culling::Frustum)?
+                }
+                Culling::Exact => self.stop_and_wait(&mut run)?,
+                Culling::Chc => self.chc(&mut run)?,
+            }
+        }
+        run.backend.finish();
+        let mut out = run.out;
+        out.stats.objects_visible = out.stats.objects_rendered;
+        Ok(out)
+    }
+
+    /// No occlusion queries: every leaf (inside the planes with `frustum`).
+    fn plain(&mut self, run: &mut Run<'_, '_>, frustum: bool) -> Result<()> {
+        let mut q = BinaryHeap::new();
+        q.push(Queued { dist: 0.0, node: 0 });
+        while let Some(Queued { node, .. }) = q.pop() {
+            let n = run.h.nodes[node as usize];
+            run.out.stats.nodes_visited += 1;
+            if frustum && !in_planes(&run.view.planes, &n) {
+                continue;
+            }
+            self.state[node as usize] = NodeState {
+                visible: true,
+                visited: self.frame,
+            };
+            if n.is_leaf() {
+                run.render(&n)?;
+            } else {
+                run.push_children(&mut q, &n);
+            }
+        }
+        Ok(())
+    }
+
+    /// Query, wait, descend: the exact hierarchical occlusion traversal.
+    fn stop_and_wait(&mut self, run: &mut Run<'_, '_>) -> Result<()> {
+        let mut q = BinaryHeap::new();
+        q.push(Queued { dist: 0.0, node: 0 });
+        while let Some(Queued { node, .. }) = q.pop() {
+            let n = run.h.nodes[node as usize];
+            run.out.stats.nodes_visited += 1;
+            if !in_planes(&run.view.planes, &n) {
+                continue;
+            }
+            let id = run.query(&n)?;
+            let samples = run.wait(id);
+            let visible = run.visible(samples);
+            self.state[node as usize] = NodeState {
+                visible,
+                visited: self.frame,
+            };
+            if visible {
+                if n.is_leaf() {
+                    run.render(&n)?;
+                } else {
+                    run.push_children(&mut q, &n);
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Coherent hierarchical culling [Steiner Listing 2.1].
+    fn chc(&mut self, run: &mut Run<'_, '_>) -> Result<()> {
+        let frame = self.frame;
+        let mut distance = BinaryHeap::new();
+        // (node, query, was visible): results handled in issue order.
+        let mut queries: VecDeque<(u32, QueryId, bool)> = VecDeque::new();
+        distance.push(Queued { dist: 0.0, node: 0 });
+        while !distance.is_empty() || !queries.is_empty() {
+            // Results that have arrived (or all of them once there is nothing
+            // else to do).
+            while let Some(&(node, id, was_visible)) = queries.front() {
+                let samples = if distance.is_empty() {
+                    run.wait(id)
+                } else {
+                    match run.backend.poll(id) {
+                        Some(s) => s,
+                        None => break,
+                    }
+                };
+                queries.pop_front();
+                if run.visible(samples) {
+                    self.pull_up(run.h, node);
+                    if !was_visible {
+                        let n = run.h.nodes[node as usize];
+                        self.traverse(run, &mut distance, &n)?;
+                    }
+                }
+            }
+            let Some(Queued { node, .. }) = distance.pop() else {
+                continue;
+            };
+            let n = run.h.nodes[node as usize];
+            run.out.stats.nodes_visited += 1;
+            if !in_planes(&run.view.planes, &n) {
+                // Outside the view: invisible, not queried.
+                self.state[node as usize] = NodeState {
+                    visible: false,
+                    visited: frame,
+                };
+                continue;
+            }
+            let s = self.state[node as usize];
+            let was_visible = s.visible && s.visited + 1 == frame;
+            // Previously visible inner nodes are opened without a query.
+            let opened = was_visible && !n.is_leaf();
+            self.state[node as usize] = NodeState {
+                visible: false,
+                visited: frame,
+            };
+            if !opened {
+                let id = run.query(&n)?;
+                queries.push_back((node, id, was_visible));
+            }
+            if was_visible {
+                self.traverse(run, &mut distance, &n)?;
+            }
+        }
+        Ok(())
+    }
+
+    /// CHC's TraverseNode: render a leaf, queue an inner node's children.
+    fn traverse(
+        &mut self,
+        run: &mut Run<'_, '_>,
+        distance: &mut BinaryHeap<Queued>,
+        n: &Node,
+    ) -> Result<()> {
+        if n.is_leaf() {
+            run.render(n)
+        } else {
+            run.push_children(distance, n);
+            Ok(())
+        }
+    }
+
+    /// Marks `node` and its ancestors visible, stopping at the first that already is.
+    fn pull_up(&mut self, h: &Hierarchy, mut node: u32) {
+        while node != NONE && !self.state[node as usize].visible {
+            self.state[node as usize].visible = true;
+            node = h.nodes[node as usize].parent;
+        }
+    }
+}
