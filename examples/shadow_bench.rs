@@ -2,7 +2,8 @@
 //!
 //! `cargo run --release --example shadow_bench -- SCENE CAMERA WxH [--stencil bf|db|h|hybrid]
 //! [--scissor on|off] [--method auto|zpass|zfail|zpplus] [--counters 8|wide] [--tile 4|8|16]
-//! [--full-shadow on|off] [--map N] [--two-sided] [--reference] [--mask OUT.png] [--reps R]`
+//! [--full-shadow on|off] [--map N] [--culling none|frustum|exact|chc] [--two-sided]
+//! [--reference] [--mask OUT.png] [--reps R]`
 //! (defaults `--tile 8 --counters 8 --map 2048 --full-shadow on`; `--bits` is another
 //! name for `--counters`).
 //!
@@ -20,7 +21,8 @@
 //! with a warm cache), the counters of the first repetition (`volume_triangles`,
 //! `pixels_processed`, `stencil_updates`, `shadowed_pixels`, `h_fragments`,
 //! `tile_tests`, `tiles_lit`, `tiles_shadow`, `tiles_boundary`, `bandwidth_bytes`,
-//! `pixel_bytes`, `tile_bytes`, `silhouette_pixels`, `map_ms`, ...) and with
+//! `pixel_bytes`, `tile_bytes`, `silhouette_pixels`, `map_ms`, `psr`, `queries`,
+//! `waits`, ...) and with
 //! `--reference` `mismatch_pixels`, `mismatch_off_boundary`, `ambiguous_pixels`.
 //! `--mask` writes the raw stencil result as an 8-bit PNG: 255 where the stencil
 //! is non-zero on any surface, 0 elsewhere, row 0 at the top. Logs go to stderr.
@@ -29,14 +31,14 @@ use anyhow::{bail, Context};
 use glam::DVec3;
 use scene::load::Loaded;
 use scene::{Light, LookAt, Scene};
-use shadowcull::config::{Method, PipelineOptions, StencilBackend, StencilBitsSpec};
+use shadowcull::config::{CullingSpec, Method, PipelineOptions, StencilBackend, StencilBitsSpec};
 use shadowcull::frame::FrameRunner;
 use std::path::PathBuf;
 
 const USAGE: &str =
     "usage: shadow_bench SCENE CAMERA WxH [--stencil bf|db|h|hybrid] [--scissor on|off] \
 [--method auto|zpass|zfail|zpplus] [--counters 8|wide] [--tile 4|8|16] [--full-shadow on|off] \
-[--map N] [--two-sided] [--reference] [--mask OUT.png] \
+[--map N] [--culling none|frustum|exact|chc] [--two-sided] [--reference] [--mask OUT.png] \
 [--reps R] [--light x,y,z | --sun dx,dy,dz] [--eye x,y,z --target x,y,z] [--fovy DEG] [--near D]";
 
 struct Args {
@@ -129,6 +131,15 @@ fn parse() -> anyhow::Result<Args> {
                 p.map_size = v.parse().context("--map")?;
                 if !(16..=raster::MAX_TARGET_SIZE).contains(&p.map_size) {
                     bail!("--map must lie in 16..={}", raster::MAX_TARGET_SIZE);
+                }
+            }
+            "--culling" => {
+                p.culling = match v.as_str() {
+                    "none" => CullingSpec::None,
+                    "frustum" => CullingSpec::Frustum,
+                    "exact" => CullingSpec::Exact,
+                    "chc" => CullingSpec::Chc,
+                    _ => bail!("--culling must be none, frustum, exact or chc"),
                 }
             }
             "--full-shadow" => {
@@ -338,6 +349,10 @@ fn main() -> anyhow::Result<()> {
         "stencil_updates": row.shadow.stencil_updates,
         "pixels_touched": row.shadow.pixels_touched,
         "shadowed_pixels": row.shadow.shadowed_pixels,
+    });
+    // The stencil backends' and the culling's counters (a second object: one
+    // `json!` this long exceeds the macro's recursion limit).
+    let more = serde_json::json!({
         "h_fragments": row.shadow.h_fragments,
         "tile_tests": row.shadow.tile_tests,
         "tiles_lit": row.shadow.tiles_lit,
@@ -348,7 +363,14 @@ fn main() -> anyhow::Result<()> {
         "tile_bytes": row.shadow.tile_bytes,
         "silhouette_pixels": row.shadow.silhouette_pixels,
         "map_ms": row.shadow.map_ms,
+        "culling": format!("{:?}", a.pipeline.culling).to_lowercase(),
+        "psr": row.shadow.psr,
+        "queries": row.shadow.queries,
+        "waits": row.shadow.waits,
     });
+    if let (Some(m), Some(more)) = (line.as_object_mut(), more.as_object()) {
+        m.extend(more.clone());
+    }
     if a.reference {
         let m = line.as_object_mut().context("json object")?;
         m.insert("mismatch_pixels".into(), row.check.mismatch_pixels.into());

@@ -215,6 +215,33 @@ pub enum StencilBackend {
     Hybrid,
 }
 
+/// Occlusion culling of the eye pass (`culling: chc`) [Steiner §2.5.1, §4.3].
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum CullingSpec {
+    /// Draw every object.
+    #[default]
+    None,
+    /// View-frustum culling.
+    Frustum,
+    /// Stop-and-wait hierarchical occlusion culling.
+    Exact,
+    /// Coherent hierarchical culling.
+    Chc,
+}
+
+impl CullingSpec {
+    /// The traversal.
+    pub fn culling(self) -> visibility::Culling {
+        match self {
+            CullingSpec::None => visibility::Culling::None,
+            CullingSpec::Frustum => visibility::Culling::Frustum,
+            CullingSpec::Exact => visibility::Culling::Exact,
+            CullingSpec::Chc => visibility::Culling::Chc,
+        }
+    }
+}
+
 /// Stencil counter width (`counters: bits8`; `stencil_bits: eight` is the older spelling).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize, serde::Serialize)]
 #[serde(rename_all = "lowercase")]
@@ -248,6 +275,11 @@ pub struct PipelineOptions {
     pub full_shadow: bool,
     /// Shadow-map size of the hybrid (texels per side).
     pub map_size: u32,
+    /// Occlusion culling of the eye pass: the potentially shadowed receivers
+    /// (PSR) are the objects it draws.
+    pub culling: CullingSpec,
+    /// A node counts as visible above this many samples (0: conservative).
+    pub query_threshold: u32,
     /// Every triangle casts (back-facing ones flipped); the reference uses the same rule.
     pub two_sided: bool,
     /// Lights with a range extrude their shadow volumes finitely (always closed).
@@ -270,6 +302,8 @@ impl Default for PipelineOptions {
             tile: 8,
             full_shadow: true,
             map_size: 2048,
+            culling: CullingSpec::None,
+            query_threshold: 0,
             two_sided: false,
             finite_extrusion: false,
             reference_every: 1,

@@ -11,6 +11,9 @@ pub enum Error {
     /// The rasterizer rejected its input (a bug in the caller, or an oversized target).
     #[error("rasterizer: {0}")]
     Raster(#[from] raster::Error),
+    /// Culling failed (a bad light or view names its field).
+    #[error("visibility: {0}")]
+    Visibility(#[from] visibility::Error),
     /// Shadow-volume construction failed (an invalid light or caster id).
     #[error("shadow volumes: {0}")]
     Shadowgen(#[from] shadowgen::Error),

@@ -7,10 +7,12 @@
 //! ray-cast reference is fed the same primitive ids (DESIGN.md "Visible
 //! surface"), so the comparison measures the shadow stage alone.
 
+use crate::config::CullingSpec;
 use crate::config::PipelineOptions;
 use crate::mask::{compare, Mask};
 use crate::pipeline::{
-    eye_pass_reusing, shadow_mask, EyePass, MeshCache, ShadowFrame, ShadowScratch,
+    eye_pass_culled, eye_pass_reusing, shadow_mask, EyeCulling, EyePass, MeshCache, ShadowFrame,
+    ShadowScratch,
 };
 use crate::reference::{reference_mask, ReferenceMask, TriangleBvh};
 use crate::stats::{CheckStats, FrameStats, ReferenceStats, SceneStats, ShadowStats};
@@ -33,6 +35,8 @@ pub struct FrameRunner<'s> {
     scratch: Vec<ShadowScratch>,
     /// The last frame's eye pass, whose buffers the next one reuses.
     eye: Option<EyePass>,
+    /// The culled eye pass's hierarchy and CHC state, built on first use.
+    eye_culling: Option<EyeCulling>,
     /// Reference masks by (frame, light, reference options), when caching.
     references: Option<HashMap<ReferenceKey, ReferenceMask>>,
     /// Time spent building the reference's BVH (ms), 0 until it is built.
@@ -59,6 +63,7 @@ impl<'s> FrameRunner<'s> {
             bvh: None,
             scratch: Vec::new(),
             eye: None,
+            eye_culling: None,
             references: None,
             bvh_ms: 0.0,
         }
@@ -93,8 +98,30 @@ impl<'s> FrameRunner<'s> {
     ) -> Result<Vec<LightFrame>> {
         let t = Instant::now();
         let previous = self.eye.take();
-        let eye = eye_pass_reusing(self.scene, &self.meshes, camera, width, height, previous)?;
+        let (eye, cull) = if options.culling == CullingSpec::None {
+            let eye = eye_pass_reusing(self.scene, &self.meshes, camera, width, height, previous)?;
+            (eye, None)
+        } else {
+            let state = self
+                .eye_culling
+                .get_or_insert_with(|| EyeCulling::new(self.scene));
+            let (eye, r) = eye_pass_culled(
+                self.scene,
+                state,
+                camera,
+                width,
+                height,
+                options.culling.culling(),
+                options.query_threshold,
+                previous,
+            )?;
+            (eye, Some(r))
+        };
         let eye_ms = ms(t);
+        let (psr, queries, waits) = match &cull {
+            Some(r) => (r.stats.objects_rendered, r.stats.queries, r.stats.waits),
+            None => (self.scene.objects().len() as u64, 0, 0),
+        };
         if self.scratch.len() < lights.len() {
             self.scratch
                 .resize_with(lights.len(), ShadowScratch::default);
@@ -144,6 +171,9 @@ impl<'s> FrameRunner<'s> {
                     bandwidth_bytes: shadow.stencil.bandwidth_bytes(),
                     silhouette_pixels: shadow.silhouette_pixels,
                     map_ms: shadow.map_ms,
+                    psr,
+                    queries,
+                    waits,
                 },
                 ..Default::default()
             };

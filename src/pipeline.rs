@@ -86,7 +86,7 @@ pub fn eye_pass_reusing(
     height: u32,
     previous: Option<EyePass>,
 ) -> Result<EyePass> {
-    let (mut target, mut primitive, mut depth) = match previous {
+    let (mut target, primitive, depth) = match previous {
         Some(p) if (p.target.width(), p.target.height()) == (width, height) => {
             let mut t = p.target;
             t.clear();
@@ -122,24 +122,120 @@ pub fn eye_pass_reusing(
         .collect();
     // One batch: bands of tile rows in parallel; equal to drawing one by one.
     target.draw_batch(&items, Coverage::Standard)?;
-    primitive.clear();
-    primitive.reserve(width as usize * height as usize);
-    for y in 0..height {
-        for x in 0..width {
-            primitive.push(target.id_at(x, y).map(|(o, t)| (ObjectId(o), t)));
+    Ok(EyePass::from_target(target, primitive, depth))
+}
+
+impl EyePass {
+    /// The eye pass of a rendered `target`, filling (and reusing) the
+    /// row-major id and depth vectors.
+    fn from_target(
+        target: DepthTarget,
+        mut primitive: Vec<Option<PrimitiveId>>,
+        mut depth: Vec<f32>,
+    ) -> EyePass {
+        let (width, height) = (target.width(), target.height());
+        primitive.clear();
+        primitive.reserve(width as usize * height as usize);
+        for y in 0..height {
+            for x in 0..width {
+                primitive.push(target.id_at(x, y).map(|(o, t)| (ObjectId(o), t)));
+            }
+        }
+        depth.clear();
+        depth.extend(
+            (0..height)
+                .flat_map(|y| (0..width).map(move |x| (x, y)))
+                .map(|(x, y)| target.depth_at(x, y).unwrap_or(raster::BACKGROUND)),
+        );
+        EyePass {
+            target,
+            primitive,
+            depth,
         }
     }
-    depth.clear();
-    depth.extend(
-        (0..height)
-            .flat_map(|y| (0..width).map(move |x| (x, y)))
-            .map(|(x, y)| target.depth_at(x, y).unwrap_or(raster::BACKGROUND)),
-    );
-    Ok(EyePass {
-        target,
-        primitive,
-        depth,
-    })
+}
+
+/// Per-run state of the culled eye pass (PSR, [Steiner §4.3]): the object
+/// hierarchy, the meshes in the backend's form, and the eye view's
+/// persistent CHC state.
+#[derive(Debug)]
+pub struct EyeCulling {
+    hierarchy: visibility::Hierarchy,
+    meshes: visibility::MeshData,
+    culler: visibility::ViewCuller,
+}
+
+impl EyeCulling {
+    /// The state for `scene` (no history yet).
+    pub fn new(scene: &Scene) -> Self {
+        EyeCulling {
+            hierarchy: visibility::Hierarchy::from_scene(scene),
+            meshes: visibility::MeshData::from_scene(scene),
+            culler: visibility::ViewCuller::new(),
+        }
+    }
+}
+
+/// The eye pass with occlusion culling: only the objects `culling` finds
+/// visible (the potentially shadowed receivers, PSR) are drawn, one by one
+/// through an occlusion backend, with the same transform path and coverage as
+/// [`eye_pass`]. With a conservative traversal (threshold 0) the depth and
+/// primitive ids equal [`eye_pass`]'s. Returns the pass and the traversal's
+/// result (the PSR and its counters).
+///
+/// # Errors
+/// As [`eye_pass`].
+#[allow(clippy::too_many_arguments)]
+pub fn eye_pass_culled(
+    scene: &Scene,
+    state: &mut EyeCulling,
+    camera: &Camera,
+    width: u32,
+    height: u32,
+    culling: visibility::Culling,
+    threshold: u32,
+    previous: Option<EyePass>,
+) -> Result<(EyePass, visibility::CullResult)> {
+    let (target, primitive, depth) = match previous {
+        Some(p) if (p.target.width(), p.target.height()) == (width, height) => {
+            (p.target, p.primitive, p.depth)
+        }
+        _ => (
+            DepthTarget::new(width, height, TileSize::T8, true)?,
+            Vec::new(),
+            Vec::new(),
+        ),
+    };
+    let mut backend = raster::SyncBackend::new(target);
+    let clip = |w: &glam::DMat4| scene::transform::clip_from_local(camera, w);
+    let view = visibility::ViewSetup {
+        clip_from_local: &clip,
+        origin: camera.position,
+        clip_from_origin: scene::transform::clip_from_local(
+            camera,
+            &glam::DMat4::from_translation(camera.position),
+        ),
+        planes: camera.frustum().planes.to_vec(),
+        apex: camera.position,
+        draw_coverage: Coverage::Standard,
+        query: raster::QueryOptions {
+            coverage: Coverage::Outer(raster::DepthPick::Nearest),
+            mode: raster::QueryMode::Count,
+        },
+        threshold,
+    };
+    let result = state.culler.cull(
+        &state.hierarchy,
+        scene,
+        &state.meshes,
+        &view,
+        culling,
+        &mut backend,
+    )?;
+    Ok((
+        EyePass::from_target(backend.into_target(), primitive, depth),
+        result,
+    ))
 }
 
 /// Which stencil backend draws the volumes.

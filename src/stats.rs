@@ -85,6 +85,13 @@ pub struct ShadowStats {
     pub silhouette_pixels: u64,
     /// Hybrid: shadow map rendering and classification (ms), part of `stencil_ms`.
     pub map_ms: f64,
+    /// Objects the eye pass drew: the potentially shadowed receivers (all
+    /// objects without culling).
+    pub psr: u64,
+    /// Occlusion queries of the eye pass.
+    pub queries: u64,
+    /// Waits for query results in the eye pass.
+    pub waits: u64,
 }
 
 /// The pipeline's mask against the reference's, on frames that run it.
@@ -164,6 +171,9 @@ summable!(ShadowStats {
     bandwidth_bytes,
     silhouette_pixels,
     map_ms,
+    psr,
+    queries,
+    waits,
 });
 summable!(CheckStats {
     mismatch_pixels,
@@ -229,6 +239,9 @@ stats_row! {
     bandwidth_bytes: shadow.bandwidth_bytes,
     silhouette_pixels: shadow.silhouette_pixels,
     map_ms: shadow.map_ms,
+    psr: shadow.psr,
+    queries: shadow.queries,
+    waits: shadow.waits,
     mismatch_pixels: check.mismatch_pixels,
     mismatch_off_boundary: check.mismatch_off_boundary,
     ambiguous_pixels: check.ambiguous_pixels,

@@ -256,6 +256,11 @@ impl SimulatedBackend {
         &self.target
     }
 
+    /// The depth target, giving up the backend.
+    pub fn into_target(self) -> DepthTarget {
+        self.target
+    }
+
     fn run(&mut self, cmd: Command) {
         self.commands += 1;
         if let Some((id, n)) = execute(&mut self.target, &mut self.receivers, cmd) {
@@ -331,6 +336,11 @@ impl SyncBackend {
     /// The depth target.
     pub fn target(&self) -> &DepthTarget {
         self.0.target()
+    }
+
+    /// The depth target, giving up the backend (the caller keeps the image).
+    pub fn into_target(self) -> DepthTarget {
+        self.0.into_target()
     }
 }
 
