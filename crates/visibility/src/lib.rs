@@ -1,15 +1,24 @@
-//! Visibility for shadowcull [Steiner §2.5.1, §4.3]: the view frustum and the
-//! light-frustum intersection body [Steiner §4.3.3], and hierarchical occlusion
-//! culling over the rasterizer's [`raster::OcclusionBackend`] — plain frustum
-//! culling, exact stop-and-wait, and coherent hierarchical culling (CHC)
-//! [Bittner et al. 2004; Steiner Listing 2.1].
+//! Visibility for shadowcull [Steiner §2.5.1, §4.3]: the view frustum as a
+//! convex polyhedron, the light-frustum intersection body B = conv(V ∪ l) ∩ S
+//! and the light views fitted to it (orthographic, perspective or cube faces)
+//! [Steiner §4.3.3, Listing 4.1], and hierarchical occlusion culling over the
+//! rasterizer's [`raster::OcclusionBackend`] — plain frustum culling, exact
+//! stop-and-wait, and coherent hierarchical culling (CHC) [Bittner et al.
+//! 2004; Steiner Listing 2.1].
 //!
 //! Depends on `scene` and `raster` only.
 
 mod error;
 mod hierarchy;
+mod intersection_body;
+mod light_view;
+mod polyhedron;
 mod traverse;
 
 pub use error::{Error, Result};
 pub use hierarchy::{Hierarchy, NodeId};
+pub use intersection_body::{intersection_body, Face, Polyhedron};
+pub use light_view::{
+    fit_light_views, wasted_area, LightView, LightViewKind, DEFAULT_LIGHT_VIEW_RESOLUTION,
+};
 pub use traverse::{CullResult, Culling, MeshData, TraversalStats, ViewCuller, ViewSetup};
