@@ -21,8 +21,8 @@
 //! with a warm cache), the counters of the first repetition (`volume_triangles`,
 //! `pixels_processed`, `stencil_updates`, `shadowed_pixels`, `h_fragments`,
 //! `tile_tests`, `tiles_lit`, `tiles_shadow`, `tiles_boundary`, `bandwidth_bytes`,
-//! `pixel_bytes`, `tile_bytes`, `silhouette_pixels`, `map_ms`, `psr`, `queries`,
-//! `waits`, ...) and with
+//! `pixel_bytes`, `tile_bytes`, `silhouette_pixels`, `map_ms`, `psr`, `psc`,
+//! `queries`, `waits`, `light_ms`, ...) and with
 //! `--reference` `mismatch_pixels`, `mismatch_off_boundary`, `ambiguous_pixels`.
 //! `--mask` writes the raw stencil result as an 8-bit PNG: 255 where the stencil
 //! is non-zero on any surface, 0 elsewhere, row 0 at the top. Logs go to stderr.
@@ -365,8 +365,10 @@ fn main() -> anyhow::Result<()> {
         "map_ms": row.shadow.map_ms,
         "culling": format!("{:?}", a.pipeline.culling).to_lowercase(),
         "psr": row.shadow.psr,
+        "psc": row.shadow.psc,
         "queries": row.shadow.queries,
         "waits": row.shadow.waits,
+        "light_ms": row.shadow.light_ms,
     });
     if let (Some(m), Some(more)) = (line.as_object_mut(), more.as_object()) {
         m.extend(more.clone());

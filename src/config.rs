@@ -215,7 +215,8 @@ pub enum StencilBackend {
     Hybrid,
 }
 
-/// Occlusion culling of the eye pass (`culling: chc`) [Steiner §2.5.1, §4.3].
+/// Occlusion culling (`culling: chc`) of the eye pass (PSR) and of the light
+/// views (PSC: shadow volumes only for potential casters) [Steiner §2.5.1, §4.3].
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize, serde::Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum CullingSpec {
@@ -275,11 +276,14 @@ pub struct PipelineOptions {
     pub full_shadow: bool,
     /// Shadow-map size of the hybrid (texels per side).
     pub map_size: u32,
-    /// Occlusion culling of the eye pass: the potentially shadowed receivers
-    /// (PSR) are the objects it draws.
+    /// Occlusion culling of the eye pass (the objects it draws are the
+    /// potentially shadowed receivers, PSR) and of the light pass (shadow
+    /// volumes only for the potential shadow casters, PSC).
     pub culling: CullingSpec,
     /// A node counts as visible above this many samples (0: conservative).
     pub query_threshold: u32,
+    /// Side of every light view (or cube face) of the light pass, in pixels.
+    pub light_resolution: u32,
     /// Every triangle casts (back-facing ones flipped); the reference uses the same rule.
     pub two_sided: bool,
     /// Lights with a range extrude their shadow volumes finitely (always closed).
@@ -304,6 +308,7 @@ impl Default for PipelineOptions {
             map_size: 2048,
             culling: CullingSpec::None,
             query_threshold: 0,
+            light_resolution: 1024,
             two_sided: false,
             finite_extrusion: false,
             reference_every: 1,
@@ -443,6 +448,16 @@ impl Job {
                 return Err(bad(
                     &format!("{at}.tile"),
                     format!("{} is not 4, 8 or 16", p.tile),
+                ));
+            }
+            if !(8..=raster::MAX_TARGET_SIZE).contains(&p.light_resolution) {
+                return Err(bad(
+                    &format!("{at}.light_resolution"),
+                    format!(
+                        "{} is not in 8..={}",
+                        p.light_resolution,
+                        raster::MAX_TARGET_SIZE
+                    ),
                 ));
             }
             if !(16..=raster::MAX_TARGET_SIZE).contains(&p.map_size) {

@@ -11,8 +11,8 @@ use crate::config::CullingSpec;
 use crate::config::PipelineOptions;
 use crate::mask::{compare, Mask};
 use crate::pipeline::{
-    eye_pass_culled, eye_pass_reusing, shadow_mask, EyeCulling, EyePass, MeshCache, ShadowFrame,
-    ShadowScratch,
+    eye_pass_culled, eye_pass_reusing, shadow_mask, shadow_mask_for, EyeCulling, EyePass,
+    MeshCache, ShadowFrame, ShadowScratch,
 };
 use crate::reference::{reference_mask, ReferenceMask, TriangleBvh};
 use crate::stats::{CheckStats, FrameStats, ReferenceStats, SceneStats, ShadowStats};
@@ -129,15 +129,54 @@ impl<'s> FrameRunner<'s> {
         let shadow_options = options.shadow_options();
         let counts = self.scene.counts();
         let mut out = Vec::with_capacity(lights.len());
+        // The light pass's receivers: the eye's visible surface points.
+        let receivers = match (&cull, &self.eye_culling) {
+            (Some(_), Some(_)) => crate::pipeline::visible_points(self.scene, camera, &eye),
+            _ => Vec::new(),
+        };
         for (li, light) in lights.iter().enumerate() {
-            let shadow = shadow_mask(
-                self.scene,
-                camera,
-                light,
-                &eye,
-                &shadow_options,
-                &mut self.scratch[li],
-            )?;
+            let tl = Instant::now();
+            let light_pass = match (&cull, &self.eye_culling) {
+                (Some(_), Some(state)) => {
+                    let (h, meshes) = state.parts();
+                    let lp = visibility::LightPassOptions {
+                        culling: options.culling.culling(),
+                        resolution: options.light_resolution,
+                        threshold: options.query_threshold,
+                        two_sided: options.two_sided,
+                    };
+                    Some(
+                        self.scratch[li]
+                            .light_pass
+                            .run(h, self.scene, meshes, camera, light, &receivers, &lp)?,
+                    )
+                }
+                _ => None,
+            };
+            let light_ms = ms(tl);
+            let shadow = match &light_pass {
+                Some(lp) => shadow_mask_for(
+                    self.scene,
+                    camera,
+                    light,
+                    &eye,
+                    &shadow_options,
+                    &mut self.scratch[li],
+                    &lp.psc,
+                )?,
+                None => shadow_mask(
+                    self.scene,
+                    camera,
+                    light,
+                    &eye,
+                    &shadow_options,
+                    &mut self.scratch[li],
+                )?,
+            };
+            let (psc, lq, lw) = match &light_pass {
+                Some(lp) => (lp.psc.len() as u64, lp.stats.queries, lp.stats.waits),
+                None => (self.scene.objects().len() as u64, 0, 0),
+            };
             let v = &shadow.volumes;
             let mut row = FrameStats {
                 frame,
@@ -172,12 +211,14 @@ impl<'s> FrameRunner<'s> {
                     silhouette_pixels: shadow.silhouette_pixels,
                     map_ms: shadow.map_ms,
                     psr,
-                    queries,
-                    waits,
+                    psc,
+                    queries: queries + lq,
+                    waits: waits + lw,
+                    light_ms,
                 },
                 ..Default::default()
             };
-            row.frame_ms = eye_ms + v.silhouette_ms + v.volume_ms + shadow.stencil_ms;
+            row.frame_ms = eye_ms + light_ms + v.silhouette_ms + v.volume_ms + shadow.stencil_ms;
             let reference = if reference {
                 let ro = options.reference_options();
                 let key = (frame, li, (ro.two_sided, ro.depth_error.to_bits()));

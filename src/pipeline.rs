@@ -176,6 +176,42 @@ impl EyeCulling {
     }
 }
 
+impl EyeCulling {
+    /// The hierarchy and meshes the eye and light passes share.
+    pub(crate) fn parts(&self) -> (&visibility::Hierarchy, &visibility::MeshData) {
+        (&self.hierarchy, &self.meshes)
+    }
+}
+
+/// The eye's visible surface points (world, f64): per non-background pixel the
+/// pixel-centre ray met with the visible triangle's plane (as the mask
+/// assembly computes them) — the fragment-level receivers of the light pass.
+pub fn visible_points(scene: &Scene, camera: &Camera, eye: &EyePass) -> Vec<glam::DVec3> {
+    use rayon::prelude::*;
+    let (w, h) = (eye.target.width(), eye.target.height());
+    let rays = camera.rays(w, h);
+    let e = camera.position;
+    (0..h)
+        .into_par_iter()
+        .flat_map_iter(|y| {
+            let rays = &rays;
+            (0..w).filter_map(move |x| {
+                let (obj, t) = eye.primitive[(y * w + x) as usize]?;
+                let tri = scene.world_triangle(obj, t as usize);
+                let dir = rays.direction(f64::from(x) + 0.5, f64::from(y) + 0.5);
+                let n = (tri[1] - tri[0]).cross(tri[2] - tri[0]);
+                let den = n.dot(dir);
+                let t_hit = if den != 0.0 {
+                    n.dot(tri[0] - e) / den
+                } else {
+                    0.0
+                };
+                Some(e + dir * t_hit)
+            })
+        })
+        .collect()
+}
+
 /// The eye pass with occlusion culling: only the objects `culling` finds
 /// visible (the potentially shadowed receivers, PSR) are drawn, one by one
 /// through an occlusion backend, with the same transform path and coverage as
@@ -220,9 +256,15 @@ pub fn eye_pass_culled(
         draw_coverage: Coverage::Standard,
         query: raster::QueryOptions {
             coverage: Coverage::Outer(raster::DepthPick::Nearest),
-            mode: raster::QueryMode::Count,
+            // With threshold 0 one passing sample decides: stop there.
+            mode: if threshold == 0 {
+                raster::QueryMode::Any
+            } else {
+                raster::QueryMode::Count
+            },
         },
         threshold,
+        triangles: None,
     };
     let result = state.culler.cull(
         &state.hierarchy,
@@ -359,6 +401,8 @@ pub struct ShadowScratch {
     volumes: VolumeBuffer,
     stencil: Option<StencilTarget>,
     hierarchical: Option<HierarchicalStencil>,
+    /// The light pass's per-view culling state (PSC).
+    pub(crate) light_pass: visibility::LightPass,
 }
 
 impl std::fmt::Debug for ShadowScratch {
@@ -382,8 +426,25 @@ pub fn shadow_mask(
     options: &ShadowOptions,
     scratch: &mut ShadowScratch,
 ) -> Result<ShadowFrame> {
-    let (w, h) = (eye.target.width(), eye.target.height());
     let casters: Vec<ObjectId> = (0..scene.objects().len() as u32).map(ObjectId).collect();
+    shadow_mask_for(scene, camera, light, eye, options, scratch, &casters)
+}
+
+/// [`shadow_mask`] with shadow volumes for `casters` only (the potential
+/// shadow casters of the light pass).
+///
+/// # Errors
+/// As [`shadow_mask`]; also a caster id outside the scene.
+pub fn shadow_mask_for(
+    scene: &Scene,
+    camera: &Camera,
+    light: &Light,
+    eye: &EyePass,
+    options: &ShadowOptions,
+    scratch: &mut ShadowScratch,
+    casters: &[ObjectId],
+) -> Result<ShadowFrame> {
+    let (w, h) = (eye.target.width(), eye.target.height());
     let build = BuildOptions {
         method: options.method,
         two_sided: options.two_sided,
@@ -396,7 +457,7 @@ pub fn shadow_mask(
         scene,
         camera,
         light,
-        &casters,
+        casters,
         build,
         &mut scratch.cache,
     )?;

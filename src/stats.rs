@@ -88,10 +88,15 @@ pub struct ShadowStats {
     /// Objects the eye pass drew: the potentially shadowed receivers (all
     /// objects without culling).
     pub psr: u64,
-    /// Occlusion queries of the eye pass.
+    /// Objects whose shadow volumes were built: the potential shadow casters
+    /// of the light pass (all objects without culling).
+    pub psc: u64,
+    /// Occlusion queries of the eye and light passes.
     pub queries: u64,
-    /// Waits for query results in the eye pass.
+    /// Waits for query results in the eye and light passes.
     pub waits: u64,
+    /// The light pass: receiver marking and culling in the light views (ms).
+    pub light_ms: f64,
 }
 
 /// The pipeline's mask against the reference's, on frames that run it.
@@ -172,8 +177,10 @@ summable!(ShadowStats {
     silhouette_pixels,
     map_ms,
     psr,
+    psc,
     queries,
     waits,
+    light_ms,
 });
 summable!(CheckStats {
     mismatch_pixels,
@@ -240,8 +247,10 @@ stats_row! {
     silhouette_pixels: shadow.silhouette_pixels,
     map_ms: shadow.map_ms,
     psr: shadow.psr,
+    psc: shadow.psc,
     queries: shadow.queries,
     waits: shadow.waits,
+    light_ms: shadow.light_ms,
     mismatch_pixels: check.mismatch_pixels,
     mismatch_off_boundary: check.mismatch_off_boundary,
     ambiguous_pixels: check.ambiguous_pixels,

@@ -495,6 +495,68 @@ fn hierarchical_stencil_matches_brute_force_on_shared_jobs() {
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
 
+/// Issue 6's conservative culling on every shared-job view (one- and
+/// two-sided, Auto): the culled eye pass (PSR, CHC) and the light pass (PSC,
+/// 128² light views) leave every mask pixel as it is without culling.
+#[test]
+fn culling_keeps_every_shared_job_mask() {
+    use shadowcull::config::{CullingSpec, Job, PipelineOptions, StencilBackend};
+    use shadowcull::frame::FrameRunner;
+    use shadowcull::run::{load_scene_for_job, resolve_lights};
+    let mut failures = Vec::new();
+    let (mut casters, mut culled) = (0u64, 0u64);
+    for f in shared_jobs("") {
+        let job = Job::from_file(&f).unwrap();
+        let (w, h) = job.resolution;
+        let (loaded, scene, path) = load_scene_for_job(&job, Some(&f)).unwrap();
+        let lights = resolve_lights(&job, &loaded, &scene.bounds(), &f).unwrap();
+        let name = f.file_name().unwrap().to_string_lossy().to_string();
+        for two_sided in [false, true] {
+            let base = PipelineOptions {
+                stencil: StencilBackend::H,
+                two_sided,
+                reference_every: 0,
+                light_resolution: 128,
+                ..Default::default()
+            };
+            let culled_opts = PipelineOptions {
+                culling: CullingSpec::Chc,
+                ..base
+            };
+            let (mut plain, mut cull) = (FrameRunner::new(&scene), FrameRunner::new(&scene));
+            for frame in 0..job.frame_count() {
+                let cam = path.at(frame).unwrap().camera(w as f64 / h as f64).unwrap();
+                let a = plain
+                    .frame(frame, &cam, &lights, (w, h), &base, false)
+                    .unwrap();
+                let b = cull
+                    .frame(frame, &cam, &lights, (w, h), &culled_opts, false)
+                    .unwrap();
+                for (li, (x, y)) in a.iter().zip(&b).enumerate() {
+                    casters += x.row.shadow.psc;
+                    culled += y.row.shadow.psc;
+                    let differ = x
+                        .shadow
+                        .mask
+                        .pixels
+                        .iter()
+                        .zip(&y.shadow.mask.pixels)
+                        .filter(|(p, q)| p != q)
+                        .count();
+                    if differ > 0 {
+                        failures.push(format!(
+                            "{name} camera {frame} light {li} two_sided {two_sided}: {differ} pixels differ"
+                        ));
+                    }
+                }
+            }
+        }
+    }
+    println!("casters without culling {casters}, with {culled}");
+    assert!(culled < casters, "{culled} of {casters}");
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
 /// Diagnoses every mismatched pixel of the shared-job matrix (set
 /// `SHADOWCULL_DIAG=job-substring` to pick jobs): reference and pipeline
 /// classes, surface depth (exact and eye-buffer), δ, the volumes whose stencil

@@ -11,6 +11,7 @@
 mod error;
 mod hierarchy;
 mod intersection_body;
+mod light_pass;
 mod light_view;
 mod polyhedron;
 mod traverse;
@@ -18,6 +19,7 @@ mod traverse;
 pub use error::{Error, Result};
 pub use hierarchy::{Hierarchy, NodeId};
 pub use intersection_body::{intersection_body, Face, Polyhedron};
+pub use light_pass::{LightPass, LightPassOptions, LightPassResult, RECEIVER_PUSH};
 pub use light_view::{
     fit_light_views, wasted_area, LightView, LightViewKind, DEFAULT_LIGHT_VIEW_RESOLUTION,
 };

@@ -84,6 +84,9 @@ pub struct ViewSetup<'a> {
     pub query: QueryOptions,
     /// A node is visible when more than this many samples pass (0: conservative).
     pub threshold: u32,
+    /// The triangles an object draws as an occluder, when not all of its
+    /// mesh's (a light view draws only the triangles that cast).
+    pub triangles: Option<&'a dyn Fn(ObjectId) -> Arc<[[u32; 3]]>>,
 }
 
 /// Counters of one traversal.
@@ -108,6 +111,11 @@ pub struct TraversalStats {
 pub struct CullResult {
     /// Objects drawn into the view, in drawing order.
     pub rendered: Vec<ObjectId>,
+    /// Objects whose own query found them visible (for traversals without
+    /// queries: every object drawn). CHC draws previously visible objects
+    /// before their query returns; those whose query then fails are drawn but
+    /// not visible.
+    pub visible: Vec<ObjectId>,
     /// Counters.
     pub stats: TraversalStats,
 }
@@ -198,10 +206,14 @@ impl Run<'_, '_> {
         let id = ObjectId(node.object);
         let o = self.scene.object(id);
         let mesh = o.mesh.0 as usize;
+        let triangles = match self.view.triangles {
+            Some(f) => f(id),
+            None => self.meshes.triangles[mesh].clone(),
+        };
         self.backend.draw(DrawCommand {
             clip_from_local: (self.view.clip_from_local)(&o.world_from_local),
             positions: self.meshes.positions[mesh].clone(),
-            triangles: self.meshes.triangles[mesh].clone(),
+            triangles,
             object: node.object,
             coverage: self.view.draw_coverage,
         })?;
@@ -306,7 +318,10 @@ impl ViewCuller {
         }
         run.backend.finish();
         let mut out = run.out;
-        out.stats.objects_visible = out.stats.objects_rendered;
+        if culling != Culling::Chc {
+            out.visible = out.rendered.clone();
+        }
+        out.stats.objects_visible = out.visible.len() as u64;
         Ok(out)
     }
 
@@ -383,6 +398,10 @@ impl ViewCuller {
                 queries.pop_front();
                 if run.visible(samples) {
                     self.pull_up(run.h, node);
+                    let n = &run.h.nodes[node as usize];
+                    if n.is_leaf() {
+                        run.out.visible.push(ObjectId(n.object));
+                    }
                     if !was_visible {
                         let n = run.h.nodes[node as usize];
                         self.traverse(run, &mut distance, &n)?;

@@ -60,6 +60,7 @@ fn run(
             mode: QueryMode::Count,
         },
         threshold: 0,
+        triangles: None,
     };
     culler
         .cull(h, scene, meshes, &view, culling, backend)

@@ -1,0 +1,238 @@
+//! The light pass: shadow-caster culling (PSC) [Steiner §4.3.1–4.3.3; Bittner,
+//! Mattausch, Silvennoinen, Wimmer 2011, "Shadow caster culling for efficient
+//! shadow mapping"].
+//!
+//! Per light, the views fitted to the intersection body B ([`fit_light_views`])
+//! each get a depth target and a receiver target. The eye's visible surface
+//! points (the fragment-level receivers) mark, per light pixel, the farthest
+//! receiver depth. A culling traversal then runs in each view with:
+//!
+//! - occluders: only the triangles that cast under the shared facing rule
+//!   (light-facing ones; every triangle when two-sided), drawn
+//!   inner-conservative at the farthest depth over pixel ∩ triangle, so an
+//!   occluder covers a light pixel only where it covers all of it;
+//! - queries: node boxes, outer-conservative at the nearest depth, counting a
+//!   sample only over a marked pixel and at or in front of its receiver depth
+//!   (the raster crate's receiver restriction) — a box that passes nowhere
+//!   holds no caster that can shadow a visible receiver point, nor one wholly
+//!   hidden behind other casters from the light.
+//!
+//! PSC is the union over the light's views of the objects found visible.
+//!
+//! Conservative receivers: each point is pushed away from the light by
+//! [`RECEIVER_PUSH`] of its distance (directional: of the scene diameter)
+//! before marking, beyond the f32 rounding of its light-space depth, and marks
+//! every pixel within [`raster::RECEIVER_EPS_PX`] of its projection.
+
+use crate::hierarchy::Hierarchy;
+use crate::intersection_body::intersection_body;
+use crate::light_view::{fit_light_views, LightView};
+use crate::traverse::{CullResult, Culling, MeshData, TraversalStats, ViewCuller, ViewSetup};
+use crate::Result;
+use glam::{DMat4, DVec3, DVec4, Vec4};
+use raster::{
+    Coverage, DepthPick, DepthTarget, OcclusionBackend, QueryMode, QueryOptions, ReceiverTarget,
+    SyncBackend, TileSize,
+};
+use scene::{faces_light, Camera, Light, ObjectId, Plane, Scene};
+use std::cell::RefCell;
+use std::collections::HashMap;
+use std::sync::Arc;
+
+/// Relative push of a receiver point away from the light before marking.
+pub const RECEIVER_PUSH: f64 = 1.0 / 1_048_576.0;
+
+/// Options of a light pass.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct LightPassOptions {
+    /// The traversal in every light view.
+    pub culling: Culling,
+    /// Side of every light view or cube face, in pixels.
+    pub resolution: u32,
+    /// Query threshold (0: conservative).
+    pub threshold: u32,
+    /// Every triangle casts (the reference's two-sided mode).
+    pub two_sided: bool,
+}
+
+/// What a light pass found.
+#[derive(Clone, Debug, Default)]
+pub struct LightPassResult {
+    /// Potential shadow casters: objects that can shadow a visible receiver.
+    pub psc: Vec<ObjectId>,
+    /// Light views used.
+    pub views: usize,
+    /// Counters summed over the views.
+    pub stats: TraversalStats,
+}
+
+/// One light's persistent light-pass state: a culler per view slot.
+#[derive(Debug, Default)]
+pub struct LightPass {
+    cullers: Vec<ViewCuller>,
+}
+
+/// The view's culling planes (inside positive) from its clip matrix: the
+/// sides `|x| ≤ w`, `|y| ≤ w` and the far side `z ≥ 0` — not the near plane:
+/// a caster between the light and the near plane still casts (its box meets
+/// the apex region and its query says visible).
+fn clip_planes(m: &DMat4) -> Vec<Plane> {
+    let r = [m.row(0), m.row(1), m.row(2), m.row(3)];
+    let plane = |v: DVec4| Plane {
+        normal: v.truncate(),
+        d: v.w,
+    };
+    vec![
+        plane(r[3] + r[0]),
+        plane(r[3] - r[0]),
+        plane(r[3] + r[1]),
+        plane(r[3] - r[1]),
+        plane(r[2]),
+    ]
+}
+
+impl LightPass {
+    /// A light pass with no history.
+    pub fn new() -> Self {
+        LightPass::default()
+    }
+
+    /// Finds the potential shadow casters of `light` for the receivers
+    /// `receivers` (world points of the eye's visible surface) seen by `camera`.
+    ///
+    /// # Errors
+    /// Backend errors.
+    #[allow(clippy::too_many_arguments)]
+    pub fn run(
+        &mut self,
+        h: &Hierarchy,
+        scene: &Scene,
+        meshes: &MeshData,
+        camera: &Camera,
+        light: &Light,
+        receivers: &[DVec3],
+        options: &LightPassOptions,
+    ) -> Result<LightPassResult> {
+        let bounds = scene.bounds();
+        let body = intersection_body(&camera.frustum(), light, &bounds);
+        let views = fit_light_views(&body, light, options.resolution.max(1));
+        if self.cullers.len() != views.len() {
+            self.cullers = vec![ViewCuller::new(); views.len()];
+        }
+        let diameter = f64::from(bounds.size().length());
+        let origin = light.position().unwrap_or_else(|| bounds.center());
+        // Receivers pushed away from the light, relative to the view origin.
+        let pushed: Vec<DVec3> = receivers
+            .iter()
+            .map(|&p| match light.position() {
+                Some(l) => l + (p - l) * (1.0 + RECEIVER_PUSH),
+                None => {
+                    let d = light.toward_light(p).normalize_or_zero();
+                    p - d * (RECEIVER_PUSH * diameter)
+                }
+            })
+            .collect();
+        let local: Vec<Vec4> = pushed
+            .iter()
+            .map(|&p| (p - origin).as_vec3().extend(1.0))
+            .collect();
+        // The casting triangles of every object drawn as an occluder.
+        let cache: RefCell<HashMap<u32, Arc<[[u32; 3]]>>> = RefCell::new(HashMap::new());
+        let casting = |id: ObjectId| -> Arc<[[u32; 3]]> {
+            if let Some(t) = cache.borrow().get(&id.0) {
+                return t.clone();
+            }
+            let mesh = scene.object_mesh(id);
+            let t: Arc<[[u32; 3]]> = if options.two_sided {
+                mesh.triangles().into()
+            } else {
+                mesh.triangles()
+                    .iter()
+                    .enumerate()
+                    .filter(|&(k, _)| faces_light(&scene.world_triangle(id, k), light))
+                    .map(|(_, t)| *t)
+                    .collect()
+            };
+            cache.borrow_mut().insert(id.0, t.clone());
+            t
+        };
+        let mut out = LightPassResult {
+            views: views.len(),
+            ..Default::default()
+        };
+        let mut in_psc = vec![false; scene.objects().len()];
+        for (k, view) in views.iter().enumerate() {
+            let r = self.run_view(
+                k, h, scene, meshes, light, view, origin, diameter, &local, &casting, options,
+            )?;
+            add_stats(&mut out.stats, &r.stats);
+            for id in r.visible {
+                if !in_psc[id.0 as usize] {
+                    in_psc[id.0 as usize] = true;
+                    out.psc.push(id);
+                }
+            }
+        }
+        out.psc.sort_unstable();
+        Ok(out)
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn run_view(
+        &mut self,
+        k: usize,
+        h: &Hierarchy,
+        scene: &Scene,
+        meshes: &MeshData,
+        light: &Light,
+        view: &LightView,
+        origin: DVec3,
+        diameter: f64,
+        receivers: &[Vec4],
+        casting: &dyn Fn(ObjectId) -> Arc<[[u32; 3]]>,
+        options: &LightPassOptions,
+    ) -> Result<CullResult> {
+        let m = view.clip_from_world;
+        let clip_from_origin = (m * DMat4::from_translation(origin)).as_mat4();
+        let target = DepthTarget::new(view.resolution, view.resolution, TileSize::T8, false)?;
+        let mut marks = ReceiverTarget::for_target(&target);
+        marks.mark_points(clip_from_origin, receivers);
+        let mut backend = SyncBackend::new(target);
+        backend.set_receivers(Some(Arc::new(marks)))?;
+        let clip = |w: &DMat4| (m * *w).as_mat4();
+        let apex = match light.position() {
+            Some(l) => l,
+            // Far toward the light: distances then order nodes along it.
+            None => origin + light.toward_light(origin).normalize_or_zero() * (2.0 * diameter),
+        };
+        let setup = ViewSetup {
+            clip_from_local: &clip,
+            origin,
+            clip_from_origin,
+            planes: clip_planes(&m),
+            apex,
+            draw_coverage: Coverage::Inner(DepthPick::Farthest),
+            query: QueryOptions {
+                coverage: Coverage::Outer(DepthPick::Nearest),
+                // With threshold 0 one passing sample decides: stop there.
+                mode: if options.threshold == 0 {
+                    QueryMode::Any
+                } else {
+                    QueryMode::Count
+                },
+            },
+            threshold: options.threshold,
+            triangles: Some(casting),
+        };
+        self.cullers[k].cull(h, scene, meshes, &setup, options.culling, &mut backend)
+    }
+}
+
+fn add_stats(a: &mut TraversalStats, b: &TraversalStats) {
+    a.nodes_visited += b.nodes_visited;
+    a.queries += b.queries;
+    a.waits += b.waits;
+    a.wait_ms += b.wait_ms;
+    a.objects_rendered += b.objects_rendered;
+    a.objects_visible += b.objects_visible;
+}
