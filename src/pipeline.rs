@@ -244,28 +244,7 @@ pub fn eye_pass_culled(
     };
     let mut backend = raster::SyncBackend::new(target);
     let clip = |w: &glam::DMat4| scene::transform::clip_from_local(camera, w);
-    let view = visibility::ViewSetup {
-        clip_from_local: &clip,
-        origin: camera.position,
-        clip_from_origin: scene::transform::clip_from_local(
-            camera,
-            &glam::DMat4::from_translation(camera.position),
-        ),
-        planes: camera.frustum().planes.to_vec(),
-        apex: camera.position,
-        draw_coverage: Coverage::Standard,
-        query: raster::QueryOptions {
-            coverage: Coverage::Outer(raster::DepthPick::Nearest),
-            // With threshold 0 one passing sample decides: stop there.
-            mode: if threshold == 0 {
-                raster::QueryMode::Any
-            } else {
-                raster::QueryMode::Count
-            },
-        },
-        threshold,
-        triangles: None,
-    };
+    let view = visibility::ViewSetup::eye(camera, &clip, threshold);
     let result = state.culler.cull(
         &state.hierarchy,
         scene,

@@ -89,6 +89,42 @@ pub struct ViewSetup<'a> {
     pub triangles: Option<&'a dyn Fn(ObjectId) -> Arc<[[u32; 3]]>>,
 }
 
+impl<'a> ViewSetup<'a> {
+    /// The eye view of `camera`: boxes eye-relative, the frustum's planes,
+    /// standard-coverage draws, outer-conservative box queries at the nearest
+    /// depth (any-samples when `threshold` is 0, counts otherwise).
+    /// `clip_from_local` is the eye pass's transform path
+    /// (`scene::transform::clip_from_local` with `camera`).
+    pub fn eye(
+        camera: &scene::Camera,
+        clip_from_local: &'a dyn Fn(&DMat4) -> Mat4,
+        threshold: u32,
+    ) -> Self {
+        ViewSetup {
+            clip_from_local,
+            origin: camera.position,
+            clip_from_origin: scene::transform::clip_from_local(
+                camera,
+                &DMat4::from_translation(camera.position),
+            ),
+            planes: camera.frustum().planes.to_vec(),
+            apex: camera.position,
+            draw_coverage: Coverage::Standard,
+            query: QueryOptions {
+                coverage: Coverage::Outer(raster::DepthPick::Nearest),
+                // With threshold 0 one passing sample decides: stop there.
+                mode: if threshold == 0 {
+                    raster::QueryMode::Any
+                } else {
+                    raster::QueryMode::Count
+                },
+            },
+            threshold,
+            triangles: None,
+        }
+    }
+}
+
 /// Counters of one traversal.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct TraversalStats {

@@ -4,10 +4,7 @@
 //! over coherent frames.
 
 use glam::DMat4;
-use raster::{
-    Coverage, DepthPick, DepthTarget, Latency, OcclusionBackend, QueryMode, QueryOptions,
-    SimulatedBackend, SyncBackend, TileSize,
-};
+use raster::{DepthTarget, Latency, OcclusionBackend, SimulatedBackend, SyncBackend, TileSize};
 use scene::procedural::city::{city, CityParams};
 use scene::{Camera, Scene};
 use visibility::{CullResult, Culling, Hierarchy, MeshData, ViewCuller, ViewSetup};
@@ -45,23 +42,7 @@ fn run(
     backend: &mut dyn OcclusionBackend,
 ) -> CullResult {
     let clip = |w: &DMat4| scene::transform::clip_from_local(cam, w);
-    let view = ViewSetup {
-        clip_from_local: &clip,
-        origin: cam.position,
-        clip_from_origin: scene::transform::clip_from_local(
-            cam,
-            &DMat4::from_translation(cam.position),
-        ),
-        planes: cam.frustum().planes.to_vec(),
-        apex: cam.position,
-        draw_coverage: Coverage::Standard,
-        query: QueryOptions {
-            coverage: Coverage::Outer(DepthPick::Nearest),
-            mode: QueryMode::Count,
-        },
-        threshold: 0,
-        triangles: None,
-    };
+    let view = ViewSetup::eye(cam, &clip, 0);
     culler
         .cull(h, scene, meshes, &view, culling, backend)
         .unwrap()
