@@ -244,6 +244,7 @@ mod tests {
                     depth: &a.depth,
                     tiles: &a.tiles,
                     receivers: None,
+                    receiver_tiles: None,
                 };
                 let qa = query_item(&vp, &view, &item, cov, false, &mut sa, &mut ta).unwrap();
                 let qb =

@@ -68,6 +68,7 @@ impl DepthTarget {
             depth: &self.depth,
             tiles: &self.tiles,
             receivers: receivers.map(|r| r.depth.as_slice()),
+            receiver_tiles: receivers.map(|r| r.tile_min.as_slice()),
         }
     }
 

@@ -18,6 +18,10 @@ pub const RECEIVER_EPS_PX: f64 = 1.0 / 64.0;
 pub struct ReceiverTarget {
     pub(crate) layout: Layout,
     pub(crate) depth: Vec<f32>,
+    /// Per tile the smallest (farthest) marked depth, +∞ where none: a query
+    /// sample can pass only at or in front of it, so a triangle wholly behind
+    /// it skips the tile.
+    pub(crate) tile_min: Vec<f32>,
 }
 
 impl ReceiverTarget {
@@ -26,6 +30,7 @@ impl ReceiverTarget {
         ReceiverTarget {
             layout: target.layout,
             depth: vec![f32::INFINITY; target.depth.len()],
+            tile_min: vec![f32::INFINITY; target.tiles.len()],
         }
     }
 
@@ -37,6 +42,7 @@ impl ReceiverTarget {
     /// Unmarks every pixel.
     pub fn clear(&mut self) {
         self.depth.fill(f32::INFINITY);
+        self.tile_min.fill(f32::INFINITY);
     }
 
     /// The farthest receiver depth at pixel `(x, y)`, `None` when unmarked.
@@ -82,6 +88,8 @@ impl ReceiverTarget {
                     if dx * dx + dy * dy <= eps * eps {
                         let i = l.pixel_index(x, y);
                         self.depth[i] = self.depth[i].min(z);
+                        let t = l.tile_index(x >> l.shift, y >> l.shift);
+                        self.tile_min[t] = self.tile_min[t].min(z);
                         n += 1;
                     }
                 }
@@ -95,6 +103,45 @@ impl ReceiverTarget {
 mod tests {
     use super::*;
     use crate::TileSize;
+
+    /// The per-tile bound is the farthest marked depth of the tile's pixels
+    /// (+∞ for tiles with none), after any sequence of marks.
+    #[test]
+    fn tile_bounds_are_the_farthest_marked_depth() {
+        let t = DepthTarget::new(37, 29, TileSize::T8, false).unwrap();
+        let mut r = ReceiverTarget::for_target(&t);
+        let points: Vec<Vec4> = (0..200)
+            .map(|k| {
+                let f = k as f32;
+                // The left half only: the right tiles stay unmarked.
+                let (x, y) = (-(f * 0.37).sin().abs(), (f * 0.91).cos());
+                Vec4::new(x, y, 0.1 + (f * 0.13).sin().abs() * 0.8, 1.0)
+            })
+            .collect();
+        r.mark_points(Mat4::IDENTITY, &points[..120]);
+        r.mark_points(Mat4::IDENTITY, &points[120..]);
+        let (tx_n, ty_n) = t.tile_counts();
+        let mut marked_tiles = 0;
+        for ty in 0..ty_n {
+            for tx in 0..tx_n {
+                let mut m = f32::INFINITY;
+                for y in ty * 8..((ty + 1) * 8).min(29) {
+                    for x in tx * 8..((tx + 1) * 8).min(37) {
+                        m = m.min(r.at(x, y).unwrap_or(f32::INFINITY));
+                    }
+                }
+                assert_eq!(
+                    r.tile_min[r.layout.tile_index(tx, ty)],
+                    m,
+                    "tile ({tx}, {ty})"
+                );
+                marked_tiles += usize::from(m.is_finite());
+            }
+        }
+        assert!(marked_tiles > 5 && marked_tiles < (tx_n * ty_n) as usize);
+        r.clear();
+        assert!(r.tile_min.iter().all(|z| z.is_infinite()));
+    }
 
     #[test]
     fn marks_pixels_near_the_point_keeping_the_farthest() {

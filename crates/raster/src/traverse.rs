@@ -495,6 +495,8 @@ pub(crate) struct QueryView<'a> {
     pub tiles: &'a [TileBounds],
     /// Farthest receiver depth per pixel (same layout), +∞ where unmarked.
     pub receivers: Option<&'a [f32]>,
+    /// Per tile the farthest receiver depth of its pixels, +∞ where none.
+    pub receiver_tiles: Option<&'a [f32]>,
 }
 
 /// Counts the covered samples of `tri` passing GEQUAL (and the receiver restriction).
@@ -520,7 +522,13 @@ pub(crate) fn query_tri(
             st.tiles_touched += 1;
             let t = l.tile_index(tx, ty);
             let tb = v.tiles[t];
-            if p.zhi < tb.zmin_all() {
+            // A sample passes only at or in front of the stored depth and,
+            // with receivers, of the tile's farthest receiver.
+            let floor = match v.receiver_tiles {
+                Some(r) => tb.zmin_all().max(r[t]),
+                None => tb.zmin_all(),
+            };
+            if p.zhi < floor {
                 st.tiles_rejected_hiz += 1;
                 continue;
             }
@@ -534,7 +542,7 @@ pub(crate) fn query_tri(
             } else {
                 depth_range(tri, cov, &c.corners)
             };
-            if hi < tb.zmin_all() {
+            if hi < floor {
                 st.tiles_rejected_hiz += 1;
                 continue;
             }
