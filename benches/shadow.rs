@@ -66,12 +66,10 @@ fn bench_view(c: &mut Criterion, group: &str, scene: &Scene, camera: &Camera, li
 fn bench_city(c: &mut Criterion) {
     let loaded = city(&CityParams::default()).expect("default city");
     let scene = Scene::new(loaded.graph.clone()).expect("flatten");
-    let b = scene.bounds();
-    let c0 = b.center();
-    let light = Light::Point {
-        position: glam::DVec3::new(c0.x, b.min.y as f64 + 1.5 * b.size().y as f64, c0.z),
-        range: None,
-    };
+    // The default job's first light: 1.5 scene heights above the centre.
+    let light = shadowcull::config::LightSpec::AboveScene(1.5)
+        .resolve(&loaded, &scene.bounds(), 0, std::path::Path::new("<bench>"))
+        .expect("light");
     for cam in ["street", "bird"] {
         let path = &loaded.paths.iter().find(|(n, _)| n == cam).expect(cam).1;
         let camera = path
