@@ -7,7 +7,9 @@
 //! and shared by every variant with the same reference options; each variant
 //! starts with cold silhouette caches so no variant inherits another's work.
 
-use crate::config::{Job, NamedPipeline, PipelineOptions, StencilBackend};
+use crate::config::{
+    CoverageSpec, CullingSpec, Job, NamedPipeline, PipelineOptions, StencilBackend,
+};
 use crate::error::io_err;
 use crate::frame::FrameRunner;
 use crate::run::{atomic, frame_camera, load_scene_for_job, resolve_lights};
@@ -66,12 +68,37 @@ pub struct VariantRow {
     pub bandwidth_bytes: u64,
     /// Hybrid: pixels left to the volumes, summed.
     pub silhouette_pixels: u64,
+    /// Culling traversal (`none`, `frustum`, `exact`, `chc`, `chcpp`).
+    pub culling: String,
+    /// Culling's sampling (`conservative` or the aggressive `point`).
+    pub coverage: String,
+    /// Query threshold (0: conservative).
+    pub query_threshold: u32,
+    /// Light-view side in pixels.
+    pub light_resolution: u32,
+    /// CHC++ parameters `batch/revisit/seed` (empty for other traversals).
+    pub chcpp: String,
+    /// Median light-pass time (ms).
+    pub light_ms: f64,
+    /// Potentially shadowed receivers (eye pass), summed over the rows.
+    pub psr: u64,
+    /// Potential shadow casters, summed over the rows.
+    pub psc: u64,
+    /// Occlusion queries (eye and light passes), summed.
+    pub queries: u64,
+    /// Waits for query results, summed.
+    pub waits: u64,
 }
 
-const CSV_HEADER: &str = "name,rows,eye_ms,silhouette_ms,volume_ms,stencil_ms,frame_ms,volume_triangles,pixels_processed,shadowed_pixels,mismatch_pixels,mismatch_off_boundary,ambiguous_pixels,compared_pixels,h_fragments,tile_tests,tiles_boundary,bandwidth_bytes,silhouette_pixels";
+const CSV_HEADER: &str = "name,rows,eye_ms,silhouette_ms,volume_ms,stencil_ms,frame_ms,volume_triangles,pixels_processed,shadowed_pixels,mismatch_pixels,mismatch_off_boundary,ambiguous_pixels,compared_pixels,h_fragments,tile_tests,tiles_boundary,bandwidth_bytes,silhouette_pixels,culling,coverage,query_threshold,light_resolution,chcpp,light_ms,psr,psc,queries,waits";
+
+/// A serde enum's lowercase name (`chcpp`, `point`).
+fn spec_name<T: Serialize>(v: &T) -> String {
+    ron::to_string(v).unwrap_or_default().to_lowercase()
+}
 
 impl VariantRow {
-    fn from_rows(name: &str, rows: &[FrameStats]) -> Self {
+    fn from_rows(name: &str, p: &PipelineOptions, rows: &[FrameStats]) -> Self {
         let med = |f: fn(&FrameStats) -> f64| median(rows.iter().map(f).collect());
         let sum = |f: fn(&FrameStats) -> u64| rows.iter().map(f).sum::<u64>();
         VariantRow {
@@ -94,12 +121,26 @@ impl VariantRow {
             tiles_boundary: sum(|r| r.shadow.tiles_boundary),
             bandwidth_bytes: sum(|r| r.shadow.bandwidth_bytes),
             silhouette_pixels: sum(|r| r.shadow.silhouette_pixels),
+            culling: spec_name(&p.culling),
+            coverage: spec_name(&p.coverage),
+            query_threshold: p.query_threshold,
+            light_resolution: p.light_resolution,
+            chcpp: if p.culling == CullingSpec::Chcpp {
+                format!("{}/{}/{}", p.chcpp.batch, p.chcpp.revisit, p.chcpp.seed)
+            } else {
+                String::new()
+            },
+            light_ms: med(|r| r.shadow.light_ms),
+            psr: sum(|r| r.shadow.psr),
+            psc: sum(|r| r.shadow.psc),
+            queries: sum(|r| r.shadow.queries),
+            waits: sum(|r| r.shadow.waits),
         }
     }
 
     fn csv(&self) -> String {
         format!(
-            "{},{},{:.3},{:.3},{:.3},{:.3},{:.3},{},{},{},{},{},{},{},{},{},{},{},{}",
+            "{},{},{:.3},{:.3},{:.3},{:.3},{:.3},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{:.3},{},{},{},{}",
             csv_field(&self.name),
             self.rows,
             self.eye_ms,
@@ -118,14 +159,26 @@ impl VariantRow {
             self.tile_tests,
             self.tiles_boundary,
             self.bandwidth_bytes,
-            self.silhouette_pixels
+            self.silhouette_pixels,
+            self.culling,
+            self.coverage,
+            self.query_threshold,
+            self.light_resolution,
+            csv_field(&self.chcpp),
+            self.light_ms,
+            self.psr,
+            self.psc,
+            self.queries,
+            self.waits
         )
     }
 }
 
 /// The variants a job compares: its `pipelines`, or when empty brute force,
 /// depth bounds, scissor with depth bounds, the hierarchical stencil with
-/// tiles 4, 8 and 16, and the shadow-map hybrid, each otherwise like `pipeline`.
+/// tiles 4, 8 and 16, the shadow-map hybrid, and the hierarchical stencil
+/// with CHC, CHC++ and point-sampled (aggressive) CHC++ culling, each
+/// otherwise like `pipeline`.
 pub fn variants(job: &Job) -> Vec<NamedPipeline> {
     if !job.pipelines.is_empty() {
         return job.pipelines.clone();
@@ -140,6 +193,16 @@ pub fn variants(job: &Job) -> Vec<NamedPipeline> {
             ..base
         },
     };
+    let culled = |name: &str, culling, coverage| NamedPipeline {
+        name: name.into(),
+        pipeline: PipelineOptions {
+            stencil: StencilBackend::H,
+            tile: 8,
+            culling,
+            coverage,
+            ..base
+        },
+    };
     vec![
         with("bf", StencilBackend::Bf, false, 8),
         with("db", StencilBackend::Db, false, 8),
@@ -148,6 +211,9 @@ pub fn variants(job: &Job) -> Vec<NamedPipeline> {
         with("h", StencilBackend::H, false, 8),
         with("h_tile16", StencilBackend::H, false, 16),
         with("hybrid", StencilBackend::Hybrid, false, 8),
+        culled("h_chc", CullingSpec::Chc, CoverageSpec::Conservative),
+        culled("h_chcpp", CullingSpec::Chcpp, CoverageSpec::Conservative),
+        culled("h_chcpp_point", CullingSpec::Chcpp, CoverageSpec::Point),
     ]
 }
 
@@ -186,7 +252,7 @@ pub fn compare_job(
                 })?;
             rows.extend(out.into_iter().map(|lf| lf.row));
         }
-        let row = VariantRow::from_rows(&v.name, &rows);
+        let row = VariantRow::from_rows(&v.name, &v.pipeline, &rows);
         tracing::info!(target: "shadowcull::compare", variant = %row.name, frame_ms = row.frame_ms,
             pixels_processed = row.pixels_processed, mismatch_pixels = row.mismatch_pixels);
         table.push(row);
@@ -275,7 +341,7 @@ mod tests {
             r.shadow.pixels_processed = 10 * (i as u64 + 1);
             r.check.mismatch_pixels = i as u64;
         }
-        let v = VariantRow::from_rows("a,b", &rows);
+        let v = VariantRow::from_rows("a,b", &PipelineOptions::default(), &rows);
         assert_eq!(v.frame_ms, 3.0);
         assert_eq!(v.pixels_processed, 60);
         assert_eq!(v.mismatch_pixels, 3);

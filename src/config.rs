@@ -229,16 +229,51 @@ pub enum CullingSpec {
     Exact,
     /// Coherent hierarchical culling.
     Chc,
+    /// CHC++: batched queries, multiqueries, revisits (`chcpp`).
+    Chcpp,
 }
 
-impl CullingSpec {
-    /// The traversal.
-    pub fn culling(self) -> visibility::Culling {
+/// How culling samples pixels (`coverage: conservative`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum CoverageSpec {
+    /// Conservative queries, occluders and receivers: the mask equals the
+    /// unculled one.
+    #[default]
+    Conservative,
+    /// Pixel-centre sampling (aggressive; its mismatch is measured).
+    Point,
+}
+
+impl CoverageSpec {
+    /// The traversals' sampling.
+    pub fn sampling(self) -> visibility::Sampling {
         match self {
-            CullingSpec::None => visibility::Culling::None,
-            CullingSpec::Frustum => visibility::Culling::Frustum,
-            CullingSpec::Exact => visibility::Culling::Exact,
-            CullingSpec::Chc => visibility::Culling::Chc,
+            CoverageSpec::Conservative => visibility::Sampling::Conservative,
+            CoverageSpec::Point => visibility::Sampling::Point,
+        }
+    }
+}
+
+/// CHC++ parameters (`chcpp: (batch: 50, revisit: 5, seed: 1)`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize, serde::Serialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct ChcppSpec {
+    /// Previously invisible nodes queried together.
+    pub batch: u32,
+    /// A visible leaf is re-queried every this many frames.
+    pub revisit: u32,
+    /// Seed of the revisit phases.
+    pub seed: u64,
+}
+
+impl Default for ChcppSpec {
+    fn default() -> Self {
+        let o = visibility::ChcppOptions::default();
+        ChcppSpec {
+            batch: o.batch,
+            revisit: o.revisit,
+            seed: o.seed,
         }
     }
 }
@@ -282,6 +317,10 @@ pub struct PipelineOptions {
     pub culling: CullingSpec,
     /// A node counts as visible above this many samples (0: conservative).
     pub query_threshold: u32,
+    /// How culling samples pixels (`conservative` or the aggressive `point`).
+    pub coverage: CoverageSpec,
+    /// CHC++ parameters (with `culling: chcpp`).
+    pub chcpp: ChcppSpec,
     /// Side of every light view (or cube face) of the light pass, in pixels.
     pub light_resolution: u32,
     /// Every triangle casts (back-facing ones flipped); the reference uses the same rule.
@@ -308,6 +347,8 @@ impl Default for PipelineOptions {
             map_size: 2048,
             culling: CullingSpec::None,
             query_threshold: 0,
+            coverage: CoverageSpec::Conservative,
+            chcpp: ChcppSpec::default(),
             light_resolution: 1024,
             two_sided: false,
             finite_extrusion: false,
@@ -318,6 +359,21 @@ impl Default for PipelineOptions {
 }
 
 impl PipelineOptions {
+    /// The culling traversal.
+    pub fn culling(&self) -> visibility::Culling {
+        match self.culling {
+            CullingSpec::None => visibility::Culling::None,
+            CullingSpec::Frustum => visibility::Culling::Frustum,
+            CullingSpec::Exact => visibility::Culling::Exact,
+            CullingSpec::Chc => visibility::Culling::Chc,
+            CullingSpec::Chcpp => visibility::Culling::ChcPlusPlus(visibility::ChcppOptions {
+                batch: self.chcpp.batch,
+                revisit: self.chcpp.revisit,
+                seed: self.chcpp.seed,
+            }),
+        }
+    }
+
     /// The shadow stage's options.
     pub fn shadow_options(&self) -> crate::pipeline::ShadowOptions {
         crate::pipeline::ShadowOptions {
@@ -448,6 +504,15 @@ impl Job {
                 return Err(bad(
                     &format!("{at}.tile"),
                     format!("{} is not 4, 8 or 16", p.tile),
+                ));
+            }
+            if p.chcpp.batch == 0 || p.chcpp.revisit == 0 {
+                return Err(bad(
+                    &format!("{at}.chcpp"),
+                    format!(
+                        "batch ({}) and revisit ({}) must be at least 1",
+                        p.chcpp.batch, p.chcpp.revisit
+                    ),
                 ));
             }
             if !(8..=raster::MAX_TARGET_SIZE).contains(&p.light_resolution) {

@@ -111,8 +111,9 @@ impl<'s> FrameRunner<'s> {
                 camera,
                 width,
                 height,
-                options.culling.culling(),
+                options.culling(),
                 options.query_threshold,
+                options.coverage.sampling(),
                 previous,
             )?;
             (eye, Some(r))
@@ -140,7 +141,8 @@ impl<'s> FrameRunner<'s> {
                 (Some(_), Some(state)) => {
                     let (h, meshes) = state.parts();
                     let lp = visibility::LightPassOptions {
-                        culling: options.culling.culling(),
+                        culling: options.culling(),
+                        sampling: options.coverage.sampling(),
                         resolution: options.light_resolution,
                         threshold: options.query_threshold,
                         two_sided: options.two_sided,

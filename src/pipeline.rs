@@ -216,7 +216,7 @@ pub fn visible_points(scene: &Scene, camera: &Camera, eye: &EyePass) -> Vec<glam
 /// visible (the potentially shadowed receivers, PSR) are drawn, one by one
 /// through an occlusion backend, with the same transform path and coverage as
 /// [`eye_pass`]. With a conservative traversal (threshold 0) the depth and
-/// primitive ids equal [`eye_pass`]'s. Returns the pass and the traversal's
+/// primitive ids equal [`eye_pass`]'s (point `sampling` is aggressive). Returns the pass and the traversal's
 /// result (the PSR and its counters).
 ///
 /// # Errors
@@ -230,6 +230,7 @@ pub fn eye_pass_culled(
     height: u32,
     culling: visibility::Culling,
     threshold: u32,
+    sampling: visibility::Sampling,
     previous: Option<EyePass>,
 ) -> Result<(EyePass, visibility::CullResult)> {
     let (target, primitive, depth) = match previous {
@@ -244,7 +245,7 @@ pub fn eye_pass_culled(
     };
     let mut backend = raster::SyncBackend::new(target);
     let clip = |w: &glam::DMat4| scene::transform::clip_from_local(camera, w);
-    let view = visibility::ViewSetup::eye(camera, &clip, threshold);
+    let view = visibility::ViewSetup::eye_sampled(camera, &clip, threshold, sampling);
     let result = state.culler.cull(
         &state.hierarchy,
         scene,

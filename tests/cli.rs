@@ -261,6 +261,9 @@ fn compare_writes_one_row_per_variant_and_a_plot() {
             (name: "zpass", pipeline: (method: zpass)),
             (name: "h", pipeline: (stencil: h, full_shadow: false, tile: 4)),
             (name: "hybrid", pipeline: (stencil: hybrid, map_size: 512)),
+            (name: "chcpp", pipeline: (stencil: h, culling: chcpp, coverage: conservative,
+                light_resolution: 256, query_threshold: 0,
+                chcpp: (batch: 50, revisit: 5, seed: 1))),
         ],"#,
     );
     std::fs::write(&job, text).unwrap();
@@ -276,7 +279,7 @@ fn compare_writes_one_row_per_variant_and_a_plot() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let csv = std::fs::read_to_string(out.join("compare.csv")).unwrap();
     let lines: Vec<&str> = csv.lines().collect();
-    assert_eq!(lines.len(), 1 + 6, "{csv}");
+    assert_eq!(lines.len(), 1 + 7, "{csv}");
     let cols: Vec<&str> = lines[0].split(',').collect();
     let idx = |name: &str| cols.iter().position(|c| *c == name).unwrap();
     let rows: Vec<Vec<&str>> = lines[1..].iter().map(|l| l.split(',').collect()).collect();
@@ -297,6 +300,16 @@ fn compare_writes_one_row_per_variant_and_a_plot() {
     // The hybrid runs volumes only at its silhouette pixels.
     assert!(get(5, "silhouette_pixels") > 0.0);
     assert!(get(5, "pixels_processed") < get(0, "pixels_processed"));
+    // Conservative CHC++ culling: brute force's mask, fewer casters, its
+    // settings and counters reported.
+    assert_eq!(get(6, "shadowed_pixels"), get(0, "shadowed_pixels"));
+    assert_eq!(get(6, "mismatch_pixels"), get(0, "mismatch_pixels"));
+    assert!(get(6, "queries") > 0.0 && get(6, "psc") <= get(0, "psc"));
+    assert_eq!(rows[6][idx("culling")], "chcpp");
+    assert_eq!(rows[6][idx("coverage")], "conservative");
+    assert_eq!(rows[6][idx("chcpp")], "50/5/1");
+    assert_eq!(get(6, "light_resolution"), 256.0);
+    assert_eq!(rows[0][idx("culling")], "none");
     for c in [
         "frame_ms",
         "stencil_ms",

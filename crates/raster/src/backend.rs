@@ -52,6 +52,17 @@ pub enum QueryCommand {
         /// Coverage and mode.
         options: QueryOptions,
     },
+    /// The union of several local-space boxes `(min, max)`: one query whose
+    /// result is [`DepthTarget::query_aabb_union`]'s (CHC++ multiqueries and
+    /// tighter node volumes).
+    Aabbs {
+        /// `clip_from_local`.
+        clip_from_local: Mat4,
+        /// The boxes.
+        boxes: Arc<[(Vec3, Vec3)]>,
+        /// Coverage and mode.
+        options: QueryOptions,
+    },
     /// Triangles of a mesh.
     Mesh {
         /// `clip_from_local`.
@@ -204,6 +215,11 @@ fn execute(
                     max,
                     options,
                 } => target.query_aabb(clip_from_local, min, max, &options, r),
+                QueryCommand::Aabbs {
+                    clip_from_local,
+                    boxes,
+                    options,
+                } => target.query_aabb_union(clip_from_local, &boxes, &options, r),
                 QueryCommand::Mesh {
                     clip_from_local,
                     positions,

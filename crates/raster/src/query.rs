@@ -169,6 +169,40 @@ impl DepthTarget {
         self.query_item(&item, opts, receivers, st)
     }
 
+    /// One query over the union of several boxes (a CHC++ multiquery, or a node's
+    /// tighter volume from its children's boxes) [Mattausch et al. 2008]: the
+    /// sum of the boxes' counts, saturating below [`VISIBLE`]; [`VISIBLE`] when
+    /// any box meets the apex region. With [`QueryMode::Any`] it stops at the
+    /// first box that passes. Zero exactly when [`DepthTarget::query_aabb`] is
+    /// zero for every box.
+    ///
+    /// # Errors
+    /// [`Error::SizeMismatch`] when `receivers` belongs to another size.
+    pub fn query_aabb_union(
+        &mut self,
+        clip_from_local: Mat4,
+        boxes: &[(Vec3, Vec3)],
+        opts: &QueryOptions,
+        receivers: Option<&ReceiverTarget>,
+    ) -> Result<u32> {
+        check_receivers(self, receivers)?;
+        let mut st = RasterStats::default();
+        let mut total = 0u32;
+        for &(a, b) in boxes {
+            let n = self.query_aabb_inner(clip_from_local, a, b, opts, receivers, &mut st)?;
+            if n == VISIBLE {
+                total = VISIBLE;
+                break;
+            }
+            total = total.saturating_add(n).min(VISIBLE - 1);
+            if total > 0 && opts.mode == QueryMode::Any {
+                break;
+            }
+        }
+        self.stats.add(&st);
+        Ok(total)
+    }
+
     /// Queries many boxes against the current depth, in parallel when threads allow;
     /// results in input order, identical to one-by-one [`DepthTarget::query_aabb`].
     ///

@@ -59,9 +59,22 @@ impl ReceiverTarget {
     /// light's centre of projection) are skipped. Returns the number of pixels marked
     /// (counting repeats).
     pub fn mark_points(&mut self, clip_from_local: Mat4, points: &[Vec4]) -> u64 {
+        self.mark_points_within(clip_from_local, points, RECEIVER_EPS_PX)
+    }
+
+    /// [`ReceiverTarget::mark_points`] with footprint `eps_px` instead of
+    /// [`RECEIVER_EPS_PX`]: 0 marks only the pixels whose closed square holds
+    /// the f64 projection — the point-sampled (aggressive) receivers, which the
+    /// projection's rounding can put one pixel off.
+    pub fn mark_points_within(
+        &mut self,
+        clip_from_local: Mat4,
+        points: &[Vec4],
+        eps_px: f64,
+    ) -> u64 {
         let l = self.layout;
         let (w, h) = (l.width as f64, l.height as f64);
-        let eps = RECEIVER_EPS_PX;
+        let eps = eps_px.max(0.0);
         let mut n = 0;
         for p in points {
             let c = (clip_from_local * *p).as_dvec4();

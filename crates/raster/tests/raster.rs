@@ -384,6 +384,46 @@ proptest! {
         prop_assert_eq!(any, u32::from(expect > 0));
     }
 
+    /// A union query of several boxes is the sum of their single queries
+    /// (VISIBLE when one is), and with any-samples it is 0 exactly when every
+    /// box's query is.
+    #[test]
+    fn aabb_union_query_sums_its_boxes(
+        occluders in prop::collection::vec([vertex(10.0), vertex(10.0), vertex(10.0)], 0..4),
+        boxes in prop::collection::vec(
+            ((-6.0f32..6.0, -6.0f32..6.0, -12.0f32..2.0), (0.1f32..3.0, 0.1f32..3.0, 0.1f32..3.0)),
+            1..5,
+        ),
+    ) {
+        let (w, h) = (40u32, 30u32);
+        let m = perspective(1.0, w as f32 / h as f32, 0.5);
+        let mut t = DepthTarget::new(w, h, TileSize::T8, false).unwrap();
+        for (i, o) in occluders.iter().enumerate() {
+            draw_one(&mut t, m, *o, i as u32, Coverage::Standard);
+        }
+        let boxes: Vec<(Vec3, Vec3)> = boxes
+            .iter()
+            .map(|(c, e)| {
+                let (c, e) = (Vec3::new(c.0, c.1, c.2), Vec3::new(e.0, e.1, e.2));
+                (c - e, c + e)
+            })
+            .collect();
+        let count = QueryOptions { mode: QueryMode::Count, ..Default::default() };
+        let any = QueryOptions { mode: QueryMode::Any, ..Default::default() };
+        let single: Vec<u32> = boxes
+            .iter()
+            .map(|&(a, b)| t.query_aabb(m, a, b, &count, None).unwrap())
+            .collect();
+        let expect = if single.contains(&VISIBLE) {
+            VISIBLE
+        } else {
+            single.iter().fold(0u32, |s, &n| s.saturating_add(n)).min(VISIBLE - 1)
+        };
+        prop_assert_eq!(t.query_aabb_union(m, &boxes, &count, None).unwrap(), expect);
+        let got_any = t.query_aabb_union(m, &boxes, &any, None).unwrap();
+        prop_assert_eq!(got_any == 0, expect == 0);
+    }
+
     /// AABB queries: the count equals the brute force over its 12 triangles, unless
     /// the box meets the apex region (then VISIBLE).
     #[test]

@@ -4,10 +4,11 @@
 //! [Steiner §4.3.3, Listing 4.1], and hierarchical occlusion culling over the
 //! rasterizer's [`raster::OcclusionBackend`] — plain frustum culling, exact
 //! stop-and-wait, and coherent hierarchical culling (CHC) [Bittner et al.
-//! 2004; Steiner Listing 2.1].
+//! 2004; Steiner Listing 2.1] and CHC++ [Mattausch, Bittner, Wimmer 2008].
 //!
 //! Depends on `scene` and `raster` only.
 
+mod chcpp;
 mod error;
 mod hierarchy;
 mod intersection_body;
@@ -16,6 +17,7 @@ mod light_view;
 mod polyhedron;
 mod traverse;
 
+pub use chcpp::ChcppOptions;
 pub use error::{Error, Result};
 pub use hierarchy::{Hierarchy, NodeId};
 pub use intersection_body::{intersection_body, Face, Polyhedron};
@@ -23,4 +25,6 @@ pub use light_pass::{LightPass, LightPassOptions, LightPassResult, RECEIVER_PUSH
 pub use light_view::{
     fit_light_views, wasted_area, LightView, LightViewKind, DEFAULT_LIGHT_VIEW_RESOLUTION,
 };
-pub use traverse::{CullResult, Culling, MeshData, TraversalStats, ViewCuller, ViewSetup};
+pub use traverse::{
+    CullResult, Culling, MeshData, Sampling, TraversalStats, ViewCuller, ViewSetup,
+};

@@ -19,6 +19,10 @@
 //!
 //! PSC is the union over the light's views of the objects found visible.
 //!
+//! With [`Sampling::Point`] (aggressive) receivers mark only the pixels
+//! holding their projection, unpushed, and occluders and queries sample
+//! pixel centres.
+//!
 //! Conservative receivers: each point is pushed away from the light by
 //! [`RECEIVER_PUSH`] of its distance (directional: of the scene diameter)
 //! before marking, beyond the f32 rounding of its light-space depth, and marks
@@ -27,7 +31,9 @@
 use crate::hierarchy::Hierarchy;
 use crate::intersection_body::intersection_body;
 use crate::light_view::{fit_light_views, LightView};
-use crate::traverse::{CullResult, Culling, MeshData, TraversalStats, ViewCuller, ViewSetup};
+use crate::traverse::{
+    CullResult, Culling, MeshData, Sampling, TraversalStats, ViewCuller, ViewSetup,
+};
 use crate::Result;
 use glam::{DMat4, DVec3, DVec4, Vec4};
 use raster::{
@@ -53,6 +59,8 @@ pub struct LightPassOptions {
     pub threshold: u32,
     /// Every triangle casts (the reference's two-sided mode).
     pub two_sided: bool,
+    /// Conservative (exact mask) or point-sampled (aggressive) light views.
+    pub sampling: Sampling,
 }
 
 /// What a light pass found.
@@ -121,14 +129,19 @@ impl LightPass {
         }
         let diameter = f64::from(bounds.size().length());
         let origin = light.position().unwrap_or_else(|| bounds.center());
-        // Receivers pushed away from the light, relative to the view origin.
+        // Receivers pushed away from the light (conservative sampling),
+        // relative to the view origin.
+        let push = match options.sampling {
+            Sampling::Conservative => RECEIVER_PUSH,
+            Sampling::Point => 0.0,
+        };
         let pushed: Vec<DVec3> = receivers
             .iter()
             .map(|&p| match light.position() {
-                Some(l) => l + (p - l) * (1.0 + RECEIVER_PUSH),
+                Some(l) => l + (p - l) * (1.0 + push),
                 None => {
                     let d = light.toward_light(p).normalize_or_zero();
-                    p - d * (RECEIVER_PUSH * diameter)
+                    p - d * (push * diameter)
                 }
             })
             .collect();
@@ -196,7 +209,14 @@ impl LightPass {
         let clip_from_origin = (m * DMat4::from_translation(origin)).as_mat4();
         let target = DepthTarget::new(view.resolution, view.resolution, TileSize::T8, false)?;
         let mut marks = ReceiverTarget::for_target(&target);
-        marks.mark_points(clip_from_origin, receivers);
+        let (eps, draw_coverage) = match options.sampling {
+            Sampling::Conservative => (
+                raster::RECEIVER_EPS_PX,
+                Coverage::Inner(DepthPick::Farthest),
+            ),
+            Sampling::Point => (0.0, Coverage::Standard),
+        };
+        marks.mark_points_within(clip_from_origin, receivers, eps);
         let mut backend = SyncBackend::new(target);
         backend.set_receivers(Some(Arc::new(marks)))?;
         let clip = |w: &DMat4| (m * *w).as_mat4();
@@ -211,9 +231,9 @@ impl LightPass {
             clip_from_origin,
             planes: clip_planes(&m),
             apex,
-            draw_coverage: Coverage::Inner(DepthPick::Farthest),
+            draw_coverage,
             query: QueryOptions {
-                coverage: Coverage::Outer(DepthPick::Nearest),
+                coverage: options.sampling.query_coverage(),
                 // With threshold 0 one passing sample decides: stop there.
                 mode: if options.threshold == 0 {
                     QueryMode::Any

@@ -17,7 +17,9 @@
 //! for the result; previously invisible nodes (the termination nodes) are
 //! queried and their results handled as they arrive, interleaved with the
 //! front-to-back traversal; a visible result pulls visibility up to the root.
+//! CHC++ (batched and multi-queries, revisits) is in `chcpp.rs`.
 
+use crate::chcpp::ChcppOptions;
 use crate::hierarchy::{Hierarchy, Node, NONE};
 use crate::Result;
 use glam::{DMat4, DVec3, Mat4, Vec3, Vec4};
@@ -41,6 +43,33 @@ pub enum Culling {
     Exact,
     /// Coherent hierarchical culling [Bittner et al. 2004].
     Chc,
+    /// CHC++ [Mattausch, Bittner, Wimmer 2008]: CHC with batched queries of
+    /// previously invisible nodes, multiqueries, tighter query volumes, and
+    /// visible leaves re-queried only every few frames.
+    ChcPlusPlus(ChcppOptions),
+}
+
+impl Culling {
+    /// True for the coherent traversals, which report as visible only what
+    /// their queries (or CHC++'s revisit rule) confirmed.
+    fn coherent(self) -> bool {
+        matches!(self, Culling::Chc | Culling::ChcPlusPlus(_))
+    }
+}
+
+/// How draws, queries and receiver marks sample pixels.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum Sampling {
+    /// Conservative: box queries outer-conservative at the nearest depth;
+    /// light-view occluders inner-conservative at the farthest depth;
+    /// receivers widened by [`raster::RECEIVER_EPS_PX`] and pushed away from
+    /// the light. The culled mask equals the unculled one.
+    #[default]
+    Conservative,
+    /// Aggressive: everything at pixel centres (standard coverage), receivers
+    /// unwidened and unpushed, as a GPU implementation would sample. Can cull
+    /// a caster whose shadow falls between samples: measured, not exact.
+    Point,
 }
 
 /// Per-mesh vertex data in the backend's form (`w = 1`, shared with draw commands).
@@ -100,6 +129,16 @@ impl<'a> ViewSetup<'a> {
         clip_from_local: &'a dyn Fn(&DMat4) -> Mat4,
         threshold: u32,
     ) -> Self {
+        Self::eye_sampled(camera, clip_from_local, threshold, Sampling::Conservative)
+    }
+
+    /// [`ViewSetup::eye`] with box queries sampled as `sampling` says.
+    pub fn eye_sampled(
+        camera: &scene::Camera,
+        clip_from_local: &'a dyn Fn(&DMat4) -> Mat4,
+        threshold: u32,
+        sampling: Sampling,
+    ) -> Self {
         ViewSetup {
             clip_from_local,
             origin: camera.position,
@@ -111,7 +150,7 @@ impl<'a> ViewSetup<'a> {
             apex: camera.position,
             draw_coverage: Coverage::Standard,
             query: QueryOptions {
-                coverage: Coverage::Outer(raster::DepthPick::Nearest),
+                coverage: sampling.query_coverage(),
                 // With threshold 0 one passing sample decides: stop there.
                 mode: if threshold == 0 {
                     raster::QueryMode::Any
@@ -121,6 +160,16 @@ impl<'a> ViewSetup<'a> {
             },
             threshold,
             triangles: None,
+        }
+    }
+}
+
+impl Sampling {
+    /// Coverage of box queries.
+    pub(crate) fn query_coverage(self) -> Coverage {
+        match self {
+            Sampling::Conservative => Coverage::Outer(raster::DepthPick::Nearest),
+            Sampling::Point => Coverage::Standard,
         }
     }
 }
@@ -158,25 +207,27 @@ pub struct CullResult {
 
 /// Per-node state a view keeps across frames.
 #[derive(Clone, Copy, Debug, Default)]
-struct NodeState {
-    visible: bool,
-    /// Frame of the last visit, plus one (0: never).
-    visited: u32,
+pub(crate) struct NodeState {
+    pub visible: bool,
+    /// Frame of the last visit (frames count from 1; 0: never).
+    pub visited: u32,
+    /// Last frame the node was found visible (0: never).
+    pub last_visible: u32,
 }
 
 /// One view's persistent culling state [Steiner §4.3.2: the eye and every
 /// light view own their instance].
 #[derive(Clone, Debug, Default)]
 pub struct ViewCuller {
-    state: Vec<NodeState>,
-    frame: u32,
+    pub(crate) state: Vec<NodeState>,
+    pub(crate) frame: u32,
 }
 
 /// A node in the front-to-back queue: nearer first, then lower index.
 #[derive(Clone, Copy, Debug, PartialEq)]
-struct Queued {
-    dist: f64,
-    node: u32,
+pub(crate) struct Queued {
+    pub dist: f64,
+    pub node: u32,
 }
 
 impl Eq for Queued {}
@@ -204,7 +255,7 @@ fn box_distance2(n: &Node, p: DVec3) -> f64 {
 
 /// Conservative box-vs-planes test: false only when the box lies wholly
 /// outside one plane.
-fn in_planes(planes: &[Plane], n: &Node) -> bool {
+pub(crate) fn in_planes(planes: &[Plane], n: &Node) -> bool {
     let (lo, hi) = (n.min.as_dvec3(), n.max.as_dvec3());
     planes.iter().all(|pl| {
         let m = pl.normal;
@@ -227,18 +278,35 @@ fn round_f32(v: f64, up: bool) -> f32 {
     }
 }
 
+/// `n`'s box relative to `o`, rounded outward to f32.
+fn local_box(n: &Node, o: DVec3) -> (Vec3, Vec3) {
+    let (lo, hi) = (n.min.as_dvec3() - o, n.max.as_dvec3() - o);
+    (
+        Vec3::new(
+            round_f32(lo.x, false),
+            round_f32(lo.y, false),
+            round_f32(lo.z, false),
+        ),
+        Vec3::new(
+            round_f32(hi.x, true),
+            round_f32(hi.y, true),
+            round_f32(hi.z, true),
+        ),
+    )
+}
+
 /// The traversal of one frame: the view, the backend, what was rendered.
-struct Run<'a, 'b> {
-    h: &'a Hierarchy,
-    scene: &'a Scene,
-    meshes: &'a MeshData,
-    view: &'a ViewSetup<'b>,
-    backend: &'a mut dyn OcclusionBackend,
-    out: CullResult,
+pub(crate) struct Run<'a, 'b> {
+    pub h: &'a Hierarchy,
+    pub scene: &'a Scene,
+    pub meshes: &'a MeshData,
+    pub view: &'a ViewSetup<'b>,
+    pub backend: &'a mut dyn OcclusionBackend,
+    pub out: CullResult,
 }
 
 impl Run<'_, '_> {
-    fn render(&mut self, node: &Node) -> Result<()> {
+    pub fn render(&mut self, node: &Node) -> Result<()> {
         let id = ObjectId(node.object);
         let o = self.scene.object(id);
         let mesh = o.mesh.0 as usize;
@@ -258,19 +326,8 @@ impl Run<'_, '_> {
         Ok(())
     }
 
-    fn query(&mut self, node: &Node) -> Result<QueryId> {
-        let o = self.view.origin;
-        let (lo, hi) = (node.min.as_dvec3() - o, node.max.as_dvec3() - o);
-        let min = Vec3::new(
-            round_f32(lo.x, false),
-            round_f32(lo.y, false),
-            round_f32(lo.z, false),
-        );
-        let max = Vec3::new(
-            round_f32(hi.x, true),
-            round_f32(hi.y, true),
-            round_f32(hi.z, true),
-        );
+    pub fn query(&mut self, node: &Node) -> Result<QueryId> {
+        let (min, max) = local_box(node, self.view.origin);
         self.out.stats.queries += 1;
         Ok(self.backend.issue_query(QueryCommand::Aabb {
             clip_from_local: self.view.clip_from_origin,
@@ -280,7 +337,27 @@ impl Run<'_, '_> {
         })?)
     }
 
-    fn wait(&mut self, id: QueryId) -> u32 {
+    /// One query over the union of the boxes of `nodes` (a multiquery, or a
+    /// node's tighter volume).
+    pub fn query_union(&mut self, nodes: &[u32]) -> Result<QueryId> {
+        if let [one] = nodes {
+            let n = self.h.nodes[*one as usize];
+            return self.query(&n);
+        }
+        let o = self.view.origin;
+        let boxes: Arc<[(Vec3, Vec3)]> = nodes
+            .iter()
+            .map(|&k| local_box(&self.h.nodes[k as usize], o))
+            .collect();
+        self.out.stats.queries += 1;
+        Ok(self.backend.issue_query(QueryCommand::Aabbs {
+            clip_from_local: self.view.clip_from_origin,
+            boxes,
+            options: self.view.query,
+        })?)
+    }
+
+    pub fn wait(&mut self, id: QueryId) -> u32 {
         let t = Instant::now();
         let r = self.backend.wait(id);
         self.out.stats.waits += 1;
@@ -288,11 +365,11 @@ impl Run<'_, '_> {
         r
     }
 
-    fn visible(&self, samples: u32) -> bool {
+    pub fn visible(&self, samples: u32) -> bool {
         samples > self.view.threshold
     }
 
-    fn push_children(&self, q: &mut BinaryHeap<Queued>, n: &Node) {
+    pub fn push_children(&self, q: &mut BinaryHeap<Queued>, n: &Node) {
         for c in [n.first, n.first + 1] {
             let child = &self.h.nodes[c as usize];
             q.push(Queued {
@@ -350,11 +427,12 @@ impl ViewCuller {
                 }
                 Culling::Exact => self.stop_and_wait(&mut run)?,
                 Culling::Chc => self.chc(&mut run)?,
+                Culling::ChcPlusPlus(o) => self.chcpp(&mut run, &o)?,
             }
         }
         run.backend.finish();
         let mut out = run.out;
-        if culling != Culling::Chc {
+        if !culling.coherent() {
             out.visible = out.rendered.clone();
         }
         out.stats.objects_visible = out.visible.len() as u64;
@@ -374,6 +452,7 @@ impl ViewCuller {
             self.state[node as usize] = NodeState {
                 visible: true,
                 visited: self.frame,
+                last_visible: self.frame,
             };
             if n.is_leaf() {
                 run.render(&n)?;
@@ -397,10 +476,12 @@ impl ViewCuller {
             let id = run.query(&n)?;
             let samples = run.wait(id);
             let visible = run.visible(samples);
-            self.state[node as usize] = NodeState {
-                visible,
-                visited: self.frame,
-            };
+            let s = &mut self.state[node as usize];
+            s.visible = visible;
+            s.visited = self.frame;
+            if visible {
+                s.last_visible = self.frame;
+            }
             if visible {
                 if n.is_leaf() {
                     run.render(&n)?;
@@ -414,7 +495,6 @@ impl ViewCuller {
 
     /// Coherent hierarchical culling [Steiner Listing 2.1].
     fn chc(&mut self, run: &mut Run<'_, '_>) -> Result<()> {
-        let frame = self.frame;
         let mut distance = BinaryHeap::new();
         // (node, query, was visible): results handled in issue order.
         let mut queries: VecDeque<(u32, QueryId, bool)> = VecDeque::new();
@@ -451,20 +531,12 @@ impl ViewCuller {
             run.out.stats.nodes_visited += 1;
             if !in_planes(&run.view.planes, &n) {
                 // Outside the view: invisible, not queried.
-                self.state[node as usize] = NodeState {
-                    visible: false,
-                    visited: frame,
-                };
+                self.leave_invisible(node);
                 continue;
             }
-            let s = self.state[node as usize];
-            let was_visible = s.visible && s.visited + 1 == frame;
+            let was_visible = self.leave_invisible(node);
             // Previously visible inner nodes are opened without a query.
             let opened = was_visible && !n.is_leaf();
-            self.state[node as usize] = NodeState {
-                visible: false,
-                visited: frame,
-            };
             if !opened {
                 let id = run.query(&n)?;
                 queries.push_back((node, id, was_visible));
@@ -476,8 +548,18 @@ impl ViewCuller {
         Ok(())
     }
 
+    /// Marks `node` visited and (until a result says otherwise) invisible in
+    /// this frame; returns whether it was visible in the previous frame.
+    pub(crate) fn leave_invisible(&mut self, node: u32) -> bool {
+        let s = &mut self.state[node as usize];
+        let was_visible = s.visible && s.visited + 1 == self.frame;
+        s.visible = false;
+        s.visited = self.frame;
+        was_visible
+    }
+
     /// CHC's TraverseNode: render a leaf, queue an inner node's children.
-    fn traverse(
+    pub(crate) fn traverse(
         &mut self,
         run: &mut Run<'_, '_>,
         distance: &mut BinaryHeap<Queued>,
@@ -492,9 +574,10 @@ impl ViewCuller {
     }
 
     /// Marks `node` and its ancestors visible, stopping at the first that already is.
-    fn pull_up(&mut self, h: &Hierarchy, mut node: u32) {
+    pub(crate) fn pull_up(&mut self, h: &Hierarchy, mut node: u32) {
         while node != NONE && !self.state[node as usize].visible {
             self.state[node as usize].visible = true;
+            self.state[node as usize].last_visible = self.frame;
             node = h.nodes[node as usize].parent;
         }
     }
