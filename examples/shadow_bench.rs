@@ -1,45 +1,119 @@
-//! One view through the stencil shadow pipeline, timed per stage.
+//! One view, or one camera path, through the stencil shadow pipeline, timed per stage.
 //!
 //! `cargo run --release --example shadow_bench -- SCENE CAMERA WxH [--stencil bf|db|h|hybrid]
 //! [--scissor on|off] [--method auto|zpass|zfail|zpplus] [--counters 8|wide] [--tile 4|8|16]
-//! [--full-shadow on|off] [--map N] [--culling none|frustum|exact|chc] [--two-sided]
-//! [--reference] [--mask OUT.png] [--reps R]`
-//! (defaults `--tile 8 --counters 8 --map 2048 --full-shadow on`; `--bits` is another
-//! name for `--counters`).
+//! [--full-shadow on|off] [--map N] [--culling none|frustum|exact|chc|chcpp]
+//! [--coverage conservative|point] [--threshold T] [--light-res N]
+//! [--two-sided] [--reference] [--mask OUT.png] [--reps R | --path NAME [--frames N]]`
+//! (defaults `--tile 8 --counters 8 --map 2048 --full-shadow on --culling none
+//! --coverage conservative --threshold 0 --light-res 1024 --reps 5`; `--threshold` is the
+//! query threshold in samples, and `point` coverage or a threshold above 0 are aggressive;
+//! `--bits` is another name for `--counters`; `--light-res` is the side in pixels of every
+//! light view of the light pass, 8..=`raster::MAX_TARGET_SIZE`).
 //!
 //! SCENE is a box-city file (`../shared/data/bench/*.txt`; CAMERA one of its camera
 //! names, its light), `city` (the bundled default job's procedural city; CAMERA
 //! `street` or `bird`, the first pose of that path; a point light 1.5 scene
-//! heights above the ground, as the default job's first light) or any scene file, with `--light x,y,z` (point light) or
-//! `--sun dx,dy,dz` (the direction the light travels) and `--eye x,y,z --target
-//! x,y,z` (fovy 60° and near 0.1 unless `--fovy`, `--near`; CAMERA may then be `-`).
+//! heights above the ground, the default job's first light, `LightSpec::AboveScene(1.5)`)
+//! or any scene file, with `--light x,y,z` (point light) or `--sun dx,dy,dz` (the
+//! direction the light travels; either also replaces a box city's or `city`'s light)
+//! and `--eye x,y,z --target x,y,z` (fovy 60° and near 0.1 unless `--fovy`, `--near`;
+//! CAMERA may then be `-`). One light per run: every per-light key below is that light's.
 //!
-//! Each repetition runs the whole frame cold: eye pass, silhouettes (fresh cache),
-//! volumes, stencil. Prints one JSON line on stdout with the medians over the
-//! repetitions of `eye_ms`, `silhouette_ms`, `volume_ms`, `stencil_ms` and
-//! `frame_ms` (their sum), `silhouette_cached_ms` (the silhouette stage once more
-//! with a warm cache), the counters of the first repetition (`volume_triangles`,
+//! All frames of a run go through ONE `FrameRunner`, so all per-view state is kept from
+//! frame to frame: silhouette caches, volume buffers, the eye view's and the light
+//! views' culling (CHC) history.
+//!
+//! **One view** (without `--path`): renders the same view as R consecutive frames
+//! (`--reps R`) with all per-view state kept (a static camera in a running
+//! application); times are medians over them. Prints one JSON line on stdout with the
+//! medians of `eye_ms` (the eye pass, culled with `--culling`, and the light pass's
+//! receiver points), `light_ms` (the light
+//! pass: light views and PSC; 0 without culling), `silhouette_ms`, `volume_ms`,
+//! `stencil_ms`, `frame_ms` (the sum of those five) and `wall_ms` (the whole
+//! `FrameRunner::frame` call without the reference: also work no stage time counts); `silhouette_cold_ms` (the first frame's
+//! silhouette stage: empty cache) and `silhouette_cached_ms` (the median of the later
+//! frames' silhouette stage: warm cache; with `--reps 1`, one extra frame); the
+//! counters of the last frame, the steady state (`volume_triangles`,
 //! `pixels_processed`, `stencil_updates`, `shadowed_pixels`, `h_fragments`,
 //! `tile_tests`, `tiles_lit`, `tiles_shadow`, `tiles_boundary`, `bandwidth_bytes`,
 //! `pixel_bytes`, `tile_bytes`, `silhouette_pixels`, `map_ms`, `psr`, `psc`,
-//! `queries`, `waits`, `light_ms`, ...) and with
-//! `--reference` `mismatch_pixels`, `mismatch_off_boundary`, `ambiguous_pixels`.
-//! `--mask` writes the raw stencil result as an 8-bit PNG: 255 where the stencil
-//! is non-zero on any surface, 0 elsewhere, row 0 at the top. Logs go to stderr.
+//! `queries`, `waits`, ...) and with `--reference` (computed on the last frame)
+//! `mismatch_pixels`, `mismatch_off_boundary`, `ambiguous_pixels`, `reference_ms`.
+//!
+//! **A camera path** (`--path NAME --frames N`, N defaults to 8): renders frames
+//! 0..N of the scene's camera path NAME (`city` and box cities: `street`, a dolly down
+//! the street, or `bird`, an orbit; other scenes: the paths their file names, if any);
+//! CAMERA is ignored (write `-`; the JSON's `camera` is NAME), `--eye`/`--target` and
+//! `--reps` do not apply. Prints one JSON line with `path`, `frames` and per frame, as
+//! arrays in frame order, `frame_ms`, `wall_ms`, `eye_ms`, `light_ms`,
+//! `silhouette_ms`, `volume_ms`, `stencil_ms`, `psr`, `psc`, `queries`, `waits`,
+//! `pixels_processed`, `volume_triangles`, `shadowed_pixels` (with `--reference`,
+//! computed on every frame, also `mismatch_pixels`, `mismatch_off_boundary`,
+//! `ambiguous_pixels`, `reference_ms`); for each of these keys K also `K_median` and
+//! `K_total`.
+//!
+//! Both print the settings (`scene`, `camera`, `width`, `height`, `stencil`, `culling`,
+//! `light_resolution`, ...) and the scene size (`objects`, `triangles`).
+//! `--mask` writes the last frame's raw stencil result as an 8-bit PNG: 255 where the
+//! stencil is non-zero on any surface, 0 elsewhere, row 0 at the top. Logs go to stderr.
 
 use anyhow::{bail, Context};
 use glam::DVec3;
 use scene::load::Loaded;
-use scene::{Light, LookAt, Scene};
-use shadowcull::config::{CullingSpec, Method, PipelineOptions, StencilBackend, StencilBitsSpec};
-use shadowcull::frame::FrameRunner;
+use scene::{Camera, CameraPath, Light, LookAt, Scene};
+use serde_json::{json, Map, Value};
+use shadowcull::config::{
+    CoverageSpec, CullingSpec, LightSpec, Method, PipelineOptions, StencilBackend, StencilBitsSpec,
+};
+use shadowcull::frame::{FrameRunner, LightFrame};
+use shadowcull::stats::FrameStats;
 use std::path::PathBuf;
+use std::time::Instant;
 
 const USAGE: &str =
     "usage: shadow_bench SCENE CAMERA WxH [--stencil bf|db|h|hybrid] [--scissor on|off] \
 [--method auto|zpass|zfail|zpplus] [--counters 8|wide] [--tile 4|8|16] [--full-shadow on|off] \
-[--map N] [--culling none|frustum|exact|chc] [--two-sided] [--reference] [--mask OUT.png] \
-[--reps R] [--light x,y,z | --sun dx,dy,dz] [--eye x,y,z --target x,y,z] [--fovy DEG] [--near D]";
+[--map N] [--culling none|frustum|exact|chc|chcpp] [--coverage conservative|point] \
+[--threshold T] [--light-res N] [--two-sided] [--reference] \
+[--mask OUT.png] [--reps R | --path street|bird|NAME [--frames N]] \
+[--light x,y,z | --sun dx,dy,dz] [--eye x,y,z --target x,y,z] [--fovy DEG] [--near D]\n\
+(with --path, CAMERA is ignored: write -)";
+
+// The spellings of the flags that choose among fixed values: a new mode is one row
+// here (the parser, its error message and the JSON name all come from the table).
+const STENCILS: &[(&str, StencilBackend)] = &[
+    ("bf", StencilBackend::Bf),
+    ("db", StencilBackend::Db),
+    ("h", StencilBackend::H),
+    ("hybrid", StencilBackend::Hybrid),
+];
+const CULLINGS: &[(&str, CullingSpec)] = &[
+    ("none", CullingSpec::None),
+    ("frustum", CullingSpec::Frustum),
+    ("exact", CullingSpec::Exact),
+    ("chc", CullingSpec::Chc),
+    ("chcpp", CullingSpec::Chcpp),
+];
+const METHODS: &[(&str, Method)] = &[
+    ("auto", Method::Auto),
+    ("zpass", Method::Zpass),
+    ("zfail", Method::Zfail),
+    ("zpplus", Method::Zpplus),
+];
+const COUNTERS: &[(&str, StencilBitsSpec)] = &[
+    ("8", StencilBitsSpec::Eight),
+    ("wide", StencilBitsSpec::Wide),
+];
+const COVERAGES: &[(&str, CoverageSpec)] = &[
+    ("conservative", CoverageSpec::Conservative),
+    ("point", CoverageSpec::Point),
+];
+const TILES: &[(&str, u32)] = &[("4", 4), ("8", 8), ("16", 16)];
+const ON_OFF: &[(&str, bool)] = &[("on", true), ("off", false)];
+
+/// The default number of frames of `--path` (the default job's).
+const DEFAULT_FRAMES: u32 = 8;
 
 struct Args {
     scene: PathBuf,
@@ -49,12 +123,36 @@ struct Args {
     pipeline: PipelineOptions,
     reference: bool,
     mask: Option<PathBuf>,
-    reps: usize,
+    /// `--reps`, when given (default 5).
+    reps: Option<usize>,
+    /// `--path`: a camera path of the scene instead of one view.
+    path: Option<String>,
+    /// `--frames`, when given (default [`DEFAULT_FRAMES`]).
+    frames: Option<u32>,
     light: Option<Light>,
     eye: Option<DVec3>,
     target: Option<DVec3>,
     fovy: f64,
     near: f64,
+}
+
+/// `v` as one of `table`'s values, or an error listing the spellings.
+fn choose<T: Copy>(flag: &str, v: &str, table: &[(&str, T)]) -> anyhow::Result<T> {
+    match table.iter().find(|(n, _)| *n == v) {
+        Some(&(_, t)) => Ok(t),
+        None => {
+            let names: Vec<&str> = table.iter().map(|(n, _)| *n).collect();
+            bail!("{flag} must be one of {}, not {v:?}", names.join(", "))
+        }
+    }
+}
+
+/// The spelling of `value` in `table`.
+fn name_of<T: PartialEq + std::fmt::Debug>(table: &[(&'static str, T)], value: &T) -> String {
+    table.iter().find(|(_, t)| t == value).map_or_else(
+        || format!("{value:?}").to_lowercase(),
+        |(n, _)| n.to_string(),
+    )
 }
 
 fn vec3(s: &str, flag: &str) -> anyhow::Result<DVec3> {
@@ -88,7 +186,9 @@ fn parse() -> anyhow::Result<Args> {
         },
         reference: false,
         mask: None,
-        reps: 5,
+        reps: None,
+        path: None,
+        frames: None,
         light: None,
         eye: None,
         target: None,
@@ -96,6 +196,7 @@ fn parse() -> anyhow::Result<Args> {
         near: 0.1,
     };
     while let Some(flag) = it.next() {
+        // Switches without a value.
         match flag.as_str() {
             "--reference" => {
                 a.reference = true;
@@ -110,70 +211,47 @@ fn parse() -> anyhow::Result<Args> {
         let v = it.next().with_context(|| format!("{flag} needs a value"))?;
         let p = &mut a.pipeline;
         match flag.as_str() {
-            "--stencil" => {
-                p.stencil = match v.as_str() {
-                    "bf" => StencilBackend::Bf,
-                    "db" => StencilBackend::Db,
-                    "h" => StencilBackend::H,
-                    "hybrid" => StencilBackend::Hybrid,
-                    _ => bail!("--stencil must be bf, db, h or hybrid"),
-                }
-            }
-            "--tile" => {
-                p.tile = match v.as_str() {
-                    "4" => 4,
-                    "8" => 8,
-                    "16" => 16,
-                    _ => bail!("--tile must be 4, 8 or 16"),
-                }
-            }
+            // Pipeline options.
+            "--stencil" => p.stencil = choose(&flag, &v, STENCILS)?,
+            "--tile" => p.tile = choose(&flag, &v, TILES)?,
+            "--culling" => p.culling = choose(&flag, &v, CULLINGS)?,
+            "--coverage" => p.coverage = choose(&flag, &v, COVERAGES)?,
+            "--threshold" => p.query_threshold = v.parse().context("--threshold")?,
+            "--full-shadow" => p.full_shadow = choose(&flag, &v, ON_OFF)?,
+            "--scissor" => p.scissor = choose(&flag, &v, ON_OFF)?,
+            "--method" => p.method = choose(&flag, &v, METHODS)?,
+            "--counters" | "--bits" => p.counters = choose(&flag, &v, COUNTERS)?,
             "--map" => {
                 p.map_size = v.parse().context("--map")?;
                 if !(16..=raster::MAX_TARGET_SIZE).contains(&p.map_size) {
                     bail!("--map must lie in 16..={}", raster::MAX_TARGET_SIZE);
                 }
             }
-            "--culling" => {
-                p.culling = match v.as_str() {
-                    "none" => CullingSpec::None,
-                    "frustum" => CullingSpec::Frustum,
-                    "exact" => CullingSpec::Exact,
-                    "chc" => CullingSpec::Chc,
-                    _ => bail!("--culling must be none, frustum, exact or chc"),
+            "--light-res" => {
+                p.light_resolution = v
+                    .parse()
+                    .with_context(|| format!("--light-res must be a whole number, not {v:?}"))?;
+                if !(8..=raster::MAX_TARGET_SIZE).contains(&p.light_resolution) {
+                    bail!(
+                        "--light-res (the side of each light view in pixels) must lie in \
+                         8..={}, not {}",
+                        raster::MAX_TARGET_SIZE,
+                        p.light_resolution
+                    );
                 }
             }
-            "--full-shadow" => {
-                p.full_shadow = match v.as_str() {
-                    "on" => true,
-                    "off" => false,
-                    _ => bail!("--full-shadow must be on or off"),
-                }
-            }
-            "--scissor" => {
-                p.scissor = match v.as_str() {
-                    "on" => true,
-                    "off" => false,
-                    _ => bail!("--scissor must be on or off"),
-                }
-            }
-            "--method" => {
-                p.method = match v.as_str() {
-                    "auto" => Method::Auto,
-                    "zpass" => Method::Zpass,
-                    "zfail" => Method::Zfail,
-                    "zpplus" => Method::Zpplus,
-                    _ => bail!("--method must be auto, zpass, zfail or zpplus"),
-                }
-            }
-            "--counters" | "--bits" => {
-                p.counters = match v.as_str() {
-                    "8" => StencilBitsSpec::Eight,
-                    "wide" => StencilBitsSpec::Wide,
-                    _ => bail!("{flag} must be 8 or wide"),
-                }
-            }
+            // What to run and what to write.
             "--mask" => a.mask = Some(PathBuf::from(v)),
-            "--reps" => a.reps = v.parse::<usize>().context("--reps")?.max(1),
+            "--reps" => a.reps = Some(v.parse::<usize>().context("--reps")?.max(1)),
+            "--path" => a.path = Some(v),
+            "--frames" => {
+                let n: u32 = v.parse().context("--frames")?;
+                if n == 0 {
+                    bail!("--frames must be at least 1");
+                }
+                a.frames = Some(n);
+            }
+            // The view and the light.
             "--light" => {
                 a.light = Some(Light::Point {
                     position: vec3(&v, "--light")?,
@@ -192,17 +270,29 @@ fn parse() -> anyhow::Result<Args> {
             _ => bail!("unknown flag {flag}\n{USAGE}"),
         }
     }
+    if a.path.is_some() {
+        if a.reps.is_some() {
+            bail!("--reps is for one view; with --path give --frames");
+        }
+        if a.eye.is_some() || a.target.is_some() {
+            bail!("--path takes the camera from the path; drop --eye and --target");
+        }
+    } else if a.frames.is_some() {
+        bail!("--frames needs --path");
+    }
     Ok(a)
 }
 
-fn median(v: &mut [f64]) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
+/// The upper median (the middle element for odd lengths); `v` is not empty.
+fn median<T: Copy + PartialOrd>(v: &[T]) -> T {
+    let mut s = v.to_vec();
+    s.sort_by(|a, b| a.partial_cmp(b).unwrap_or(std::cmp::Ordering::Equal));
+    s[s.len() / 2]
 }
 
-/// The view and light: from the flags when given, else the scene's named camera and its light.
-fn view(a: &Args, loaded: &Loaded) -> anyhow::Result<(LookAt, Light)> {
-    let look = match (a.eye, a.target) {
+/// The view from the flags when given, else the scene's named camera.
+fn look(a: &Args, loaded: &Loaded) -> anyhow::Result<LookAt> {
+    Ok(match (a.eye, a.target) {
         (Some(eye), Some(target)) => LookAt {
             eye,
             target,
@@ -225,156 +315,243 @@ fn view(a: &Args, loaded: &Loaded) -> anyhow::Result<(LookAt, Light)> {
                 .1
         }
         _ => bail!("--eye and --target go together"),
-    };
-    let light = match a.light {
-        Some(l) => l,
-        None => {
-            loaded
-                .lights
-                .first()
-                .with_context(|| {
-                    format!(
-                        "{} names no light (give --light or --sun)",
-                        a.scene.display()
-                    )
-                })?
-                .1
-        }
-    };
-    Ok((look, light))
+    })
 }
 
-fn main() -> anyhow::Result<()> {
-    let a = parse()?;
-    let loaded = if a.scene.as_os_str() == "city" {
-        let mut l = scene::procedural::city::city(&Default::default())?;
-        // The default job's views: the first pose of each camera path.
-        for (name, path) in l.paths.clone() {
-            if let Some(pose) = path.at(0) {
-                l.cameras.push((name, pose));
-            }
-        }
-        if l.lights.is_empty() {
-            let b = Scene::new(l.graph.clone())?.bounds();
-            let light = shadowcull::config::LightSpec::AboveScene(1.5).resolve(
-                &l,
-                &b,
-                0,
-                std::path::Path::new("city"),
-            )?;
-            l.lights.push(("above".into(), light));
-        }
-        l
-    } else {
-        scene::load::load_path(&a.scene)?
-    };
-    let (look, light) = view(&a, &loaded)?;
-    let camera = look.camera(a.width as f64 / a.height as f64)?;
-    let scene = Scene::new(loaded.graph.clone())?;
-    let res = (a.width, a.height);
-    let lights = [light];
-    eprintln!(
-        "shadow_bench: {} objects, {} triangles, {}x{}, {} reps",
-        scene.objects().len(),
-        scene.counts().drawn_triangles,
-        a.width,
-        a.height,
-        a.reps
-    );
-    let mut runner = FrameRunner::new(&scene);
-    let (mut eye, mut sil, mut vol, mut st, mut frame) =
-        (Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new());
-    let mut first = None;
-    for rep in 0..a.reps {
-        runner.reset_caches();
-        let reference = a.reference && rep == 0;
-        let mut out = runner.frame(0, &camera, &lights, res, &a.pipeline, reference)?;
+/// The scene's camera path `name`.
+fn camera_path(a: &Args, loaded: &Loaded, name: &str) -> anyhow::Result<CameraPath> {
+    if let Some((_, p)) = loaded.paths.iter().find(|(n, _)| n == name) {
+        return Ok(p.clone());
+    }
+    let names: Vec<&str> = loaded.paths.iter().map(|(n, _)| n.as_str()).collect();
+    if names.is_empty() {
+        bail!(
+            "{} names no camera paths (give CAMERA or --eye/--target for one view)",
+            a.scene.display()
+        );
+    }
+    bail!(
+        "no camera path named {name:?} in {} (it has {})",
+        a.scene.display(),
+        names.join(", ")
+    )
+}
+
+/// The light from the flags when given, else the scene's first light.
+fn light(a: &Args, loaded: &Loaded) -> anyhow::Result<Light> {
+    match a.light {
+        Some(l) => Ok(l),
+        None => Ok(loaded
+            .lights
+            .first()
+            .with_context(|| {
+                format!(
+                    "{} names no light (give --light or --sun)",
+                    a.scene.display()
+                )
+            })?
+            .1),
+    }
+}
+
+/// The bundled default job's procedural city, its first light (above the scene)
+/// first in the light list.
+fn city() -> anyhow::Result<Loaded> {
+    // Its cameras `street` and `bird` are the first poses of its paths.
+    let mut l = scene::procedural::city::city(&Default::default())?;
+    let b = Scene::new(l.graph.clone())?.bounds();
+    let above = LightSpec::AboveScene(1.5).resolve(&l, &b, 0, std::path::Path::new("city"))?;
+    l.lights.insert(0, ("above".into(), above));
+    Ok(l)
+}
+
+/// One frame's statistics row (the one light's) and the wall-clock time of the
+/// frame without the reference.
+struct Sample {
+    row: FrameStats,
+    wall_ms: f64,
+}
+
+type Get<T> = fn(&Sample) -> T;
+
+/// Per-frame times reported as series (path) or medians (one view).
+const TIMES: [(&str, Get<f64>); 7] = [
+    ("frame_ms", |s| s.row.frame_ms),
+    ("wall_ms", |s| s.wall_ms),
+    ("eye_ms", |s| s.row.shadow.eye_ms),
+    ("light_ms", |s| s.row.shadow.light_ms),
+    ("silhouette_ms", |s| s.row.shadow.silhouette_ms),
+    ("volume_ms", |s| s.row.shadow.volume_ms),
+    ("stencil_ms", |s| s.row.shadow.stencil_ms),
+];
+
+/// Per-frame counters reported as series along a path.
+const COUNTS: [(&str, Get<u64>); 7] = [
+    ("psr", |s| s.row.shadow.psr),
+    ("psc", |s| s.row.shadow.psc),
+    ("queries", |s| s.row.shadow.queries),
+    ("waits", |s| s.row.shadow.waits),
+    ("pixels_processed", |s| s.row.shadow.pixels_processed),
+    ("volume_triangles", |s| s.row.shadow.volume_triangles),
+    ("shadowed_pixels", |s| s.row.shadow.shadowed_pixels),
+];
+
+/// Series along a path with `--reference`.
+const REFERENCE_TIMES: [(&str, Get<f64>); 1] = [("reference_ms", |s| s.row.reference.reference_ms)];
+const REFERENCE_COUNTS: [(&str, Get<u64>); 3] = [
+    ("mismatch_pixels", |s| s.row.check.mismatch_pixels),
+    ("mismatch_off_boundary", |s| {
+        s.row.check.mismatch_off_boundary
+    }),
+    ("ambiguous_pixels", |s| s.row.check.ambiguous_pixels),
+];
+
+/// Runs `frames` frames through one persistent runner, frame `f` seen by
+/// `camera(f)`, the reference on the frames `reference(f)` names; returns every
+/// frame's sample and the last frame's result.
+fn run(
+    a: &Args,
+    runner: &mut FrameRunner,
+    light: Light,
+    frames: u32,
+    camera: &dyn Fn(u32) -> anyhow::Result<Camera>,
+    reference: &dyn Fn(u32) -> bool,
+) -> anyhow::Result<(Vec<Sample>, LightFrame)> {
+    let mut samples = Vec::with_capacity(frames as usize);
+    let mut last = None;
+    for f in 0..frames {
+        let cam = camera(f)?;
+        let t = Instant::now();
+        let mut out = runner.frame(
+            f,
+            &cam,
+            &[light],
+            (a.width, a.height),
+            &a.pipeline,
+            reference(f),
+        )?;
         let lf = out.remove(0);
-        let s = &lf.row.shadow;
-        eye.push(s.eye_ms);
-        sil.push(s.silhouette_ms);
-        vol.push(s.volume_ms);
-        st.push(s.stencil_ms);
-        frame.push(lf.row.frame_ms);
-        if rep == 0 {
-            first = Some(lf);
-        }
+        // The reference (and the BVH it builds on first use) is not the pipeline's.
+        let wall_ms = t.elapsed().as_secs_f64() * 1e3 - lf.row.reference.reference_ms;
+        samples.push(Sample {
+            row: lf.row,
+            wall_ms,
+        });
+        last = Some(lf);
     }
-    // Once more with the warm silhouette cache of the last repetition.
-    let warm = runner.frame(0, &camera, &lights, res, &a.pipeline, false)?;
-    let lf = first.context("at least one repetition")?;
-    if let Some(path) = &a.mask {
-        let bytes: Vec<u8> = lf
-            .shadow
-            .raw_nonzero
-            .iter()
-            .map(|&s| if s { 255 } else { 0 })
-            .collect();
-        shadowcull::mask::write_grey_png(path, a.width, a.height, &bytes)
-            .with_context(|| format!("writing {}", path.display()))?;
-    }
-    let row = &lf.row;
-    let mut line = serde_json::json!({
+    Ok((samples, last.context("at least one frame")?))
+}
+
+/// The settings and scene size, common to both modes.
+fn settings(a: &Args, row: &FrameStats) -> Map<String, Value> {
+    let p = &a.pipeline;
+    let v = json!({
         "scene": a.scene.display().to_string(),
-        "camera": a.camera,
+        "camera": a.path.as_deref().unwrap_or(&a.camera),
         "width": a.width,
         "height": a.height,
-        "reps": a.reps,
-        "stencil": match a.pipeline.stencil {
-            StencilBackend::Bf => "bf",
-            StencilBackend::Db => "db",
-            StencilBackend::H => "h",
-            StencilBackend::Hybrid => "hybrid",
-        },
-        "scissor": a.pipeline.scissor,
-        "tile": a.pipeline.tile,
-        "counters": if a.pipeline.counters == StencilBitsSpec::Wide { "wide" } else { "8" },
-        "full_shadow": a.pipeline.full_shadow,
-        "map": a.pipeline.map_size,
-        "method": format!("{:?}", a.pipeline.method).to_lowercase(),
-        "eye_ms": median(&mut eye),
-        "silhouette_ms": median(&mut sil),
-        "silhouette_cached_ms": warm[0].row.shadow.silhouette_ms,
-        "volume_ms": median(&mut vol),
-        "stencil_ms": median(&mut st),
-        "frame_ms": median(&mut frame),
+        "stencil": name_of(STENCILS, &p.stencil),
+        "scissor": p.scissor,
+        "tile": p.tile,
+        "counters": name_of(COUNTERS, &p.counters),
+        "full_shadow": p.full_shadow,
+        "map": p.map_size,
+        "method": name_of(METHODS, &p.method),
+        "culling": name_of(CULLINGS, &p.culling),
+        "coverage": name_of(COVERAGES, &p.coverage),
+        "query_threshold": p.query_threshold,
+        "light_resolution": p.light_resolution,
         "objects": row.scene.objects,
         "triangles": row.scene.triangles,
-        "volume_triangles": row.shadow.volume_triangles,
-        "silhouette_edges": row.shadow.silhouette_edges,
-        "zpass_casters": row.shadow.zpass_casters,
-        "zfail_casters": row.shadow.zfail_casters,
-        "zpplus_casters": row.shadow.zpplus_casters,
-        "pixels_processed": row.shadow.pixels_processed,
-        "stencil_updates": row.shadow.stencil_updates,
-        "pixels_touched": row.shadow.pixels_touched,
-        "shadowed_pixels": row.shadow.shadowed_pixels,
     });
-    // The stencil backends' and the culling's counters (a second object: one
-    // `json!` this long exceeds the macro's recursion limit).
-    let more = serde_json::json!({
-        "h_fragments": row.shadow.h_fragments,
-        "tile_tests": row.shadow.tile_tests,
-        "tiles_lit": row.shadow.tiles_lit,
-        "tiles_shadow": row.shadow.tiles_shadow,
-        "tiles_boundary": row.shadow.tiles_boundary,
-        "bandwidth_bytes": row.shadow.bandwidth_bytes,
-        "pixel_bytes": row.shadow.pixel_bytes,
-        "tile_bytes": row.shadow.tile_bytes,
-        "silhouette_pixels": row.shadow.silhouette_pixels,
-        "map_ms": row.shadow.map_ms,
-        "culling": format!("{:?}", a.pipeline.culling).to_lowercase(),
-        "psr": row.shadow.psr,
-        "psc": row.shadow.psc,
-        "queries": row.shadow.queries,
-        "waits": row.shadow.waits,
-        "light_ms": row.shadow.light_ms,
-    });
-    if let (Some(m), Some(more)) = (line.as_object_mut(), more.as_object()) {
-        m.extend(more.clone());
+    match v {
+        Value::Object(m) => m,
+        _ => unreachable!("json! of an object literal"),
+    }
+}
+
+/// One view as `reps` frames: medians of the times, the last frame's counters.
+fn one_view(
+    a: &Args,
+    runner: &mut FrameRunner,
+    camera: &Camera,
+    light: Light,
+) -> anyhow::Result<(Map<String, Value>, LightFrame)> {
+    let reps = a.reps.unwrap_or(5);
+    let (samples, lf) = run(a, runner, light, reps as u32, &|_| Ok(*camera), &|f| {
+        a.reference && f + 1 == reps as u32
+    })?;
+    let silhouette_cached_ms = if samples.len() > 1 {
+        median(
+            &samples[1..]
+                .iter()
+                .map(|s| s.row.shadow.silhouette_ms)
+                .collect::<Vec<_>>(),
+        )
+    } else {
+        // One more frame for the warm cache; not part of the reported counters.
+        let out = runner.frame(
+            reps as u32,
+            camera,
+            &[light],
+            (a.width, a.height),
+            &a.pipeline,
+            false,
+        )?;
+        out[0].row.shadow.silhouette_ms
+    };
+    let row = &lf.row;
+    let s = &row.shadow;
+    let mut m = settings(a, row);
+    m.insert("reps".into(), reps.into());
+    for (key, get) in TIMES {
+        m.insert(
+            key.into(),
+            median(&samples.iter().map(get).collect::<Vec<_>>()).into(),
+        );
+    }
+    m.insert(
+        "silhouette_cold_ms".into(),
+        samples[0].row.shadow.silhouette_ms.into(),
+    );
+    m.insert("silhouette_cached_ms".into(), silhouette_cached_ms.into());
+    // The last frame's counters (`json!` in pieces: one this long exceeds the
+    // macro's recursion limit).
+    let counters = [
+        json!({
+            "volume_triangles": s.volume_triangles,
+            "silhouette_edges": s.silhouette_edges,
+            "zpass_casters": s.zpass_casters,
+            "zfail_casters": s.zfail_casters,
+            "zpplus_casters": s.zpplus_casters,
+            "pixels_processed": s.pixels_processed,
+            "stencil_updates": s.stencil_updates,
+            "pixels_touched": s.pixels_touched,
+            "shadowed_pixels": s.shadowed_pixels,
+        }),
+        json!({
+            "h_fragments": s.h_fragments,
+            "tile_tests": s.tile_tests,
+            "tiles_lit": s.tiles_lit,
+            "tiles_shadow": s.tiles_shadow,
+            "tiles_boundary": s.tiles_boundary,
+            "bandwidth_bytes": s.bandwidth_bytes,
+            "pixel_bytes": s.pixel_bytes,
+            "tile_bytes": s.tile_bytes,
+            "silhouette_pixels": s.silhouette_pixels,
+            "map_ms": s.map_ms,
+            "psr": s.psr,
+            "psc": s.psc,
+            "queries": s.queries,
+            "waits": s.waits,
+        }),
+    ];
+    for c in counters {
+        if let Value::Object(c) = c {
+            m.extend(c);
+        }
     }
     if a.reference {
-        let m = line.as_object_mut().context("json object")?;
         m.insert("mismatch_pixels".into(), row.check.mismatch_pixels.into());
         m.insert(
             "mismatch_off_boundary".into(),
@@ -383,6 +560,90 @@ fn main() -> anyhow::Result<()> {
         m.insert("ambiguous_pixels".into(), row.check.ambiguous_pixels.into());
         m.insert("reference_ms".into(), row.reference.reference_ms.into());
     }
-    println!("{line}");
+    Ok((m, lf))
+}
+
+/// Frames 0..N of `path`: per-frame series with their medians and totals.
+fn along_path(
+    a: &Args,
+    runner: &mut FrameRunner,
+    path: &CameraPath,
+    light: Light,
+) -> anyhow::Result<(Map<String, Value>, LightFrame)> {
+    let frames = a.frames.unwrap_or(DEFAULT_FRAMES);
+    let aspect = a.width as f64 / a.height as f64;
+    let camera = |f: u32| -> anyhow::Result<Camera> {
+        let pose = path
+            .at(f)
+            .with_context(|| format!("the camera path has no pose for frame {f}"))?;
+        Ok(pose.camera(aspect)?)
+    };
+    let (samples, lf) = run(a, runner, light, frames, &camera, &|_| a.reference)?;
+    let mut m = settings(a, &lf.row);
+    m.insert("path".into(), a.path.clone().into());
+    m.insert("frames".into(), frames.into());
+    let (ref_times, ref_counts) = if a.reference {
+        (&REFERENCE_TIMES[..], &REFERENCE_COUNTS[..])
+    } else {
+        (&[][..], &[][..])
+    };
+    for &(key, get) in TIMES.iter().chain(ref_times) {
+        let v: Vec<f64> = samples.iter().map(get).collect();
+        m.insert(format!("{key}_median"), median(&v).into());
+        m.insert(format!("{key}_total"), v.iter().sum::<f64>().into());
+        m.insert(key.into(), v.into());
+    }
+    for &(key, get) in COUNTS.iter().chain(ref_counts) {
+        let v: Vec<u64> = samples.iter().map(get).collect();
+        m.insert(format!("{key}_median"), median(&v).into());
+        m.insert(format!("{key}_total"), v.iter().sum::<u64>().into());
+        m.insert(key.into(), v.into());
+    }
+    Ok((m, lf))
+}
+
+fn main() -> anyhow::Result<()> {
+    let a = parse()?;
+    let loaded = if a.scene.as_os_str() == "city" {
+        city()?
+    } else {
+        scene::load::load_path(&a.scene)?
+    };
+    let light = light(&a, &loaded)?;
+    let scene = Scene::new(loaded.graph.clone())?;
+    eprintln!(
+        "shadow_bench: {} objects, {} triangles, {}x{}, {}",
+        scene.objects().len(),
+        scene.counts().drawn_triangles,
+        a.width,
+        a.height,
+        match &a.path {
+            Some(p) => format!("path {p}, {} frames", a.frames.unwrap_or(DEFAULT_FRAMES)),
+            None => format!("{} reps", a.reps.unwrap_or(5)),
+        }
+    );
+    // One runner for every frame: per-view state persists as in a running application.
+    let mut runner = FrameRunner::new(&scene);
+    let (line, last) = match &a.path {
+        Some(name) => {
+            let path = camera_path(&a, &loaded, name)?;
+            along_path(&a, &mut runner, &path, light)?
+        }
+        None => {
+            let camera = look(&a, &loaded)?.camera(a.width as f64 / a.height as f64)?;
+            one_view(&a, &mut runner, &camera, light)?
+        }
+    };
+    if let Some(path) = &a.mask {
+        let bytes: Vec<u8> = last
+            .shadow
+            .raw_nonzero
+            .iter()
+            .map(|&s| if s { 255 } else { 0 })
+            .collect();
+        shadowcull::mask::write_grey_png(path, a.width, a.height, &bytes)
+            .with_context(|| format!("writing {}", path.display()))?;
+    }
+    println!("{}", Value::Object(line));
     Ok(())
 }

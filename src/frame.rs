@@ -118,6 +118,12 @@ impl<'s> FrameRunner<'s> {
             )?;
             (eye, Some(r))
         };
+        // The light pass's receivers, the eye's visible surface points, are
+        // part of the eye pass's work (`eye_ms`): computed once per frame.
+        let receivers = match (&cull, &self.eye_culling) {
+            (Some(_), Some(_)) => crate::pipeline::visible_points(self.scene, camera, &eye),
+            _ => Vec::new(),
+        };
         let eye_ms = ms(t);
         let (psr, queries, waits) = match &cull {
             Some(r) => (r.stats.objects_rendered, r.stats.queries, r.stats.waits),
@@ -130,11 +136,6 @@ impl<'s> FrameRunner<'s> {
         let shadow_options = options.shadow_options();
         let counts = self.scene.counts();
         let mut out = Vec::with_capacity(lights.len());
-        // The light pass's receivers: the eye's visible surface points.
-        let receivers = match (&cull, &self.eye_culling) {
-            (Some(_), Some(_)) => crate::pipeline::visible_points(self.scene, camera, &eye),
-            _ => Vec::new(),
-        };
         for (li, light) in lights.iter().enumerate() {
             let tl = Instant::now();
             let light_pass = match (&cull, &self.eye_culling) {

@@ -195,17 +195,23 @@ pub fn visible_points(scene: &Scene, camera: &Camera, eye: &EyePass) -> Vec<glam
         .into_par_iter()
         .flat_map_iter(|y| {
             let rays = &rays;
+            // The plane of the row's last triangle: runs of pixels share one.
+            let mut last: Option<((ObjectId, u32), glam::DVec3, f64)> = None;
             (0..w).filter_map(move |x| {
-                let (obj, t) = eye.primitive[(y * w + x) as usize]?;
-                let tri = scene.world_triangle(obj, t as usize);
-                let dir = rays.direction(f64::from(x) + 0.5, f64::from(y) + 0.5);
-                let n = (tri[1] - tri[0]).cross(tri[2] - tri[0]);
-                let den = n.dot(dir);
-                let t_hit = if den != 0.0 {
-                    n.dot(tri[0] - e) / den
-                } else {
-                    0.0
+                let prim = eye.primitive[(y * w + x) as usize]?;
+                let (n, d) = match last {
+                    Some((p, n, d)) if p == prim => (n, d),
+                    _ => {
+                        let tri = scene.world_triangle(prim.0, prim.1 as usize);
+                        let n = (tri[1] - tri[0]).cross(tri[2] - tri[0]);
+                        let d = n.dot(tri[0] - e);
+                        last = Some((prim, n, d));
+                        (n, d)
+                    }
                 };
+                let dir = rays.direction(f64::from(x) + 0.5, f64::from(y) + 0.5);
+                let den = n.dot(dir);
+                let t_hit = if den != 0.0 { d / den } else { 0.0 };
                 Some(e + dir * t_hit)
             })
         })

@@ -37,8 +37,9 @@ pub struct ReferenceStats {
 /// The shadow pipeline's counters of a frame and light.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
 pub struct ShadowStats {
-    /// Eye pass: depth and primitive ids of every object (ms). Measured once
-    /// per frame; every light's row of the frame repeats it.
+    /// Eye pass: depth and primitive ids (ms) — with culling, the culled eye
+    /// pass and the visible surface points the light pass marks. Measured
+    /// once per frame; every light's row of the frame repeats it.
     pub eye_ms: f64,
     /// Silhouette extraction, cache lookups included (ms).
     pub silhouette_ms: f64,

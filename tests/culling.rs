@@ -49,11 +49,12 @@ fn culled_eye_pass_keeps_every_mask_along_the_street_path() {
         (CullingSpec::Exact, 256),
         (CullingSpec::Chc, 256),
         (CullingSpec::Chc, 64),
+        (CullingSpec::Chcpp, 256),
     ]
     .into_iter()
     .map(|c| (c, FrameRunner::new(&scene)))
     .collect();
-    let (mut psr, mut psc, mut queries) = ([0u64; 4], [0u64; 8], [0u64; 4]);
+    let (mut psr, mut psc, mut queries) = ([0u64; 5], [0u64; 10], [0u64; 5]);
     for f in 0..20 {
         let cam = path
             .at(f)
@@ -74,7 +75,7 @@ fn culled_eye_pass_keeps_every_mask_along_the_street_path() {
             queries[k] += out[0].row.shadow.queries;
             outs.push(out);
         }
-        for k in 1..4 {
+        for k in 1..5 {
             for (li, (a, b)) in outs[0].iter().zip(&outs[k]).enumerate() {
                 let differ = a
                     .shadow
@@ -92,8 +93,14 @@ fn culled_eye_pass_keeps_every_mask_along_the_street_path() {
             }
         }
     }
-    println!("psr none/exact/chc/chc-64 {psr:?}, psc (per light) {psc:?}, queries {queries:?}");
+    println!(
+        "psr none/exact/chc/chc-64/chcpp {psr:?}, psc (per light) {psc:?}, queries {queries:?}"
+    );
     assert!(psr[2] * 4 < psr[0], "{psr:?}");
     assert!(psc[4] < psc[0] && psc[5] < psc[1], "{psc:?}");
     assert!(queries[2] < queries[1], "{queries:?}");
+    assert!(
+        queries[4] < queries[2],
+        "CHC++ issues fewer queries: {queries:?}"
+    );
 }

@@ -7,7 +7,7 @@
 //!   whenever the traversal has nothing else to do), not one by one.
 //! - **Revisits.** A previously visible leaf is rendered at once and assumed
 //!   visible; its query is issued only every [`ChcppOptions::revisit`] frames,
-//!   with a per-node phase drawn from an RNG seeded by [`ChcppOptions::seed`]
+//!   with a per-object phase drawn from an RNG seeded by [`ChcppOptions::seed`]
 //!   so the queries of a view's visible leaves spread over the frames. These
 //!   queries only decide the next frame, so they wait in a queue and fill the
 //!   time the traversal would otherwise stall on a result.
@@ -67,13 +67,14 @@ fn splitmix64(mut z: u64) -> u64 {
 }
 
 impl ChcppOptions {
-    /// Whether a previously visible `node` is queried in `frame`.
-    fn revisit_due(&self, node: u32, frame: u32) -> bool {
+    /// Whether a previously visible leaf holding `object` is queried in
+    /// `frame` (keyed by object, so phases survive a hierarchy rebuild).
+    fn revisit_due(&self, object: u32, frame: u32) -> bool {
         if self.revisit <= 1 {
             return true;
         }
         let r = u64::from(self.revisit);
-        let phase = splitmix64(self.seed ^ (u64::from(node) << 20)) % r;
+        let phase = splitmix64(self.seed ^ (u64::from(object) << 20)) % r;
         (u64::from(frame) + phase) % r == 0
     }
 }
@@ -164,7 +165,7 @@ impl ViewCuller {
                     // Assumed visible; queried (later) only when due.
                     self.pull_up(run.h, node);
                     run.out.visible.push(ObjectId(n.object));
-                    if o.revisit_due(node, frame) {
+                    if o.revisit_due(n.object, frame) {
                         revisit.push_back(node);
                     }
                 }

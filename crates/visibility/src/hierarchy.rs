@@ -5,7 +5,8 @@
 //! Node indices are the BVH's own, so per-node traversal state kept by a view
 //! stays valid when the scene refits the BVH after objects move (the topology
 //! does not change); [`Hierarchy::refit`] copies the new bounds. A rebuilt
-//! BVH gives a new hierarchy and fresh state.
+//! BVH gives a new hierarchy, and `ViewCuller::remap` carries each view's
+//! state over to it through the objects of the leaves.
 
 use glam::Vec3;
 use scene::{ObjectId, Scene};

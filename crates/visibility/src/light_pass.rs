@@ -40,10 +40,9 @@ use raster::{
     Coverage, DepthPick, DepthTarget, OcclusionBackend, QueryMode, QueryOptions, ReceiverTarget,
     SyncBackend, TileSize,
 };
+use rayon::prelude::*;
 use scene::{faces_light, Camera, Light, ObjectId, Plane, Scene};
-use std::cell::RefCell;
-use std::collections::HashMap;
-use std::sync::Arc;
+use std::sync::{Arc, OnceLock};
 
 /// Relative push of a receiver point away from the light before marking.
 pub const RECEIVER_PUSH: f64 = 1.0 / 1_048_576.0;
@@ -74,10 +73,19 @@ pub struct LightPassResult {
     pub stats: TraversalStats,
 }
 
-/// One light's persistent light-pass state: a culler per view slot.
+/// One light view's persistent state: its culler, and its depth and receiver
+/// targets, reused from frame to frame (cleared, not reallocated).
+#[derive(Debug, Default)]
+struct ViewSlot {
+    culler: ViewCuller,
+    target: Option<DepthTarget>,
+    marks: Option<Arc<ReceiverTarget>>,
+}
+
+/// One light's persistent light-pass state: a slot per light view.
 #[derive(Debug, Default)]
 pub struct LightPass {
-    cullers: Vec<ViewCuller>,
+    slots: Vec<ViewSlot>,
 }
 
 /// The view's culling planes (inside positive) from its clip matrix: the
@@ -105,6 +113,14 @@ impl LightPass {
         LightPass::default()
     }
 
+    /// Carries every light view's state over to a rebuilt hierarchy
+    /// ([`ViewCuller::remap`]).
+    pub fn remap(&mut self, old: &Hierarchy, new: &Hierarchy) {
+        for s in &mut self.slots {
+            s.culler.remap(old, new);
+        }
+    }
+
     /// Finds the potential shadow casters of `light` for the receivers
     /// `receivers` (world points of the eye's visible surface) seen by `camera`.
     ///
@@ -124,8 +140,9 @@ impl LightPass {
         let bounds = scene.bounds();
         let body = intersection_body(&camera.frustum(), light, &bounds);
         let views = fit_light_views(&body, light, options.resolution.max(1));
-        if self.cullers.len() != views.len() {
-            self.cullers = vec![ViewCuller::new(); views.len()];
+        if self.slots.len() != views.len() {
+            self.slots.clear();
+            self.slots.resize_with(views.len(), ViewSlot::default);
         }
         let diameter = f64::from(bounds.size().length());
         let origin = light.position().unwrap_or_else(|| bounds.center());
@@ -149,35 +166,46 @@ impl LightPass {
             .iter()
             .map(|&p| (p - origin).as_vec3().extend(1.0))
             .collect();
-        // The casting triangles of every object drawn as an occluder.
-        let cache: RefCell<HashMap<u32, Arc<[[u32; 3]]>>> = RefCell::new(HashMap::new());
+        // The casting triangles of every object drawn as an occluder, found
+        // once per pass (views share them).
+        let cache: Vec<OnceLock<Arc<[[u32; 3]]>>> = (0..scene.objects().len())
+            .map(|_| OnceLock::new())
+            .collect();
         let casting = |id: ObjectId| -> Arc<[[u32; 3]]> {
-            if let Some(t) = cache.borrow().get(&id.0) {
-                return t.clone();
-            }
-            let mesh = scene.object_mesh(id);
-            let t: Arc<[[u32; 3]]> = if options.two_sided {
-                mesh.triangles().into()
-            } else {
-                mesh.triangles()
-                    .iter()
-                    .enumerate()
-                    .filter(|&(k, _)| faces_light(&scene.world_triangle(id, k), light))
-                    .map(|(_, t)| *t)
-                    .collect()
-            };
-            cache.borrow_mut().insert(id.0, t.clone());
-            t
+            cache[id.0 as usize]
+                .get_or_init(|| {
+                    let mesh = scene.object_mesh(id);
+                    if options.two_sided {
+                        mesh.triangles().into()
+                    } else {
+                        mesh.triangles()
+                            .iter()
+                            .enumerate()
+                            .filter(|&(k, _)| faces_light(&scene.world_triangle(id, k), light))
+                            .map(|(_, t)| *t)
+                            .collect()
+                    }
+                })
+                .clone()
         };
         let mut out = LightPassResult {
             views: views.len(),
             ..Default::default()
         };
         let mut in_psc = vec![false; scene.objects().len()];
-        for (k, view) in views.iter().enumerate() {
-            let r = self.run_view(
-                k, h, scene, meshes, light, view, origin, diameter, &local, &casting, options,
-            )?;
+        // The views are independent: each has its own culler and targets.
+        let results: Vec<Result<CullResult>> = self
+            .slots
+            .par_iter_mut()
+            .zip(&views)
+            .map(|(slot, view)| {
+                slot.run(
+                    h, scene, meshes, light, view, origin, diameter, &local, &casting, options,
+                )
+            })
+            .collect();
+        for r in results {
+            let r = r?;
             add_stats(&mut out.stats, &r.stats);
             for id in r.visible {
                 if !in_psc[id.0 as usize] {
@@ -189,11 +217,12 @@ impl LightPass {
         out.psc.sort_unstable();
         Ok(out)
     }
+}
 
+impl ViewSlot {
     #[allow(clippy::too_many_arguments)]
-    fn run_view(
+    fn run(
         &mut self,
-        k: usize,
         h: &Hierarchy,
         scene: &Scene,
         meshes: &MeshData,
@@ -202,13 +231,22 @@ impl LightPass {
         origin: DVec3,
         diameter: f64,
         receivers: &[Vec4],
-        casting: &dyn Fn(ObjectId) -> Arc<[[u32; 3]]>,
+        casting: &(dyn Fn(ObjectId) -> Arc<[[u32; 3]]> + Sync),
         options: &LightPassOptions,
     ) -> Result<CullResult> {
         let m = view.clip_from_world;
         let clip_from_origin = (m * DMat4::from_translation(origin)).as_mat4();
-        let target = DepthTarget::new(view.resolution, view.resolution, TileSize::T8, false)?;
-        let mut marks = ReceiverTarget::for_target(&target);
+        let size = (view.resolution, view.resolution);
+        let target = match self.target.take() {
+            Some(t) if (t.width(), t.height()) == size => t,
+            _ => DepthTarget::new(size.0, size.1, TileSize::T8, false)?,
+        };
+        let mut marks = match self.marks.take() {
+            Some(r) if r.size() == size => r,
+            _ => Arc::new(ReceiverTarget::for_target(&target)),
+        };
+        let marks_mut = Arc::get_mut(&mut marks).expect("the backend gave its reference back");
+        marks_mut.clear();
         let (eps, draw_coverage) = match options.sampling {
             Sampling::Conservative => (
                 raster::RECEIVER_EPS_PX,
@@ -216,9 +254,9 @@ impl LightPass {
             ),
             Sampling::Point => (0.0, Coverage::Standard),
         };
-        marks.mark_points_within(clip_from_origin, receivers, eps);
+        marks_mut.mark_points_within(clip_from_origin, receivers, eps);
         let mut backend = SyncBackend::new(target);
-        backend.set_receivers(Some(Arc::new(marks)))?;
+        backend.set_receivers(Some(marks.clone()))?;
         let clip = |w: &DMat4| (m * *w).as_mat4();
         let apex = match light.position() {
             Some(l) => l,
@@ -244,7 +282,13 @@ impl LightPass {
             threshold: options.threshold,
             triangles: Some(casting),
         };
-        self.cullers[k].cull(h, scene, meshes, &setup, options.culling, &mut backend)
+        let r = self
+            .culler
+            .cull(h, scene, meshes, &setup, options.culling, &mut backend);
+        backend.set_receivers(None)?;
+        self.target = Some(backend.into_target());
+        self.marks = Some(marks);
+        r
     }
 }
 

@@ -386,10 +386,49 @@ impl ViewCuller {
         ViewCuller::default()
     }
 
-    /// Forgets all history (after the hierarchy was rebuilt).
+    /// Forgets all history.
     pub fn reset(&mut self) {
         self.state.clear();
         self.frame = 0;
+    }
+
+    /// Carries the per-node state from `old` over to `new`, a rebuilt
+    /// hierarchy over the same objects (after objects moved too far for a
+    /// refit): a leaf takes the state of the old leaf holding its object; an
+    /// inner node is visible when one of its children is, and was last
+    /// visible when its latest child was. Objects new to `new` start with no
+    /// history. (A refit keeps node indices and needs no remapping.)
+    pub fn remap(&mut self, old: &Hierarchy, new: &Hierarchy) {
+        if self.state.len() != old.len() || new.is_empty() {
+            self.state.clear();
+            return;
+        }
+        let mut by_object = std::collections::HashMap::new();
+        for (i, n) in old.nodes.iter().enumerate() {
+            if n.is_leaf() {
+                by_object.insert(n.object, self.state[i]);
+            }
+        }
+        let mut state = vec![NodeState::default(); new.len()];
+        // Post-order: children before their parent.
+        let mut stack = vec![(0u32, false)];
+        while let Some((i, done)) = stack.pop() {
+            let n = &new.nodes[i as usize];
+            if n.is_leaf() {
+                state[i as usize] = by_object.get(&n.object).copied().unwrap_or_default();
+            } else if !done {
+                stack.extend([(i, true), (n.first, false), (n.first + 1, false)]);
+            } else {
+                let (a, b) = (state[n.first as usize], state[n.first as usize + 1]);
+                let live = |s: NodeState| s.visible && s.visited == self.frame;
+                state[i as usize] = NodeState {
+                    visible: live(a) || live(b),
+                    visited: a.visited.max(b.visited),
+                    last_visible: a.last_visible.max(b.last_visible),
+                };
+            }
+        }
+        self.state = state;
     }
 
     /// Runs one frame of `culling` for `view`: clears the backend's target,
@@ -579,6 +618,128 @@ impl ViewCuller {
             self.state[node as usize].visible = true;
             self.state[node as usize].last_visible = self.frame;
             node = h.nodes[node as usize].parent;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use raster::{DepthTarget, SyncBackend, TileSize};
+    use scene::procedural::city::{city, CityParams};
+
+    /// `h` renumbered breadth-first with every node's children swapped: the
+    /// same tree over the same objects, as a rebuild might number it.
+    fn renumbered(h: &Hierarchy) -> Hierarchy {
+        let mut order = vec![0u32];
+        let mut new_of = vec![NONE; h.len()];
+        new_of[0] = 0;
+        let mut k = 0;
+        while k < order.len() {
+            let n = h.nodes[order[k] as usize];
+            if !n.is_leaf() {
+                for c in [n.first + 1, n.first] {
+                    new_of[c as usize] = order.len() as u32;
+                    order.push(c);
+                }
+            }
+            k += 1;
+        }
+        let mut nodes: Vec<Node> = order.iter().map(|&o| h.nodes[o as usize]).collect();
+        for n in &mut nodes {
+            if !n.is_leaf() {
+                // The swapped pair: the old second child now comes first.
+                n.first = new_of[n.first as usize + 1];
+            }
+            if n.parent != NONE {
+                n.parent = new_of[n.parent as usize];
+            }
+        }
+        Hierarchy { nodes }
+    }
+
+    /// After a rebuild, remapped CHC state gives the next frame the same
+    /// visible set and the same queries as if nothing had been rebuilt; a
+    /// fresh state pays for the lost coherence.
+    #[test]
+    fn remapped_state_survives_a_rebuild() {
+        let loaded = city(&CityParams {
+            blocks_x: 4,
+            blocks_z: 4,
+            ..Default::default()
+        })
+        .unwrap();
+        let path = loaded
+            .paths
+            .iter()
+            .find(|(n, _)| n == "street")
+            .unwrap()
+            .1
+            .clone();
+        let scene = Scene::new(loaded.graph).unwrap();
+        let meshes = MeshData::from_scene(&scene);
+        let h1 = Hierarchy::from_scene(&scene);
+        let h2 = renumbered(&h1);
+        assert_eq!(h2.len(), h1.len());
+        let frame = |culler: &mut ViewCuller, h: &Hierarchy, f: u32, culling: Culling| {
+            let cam = path.at(f).unwrap().camera(4.0 / 3.0).unwrap();
+            let clip = |w: &DMat4| scene::transform::clip_from_local(&cam, w);
+            let view = ViewSetup::eye(&cam, &clip, 0);
+            let mut b = SyncBackend::new(DepthTarget::new(160, 120, TileSize::T8, true).unwrap());
+            let mut r = culler
+                .cull(h, &scene, &meshes, &view, culling, &mut b)
+                .unwrap();
+            r.visible.sort_unstable();
+            r
+        };
+        for culling in [Culling::Chc, Culling::ChcPlusPlus(ChcppOptions::default())] {
+            let (mut kept, mut remapped) = (ViewCuller::new(), ViewCuller::new());
+            for f in 0..6 {
+                frame(&mut kept, &h1, f, culling);
+                frame(&mut remapped, &h1, f, culling);
+            }
+            remapped.remap(&h1, &h2);
+            // Leaves keep their object's state exactly; an inner node is
+            // visible only where the kept state has it visible (the kept
+            // state may also hold an inner node whose own query passed while
+            // none of its children's did).
+            let live =
+                |c: &ViewCuller, i: usize| c.state[i].visible && c.state[i].visited == c.frame;
+            let old_of: std::collections::HashMap<u32, usize> = h1
+                .nodes
+                .iter()
+                .enumerate()
+                .filter(|(_, n)| n.is_leaf())
+                .map(|(i, n)| (n.object, i))
+                .collect();
+            let mut live_leaves = 0;
+            for (i, n) in h2.nodes.iter().enumerate() {
+                if n.is_leaf() {
+                    let o = old_of[&n.object];
+                    assert_eq!(live(&remapped, i), live(&kept, o));
+                    assert_eq!(remapped.state[i].last_visible, kept.state[o].last_visible);
+                    live_leaves += usize::from(live(&remapped, i));
+                }
+            }
+            assert!(live_leaves > 10, "{live_leaves}");
+            // The next frame finds the same visible objects; a fresh state
+            // pays for the lost coherence with more queries.
+            let a = frame(&mut kept, &h1, 6, culling);
+            let b = frame(&mut remapped, &h2, 6, culling);
+            let mut fresh = ViewCuller::new();
+            fresh.frame = 6;
+            let c = frame(&mut fresh, &h2, 6, culling);
+            assert_eq!(a.visible, b.visible, "{culling:?}");
+            println!(
+                "{culling:?}: queries kept {}, remapped {}, fresh {}",
+                a.stats.queries, b.stats.queries, c.stats.queries
+            );
+            assert!(
+                c.stats.queries > b.stats.queries * 3 / 2,
+                "{culling:?}: fresh {} vs remapped {}",
+                c.stats.queries,
+                b.stats.queries
+            );
         }
     }
 }
