@@ -37,6 +37,8 @@ pub struct FrameRunner<'s> {
     eye: Option<EyePass>,
     /// The culled eye pass's hierarchy and CHC state, built on first use.
     eye_culling: Option<EyeCulling>,
+    /// The light pass's receivers (the eye's visible surface points), reused.
+    receivers: Vec<glam::DVec3>,
     /// Reference masks by (frame, light, reference options), when caching.
     references: Option<HashMap<ReferenceKey, ReferenceMask>>,
     /// Time spent building the reference's BVH (ms), 0 until it is built.
@@ -64,6 +66,7 @@ impl<'s> FrameRunner<'s> {
             scratch: Vec::new(),
             eye: None,
             eye_culling: None,
+            receivers: Vec::new(),
             references: None,
             bvh_ms: 0.0,
         }
@@ -120,10 +123,9 @@ impl<'s> FrameRunner<'s> {
         };
         // The light pass's receivers, the eye's visible surface points, are
         // part of the eye pass's work (`eye_ms`): computed once per frame.
-        let receivers = match (&cull, &self.eye_culling) {
-            (Some(_), Some(_)) => crate::pipeline::visible_points(self.scene, camera, &eye),
-            _ => Vec::new(),
-        };
+        if let (Some(_), Some(_)) = (&cull, &self.eye_culling) {
+            crate::pipeline::visible_points_into(self.scene, camera, &eye, &mut self.receivers);
+        }
         let eye_ms = ms(t);
         let (psr, queries, waits) = match &cull {
             Some(r) => (r.stats.objects_rendered, r.stats.queries, r.stats.waits),
@@ -136,10 +138,12 @@ impl<'s> FrameRunner<'s> {
         let shadow_options = options.shadow_options();
         let counts = self.scene.counts();
         let mut out = Vec::with_capacity(lights.len());
-        for (li, light) in lights.iter().enumerate() {
-            let tl = Instant::now();
-            let light_pass = match (&cull, &self.eye_culling) {
+        // The light passes (PSC) of all lights, concurrently: each light owns
+        // its views' state. `light_ms` is each light's own elapsed time.
+        let light_passes: Vec<(Option<visibility::LightPassResult>, f64)> =
+            match (&cull, &self.eye_culling) {
                 (Some(_), Some(state)) => {
+                    use rayon::prelude::*;
                     let (h, meshes) = state.parts();
                     let lp = visibility::LightPassOptions {
                         culling: options.culling(),
@@ -148,15 +152,22 @@ impl<'s> FrameRunner<'s> {
                         threshold: options.query_threshold,
                         two_sided: options.two_sided,
                     };
-                    Some(
-                        self.scratch[li]
-                            .light_pass
-                            .run(h, self.scene, meshes, camera, light, &receivers, &lp)?,
-                    )
+                    let (scene, receivers) = (self.scene, &self.receivers);
+                    self.scratch[..lights.len()]
+                        .par_iter_mut()
+                        .zip(lights)
+                        .map(|(sc, light)| {
+                            let tl = Instant::now();
+                            let r = sc
+                                .light_pass
+                                .run(h, scene, meshes, camera, light, receivers, &lp)?;
+                            Ok((Some(r), ms(tl)))
+                        })
+                        .collect::<std::result::Result<_, visibility::Error>>()?
                 }
-                _ => None,
+                _ => lights.iter().map(|_| (None, 0.0)).collect(),
             };
-            let light_ms = ms(tl);
+        for ((li, light), (light_pass, light_ms)) in lights.iter().enumerate().zip(light_passes) {
             let shadow = match &light_pass {
                 Some(lp) => shadow_mask_for(
                     self.scene,

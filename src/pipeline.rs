@@ -183,24 +183,42 @@ impl EyeCulling {
     }
 }
 
-/// The eye's visible surface points (world, f64): per non-background pixel the
-/// pixel-centre ray met with the visible triangle's plane (as the mask
-/// assembly computes them) — the fragment-level receivers of the light pass.
+/// The eye's visible surface points (world, f64), row-major, one per pixel:
+/// the pixel-centre ray met with the visible triangle's plane (as the mask
+/// assembly computes them), NaN on background pixels — the fragment-level
+/// receivers of the light pass, which skips the NaN points.
 pub fn visible_points(scene: &Scene, camera: &Camera, eye: &EyePass) -> Vec<glam::DVec3> {
+    let mut out = Vec::new();
+    visible_points_into(scene, camera, eye, &mut out);
+    out
+}
+
+/// [`visible_points`] into `out` (reused from frame to frame: no allocation).
+pub fn visible_points_into(
+    scene: &Scene,
+    camera: &Camera,
+    eye: &EyePass,
+    out: &mut Vec<glam::DVec3>,
+) {
     use rayon::prelude::*;
     let (w, h) = (eye.target.width(), eye.target.height());
     let rays = camera.rays(w, h);
     let e = camera.position;
-    (0..h)
-        .into_par_iter()
-        .flat_map_iter(|y| {
-            let rays = &rays;
+    out.resize((w * h) as usize, glam::DVec3::NAN);
+    out.par_chunks_mut(w as usize)
+        .zip(eye.primitive.par_chunks(w as usize))
+        .enumerate()
+        .for_each(|(y, (row, prims))| {
             // The plane of the row's last triangle: runs of pixels share one.
             let mut last: Option<((ObjectId, u32), glam::DVec3, f64)> = None;
-            (0..w).filter_map(move |x| {
-                let prim = eye.primitive[(y * w + x) as usize]?;
+            let (base, step) = rays.row(y as f64 + 0.5);
+            for (x, (p, prim)) in row.iter_mut().zip(prims).enumerate() {
+                let Some(prim) = *prim else {
+                    *p = glam::DVec3::NAN;
+                    continue;
+                };
                 let (n, d) = match last {
-                    Some((p, n, d)) if p == prim => (n, d),
+                    Some((q, n, d)) if q == prim => (n, d),
                     _ => {
                         let tri = scene.world_triangle(prim.0, prim.1 as usize);
                         let n = (tri[1] - tri[0]).cross(tri[2] - tri[0]);
@@ -209,13 +227,12 @@ pub fn visible_points(scene: &Scene, camera: &Camera, eye: &EyePass) -> Vec<glam
                         (n, d)
                     }
                 };
-                let dir = rays.direction(f64::from(x) + 0.5, f64::from(y) + 0.5);
+                let dir = base + step * (x as f64 + 0.5);
                 let den = n.dot(dir);
                 let t_hit = if den != 0.0 { d / den } else { 0.0 };
-                Some(e + dir * t_hit)
-            })
-        })
-        .collect()
+                *p = e + dir * t_hit;
+            }
+        });
 }
 
 /// The eye pass with occlusion culling: only the objects `culling` finds

@@ -22,6 +22,8 @@ pub struct ReceiverTarget {
     /// sample can pass only at or in front of it, so a triangle wholly behind
     /// it skips the tile.
     pub(crate) tile_min: Vec<f32>,
+    /// Per point of a parallel marking: its one pixel and depth, or a flag.
+    scratch: Vec<(u32, f32)>,
 }
 
 impl ReceiverTarget {
@@ -31,6 +33,7 @@ impl ReceiverTarget {
             layout: target.layout,
             depth: vec![f32::INFINITY; target.depth.len()],
             tile_min: vec![f32::INFINITY; target.tiles.len()],
+            scratch: Vec::new(),
         }
     }
 
@@ -78,47 +81,167 @@ impl ReceiverTarget {
         points: &[Vec4],
         eps_px: f64,
     ) -> u64 {
-        let l = self.layout;
-        let (w, h) = (l.width as f64, l.height as f64);
-        let eps = eps_px.max(0.0);
-        // Clip-space reject with a margin of two pixels (plus eps) per side.
-        let (mx, my) = (1.0 + 2.0 * (2.0 + eps) / w, 1.0 + 2.0 * (2.0 + eps) / h);
+        let pr = Projector::new(self.layout, clip_from_local, eps_px);
+        #[cfg(feature = "parallel")]
+        if points.len() >= PARALLEL_POINTS && rayon::current_num_threads() > 1 {
+            return self.mark_parallel(&pr, points);
+        }
+        points.iter().map(|p| self.mark_one(&pr, p)).sum()
+    }
+
+    /// Marks the pixels of one point's footprint; returns how many.
+    fn mark_one(&mut self, pr: &Projector, p: &Vec4) -> u64 {
+        let Some(f) = pr.project(p) else {
+            return 0;
+        };
+        let (l, eps) = (self.layout, pr.eps);
         let mut n = 0;
-        for p in points {
-            let c = (clip_from_local * *p).as_dvec4();
-            let outside = c.x.abs() > mx * c.w || c.y.abs() > my * c.w;
-            if c.w.is_nan() || c.w <= 0.0 || outside {
-                continue;
-            }
-            let px = (c.x / c.w + 1.0) * 0.5 * w;
-            let py = (1.0 - c.y / c.w) * 0.5 * h;
-            let z = (c.z / c.w) as f32;
-            if !(px.is_finite() && py.is_finite()) {
-                continue;
-            }
-            // Pixel squares [x, x + 1] within eps: ceil(px − eps − 1) ..= floor(px + eps).
-            let x0 = (-floor(1.0 + eps - px)).max(0.0);
-            let x1 = floor(px + eps).min(w - 1.0);
-            let y0 = (-floor(1.0 + eps - py)).max(0.0);
-            let y1 = floor(py + eps).min(h - 1.0);
-            if x0 > x1 || y0 > y1 {
-                continue;
-            }
-            for y in y0 as u32..=y1 as u32 {
-                for x in x0 as u32..=x1 as u32 {
-                    let dx = (x as f64 - px).max(px - (x as f64 + 1.0)).max(0.0);
-                    let dy = (y as f64 - py).max(py - (y as f64 + 1.0)).max(0.0);
-                    if dx * dx + dy * dy <= eps * eps {
-                        let i = l.pixel_index(x, y);
-                        self.depth[i] = self.depth[i].min(z);
-                        let t = l.tile_index(x >> l.shift, y >> l.shift);
-                        self.tile_min[t] = self.tile_min[t].min(z);
-                        n += 1;
-                    }
+        for y in f.y0..=f.y1 {
+            for x in f.x0..=f.x1 {
+                let dx = (x as f64 - f.px).max(f.px - (x as f64 + 1.0)).max(0.0);
+                let dy = (y as f64 - f.py).max(f.py - (y as f64 + 1.0)).max(0.0);
+                if dx * dx + dy * dy <= eps * eps {
+                    self.mark_pixel(l.pixel_index(x, y), f.z);
+                    n += 1;
                 }
             }
         }
         n
+    }
+
+    #[inline(always)]
+    fn mark_pixel(&mut self, i: usize, z: f32) {
+        // Tile-major storage: a pixel's tile is its index over the tile size.
+        let t = i >> (2 * self.layout.shift);
+        self.depth[i] = self.depth[i].min(z);
+        self.tile_min[t] = self.tile_min[t].min(z);
+    }
+
+    /// Many points: the projections run in parallel, each point's footprint
+    /// reduced to its one pixel (the common case) or flagged; then the pixel
+    /// minima are taken in order, and flagged points marked one by one. The
+    /// minima do not depend on order, so the result is the sequential one.
+    #[cfg(feature = "parallel")]
+    fn mark_parallel(&mut self, pr: &Projector, points: &[Vec4]) -> u64 {
+        use rayon::prelude::*;
+        const NONE: u32 = u32::MAX;
+        const MANY: u32 = u32::MAX - 1;
+        let l = self.layout;
+        let mut one = std::mem::take(&mut self.scratch);
+        one.resize(points.len(), (NONE, 0.0));
+        one.par_iter_mut()
+            .zip(points.par_iter())
+            .with_min_len(4096)
+            .for_each(|(o, p)| {
+                *o = match pr.project(p) {
+                    None => (NONE, 0.0),
+                    Some(f) if f.x0 == f.x1 && f.y0 == f.y1 => {
+                        let dx = (f.x0 as f64 - f.px)
+                            .max(f.px - (f.x0 as f64 + 1.0))
+                            .max(0.0);
+                        let dy = (f.y0 as f64 - f.py)
+                            .max(f.py - (f.y0 as f64 + 1.0))
+                            .max(0.0);
+                        if dx * dx + dy * dy <= pr.eps * pr.eps {
+                            (l.pixel_index(f.x0, f.y0) as u32, f.z)
+                        } else {
+                            (NONE, 0.0)
+                        }
+                    }
+                    Some(_) => (MANY, 0.0),
+                }
+            });
+        let mut n = 0;
+        for (k, &(i, z)) in one.iter().enumerate() {
+            match i {
+                NONE => {}
+                MANY => n += self.mark_one(pr, &points[k]),
+                _ => {
+                    self.mark_pixel(i as usize, z);
+                    n += 1;
+                }
+            }
+        }
+        self.scratch = one;
+        n
+    }
+}
+
+/// Points above which marking projects in parallel.
+#[cfg(feature = "parallel")]
+const PARALLEL_POINTS: usize = 1 << 16;
+
+/// A point's projection and the pixel range its footprint may reach.
+struct Footprint {
+    px: f64,
+    py: f64,
+    z: f32,
+    x0: u32,
+    x1: u32,
+    y0: u32,
+    y1: u32,
+}
+
+/// Projects points into a receiver target's pixels.
+struct Projector {
+    m: Mat4,
+    w: f64,
+    h: f64,
+    eps: f64,
+    /// Clip-space reject bounds: a margin of two pixels (plus eps) per side.
+    mx: f64,
+    my: f64,
+}
+
+impl Projector {
+    fn new(l: Layout, m: Mat4, eps_px: f64) -> Self {
+        let (w, h) = (l.width as f64, l.height as f64);
+        let eps = eps_px.max(0.0);
+        Projector {
+            m,
+            w,
+            h,
+            eps,
+            mx: 1.0 + 2.0 * (2.0 + eps) / w,
+            my: 1.0 + 2.0 * (2.0 + eps) / h,
+        }
+    }
+
+    /// The footprint of `p`, `None` when it marks nothing (behind the centre
+    /// of projection, off the target, not finite).
+    #[inline(always)]
+    fn project(&self, p: &Vec4) -> Option<Footprint> {
+        let c = (self.m * *p).as_dvec4();
+        let outside = c.x.abs() > self.mx * c.w || c.y.abs() > self.my * c.w;
+        if c.w.is_nan() || c.w <= 0.0 || outside {
+            return None;
+        }
+        // One division: the reciprocal's rounding (a few ulps of the
+        // projection) is far inside the footprint's margin.
+        let iw = 1.0 / c.w;
+        let px = (c.x * iw + 1.0) * (0.5 * self.w);
+        let py = (1.0 - c.y * iw) * (0.5 * self.h);
+        if !(px.is_finite() && py.is_finite()) {
+            return None;
+        }
+        let eps = self.eps;
+        // Pixel squares [x, x + 1] within eps: ceil(px − eps − 1) ..= floor(px + eps).
+        let x0 = (-floor(1.0 + eps - px)).max(0.0);
+        let x1 = floor(px + eps).min(self.w - 1.0);
+        let y0 = (-floor(1.0 + eps - py)).max(0.0);
+        let y1 = floor(py + eps).min(self.h - 1.0);
+        if x0 > x1 || y0 > y1 {
+            return None;
+        }
+        Some(Footprint {
+            px,
+            py,
+            z: (c.z * iw) as f32,
+            x0: x0 as u32,
+            x1: x1 as u32,
+            y0: y0 as u32,
+            y1: y1 as u32,
+        })
     }
 }
 
@@ -195,6 +318,37 @@ mod tests {
         assert_eq!(r.at(5, 4), None);
     }
 
+    /// The parallel path (many points) marks exactly what the sequential
+    /// one does, repeats counted alike.
+    #[cfg(feature = "parallel")]
+    #[test]
+    fn parallel_marking_equals_sequential() {
+        let t = DepthTarget::new(97, 61, TileSize::T8, false).unwrap();
+        let n = PARALLEL_POINTS * 2 + 17;
+        let points: Vec<Vec4> = (0..n)
+            .map(|k| {
+                let f = k as f32;
+                let w = 0.5 + (f * 0.017).sin().abs();
+                let (x, y) = ((f * 0.37).sin() * 1.1, (f * 0.91).cos() * 1.1);
+                Vec4::new(x * w, y * w, (f * 0.13).sin().abs() * w, w)
+            })
+            .collect();
+        for eps in [0.0, RECEIVER_EPS_PX, 0.6] {
+            let mut a = ReceiverTarget::for_target(&t);
+            let mut b = ReceiverTarget::for_target(&t);
+            let m = Mat4::from_scale(glam::Vec3::new(1.0, 1.0, 1.0));
+            let na = a.mark_points_within(m, &points, eps);
+            let nb: u64 = points
+                .chunks(1000)
+                .map(|c| b.mark_points_within(m, c, eps))
+                .sum();
+            assert_eq!(na, nb, "eps {eps}");
+            assert_eq!(a.depth, b.depth, "eps {eps}");
+            assert_eq!(a.tile_min, b.tile_min, "eps {eps}");
+            assert!(na > n as u64 / 2);
+        }
+    }
+
     proptest::proptest! {
         /// Marking equals its definition, pixel by pixel: the farthest depth
         /// of the points whose projection lies within `eps` of the pixel's
@@ -233,12 +387,14 @@ mod tests {
                         if c.w <= 0.0 {
                             continue;
                         }
-                        let px = (c.x / c.w + 1.0) * 0.5 * f64::from(w);
-                        let py = (1.0 - c.y / c.w) * 0.5 * f64::from(h);
+                        // The projection in the marking's own f64 arithmetic.
+                        let iw = 1.0 / c.w;
+                        let px = (c.x * iw + 1.0) * (0.5 * f64::from(w));
+                        let py = (1.0 - c.y * iw) * (0.5 * f64::from(h));
                         let dx = (f64::from(x) - px).max(px - f64::from(x + 1)).max(0.0);
                         let dy = (f64::from(y) - py).max(py - f64::from(y + 1)).max(0.0);
                         if dx * dx + dy * dy <= eps * eps {
-                            want = want.min((c.z / c.w) as f32);
+                            want = want.min((c.z * iw) as f32);
                         }
                     }
                     proptest::prop_assert_eq!(r.at(x, y), (want != f32::INFINITY).then_some(want), "pixel ({}, {})", x, y);

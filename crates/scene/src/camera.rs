@@ -235,6 +235,19 @@ impl Rays {
         let d = DVec3::new(ndc_x * t * self.aspect, ndc_y * t, -1.0);
         (self.orientation * d).normalize()
     }
+
+    /// The world-space ray direction through `(px, py)`, not normalized,
+    /// as `base + px · step` for the row `py`: `(base, step)`. Parallel to
+    /// [`Rays::direction`]; for per-pixel loops that only need the ray's line
+    /// (a ray–plane hit is independent of the direction's length).
+    #[inline]
+    pub fn row(&self, py: f64) -> (DVec3, DVec3) {
+        let t = self.tan_half_fov;
+        let ndc_y = 1.0 - 2.0 * py / self.height;
+        let base = DVec3::new(-t * self.aspect, ndc_y * t, -1.0);
+        let step = DVec3::new(2.0 * t * self.aspect / self.width, 0.0, 0.0);
+        (self.orientation * base, self.orientation * step)
+    }
 }
 
 #[cfg(test)]
@@ -251,6 +264,29 @@ mod tests {
             0.5,
         )
         .unwrap()
+    }
+
+    /// `Rays::row` spans the same rays as `Rays::direction`, pixel by pixel.
+    #[test]
+    fn ray_rows_are_parallel_to_directions() {
+        let c = Camera::look_at(
+            DVec3::new(1.0, 2.0, 3.0),
+            DVec3::new(4.0, -1.0, -10.0),
+            DVec3::Y,
+            50f64.to_radians(),
+            16.0 / 9.0,
+            0.1,
+        )
+        .unwrap();
+        let r = c.rays(64, 36);
+        for y in 0..36 {
+            let (base, step) = r.row(f64::from(y) + 0.5);
+            for x in 0..64 {
+                let d = r.direction(f64::from(x) + 0.5, f64::from(y) + 0.5);
+                let u = (base + step * (f64::from(x) + 0.5)).normalize();
+                assert!((u - d).length() < 1e-14, "({x}, {y}): {u} vs {d}");
+            }
+        }
     }
 
     #[test]

@@ -30,7 +30,7 @@
 
 use crate::hierarchy::Hierarchy;
 use crate::intersection_body::intersection_body;
-use crate::light_view::{fit_light_views, LightView};
+use crate::light_view::{fit_light_views, LightView, LightViewKind};
 use crate::traverse::{
     CullResult, Culling, MeshData, Sampling, TraversalStats, ViewCuller, ViewSetup,
 };
@@ -82,10 +82,15 @@ struct ViewSlot {
     marks: Option<Arc<ReceiverTarget>>,
 }
 
-/// One light's persistent light-pass state: a slot per light view.
+/// One light's persistent light-pass state: a slot per light view, and the
+/// receiver buffers (reused, not reallocated, from frame to frame).
 #[derive(Debug, Default)]
 pub struct LightPass {
     slots: Vec<ViewSlot>,
+    pushed: Vec<DVec3>,
+    local: Vec<Vec4>,
+    /// Receivers per cube face (+X, −X, +Y, −Y, +Z, −Z).
+    faces: [Vec<Vec4>; 6],
 }
 
 /// The view's culling planes (inside positive) from its clip matrix: the
@@ -152,20 +157,28 @@ impl LightPass {
             Sampling::Conservative => RECEIVER_PUSH,
             Sampling::Point => 0.0,
         };
-        let pushed: Vec<DVec3> = receivers
-            .iter()
-            .map(|&p| match light.position() {
-                Some(l) => l + (p - l) * (1.0 + push),
-                None => {
-                    let d = light.toward_light(p).normalize_or_zero();
-                    p - d * (push * diameter)
-                }
-            })
-            .collect();
-        let local: Vec<Vec4> = pushed
-            .iter()
-            .map(|&p| (p - origin).as_vec3().extend(1.0))
-            .collect();
+        // (NaN points, the eye's background pixels, stay NaN: marking skips them.)
+        let step = match light.position() {
+            Some(_) => DVec3::ZERO,
+            None => light.toward_light(origin).normalize_or_zero() * (push * diameter),
+        };
+        let n = receivers.len();
+        let (pushed, local) = (&mut self.pushed, &mut self.local);
+        pushed.resize(n, DVec3::NAN);
+        local.resize(n, Vec4::NAN);
+        receivers
+            .par_iter()
+            .zip(pushed.par_iter_mut())
+            .zip(local.par_iter_mut())
+            .with_min_len(4096)
+            .for_each(|((&p, q), r)| {
+                *q = match light.position() {
+                    Some(l) => l + (p - l) * (1.0 + push),
+                    None => p - step,
+                };
+                *r = (*q - origin).as_vec3().extend(1.0);
+            });
+        let (pushed, local) = (&self.pushed, &self.local);
         // The casting triangles of every object drawn as an occluder, found
         // once per pass (views share them).
         let cache: Vec<OnceLock<Arc<[[u32; 3]]>>> = (0..scene.objects().len())
@@ -193,14 +206,25 @@ impl LightPass {
             ..Default::default()
         };
         let mut in_psc = vec![false; scene.objects().len()];
+        let faces = match light.position() {
+            Some(l) => {
+                cube_face_receivers(&views, l, pushed, local, options.sampling, &mut self.faces);
+                Some(&self.faces)
+            }
+            None => None,
+        };
         // The views are independent: each has its own culler and targets.
         let results: Vec<Result<CullResult>> = self
             .slots
             .par_iter_mut()
             .zip(&views)
             .map(|(slot, view)| {
+                let receivers = match (view.kind, &faces) {
+                    (LightViewKind::CubeFace(k), Some(f)) => &f[k as usize][..],
+                    _ => &local[..],
+                };
                 slot.run(
-                    h, scene, meshes, light, view, origin, diameter, &local, &casting, options,
+                    h, scene, meshes, light, view, origin, diameter, receivers, &casting, options,
                 )
             })
             .collect();
@@ -289,6 +313,56 @@ impl ViewSlot {
         self.target = Some(backend.into_target());
         self.marks = Some(marks);
         r
+    }
+}
+
+/// The receivers each cube face of a positional light can mark (indexed like
+/// [`LightViewKind::CubeFace`]: +X, −X, +Y, −Y, +Z, −Z): a point goes to the
+/// faces whose axis dominates its direction from the light `l`, with a slack
+/// of the marking's reach (its footprint plus the two-pixel reject margin of
+/// [`ReceiverTarget::mark_points_within`]) at the faces' resolution. A face's
+/// fitted window lies inside the full 90° face, so a point left out could
+/// mark nothing there: each face marks exactly what it would with every point,
+/// at a sixth of the projections. `world` are the pushed points, `local` the
+/// same relative to the view origin.
+fn cube_face_receivers(
+    views: &[LightView],
+    l: DVec3,
+    world: &[DVec3],
+    local: &[Vec4],
+    sampling: Sampling,
+    out: &mut [Vec<Vec4>; 6],
+) {
+    for f in out.iter_mut() {
+        f.clear();
+    }
+    let Some(res) = views
+        .iter()
+        .filter(|v| matches!(v.kind, LightViewKind::CubeFace(_)))
+        .map(|v| v.resolution)
+        .min()
+    else {
+        return;
+    };
+    let eps = match sampling {
+        Sampling::Conservative => raster::RECEIVER_EPS_PX,
+        Sampling::Point => 0.0,
+    };
+    let slack = 1.0 + 2.0 * (2.0 + eps) / f64::from(res) + 1e-9;
+    for (p, q) in world.iter().zip(local) {
+        let d = *p - l;
+        let m = d.abs().max_element();
+        for axis in 0..3 {
+            let v = d[axis];
+            if v.abs() * slack >= m {
+                if v >= 0.0 {
+                    out[2 * axis].push(*q);
+                }
+                if v <= 0.0 {
+                    out[2 * axis + 1].push(*q);
+                }
+            }
+        }
     }
 }
 
