@@ -127,6 +127,8 @@ pub struct DepthTarget {
     pub(crate) tiles: Vec<TileBounds>,
     pub(crate) stats: RasterStats,
     pub(crate) threads: usize,
+    /// Tile rows `r0..r1` that [`DepthTarget::draw`] writes (all when `None`).
+    pub(crate) draw_rows: Option<(u32, u32)>,
 }
 
 impl DepthTarget {
@@ -161,6 +163,7 @@ impl DepthTarget {
             tiles: Vec::new(),
             stats: RasterStats::default(),
             threads: 0,
+            draw_rows: None,
         };
         t.clear();
         Ok(t)
@@ -184,6 +187,18 @@ impl DepthTarget {
     /// Number of tiles horizontally and vertically.
     pub fn tile_counts(&self) -> (u32, u32) {
         (self.layout.tiles_x, self.layout.tiles_y)
+    }
+
+    /// Restricts [`DepthTarget::draw`] to the tile rows `r0..r1` (clamped to
+    /// the target; `None`: every row): the rest keeps its depth. For a target
+    /// whose depth matters only there — a light view, whose queries count
+    /// samples only over receiver-marked pixels, draws its occluders only in
+    /// the rows holding receivers. Queries are not restricted.
+    pub fn set_draw_rows(&mut self, rows: Option<(u32, u32)>) {
+        self.draw_rows = rows.map(|(a, b)| {
+            let b = b.min(self.layout.tiles_y);
+            (a.min(b), b)
+        });
     }
 
     /// Limits batch draws and queries to `threads` rayon workers (0 = rayon's pool size,

@@ -215,15 +215,21 @@ impl DepthTarget {
     /// before it are drawn).
     pub fn draw(&mut self, item: &DrawItem, cov: Coverage) -> Result<()> {
         let vp = self.vp;
+        let l = self.layout;
+        let (ty0, ty1) = self.draw_rows.unwrap_or((0, l.tiles_y));
         let mut st = RasterStats::default();
         let mut skip = RowSkip::new();
-        let hidden = match project(&item.clip_from_local, item.positions, vp.width, vp.height) {
-            Projected::Unknown => false,
-            Projected::Offscreen => true,
-            Projected::Bounds(b) => {
-                skip.compute(&self.layout, &self.tiles, 0, self.layout.tiles_y, &b)
-            }
-        };
+        let (t0, t1) = ((ty0 * l.tiles_x) as usize, (ty1 * l.tiles_x) as usize);
+        let hidden = ty0 >= ty1
+            || match project(&item.clip_from_local, item.positions, vp.width, vp.height) {
+                Projected::Unknown => false,
+                Projected::Offscreen => true,
+                Projected::Bounds(b) => {
+                    (b.y1 >> l.shift) < ty0
+                        || (b.y0 >> l.shift) >= ty1
+                        || skip.compute(&l, &self.tiles[t0..t1], ty0, ty1, &b)
+                }
+            };
         if hidden {
             check_indices(item)?;
             let n = item.triangles.len() as u64;
@@ -233,13 +239,17 @@ impl DepthTarget {
             self.stats.add(&st);
             return Ok(());
         }
+        let px = l.tile_pixels();
         let mut band = Band {
-            layout: self.layout,
-            ty0: 0,
-            ty1: self.layout.tiles_y,
-            depth: &mut self.depth,
-            ids: self.ids.as_deref_mut(),
-            tiles: &mut self.tiles,
+            layout: l,
+            ty0,
+            ty1,
+            depth: &mut self.depth[t0 * px..t1 * px],
+            ids: self
+                .ids
+                .as_deref_mut()
+                .map(|ids| &mut ids[t0 * px..t1 * px]),
+            tiles: &mut self.tiles[t0..t1],
         };
         let mut st2 = RasterStats::default();
         let r = draw_item(&vp, &mut band, item, cov, &skip, &mut st, &mut st2);

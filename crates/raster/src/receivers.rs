@@ -64,6 +64,21 @@ impl ReceiverTarget {
         (d != f32::INFINITY).then_some(d)
     }
 
+    /// The tile rows `r0..r1` holding every marked pixel, `None` when none is
+    /// marked (for [`DepthTarget::set_draw_rows`]).
+    pub fn marked_rows(&self) -> Option<(u32, u32)> {
+        let tx = self.layout.tiles_x as usize;
+        let mut rows = self
+            .tile_min
+            .chunks(tx)
+            .enumerate()
+            .filter(|(_, r)| r.iter().any(|z| *z != f32::INFINITY))
+            .map(|(k, _)| k as u32);
+        let first = rows.next()?;
+        let last = rows.last().unwrap_or(first);
+        Some((first, last + 1))
+    }
+
     /// Marks the points `clip_from_local · p`; points with clip w ≤ 0 (behind the
     /// light's centre of projection) are skipped. Returns the number of pixels marked
     /// (counting repeats).
@@ -297,7 +312,12 @@ mod tests {
             }
         }
         assert!(marked_tiles > 5 && marked_tiles < (tx_n * ty_n) as usize);
+        let rows: Vec<u32> = (0..ty_n)
+            .filter(|&ty| (0..tx_n).any(|tx| r.tile_min[r.layout.tile_index(tx, ty)].is_finite()))
+            .collect();
+        assert_eq!(r.marked_rows(), Some((rows[0], rows[rows.len() - 1] + 1)));
         r.clear();
+        assert_eq!(r.marked_rows(), None);
         assert!(r.tile_min.iter().all(|z| z.is_infinite()));
     }
 

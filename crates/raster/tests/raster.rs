@@ -384,6 +384,50 @@ proptest! {
         prop_assert_eq!(any, u32::from(expect > 0));
     }
 
+    /// Draws restricted to tile rows write exactly the unrestricted depth,
+    /// ids and tile bounds in those rows, and nothing elsewhere.
+    #[test]
+    fn row_restricted_draws_match_inside_and_skip_outside(
+        tris in prop::collection::vec([vertex(10.0), vertex(10.0), vertex(10.0)], 1..6),
+        r0 in 0u32..6,
+        len in 0u32..6,
+        cov_k in 0usize..3,
+    ) {
+        let (w, h) = (40u32, 44u32);
+        let m = perspective(1.0, w as f32 / h as f32, 0.5);
+        let cov = [
+            Coverage::Standard,
+            Coverage::Inner(DepthPick::Farthest),
+            Coverage::Outer(DepthPick::Nearest),
+        ][cov_k];
+        let mut full = DepthTarget::new(w, h, TileSize::T8, true).unwrap();
+        let mut part = DepthTarget::new(w, h, TileSize::T8, true).unwrap();
+        let rows = (r0, r0 + len);
+        part.set_draw_rows(Some(rows));
+        for (i, t) in tris.iter().enumerate() {
+            draw_one(&mut full, m, *t, i as u32, cov);
+            draw_one(&mut part, m, *t, i as u32, cov);
+        }
+        for y in 0..h {
+            let inside = (rows.0..rows.1).contains(&(y / 8));
+            for x in 0..w {
+                if inside {
+                    prop_assert_eq!(part.depth_at(x, y), full.depth_at(x, y));
+                    prop_assert_eq!(part.id_at(x, y), full.id_at(x, y));
+                } else {
+                    prop_assert_eq!(part.depth_at(x, y), None);
+                }
+            }
+        }
+        for ty in 0..h.div_ceil(8) {
+            for tx in 0..w.div_ceil(8) {
+                if (rows.0..rows.1).contains(&ty) {
+                    prop_assert_eq!(part.tile_bounds(tx, ty), full.tile_bounds(tx, ty));
+                }
+            }
+        }
+    }
+
     /// A union query of several boxes is the sum of their single queries
     /// (VISIBLE when one is), and with any-samples it is 0 exactly when every
     /// box's query is.

@@ -261,7 +261,7 @@ impl ViewSlot {
         let m = view.clip_from_world;
         let clip_from_origin = (m * DMat4::from_translation(origin)).as_mat4();
         let size = (view.resolution, view.resolution);
-        let target = match self.target.take() {
+        let mut target = match self.target.take() {
             Some(t) if (t.width(), t.height()) == size => t,
             _ => DepthTarget::new(size.0, size.1, TileSize::T8, false)?,
         };
@@ -279,6 +279,16 @@ impl ViewSlot {
             Sampling::Point => (0.0, Coverage::Standard),
         };
         marks_mut.mark_points_within(clip_from_origin, receivers, eps);
+        // A view without receivers finds no caster: a caster's shadow on a
+        // receiver point r crosses the segment from r to the light, which
+        // lies in the view holding r (views are cones from the light, fitted
+        // to B, which holds the segment) — r's own view finds it.
+        let Some(rows) = marks_mut.marked_rows() else {
+            self.target = Some(target);
+            return Ok(CullResult::default());
+        };
+        // Depth matters only where queries can pass: receiver rows.
+        target.set_draw_rows(Some(rows));
         let mut backend = SyncBackend::new(target);
         backend.set_receivers(Some(marks.clone()))?;
         let clip = |w: &DMat4| (m * *w).as_mat4();
