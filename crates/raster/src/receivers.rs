@@ -75,7 +75,7 @@ impl ReceiverTarget {
             .filter(|(_, r)| r.iter().any(|z| *z != f32::INFINITY))
             .map(|(k, _)| k as u32);
         let first = rows.next()?;
-        let last = rows.last().unwrap_or(first);
+        let last = rows.next_back().unwrap_or(first);
         Some((first, last + 1))
     }
 
