@@ -133,20 +133,20 @@ impl EyePass {
         mut primitive: Vec<Option<PrimitiveId>>,
         mut depth: Vec<f32>,
     ) -> EyePass {
-        let (width, height) = (target.width(), target.height());
-        primitive.clear();
-        primitive.reserve(width as usize * height as usize);
-        for y in 0..height {
-            for x in 0..width {
-                primitive.push(target.id_at(x, y).map(|(o, t)| (ObjectId(o), t)));
-            }
-        }
-        depth.clear();
-        depth.extend(
-            (0..height)
-                .flat_map(|y| (0..width).map(move |x| (x, y)))
-                .map(|(x, y)| target.depth_at(x, y).unwrap_or(raster::BACKGROUND)),
-        );
+        use rayon::prelude::*;
+        let (width, height) = (target.width() as usize, target.height() as usize);
+        primitive.resize(width * height, None);
+        depth.resize(width * height, raster::BACKGROUND);
+        primitive
+            .par_chunks_mut(width)
+            .zip(depth.par_chunks_mut(width))
+            .enumerate()
+            .for_each(|(y, (prims, depths))| {
+                target.for_each_in_row(y as u32, |x, d, id| {
+                    prims[x as usize] = id.map(|(o, t)| (ObjectId(o), t));
+                    depths[x as usize] = d;
+                });
+            });
         EyePass {
             target,
             primitive,

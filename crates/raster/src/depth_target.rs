@@ -291,6 +291,33 @@ impl DepthTarget {
         (id != u64::MAX).then_some(((id >> 32) as u32, id as u32))
     }
 
+    /// Calls `f(x, depth, id)` for every pixel of row `y`, left to right
+    /// ([`BACKGROUND`] depth and `None` id for background; `None` ids without
+    /// an id buffer): the bulk form of [`DepthTarget::depth_at`] and
+    /// [`DepthTarget::id_at`], walking the tile-major buffers in order.
+    ///
+    /// # Panics
+    /// When `y` lies outside the target.
+    #[inline]
+    pub fn for_each_in_row(&self, y: u32, mut f: impl FnMut(u32, f32, Option<(u32, u32)>)) {
+        assert!(y < self.height(), "row {y} outside the target");
+        let l = self.layout;
+        let s = 1u32 << l.shift;
+        for tx in 0..l.tiles_x {
+            let x0 = tx * s;
+            let n = s.min(l.width - x0) as usize;
+            let i = l.pixel_index(x0, y);
+            let ids = self.ids.as_ref().map(|v| &v[i..i + n]);
+            for (k, &d) in self.depth[i..i + n].iter().enumerate() {
+                let id = ids
+                    .map(|v| v[k])
+                    .filter(|&id| id != u64::MAX)
+                    .map(|id| ((id >> 32) as u32, id as u32));
+                f(x0 + k as u32, d, id);
+            }
+        }
+    }
+
     /// Depths in row-major order (row 0 at the top), [`BACKGROUND`] for background.
     pub fn depth_rows(&self) -> Vec<f32> {
         let (w, h) = (self.width(), self.height());
@@ -467,6 +494,28 @@ mod tests {
         )
         .unwrap();
         t
+    }
+
+    /// Row walks give `depth_at`/`id_at` pixel by pixel, with and without ids,
+    /// on a target whose sides are not multiples of the tile.
+    #[test]
+    fn row_walks_match_pixel_accessors() {
+        for with_ids in [false, true] {
+            let t = drawn(with_ids);
+            let mut background = 0;
+            for y in 0..t.height() {
+                let mut next = 0;
+                t.for_each_in_row(y, |x, d, id| {
+                    assert_eq!(x, next);
+                    next += 1;
+                    assert_eq!((d != BACKGROUND).then_some(d), t.depth_at(x, y));
+                    assert_eq!(id, t.id_at(x, y));
+                    background += usize::from(d == BACKGROUND);
+                });
+                assert_eq!(next, t.width());
+            }
+            assert!(background > 0 && background < 37 * 29);
+        }
     }
 
     /// Bounds recomputed directly from the pixels of every tile.
