@@ -12,8 +12,8 @@
 //! stays a small fraction of the image (a budget of 0.5 % of the shaded
 //! surface pixels; the numbers are printed so a change shows).
 
-use scene::procedural::city::{city, CityParams};
-use scene::{Light, Scene};
+mod common;
+
 use shadowcull::config::{CoverageSpec, CullingSpec, PipelineOptions, StencilBackend};
 use shadowcull::frame::FrameRunner;
 use shadowcull::mask::PixelClass;
@@ -31,31 +31,8 @@ struct Tally {
 
 #[test]
 fn aggressive_options_are_measured_against_the_exact_mask() {
-    let loaded = city(&CityParams {
-        blocks_x: 6,
-        blocks_z: 6,
-        ..Default::default()
-    })
-    .unwrap();
-    let path = loaded
-        .paths
-        .iter()
-        .find(|(n, _)| n == "street")
-        .unwrap()
-        .1
-        .clone();
-    let scene = Scene::new(loaded.graph).unwrap();
-    let b = scene.bounds();
-    let c = b.center();
-    let lights = [
-        Light::Point {
-            position: glam::DVec3::new(c.x, f64::from(b.max.y) * 1.5, c.z),
-            range: None,
-        },
-        Light::Directional {
-            direction: glam::DVec3::new(0.4, -0.8, 0.3),
-        },
-    ];
+    let (scene, path) = common::street_city();
+    let lights = common::city_lights(&scene);
     let res = (160, 120);
     let frames = 20;
     let reference_every = 5;

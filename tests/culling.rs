@@ -4,38 +4,15 @@
 //! light by light, while far fewer objects are drawn and cast; CHC issues
 //! fewer queries than stop-and-wait.
 
-use scene::procedural::city::{city, CityParams};
-use scene::{Light, Scene};
+mod common;
+
 use shadowcull::config::{CullingSpec, PipelineOptions, StencilBackend};
 use shadowcull::frame::FrameRunner;
 
 #[test]
 fn culled_eye_pass_keeps_every_mask_along_the_street_path() {
-    let loaded = city(&CityParams {
-        blocks_x: 6,
-        blocks_z: 6,
-        ..Default::default()
-    })
-    .unwrap();
-    let path = loaded
-        .paths
-        .iter()
-        .find(|(n, _)| n == "street")
-        .unwrap()
-        .1
-        .clone();
-    let scene = Scene::new(loaded.graph).unwrap();
-    let b = scene.bounds();
-    let c = b.center();
-    let lights = [
-        Light::Point {
-            position: glam::DVec3::new(c.x, f64::from(b.max.y) * 1.5, c.z),
-            range: None,
-        },
-        Light::Directional {
-            direction: glam::DVec3::new(0.4, -0.8, 0.3),
-        },
-    ];
+    let (scene, path) = common::street_city();
+    let lights = common::city_lights(&scene);
     let res = (160, 120);
     let base = PipelineOptions {
         stencil: StencilBackend::H,

@@ -21,7 +21,6 @@ mod common;
 
 use glam::{DMat4, DQuat, DVec3, Vec3};
 use scene::procedural::analytic;
-use scene::procedural::city::{city, CityParams};
 use scene::{Camera, Light, Mesh, Scene, SceneGraph, Transform};
 use shadowcull::config::{CoverageSpec, CullingSpec, PipelineOptions, StencilBackend};
 use shadowcull::frame::{FrameRunner, LightFrame};
@@ -674,20 +673,8 @@ fn light_inside_closed_box_culling_keeps_mask() {
 fn street_city() -> &'static (Fixture, scene::CameraPath) {
     static F: OnceLock<(Fixture, scene::CameraPath)> = OnceLock::new();
     F.get_or_init(|| {
-        let loaded = city(&CityParams {
-            blocks_x: 6,
-            blocks_z: 6,
-            ..Default::default()
-        })
-        .unwrap();
-        let path = loaded
-            .paths
-            .iter()
-            .find(|(n, _)| n == "street")
-            .unwrap()
-            .1
-            .clone();
-        (Fixture::new(Scene::new(loaded.graph).unwrap()), path)
+        let (scene, path) = common::street_city();
+        (Fixture::new(scene), path)
     })
 }
 
@@ -696,19 +683,10 @@ fn street_path_100_frames_culling_keeps_mask() {
     let t = Instant::now();
     let (fx, path) = street_city();
     let res = (160u32, 120u32);
-    let b = fx.scene.bounds();
-    let c = b.center();
+    let [above, sun] = common::city_lights(&fx.scene);
     let lights = vec![
-        (
-            "point above the city".to_string(),
-            point(DVec3::new(c.x, f64::from(b.max.y) * 1.5, c.z)),
-        ),
-        (
-            "sun".to_string(),
-            Light::Directional {
-                direction: DVec3::new(0.4, -0.8, 0.3),
-            },
-        ),
+        ("point above the city".to_string(), above),
+        ("sun".to_string(), sun),
     ];
     let views = (0..100)
         .map(|f| {

@@ -2,7 +2,8 @@
 
 use glam::{DVec3, Vec3};
 use scene::procedural::analytic;
-use scene::{Camera, Mesh, Scene, SceneGraph, Transform};
+use scene::procedural::city::{city, CityParams};
+use scene::{Camera, CameraPath, Light, Mesh, Scene, SceneGraph, Transform};
 
 /// A scene of one root node with `root`'s transform drawing every mesh once.
 pub fn scene_of(meshes: Vec<Mesh>, root: Transform) -> Scene {
@@ -207,4 +208,42 @@ pub fn check_hierarchical(
         }
     }
     Ok((out, differing))
+}
+
+/// The culling tests' procedural city (6×6 blocks: the default 20×20 city's
+/// unculled runs would take minutes in the test profile) and its `street`
+/// camera path.
+#[allow(dead_code)] // not every test binary uses it
+pub fn street_city() -> (Scene, CameraPath) {
+    let loaded = city(&CityParams {
+        blocks_x: 6,
+        blocks_z: 6,
+        ..Default::default()
+    })
+    .unwrap();
+    let path = loaded
+        .paths
+        .iter()
+        .find(|(n, _)| n == "street")
+        .unwrap()
+        .1
+        .clone();
+    (Scene::new(loaded.graph).unwrap(), path)
+}
+
+/// The culling tests' lights for a city: a point light 1.5 scene heights
+/// above its centre and a sun.
+#[allow(dead_code)] // not every test binary uses it
+pub fn city_lights(scene: &Scene) -> [Light; 2] {
+    let b = scene.bounds();
+    let c = b.center();
+    [
+        Light::Point {
+            position: DVec3::new(c.x, f64::from(b.max.y) * 1.5, c.z),
+            range: None,
+        },
+        Light::Directional {
+            direction: DVec3::new(0.4, -0.8, 0.3),
+        },
+    ]
 }
