@@ -38,7 +38,7 @@ pub struct FrameRunner<'s> {
     /// The culled eye pass's hierarchy and CHC state, built on first use.
     eye_culling: Option<EyeCulling>,
     /// The light pass's receivers (the eye's visible surface points), reused.
-    receivers: Vec<glam::DVec3>,
+    receivers: visibility::ReceiverPoints,
     /// Reference masks by (frame, light, reference options), when caching.
     references: Option<HashMap<ReferenceKey, ReferenceMask>>,
     /// Time spent building the reference's BVH (ms), 0 until it is built.
@@ -66,7 +66,7 @@ impl<'s> FrameRunner<'s> {
             scratch: Vec::new(),
             eye: None,
             eye_culling: None,
-            receivers: Vec::new(),
+            receivers: Default::default(),
             references: None,
             bvh_ms: 0.0,
         }

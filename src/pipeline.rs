@@ -186,9 +186,11 @@ impl EyeCulling {
 /// The eye's visible surface points (world, f64), row-major, one per pixel:
 /// the pixel-centre ray met with the visible triangle's plane (as the mask
 /// assembly computes them), NaN on background pixels — the fragment-level
-/// receivers of the light pass, which skips the NaN points.
-pub fn visible_points(scene: &Scene, camera: &Camera, eye: &EyePass) -> Vec<glam::DVec3> {
-    let mut out = Vec::new();
+/// receivers of the light pass, which skips the NaN points. A point is
+/// joined to its left neighbour when both lie on the same triangle's plane
+/// (and the rays meet it): the points of a run lie on one line, in order.
+pub fn visible_points(scene: &Scene, camera: &Camera, eye: &EyePass) -> visibility::ReceiverPoints {
+    let mut out = visibility::ReceiverPoints::default();
     visible_points_into(scene, camera, eye, &mut out);
     out
 }
@@ -198,23 +200,31 @@ pub fn visible_points_into(
     scene: &Scene,
     camera: &Camera,
     eye: &EyePass,
-    out: &mut Vec<glam::DVec3>,
+    out: &mut visibility::ReceiverPoints,
 ) {
     use rayon::prelude::*;
     let (w, h) = (eye.target.width(), eye.target.height());
     let rays = camera.rays(w, h);
     let e = camera.position;
-    out.resize((w * h) as usize, glam::DVec3::NAN);
-    out.par_chunks_mut(w as usize)
+    let n = (w * h) as usize;
+    out.points.resize(n, glam::DVec3::NAN);
+    out.joined.resize(n, false);
+    out.points
+        .par_chunks_mut(w as usize)
+        .zip(out.joined.par_chunks_mut(w as usize))
         .zip(eye.primitive.par_chunks(w as usize))
         .enumerate()
-        .for_each(|(y, (row, prims))| {
+        .for_each(|(y, ((row, joined), prims))| {
             // The plane of the row's last triangle: runs of pixels share one.
             let mut last: Option<((ObjectId, u32), glam::DVec3, f64)> = None;
+            let mut prev: Option<(ObjectId, u32)> = None;
             let (base, step) = rays.row(y as f64 + 0.5);
-            for (x, (p, prim)) in row.iter_mut().zip(prims).enumerate() {
+            for (x, ((p, j), prim)) in row.iter_mut().zip(joined.iter_mut()).zip(prims).enumerate()
+            {
                 let Some(prim) = *prim else {
                     *p = glam::DVec3::NAN;
+                    *j = false;
+                    prev = None;
                     continue;
                 };
                 let (n, d) = match last {
@@ -229,8 +239,11 @@ pub fn visible_points_into(
                 };
                 let dir = base + step * (x as f64 + 0.5);
                 let den = n.dot(dir);
-                let t_hit = if den != 0.0 { d / den } else { 0.0 };
+                let hit = den != 0.0;
+                let t_hit = if hit { d / den } else { 0.0 };
                 *p = e + dir * t_hit;
+                *j = hit && prev == Some(prim);
+                prev = hit.then_some(prim);
             }
         });
 }

@@ -180,11 +180,100 @@ impl ReceiverTarget {
         self.scratch = one;
         n
     }
+
+    /// Marks receiver segments: for each `(a, b)` (local points, clip
+    /// `clip_from_local · p`), every pixel whose closed square lies within
+    /// `eps_px` of the projected segment — a superset: the square widened by
+    /// `eps_px` (plus [`SEGMENT_SLACK_PX`]) on each side meets it — with the
+    /// segment's farthest depth. For receiver points lying on a segment (a
+    /// row of eye pixels on one plane), this marks every pixel
+    /// [`ReceiverTarget::mark_points_within`] would mark for them at a depth
+    /// no nearer, with two projections per segment instead of one per point:
+    /// the projective map keeps the points on the projected segment, and
+    /// depth z/w is monotone along it, so its farthest value is at an end.
+    /// The part of a segment behind the centre of projection (clip w ≤ 0)
+    /// or off the target is clipped away first, in homogeneous coordinates.
+    /// Returns the number of pixels marked (counting repeats).
+    pub fn mark_segments_within(
+        &mut self,
+        clip_from_local: Mat4,
+        segments: &[(Vec4, Vec4)],
+        eps_px: f64,
+    ) -> u64 {
+        let pr = Projector::new(self.layout, clip_from_local, eps_px);
+        let e = pr.eps + SEGMENT_SLACK_PX;
+        let (w, h) = (pr.w, pr.h);
+        let mut n = 0;
+        for (a, b) in segments {
+            let (p, q, z) = match pr.clip_segment(a, b) {
+                None => continue,
+                Some(Segment::Span(p, q, z)) => (p, q, z),
+                Some(Segment::Everywhere(z)) => {
+                    for i in 0..self.depth.len() {
+                        self.mark_pixel(i, z);
+                    }
+                    n += self.depth.len() as u64;
+                    continue;
+                }
+            };
+            // Rows whose widened band [y − e, y + 1 + e] the segment meets.
+            let (ylo, yhi) = (p.1.min(q.1), p.1.max(q.1));
+            let y0 = (-floor(1.0 + e - ylo)).max(0.0);
+            let y1 = floor(yhi + e).min(h - 1.0);
+            if y0 > y1 {
+                continue;
+            }
+            for y in y0 as u32..=y1 as u32 {
+                // The segment's x extent within the band.
+                let (b0, b1) = (y as f64 - e, y as f64 + 1.0 + e);
+                let (mut t0, mut t1) = (0.0f64, 1.0f64);
+                let dy = q.1 - p.1;
+                if dy == 0.0 {
+                    if p.1 < b0 || p.1 > b1 {
+                        continue;
+                    }
+                } else {
+                    let (ta, tb) = ((b0 - p.1) / dy, (b1 - p.1) / dy);
+                    t0 = t0.max(ta.min(tb));
+                    t1 = t1.min(ta.max(tb));
+                    if t0 > t1 {
+                        continue;
+                    }
+                }
+                let (xa, xb) = (p.0 + t0 * (q.0 - p.0), p.0 + t1 * (q.0 - p.0));
+                let (xlo, xhi) = (xa.min(xb), xa.max(xb));
+                let x0 = (-floor(1.0 + e - xlo)).max(0.0);
+                let x1 = floor(xhi + e).min(w - 1.0);
+                if x0 > x1 {
+                    continue;
+                }
+                for x in x0 as u32..=x1 as u32 {
+                    self.mark_pixel(self.layout.pixel_index(x, y), z);
+                    n += 1;
+                }
+            }
+        }
+        n
+    }
 }
+
+/// Extra widening of a segment's footprint, in pixels: covers the rounding
+/// of the segment clip and of the band intersections (far below it for
+/// targets up to [`crate::MAX_TARGET_SIZE`]), and receiver points computed
+/// one by one lying off their segment by rounding.
+pub const SEGMENT_SLACK_PX: f64 = 1.0 / 4096.0;
 
 /// Points above which marking projects in parallel.
 #[cfg(feature = "parallel")]
 const PARALLEL_POINTS: usize = 1 << 16;
+
+/// A clipped, projected receiver segment.
+enum Segment {
+    /// Ends in pixel coordinates, farthest depth.
+    Span((f64, f64), (f64, f64), f32),
+    /// Reaches the centre of projection: marks every pixel at this depth.
+    Everywhere(f32),
+}
 
 /// A point's projection and the pixel range its footprint may reach.
 struct Footprint {
@@ -220,6 +309,57 @@ impl Projector {
             mx: 1.0 + 2.0 * (2.0 + eps) / w,
             my: 1.0 + 2.0 * (2.0 + eps) / h,
         }
+    }
+
+    /// The segment `a b` clipped to the region `|x| ≤ mx·w, |y| ≤ my·w`
+    /// (which implies w ≥ 0) in clip space, projected: its ends in pixel
+    /// coordinates and its farthest depth; `None` when nothing is left.
+    fn clip_segment(&self, a: &Vec4, b: &Vec4) -> Option<Segment> {
+        let (c0, c1) = ((self.m * *a).as_dvec4(), (self.m * *b).as_dvec4());
+        let planes = [
+            (1.0, 0.0, self.mx),
+            (-1.0, 0.0, self.mx),
+            (0.0, 1.0, self.my),
+            (0.0, -1.0, self.my),
+        ];
+        let (mut t0, mut t1) = (0.0f64, 1.0f64);
+        for (sx, sy, m) in planes {
+            // Inside: m·w − (sx·x + sy·y) ≥ 0.
+            let f = |c: glam::DVec4| m * c.w - (sx * c.x + sy * c.y);
+            let (f0, f1) = (f(c0), f(c1));
+            if !(f0.is_finite() && f1.is_finite()) || (f0 < 0.0 && f1 < 0.0) {
+                return None;
+            }
+            if f0 < 0.0 {
+                t0 = t0.max(f0 / (f0 - f1));
+            } else if f1 < 0.0 {
+                t1 = t1.min(f0 / (f0 - f1));
+            }
+        }
+        if t0 > t1 {
+            return None;
+        }
+        let end = |t: f64| {
+            let c = c0 + (c1 - c0) * t;
+            let iw = 1.0 / c.w;
+            (
+                (c.x * iw + 1.0) * (0.5 * self.w),
+                (1.0 - c.y * iw) * (0.5 * self.h),
+                c.z * iw,
+                c.w,
+            )
+        };
+        let (p, q) = (end(t0), end(t1));
+        if p.3 > 0.0 && q.3 > 0.0 {
+            let z = p.2.min(q.2) as f32;
+            let finite = [p.0, p.1, q.0, q.1].iter().all(|v| v.is_finite());
+            return finite.then_some(Segment::Span((p.0, p.1), (q.0, q.1), z));
+        }
+        // An end at the centre of projection (x = y = w = 0: the segment
+        // runs into the light): points near it project anywhere, at depths
+        // no farther than the other end's.
+        let far = if p.3 > 0.0 { p.2 } else { q.2 };
+        (far.is_finite() && (p.3 > 0.0 || q.3 > 0.0)).then_some(Segment::Everywhere(far as f32))
     }
 
     /// The footprint of `p`, `None` when it marks nothing (behind the centre

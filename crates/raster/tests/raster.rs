@@ -428,6 +428,44 @@ proptest! {
         }
     }
 
+    /// A receiver segment marks every pixel its points mark (each point's
+    /// footprint at half the segment's, leaving room for the f32 rounding of
+    /// points computed one by one), at a depth no nearer (up to that
+    /// rounding); segments reaching behind the eye or off the target too.
+    #[test]
+    fn receiver_segments_cover_their_points(
+        a in (-12.0f64..12.0, -12.0f64..12.0, -20.0f64..3.0),
+        b in (-12.0f64..12.0, -12.0f64..12.0, -20.0f64..3.0),
+    ) {
+        let (w, h) = (64u32, 48u32);
+        let m = perspective(1.0, w as f32 / h as f32, 0.5);
+        let t = DepthTarget::new(w, h, TileSize::T8, false).unwrap();
+        let (a, b) = (glam::DVec3::new(a.0, a.1, a.2), glam::DVec3::new(b.0, b.1, b.2));
+        let points: Vec<Vec4> = (0..=64)
+            .map(|k| (a + (b - a) * (k as f64 / 64.0)).as_vec3().extend(1.0))
+            .collect();
+        let eps = RECEIVER_EPS_PX;
+        let mut by_points = ReceiverTarget::for_target(&t);
+        by_points.mark_points_within(m, &points, eps / 2.0);
+        let mut by_segment = ReceiverTarget::for_target(&t);
+        by_segment.mark_segments_within(
+            m,
+            &[(a.as_vec3().extend(1.0), b.as_vec3().extend(1.0))],
+            eps,
+        );
+        for y in 0..h {
+            for x in 0..w {
+                if let Some(dp) = by_points.at(x, y) {
+                    let ds = by_segment.at(x, y);
+                    prop_assert!(
+                        ds.is_some_and(|ds| ds <= dp + 1e-6),
+                        "pixel ({}, {}): point depth {} segment {:?}", x, y, dp, ds
+                    );
+                }
+            }
+        }
+    }
+
     /// A union query of several boxes is the sum of their single queries
     /// (VISIBLE when one is), and with any-samples it is 0 exactly when every
     /// box's query is.

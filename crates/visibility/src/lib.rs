@@ -15,16 +15,18 @@ mod intersection_body;
 mod light_pass;
 mod light_view;
 mod polyhedron;
+mod receivers;
 mod traverse;
 
 pub use chcpp::ChcppOptions;
 pub use error::{Error, Result};
 pub use hierarchy::{Hierarchy, NodeId};
 pub use intersection_body::{intersection_body, Face, Polyhedron};
-pub use light_pass::{LightPass, LightPassOptions, LightPassResult, RECEIVER_PUSH};
+pub use light_pass::{LightPass, LightPassOptions, LightPassResult};
 pub use light_view::{
     fit_light_views, wasted_area, LightView, LightViewKind, DEFAULT_LIGHT_VIEW_RESOLUTION,
 };
+pub use receivers::{ReceiverPoints, PIECE_STEPS, RECEIVER_PUSH};
 pub use traverse::{
     CullResult, Culling, MeshData, Sampling, TraversalStats, ViewCuller, ViewSetup,
 };

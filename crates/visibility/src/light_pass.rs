@@ -24,18 +24,20 @@
 //! pixel centres.
 //!
 //! Conservative receivers: each point is pushed away from the light by
-//! [`RECEIVER_PUSH`] of its distance (directional: of the scene diameter)
+//! [`RECEIVER_PUSH`](crate::RECEIVER_PUSH) of its distance (directional: of the scene diameter)
 //! before marking, beyond the f32 rounding of its light-space depth, and marks
-//! every pixel within [`raster::RECEIVER_EPS_PX`] of its projection.
+//! every pixel within [`raster::RECEIVER_EPS_PX`] of its projection — through
+//! the segments of `receivers.rs`, which mark a superset.
 
 use crate::hierarchy::Hierarchy;
 use crate::intersection_body::intersection_body;
-use crate::light_view::{fit_light_views, LightView, LightViewKind};
+use crate::light_view::{fit_light_views, LightView};
+use crate::receivers::{Marks, Prepared, ReceiverPoints};
 use crate::traverse::{
     CullResult, Culling, MeshData, Sampling, TraversalStats, ViewCuller, ViewSetup,
 };
 use crate::Result;
-use glam::{DMat4, DVec3, DVec4, Vec4};
+use glam::{DMat4, DVec3, DVec4};
 use raster::{
     Coverage, DepthPick, DepthTarget, OcclusionBackend, QueryMode, QueryOptions, ReceiverTarget,
     SyncBackend, TileSize,
@@ -43,9 +45,6 @@ use raster::{
 use rayon::prelude::*;
 use scene::{faces_light, Camera, Light, ObjectId, Plane, Scene};
 use std::sync::{Arc, OnceLock};
-
-/// Relative push of a receiver point away from the light before marking.
-pub const RECEIVER_PUSH: f64 = 1.0 / 1_048_576.0;
 
 /// Options of a light pass.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -87,10 +86,7 @@ struct ViewSlot {
 #[derive(Debug, Default)]
 pub struct LightPass {
     slots: Vec<ViewSlot>,
-    pushed: Vec<DVec3>,
-    local: Vec<Vec4>,
-    /// Receivers per cube face (+X, −X, +Y, −Y, +Z, −Z).
-    faces: [Vec<Vec4>; 6],
+    receivers: Prepared,
 }
 
 /// The view's culling planes (inside positive) from its clip matrix: the
@@ -127,7 +123,7 @@ impl LightPass {
     }
 
     /// Finds the potential shadow casters of `light` for the receivers
-    /// `receivers` (world points of the eye's visible surface) seen by `camera`.
+    /// `receivers` (the eye's visible surface points) seen by `camera`.
     ///
     /// # Errors
     /// Backend errors.
@@ -139,7 +135,7 @@ impl LightPass {
         meshes: &MeshData,
         camera: &Camera,
         light: &Light,
-        receivers: &[DVec3],
+        receivers: &ReceiverPoints,
         options: &LightPassOptions,
     ) -> Result<LightPassResult> {
         let bounds = scene.bounds();
@@ -151,34 +147,8 @@ impl LightPass {
         }
         let diameter = f64::from(bounds.size().length());
         let origin = light.position().unwrap_or_else(|| bounds.center());
-        // Receivers pushed away from the light (conservative sampling),
-        // relative to the view origin.
-        let push = match options.sampling {
-            Sampling::Conservative => RECEIVER_PUSH,
-            Sampling::Point => 0.0,
-        };
-        // (NaN points, the eye's background pixels, stay NaN: marking skips them.)
-        let step = match light.position() {
-            Some(_) => DVec3::ZERO,
-            None => light.toward_light(origin).normalize_or_zero() * (push * diameter),
-        };
-        let n = receivers.len();
-        let (pushed, local) = (&mut self.pushed, &mut self.local);
-        pushed.resize(n, DVec3::NAN);
-        local.resize(n, Vec4::NAN);
-        receivers
-            .par_iter()
-            .zip(pushed.par_iter_mut())
-            .zip(local.par_iter_mut())
-            .with_min_len(4096)
-            .for_each(|((&p, q), r)| {
-                *q = match light.position() {
-                    Some(l) => l + (p - l) * (1.0 + push),
-                    None => p - step,
-                };
-                *r = (*q - origin).as_vec3().extend(1.0);
-            });
-        let (pushed, local) = (&self.pushed, &self.local);
+        self.receivers
+            .prepare(receivers, light, origin, diameter, options.sampling, &views);
         // The casting triangles of every object drawn as an occluder, found
         // once per pass (views share them).
         let cache: Vec<OnceLock<Arc<[[u32; 3]]>>> = (0..scene.objects().len())
@@ -206,23 +176,14 @@ impl LightPass {
             ..Default::default()
         };
         let mut in_psc = vec![false; scene.objects().len()];
-        let faces = match light.position() {
-            Some(l) => {
-                cube_face_receivers(&views, l, pushed, local, options.sampling, &mut self.faces);
-                Some(&self.faces)
-            }
-            None => None,
-        };
+        let prepared = &self.receivers;
         // The views are independent: each has its own culler and targets.
         let results: Vec<Result<CullResult>> = self
             .slots
             .par_iter_mut()
             .zip(&views)
             .map(|(slot, view)| {
-                let receivers = match (view.kind, &faces) {
-                    (LightViewKind::CubeFace(k), Some(f)) => &f[k as usize][..],
-                    _ => &local[..],
-                };
+                let receivers = prepared.for_view(view);
                 slot.run(
                     h, scene, meshes, light, view, origin, diameter, receivers, &casting, options,
                 )
@@ -254,7 +215,7 @@ impl ViewSlot {
         view: &LightView,
         origin: DVec3,
         diameter: f64,
-        receivers: &[Vec4],
+        receivers: Marks<'_>,
         casting: &(dyn Fn(ObjectId) -> Arc<[[u32; 3]]> + Sync),
         options: &LightPassOptions,
     ) -> Result<CullResult> {
@@ -278,7 +239,10 @@ impl ViewSlot {
             ),
             Sampling::Point => (0.0, Coverage::Standard),
         };
-        marks_mut.mark_points_within(clip_from_origin, receivers, eps);
+        match receivers {
+            Marks::Points(p) => marks_mut.mark_points_within(clip_from_origin, p, eps),
+            Marks::Segments(s) => marks_mut.mark_segments_within(clip_from_origin, s, eps),
+        };
         // A view without receivers finds no caster: a caster's shadow on a
         // receiver point r crosses the segment from r to the light, which
         // lies in the view holding r (views are cones from the light, fitted
@@ -323,56 +287,6 @@ impl ViewSlot {
         self.target = Some(backend.into_target());
         self.marks = Some(marks);
         r
-    }
-}
-
-/// The receivers each cube face of a positional light can mark (indexed like
-/// [`LightViewKind::CubeFace`]: +X, −X, +Y, −Y, +Z, −Z): a point goes to the
-/// faces whose axis dominates its direction from the light `l`, with a slack
-/// of the marking's reach (its footprint plus the two-pixel reject margin of
-/// [`ReceiverTarget::mark_points_within`]) at the faces' resolution. A face's
-/// fitted window lies inside the full 90° face, so a point left out could
-/// mark nothing there: each face marks exactly what it would with every point,
-/// at a sixth of the projections. `world` are the pushed points, `local` the
-/// same relative to the view origin.
-fn cube_face_receivers(
-    views: &[LightView],
-    l: DVec3,
-    world: &[DVec3],
-    local: &[Vec4],
-    sampling: Sampling,
-    out: &mut [Vec<Vec4>; 6],
-) {
-    for f in out.iter_mut() {
-        f.clear();
-    }
-    let Some(res) = views
-        .iter()
-        .filter(|v| matches!(v.kind, LightViewKind::CubeFace(_)))
-        .map(|v| v.resolution)
-        .min()
-    else {
-        return;
-    };
-    let eps = match sampling {
-        Sampling::Conservative => raster::RECEIVER_EPS_PX,
-        Sampling::Point => 0.0,
-    };
-    let slack = 1.0 + 2.0 * (2.0 + eps) / f64::from(res) + 1e-9;
-    for (p, q) in world.iter().zip(local) {
-        let d = *p - l;
-        let m = d.abs().max_element();
-        for axis in 0..3 {
-            let v = d[axis];
-            if v.abs() * slack >= m {
-                if v >= 0.0 {
-                    out[2 * axis].push(*q);
-                }
-                if v <= 0.0 {
-                    out[2 * axis + 1].push(*q);
-                }
-            }
-        }
     }
 }
 

@@ -1,0 +1,311 @@
+//! The light pass's receivers [Steiner §4.3.1; Bittner et al. 2011]: the
+//! eye's visible surface points, pushed away from the light, relative to the
+//! light views' origin, sent to the views that can hold them.
+//!
+//! Conservative marking works on *segments*: the visible pixels of one eye
+//! row on one triangle lie on a line (the row's pixel-centre rays span a
+//! plane through the eye; it meets the triangle's plane in a line), in
+//! order. A run of such points, cut into pieces of [`PIECE_STEPS`] steps,
+//! is marked as the segment between each piece's ends
+//! ([`raster::ReceiverTarget::mark_segments_within`]): every pixel a point
+//! would mark, at a depth no nearer, with two projections per piece instead
+//! of one per point. The push away from the light is a homothety about the
+//! light (or a translation, for a directional light), so pushed points stay
+//! on their pushed segment. Point-sampled (aggressive) marking keeps one
+//! projection per point.
+//!
+//! Cube faces: a point, or a segment, goes only to the faces whose cone
+//! (the directions in which the face's axis dominates, widened by the
+//! marking's reach at the face's resolution) it meets; a face's fitted
+//! window lies inside its full 90° face, so what is left out could mark
+//! nothing there.
+
+use crate::light_view::{LightView, LightViewKind};
+use crate::traverse::Sampling;
+use glam::{DVec3, Vec4};
+use rayon::prelude::*;
+use scene::Light;
+
+/// Relative push of a receiver point away from the light before marking.
+pub const RECEIVER_PUSH: f64 = 1.0 / 1_048_576.0;
+
+/// Steps per receiver segment: a run of joined points is marked in pieces
+/// of this many steps (longer pieces save projections but give their
+/// pixels the piece's farthest depth).
+pub const PIECE_STEPS: usize = 8;
+
+/// The eye's visible surface points, as the light pass takes them.
+#[derive(Clone, Debug, Default)]
+pub struct ReceiverPoints {
+    /// World points (NaN where the eye sees background), in any order that
+    /// keeps each run of joined points consecutive (row-major).
+    pub points: Vec<DVec3>,
+    /// Per point: true when it continues the run of the point before it —
+    /// both on one line, the points between them on the segment joining
+    /// them (same eye row, same triangle plane). Empty: no point is joined.
+    pub joined: Vec<bool>,
+}
+
+impl ReceiverPoints {
+    /// Points each marked on their own.
+    pub fn from_points(points: Vec<DVec3>) -> Self {
+        ReceiverPoints {
+            points,
+            joined: Vec::new(),
+        }
+    }
+
+    fn joined(&self, i: usize) -> bool {
+        self.joined.get(i).copied().unwrap_or(false)
+    }
+}
+
+/// What one view marks.
+pub(crate) enum Marks<'a> {
+    Points(&'a [Vec4]),
+    Segments(&'a [(Vec4, Vec4)]),
+}
+
+/// The receivers prepared for one light's views (buffers reused from frame
+/// to frame).
+#[derive(Debug, Default)]
+pub(crate) struct Prepared {
+    local: Vec<Vec4>,
+    /// Pieces as (first, last) point indices.
+    pieces: Vec<(u32, u32)>,
+    /// Points: the pushed world points; segments: each piece's pushed ends.
+    pushed: Vec<DVec3>,
+    segments: Vec<(Vec4, Vec4)>,
+    face_points: [Vec<Vec4>; 6],
+    face_segments: [Vec<(Vec4, Vec4)>; 6],
+    segmented: bool,
+    cube: bool,
+}
+
+impl Prepared {
+    /// Pushes `r`'s points away from `light` (by [`RECEIVER_PUSH`] when
+    /// conservative; `diameter` scales a directional light's push), makes
+    /// them relative to `origin`, and sends them to `views`.
+    pub fn prepare(
+        &mut self,
+        r: &ReceiverPoints,
+        light: &Light,
+        origin: DVec3,
+        diameter: f64,
+        sampling: Sampling,
+        views: &[LightView],
+    ) {
+        let push = match sampling {
+            Sampling::Conservative => RECEIVER_PUSH,
+            Sampling::Point => 0.0,
+        };
+        let step = match light.position() {
+            Some(_) => DVec3::ZERO,
+            None => light.toward_light(origin).normalize_or_zero() * (push * diameter),
+        };
+        let place = |p: DVec3| {
+            let q = match light.position() {
+                Some(c) => c + (p - c) * (1.0 + push),
+                None => p - step,
+            };
+            (q, (q - origin).as_vec3().extend(1.0))
+        };
+        self.segmented = sampling == Sampling::Conservative;
+        if self.segmented {
+            // Only the pieces' ends are placed: two per piece, not one per point.
+            self.cut_pieces(r);
+            let n = self.pieces.len();
+            self.pushed.resize(2 * n, DVec3::NAN);
+            self.segments.resize(n, (Vec4::NAN, Vec4::NAN));
+            self.pieces
+                .par_iter()
+                .zip(self.pushed.par_chunks_mut(2))
+                .zip(self.segments.par_iter_mut())
+                .with_min_len(1024)
+                .for_each(|((&(a, b), w), s)| {
+                    let (pa, la) = place(r.points[a as usize]);
+                    let (pb, lb) = place(r.points[b as usize]);
+                    (w[0], w[1]) = (pa, pb);
+                    *s = (la, lb);
+                });
+        } else {
+            let n = r.points.len();
+            self.pushed.resize(n, DVec3::NAN);
+            self.local.resize(n, Vec4::NAN);
+            // (NaN points, the eye's background pixels, stay NaN: marking skips them.)
+            r.points
+                .par_iter()
+                .zip(self.pushed.par_iter_mut())
+                .zip(self.local.par_iter_mut())
+                .with_min_len(4096)
+                .for_each(|((&p, q), l)| (*q, *l) = place(p));
+        }
+        let cube_res = views
+            .iter()
+            .filter(|v| matches!(v.kind, LightViewKind::CubeFace(_)))
+            .map(|v| v.resolution)
+            .min();
+        self.cube = false;
+        if let (Some(res), Some(l)) = (cube_res, light.position()) {
+            self.cube = true;
+            let eps = match sampling {
+                Sampling::Conservative => raster::RECEIVER_EPS_PX,
+                Sampling::Point => 0.0,
+            };
+            // The marking's reach beyond a face's edge: its footprint and
+            // the two-pixel margin its clip keeps.
+            let slack = 1.0 + 2.0 * (2.0 + eps) / f64::from(res) + 1e-9;
+            self.bin_faces(l, slack);
+        }
+    }
+
+    /// The receivers `view` marks.
+    pub fn for_view(&self, view: &LightView) -> Marks<'_> {
+        match (view.kind, self.cube, self.segmented) {
+            (LightViewKind::CubeFace(k), true, true) => {
+                Marks::Segments(&self.face_segments[k as usize])
+            }
+            (LightViewKind::CubeFace(k), true, false) => {
+                Marks::Points(&self.face_points[k as usize])
+            }
+            (_, _, true) => Marks::Segments(&self.segments),
+            (_, _, false) => Marks::Points(&self.local),
+        }
+    }
+
+    /// Cuts the runs of joined points into pieces of at most
+    /// [`PIECE_STEPS`] steps; a lone point is a piece of its own.
+    fn cut_pieces(&mut self, r: &ReceiverPoints) {
+        self.pieces.clear();
+        let n = r.points.len();
+        let mut i = 0;
+        while i < n {
+            if r.points[i].x.is_nan() {
+                i += 1;
+                continue;
+            }
+            let mut end = i;
+            while end + 1 < n && r.joined(end + 1) {
+                end += 1;
+            }
+            let mut a = i;
+            loop {
+                let b = (a + PIECE_STEPS).min(end);
+                self.pieces.push((a as u32, b as u32));
+                if b == end {
+                    break;
+                }
+                a = b;
+            }
+            i = end + 1;
+        }
+    }
+
+    /// Sends every point or piece to the cube faces whose widened cone it meets.
+    fn bin_faces(&mut self, l: DVec3, slack: f64) {
+        for f in &mut self.face_points {
+            f.clear();
+        }
+        for f in &mut self.face_segments {
+            f.clear();
+        }
+        if self.segmented {
+            for (w, s) in self.pushed.chunks(2).zip(&self.segments) {
+                let (da, db) = (w[0] - l, w[1] - l);
+                for (k, f) in self.face_segments.iter_mut().enumerate() {
+                    if segment_meets_face(da, db, k, slack) {
+                        f.push(*s);
+                    }
+                }
+            }
+        } else {
+            for (p, q) in self.pushed.iter().zip(&self.local) {
+                let d = *p - l;
+                for (k, f) in self.face_points.iter_mut().enumerate() {
+                    if segment_meets_face(d, d, k, slack) {
+                        f.push(*q);
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// Whether the segment of directions `a b` (from the light) meets cube face
+/// `k`'s cone (axis `k / 2`, positive for even `k`): `σ·d_axis·slack ≥ |d_o|`
+/// for both other axes — a convex cone, so a segment clip decides.
+fn segment_meets_face(a: DVec3, b: DVec3, k: usize, slack: f64) -> bool {
+    let axis = k / 2;
+    let sign = if k % 2 == 0 { 1.0 } else { -1.0 };
+    let (mut t0, mut t1) = (0.0f64, 1.0f64);
+    for o in (0..3).filter(|&o| o != axis) {
+        for so in [1.0, -1.0] {
+            // Inside: sign·d_axis·slack − so·d_o ≥ 0.
+            let f = |d: DVec3| sign * d[axis] * slack - so * d[o];
+            let (f0, f1) = (f(a), f(b));
+            if f0.is_nan() || f1.is_nan() || (f0 < 0.0 && f1 < 0.0) {
+                return false;
+            }
+            if f0 < 0.0 {
+                t0 = t0.max(f0 / (f0 - f1));
+            } else if f1 < 0.0 {
+                t1 = t1.min(f0 / (f0 - f1));
+            }
+        }
+    }
+    t0 <= t1
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Pieces cover every joined run end to end with at most PIECE_STEPS
+    /// steps, lone points alone, background skipped.
+    #[test]
+    fn runs_are_cut_into_pieces() {
+        let nan = DVec3::NAN;
+        let p = DVec3::ONE;
+        // Runs: [0..=11] (12 points), [12], background 13, [14..=15].
+        let mut points = vec![p; 16];
+        points[13] = nan;
+        let mut joined = vec![true; 16];
+        for i in [0, 12, 13, 14] {
+            joined[i] = false;
+        }
+        let r = ReceiverPoints { points, joined };
+        let mut pr = Prepared::default();
+        pr.cut_pieces(&r);
+        assert_eq!(pr.pieces, vec![(0, 8), (8, 11), (12, 12), (14, 15)]);
+    }
+
+    /// A segment meets a face's cone exactly when some point on it does.
+    #[test]
+    fn segment_face_test_matches_sampling() {
+        let mut seed = 7u64;
+        let mut rnd = || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            ((seed >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0
+        };
+        let slack = 1.01;
+        let inside = |d: DVec3, k: usize| {
+            let axis = k / 2;
+            let s = if k % 2 == 0 { 1.0 } else { -1.0 };
+            (0..3)
+                .filter(|&o| o != axis)
+                .all(|o| s * d[axis] * slack >= d[o].abs())
+        };
+        for _ in 0..2000 {
+            let a = DVec3::new(rnd(), rnd(), rnd());
+            let b = DVec3::new(rnd(), rnd(), rnd());
+            for k in 0..6 {
+                let sampled = (0..=200).any(|i| inside(a + (b - a) * (i as f64 / 200.0), k));
+                if sampled {
+                    assert!(segment_meets_face(a, b, k, slack), "{a} {b} face {k}");
+                }
+            }
+        }
+    }
+}
