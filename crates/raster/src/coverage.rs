@@ -117,8 +117,9 @@ pub(crate) fn f32_down(x: f64) -> f32 {
 /// Relative error allowance of the f64 plane evaluation (generous: 8 ulps).
 pub(crate) const PLANE_EPS: f64 = 8.0 * f64::EPSILON;
 
-/// Depth written or tested at a covered pixel with raw edge values `e`.
-#[inline(always)]
+/// Depth written or tested at a covered pixel with raw edge values `e` (the
+/// definition the traversal's vectorized rows reproduce bit for bit).
+#[cfg(test)]
 pub(crate) fn pixel_depth(tri: &Tri, cov: Coverage, e: [i64; 3]) -> f32 {
     match cov {
         Coverage::Standard => tri.depth(e[0], e[1], e[2]) as f32,

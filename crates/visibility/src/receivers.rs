@@ -212,6 +212,12 @@ impl Prepared {
         if self.segmented {
             for (w, s) in self.pushed.chunks(2).zip(&self.segments) {
                 let (da, db) = (w[0] - l, w[1] - l);
+                if let (Some(ka), Some(kb)) = (clear_face(da, slack), clear_face(db, slack)) {
+                    if ka == kb {
+                        self.face_segments[ka].push(*s);
+                        continue;
+                    }
+                }
                 for (k, f) in self.face_segments.iter_mut().enumerate() {
                     if segment_meets_face(da, db, k, slack) {
                         f.push(*s);
@@ -229,6 +235,23 @@ impl Prepared {
             }
         }
     }
+}
+
+/// The one face whose cone holds `d` with room to spare: its axis `f`
+/// strictly dominates, `|d_f| > slack·|d_o|` for both other axes. That set
+/// is convex (per sign of `d_f`) and meets no other face's widened cone, so
+/// a segment with both ends clear of the same face meets that face only.
+fn clear_face(d: DVec3, slack: f64) -> Option<usize> {
+    let a = d.abs();
+    let f = if a.x >= a.y && a.x >= a.z {
+        0
+    } else if a.y >= a.z {
+        1
+    } else {
+        2
+    };
+    let clear = (0..3).all(|o| o == f || a[f] > slack * a[o]);
+    (clear && a[f] > 0.0).then_some(2 * f + usize::from(d[f] < 0.0))
 }
 
 /// Whether the segment of directions `a b` (from the light) meets cube face
@@ -277,6 +300,33 @@ mod tests {
         let mut pr = Prepared::default();
         pr.cut_pieces(&r);
         assert_eq!(pr.pieces, vec![(0, 8), (8, 11), (12, 12), (14, 15)]);
+    }
+
+    /// A segment with both ends clear of one face meets no other face.
+    #[test]
+    fn clear_faces_exclude_the_others() {
+        let mut seed = 11u64;
+        let mut rnd = || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            ((seed >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0
+        };
+        let slack = 1.01;
+        let mut cleared = 0;
+        for _ in 0..5000 {
+            let a = DVec3::new(rnd(), rnd(), rnd());
+            let b = a + DVec3::new(rnd(), rnd(), rnd()) * 0.3;
+            if let (Some(ka), Some(kb)) = (clear_face(a, slack), clear_face(b, slack)) {
+                if ka == kb {
+                    cleared += 1;
+                    for k in 0..6 {
+                        assert_eq!(segment_meets_face(a, b, k, slack), k == ka, "{a} {b} {k}");
+                    }
+                }
+            }
+        }
+        assert!(cleared > 1000, "{cleared}");
     }
 
     /// A segment meets a face's cone exactly when some point on it does.
