@@ -755,7 +755,8 @@ pub fn load_scene(spec: &SceneSpec, base: &Path) -> Result<Loaded> {
 
 /// The bundled default job: the procedural city's `street` path at 800×600,
 /// a point light 1.5× the city height above its centre and a sun at 35°
-/// elevation, azimuth 30° from +x; masks and shaded images written.
+/// elevation, azimuth 30° from +x; conservative CHC++ culling (PSR, PSC) and
+/// the hierarchical stencil; masks and shaded images written.
 pub fn default_job() -> Job {
     Job {
         version: JOB_VERSION,
@@ -779,6 +780,7 @@ pub fn default_job() -> Job {
         },
         pipeline: PipelineOptions {
             stencil: StencilBackend::H,
+            culling: CullingSpec::Chcpp,
             ..PipelineOptions::default()
         },
         pipelines: Vec::new(),
@@ -801,6 +803,50 @@ mod tests {
         assert_eq!(j.camera, CameraSpec::Auto);
         assert_eq!(j.pipeline.reference_every, 1);
         assert_eq!(j.frame_count(), 1);
+    }
+
+    /// The culling fields as the issue spells them, and bad values naming
+    /// their field.
+    #[test]
+    fn culling_fields_parse_and_bad_values_name_their_field() {
+        let j = parse(
+            r#"(version: 1, scene: City(()), pipeline: (culling: chcpp, coverage: conservative,
+                light_resolution: 1024, query_threshold: 0,
+                chcpp: (batch: 50, revisit: 5, seed: 1)))"#,
+        )
+        .unwrap();
+        let p = &j.pipeline;
+        assert_eq!(
+            (p.culling, p.coverage),
+            (CullingSpec::Chcpp, CoverageSpec::Conservative)
+        );
+        assert_eq!(
+            p.culling(),
+            visibility::Culling::ChcPlusPlus(visibility::ChcppOptions::default())
+        );
+        let j = parse(
+            r#"(version: 1, scene: City(()), pipeline: (coverage: point, chcpp: (seed: 9)))"#,
+        )
+        .unwrap();
+        assert_eq!(j.pipeline.coverage, CoverageSpec::Point);
+        assert_eq!((j.pipeline.chcpp.batch, j.pipeline.chcpp.seed), (50, 9));
+        for (text, field) in [
+            ("chcpp: (batch: 0)", "pipeline.chcpp"),
+            ("light_resolution: 4", "pipeline.light_resolution"),
+        ] {
+            let e = parse(&format!(
+                "(version: 1, scene: City(()), pipeline: ({text}))"
+            ))
+            .unwrap_err()
+            .to_string();
+            assert!(e.contains(field), "{e}");
+        }
+        for text in ["culling: chcp", "coverage: exact", "chcpp: (batches: 5)"] {
+            let e = parse(&format!(
+                "(version: 1, scene: City(()), pipeline: ({text}))"
+            ));
+            assert!(e.is_err(), "{text}");
+        }
     }
 
     #[test]
