@@ -23,6 +23,7 @@ pub struct ReceiverTarget {
     /// it skips the tile.
     pub(crate) tile_min: Vec<f32>,
     /// Per point of a parallel marking: its one pixel and depth, or a flag.
+    #[cfg_attr(not(feature = "parallel"), allow(dead_code))]
     scratch: Vec<(u32, f32)>,
 }
 
