@@ -209,9 +209,9 @@ pub enum StencilBackend {
     Bf,
     /// Brute force with the per-volume depth-bounds test [EK "Computing Depth Bounds"].
     Db,
-    /// Hierarchical shadow volumes [Aila04] (`tile`, `full_shadow`).
+    /// Hierarchical shadow volumes \[Aila04\] (`tile`, `full_shadow`).
     H,
-    /// Shadow map plus volumes at its silhouette pixels [ChanDurand04] (`map_size`).
+    /// Shadow map plus volumes at its silhouette pixels \[ChanDurand04\] (`map_size`).
     Hybrid,
 }
 

@@ -66,7 +66,7 @@
 //! A receiver seen from the light at a grazing angle is undersampled: its
 //! four texel rays meet its plane far from the point (beyond the caster's own
 //! edge, say, where the roof above a wall answers "shadowed"). Where any of
-//! them lands more than [`GRAZING_TEXELS`] texel footprints from the point,
+//! them lands more than `GRAZING_TEXELS` texel footprints from the point,
 //! the pixel is left to the volumes.
 //!
 //! Where a receiver meets another surface in a concave corner (a wall

@@ -301,7 +301,7 @@ pub fn eye_pass_culled(
 pub enum Backend {
     /// Brute force: every volume fragment ([`StencilTarget`]).
     Brute,
-    /// Hierarchical shadow volumes [Aila04] ([`HierarchicalStencil`]).
+    /// Hierarchical shadow volumes \[Aila04\] ([`HierarchicalStencil`]).
     Hierarchical {
         /// Tile size of the classification.
         tile: TileSize,
@@ -310,7 +310,7 @@ pub enum Backend {
     },
     /// A shadow map decides every pixel whose four nearest map comparisons
     /// agree; the volumes (hierarchical stencil, 8×8 tiles, FS on) run only at
-    /// the others [ChanDurand04]. Not exact.
+    /// the others \[ChanDurand04\]. Not exact.
     Hybrid {
         /// Shadow-map texels per side (per cube face for point lights).
         map_size: u32,

@@ -74,7 +74,7 @@ use glam::Mat4;
 /// Options of a [`HierarchicalStencil`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct HierarchicalOptions {
-    /// Tile size of the classification and of `Smin`/`Smax` (8×8 in [Aila04]).
+    /// Tile size of the classification and of `Smin`/`Smax` (8×8 in \[Aila04\]).
     pub tile: TileSize,
     /// Counter width of the per-pixel stencil and the tile offsets.
     pub bits: StencilBits,

@@ -30,7 +30,7 @@
 //!   [`DepthTarget::query_aabb`] / [`DepthTarget::query_aabbs`] (GEQUAL sample
 //!   counts or any-samples, apex-region test, optional receiver restriction).
 //! - [`Coverage`]: standard, outer- and inner-conservative with nearest/farthest depth.
-//! - [`ReceiverTarget`]: receiver marking by points ([`RECEIVER_EPS_PX`]).
+//! - [`ReceiverTarget`]: receiver marking by points ([`RECEIVER_EPS_PX`]) or segments ([`SEGMENT_SLACK_PX`]).
 //! - [`OcclusionBackend`]: the asynchronous seam, with [`SyncBackend`],
 //!   [`SimulatedBackend`] ([`Latency::Commands`]) and [`ThreadedBackend`] (+ [`Gate`]).
 //! - [`RasterStats`] / [`BackendStats`]: plain counters.
@@ -76,7 +76,7 @@ pub use draw::{aabb_corners, DrawItem, AABB_TRIANGLES};
 pub use error::{Error, Result};
 pub use hstencil::{HierarchicalOptions, HierarchicalStencil, TileClass};
 pub use query::{meets_apex_region, QueryMode, QueryOptions, APEX_EPS, VISIBLE};
-pub use receivers::{ReceiverTarget, RECEIVER_EPS_PX};
+pub use receivers::{ReceiverTarget, RECEIVER_EPS_PX, SEGMENT_SLACK_PX};
 pub use setup::{facing, setup_triangle, Facing, Setup, SnappedVertex, SUBPIXEL};
 pub use stats::RasterStats;
 pub use stencil::{StencilBits, StencilStats, StencilTarget, StencilTests};

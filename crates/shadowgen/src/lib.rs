@@ -14,14 +14,14 @@
 //!   Clip space is reversed Z with an infinite far plane, reached through the
 //!   one transform path `scene::transform::clip_from_local`.
 //! - Winding: volume triangles are counter-clockwise seen from outside the
-//!   volume in world space ([EK]), mirrored instances included; light caps keep
+//!   volume in world space (\[EK\]), mirrored instances included; light caps keep
 //!   the light-facing winding, dark caps are reversed.
 //!
 //! # What is here
 //! - [`silhouette()`] and [`SilhouetteCache`]: signed edge counters [AW §2.4].
 //! - [`append_volume`]: sides, light and dark caps, `w = 0` extrusion [EK, Steiner §4.1],
 //!   or finite extrusion for ranged lights ([`LocalLight::finite`]).
-//! - [`MethodChoice`], [`zpass_is_safe`]: near-plane/light pyramid test [EK].
+//! - [`MethodChoice`], [`zpass_is_safe`]: near-plane/light pyramid test \[EK\].
 //! - [`volume_bounds`]: per-volume scissor and depth bounds [EK "Exploit Bounds"].
 //! - [`build_volumes`]: all of the above for one light, with [`VolumeStats`].
 #![forbid(unsafe_code)]
