@@ -302,16 +302,20 @@ mod tests {
         assert_eq!(pr.pieces, vec![(0, 8), (8, 11), (12, 12), (14, 15)]);
     }
 
-    /// A segment with both ends clear of one face meets no other face.
-    #[test]
-    fn clear_faces_exclude_the_others() {
-        let mut seed = 11u64;
-        let mut rnd = || {
+    /// A seeded uniform sampler of [−1, 1) (an LCG: reproducible, no dependency).
+    fn uniform(mut seed: u64) -> impl FnMut() -> f64 {
+        move || {
             seed = seed
                 .wrapping_mul(6364136223846793005)
                 .wrapping_add(1442695040888963407);
             ((seed >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0
-        };
+        }
+    }
+
+    /// A segment with both ends clear of one face meets no other face.
+    #[test]
+    fn clear_faces_exclude_the_others() {
+        let mut rnd = uniform(11);
         let slack = 1.01;
         let mut cleared = 0;
         for _ in 0..5000 {
@@ -332,13 +336,7 @@ mod tests {
     /// A segment meets a face's cone exactly when some point on it does.
     #[test]
     fn segment_face_test_matches_sampling() {
-        let mut seed = 7u64;
-        let mut rnd = || {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            ((seed >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0
-        };
+        let mut rnd = uniform(7);
         let slack = 1.01;
         let inside = |d: DVec3, k: usize| {
             let axis = k / 2;
