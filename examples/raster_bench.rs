@@ -1,19 +1,20 @@
 //! Box-city occlusion benchmark of the tile rasterizer, comparable with Intel's
 //! Masked Software Occlusion Culling on the same input.
 //!
-//! `cargo run --release --example raster_bench -- ../shared/data/bench/city_16384.txt street 1920x1080 [--threads N] [--reps R] [--query any|count]`
+//! `cargo run --release --example raster_bench -- ../shared/data/bench/city_16384.txt street 1920x1080 [--threads N] [--reps R] [--query any|count] [--cull back|none] [--tile 4|8|16]`
 //!
 //! Loads the box city, sorts the boxes front to back by the distance from the eye to
 //! the box centre, then per repetition clears the depth target, rasterizes every box
-//! as an occluder (standard coverage) and queries every box's AABB against the
-//! result. Prints one JSON line on stdout: medians over the repetitions of
+//! as an occluder (standard coverage; back faces culled as a GPU or MOC would,
+//! `--cull none` draws all 12 triangles) and queries every box's AABB (all faces)
+//! against the result. Prints one JSON line on stdout: medians over the repetitions of
 //! `occluder_ms` (clear + rasterize, sorting excluded) and `query_ms`, the number of
 //! `visible_boxes` (query passed ≥ 1 sample), `threads`, and counters. Logs go to stderr.
 
 use anyhow::{bail, Context};
 use glam::{DMat4, Vec3, Vec4};
 use raster::{
-    aabb_corners, Coverage, DepthTarget, DrawItem, QueryMode, QueryOptions, TileSize,
+    aabb_corners, Coverage, CullMode, DepthTarget, DrawItem, QueryMode, QueryOptions, TileSize,
     AABB_TRIANGLES,
 };
 use std::path::PathBuf;
@@ -28,11 +29,12 @@ struct Args {
     reps: usize,
     mode: QueryMode,
     tile: TileSize,
+    cull: CullMode,
 }
 
 fn parse() -> anyhow::Result<Args> {
     let mut it = std::env::args().skip(1);
-    let usage = "usage: raster_bench CITY.txt CAMERA WxH [--threads N] [--reps R] [--query any|count] [--tile 4|8|16]";
+    let usage = "usage: raster_bench CITY.txt CAMERA WxH [--threads N] [--reps R] [--query any|count] [--cull back|none] [--tile 4|8|16]";
     let path = PathBuf::from(it.next().context(usage)?);
     let camera = it.next().context(usage)?;
     let res = it.next().context(usage)?;
@@ -48,6 +50,7 @@ fn parse() -> anyhow::Result<Args> {
         reps: 31,
         mode: QueryMode::Any,
         tile: TileSize::T8,
+        cull: CullMode::Back,
     };
     while let Some(flag) = it.next() {
         let v = it.next().with_context(|| format!("{flag} needs a value"))?;
@@ -59,6 +62,13 @@ fn parse() -> anyhow::Result<Args> {
                     "any" => QueryMode::Any,
                     "count" => QueryMode::Count,
                     _ => bail!("--query must be any or count"),
+                }
+            }
+            "--cull" => {
+                a.cull = match v.as_str() {
+                    "back" => CullMode::Back,
+                    "none" => CullMode::None,
+                    _ => bail!("--cull must be back or none"),
                 }
             }
             "--tile" => {
@@ -133,6 +143,7 @@ fn main() -> anyhow::Result<()> {
         .build()?;
     let mut target = DepthTarget::new(a.width, a.height, a.tile, false)?;
     target.set_threads(a.threads.max(1));
+    target.set_cull(a.cull);
     let opts = QueryOptions {
         coverage: Coverage::Standard,
         mode: a.mode,
@@ -193,6 +204,7 @@ fn main() -> anyhow::Result<()> {
         "reps": a.reps,
         "query": if a.mode == QueryMode::Any { "any" } else { "count" },
         "tile": target.tile_pixels(),
+        "cull": if a.cull == CullMode::Back { "back" } else { "none" },
         "boxes": boxes.len(),
         "occluder_ms": occluder_ms,
         "query_ms": query_ms,

@@ -7,6 +7,7 @@
 //! legal depth), so the GREATER write test and the GEQUAL query test treat them
 //! as "no surface" without a branch; tile bounds ignore them.
 
+use crate::draw::CullMode;
 use crate::setup::Viewport;
 use crate::stats::RasterStats;
 use crate::{Error, Result, MAX_TARGET_SIZE};
@@ -129,6 +130,8 @@ pub struct DepthTarget {
     pub(crate) threads: usize,
     /// Tile rows `r0..r1` that [`DepthTarget::draw`] writes (all when `None`).
     pub(crate) draw_rows: Option<(u32, u32)>,
+    /// Facing culled by draws.
+    pub(crate) cull: CullMode,
 }
 
 impl DepthTarget {
@@ -164,6 +167,7 @@ impl DepthTarget {
             stats: RasterStats::default(),
             threads: 0,
             draw_rows: None,
+            cull: CullMode::None,
         };
         t.clear();
         Ok(t)
@@ -199,6 +203,17 @@ impl DepthTarget {
             let b = b.min(self.layout.tiles_y);
             (a.min(b), b)
         });
+    }
+
+    /// Sets which triangles draws skip by facing ([`CullMode`]; default
+    /// [`CullMode::None`]). Queries are never culled.
+    pub fn set_cull(&mut self, cull: CullMode) {
+        self.cull = cull;
+    }
+
+    /// The cull mode of draws.
+    pub fn cull(&self) -> CullMode {
+        self.cull
     }
 
     /// Limits batch draws and queries to `threads` rayon workers (0 = rayon's pool size,

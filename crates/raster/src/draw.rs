@@ -6,11 +6,11 @@
 use crate::clip::MAX_CLIPPED_VERTICES;
 use crate::coverage::{pixel_bounds, Coverage};
 use crate::depth_target::{Band, DepthTarget};
-use crate::dispatch::draw_item;
-use crate::edge::{for_each_fan_tri, Tri};
-use crate::hiz::{hidden, project, Projected, RowSkip};
+use crate::dispatch::draw_mesh;
+use crate::edge::Tri;
+use crate::hiz::{project, Projected, RowSkip};
 use crate::setup::SnappedVertex;
-use crate::setup::{setup_into, Facing, Setup, VertexCache, Viewport, CACHE_VERTICES};
+use crate::setup::{setup_into, Facing, Setup, VertexCache, Viewport};
 use crate::stats::RasterStats;
 use crate::{Error, Result};
 use glam::{Mat4, Vec3, Vec4};
@@ -94,16 +94,46 @@ fn check_indices(item: &DrawItem) -> Result<()> {
     Ok(())
 }
 
-/// Sets up every triangle of `item`, calling `f(tri, pixel_bounds, id)` for each fan
-/// triangle that can cover a pixel of the target. `f` returns true to stop early
-/// (an any-samples query that passed).
+/// What [`setup_item`] feeds its fan triangles to: a trait with an
+/// `#[inline(always)]` method rather than a closure, so that the traversal is
+/// inlined into (and compiled with the target features of) the dispatched
+/// per-mesh function — a closure this large is outlined and built for the
+/// baseline CPU.
+pub(crate) trait TriSink {
+    /// Takes fan triangle `t` with pixel bounds `pb` and id `id`; true to stop
+    /// (an any-samples query that passed).
+    fn tri(&mut self, t: &Tri, pb: (i64, i64, i64, i64), id: u64) -> bool;
+}
+
+/// Which triangles a draw skips by their [`Facing`] (GL's `glCullFace`); set with
+/// [`DepthTarget::set_cull`]. Queries never cull.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub enum CullMode {
+    /// Every triangle is drawn.
+    #[default]
+    None,
+    /// Only [`Facing::Front`] triangles are drawn (back-facing and edge-on ones
+    /// are counted as culled). For closed meshes seen from outside this drops
+    /// only surfaces hidden behind their own front faces; a mesh the eye is in,
+    /// or one the near plane cuts, occludes less (never more) than with
+    /// [`CullMode::None`], so occlusion culling stays conservative.
+    Back,
+}
+
+/// Sets up every triangle of `item`, feeding each fan triangle that can cover a
+/// pixel of the target, with its pixel bounds and id, to `f`. `cache` holds the
+/// vertex stage of a small mesh ([`VertexCache::transform`], then
+/// [`VertexCache::snap`]; `None` for large ones).
 #[inline(always)]
 pub(crate) fn setup_item(
     vp: &Viewport,
     item: &DrawItem,
     cov: Coverage,
+    cull: CullMode,
+    cache: Option<&VertexCache>,
     st: &mut RasterStats,
-    mut f: impl FnMut(&Tri, (i64, i64, i64, i64), u64) -> bool,
+    f: &mut impl TriSink,
 ) -> Result<()> {
     let mut s = Setup {
         facing: None,
@@ -111,19 +141,17 @@ pub(crate) fn setup_item(
         vertices: [SnappedVertex::default(); MAX_CLIPPED_VERTICES],
         len: 0,
     };
-    // Small meshes (boxes): transform, clip-test and snap each vertex once, and draw
-    // the front-facing triangles first: the result does not depend on the order
-    // within a draw (GREATER keeps the maximum; ties go to the smaller id), but
-    // back faces drawn after the front ones mostly fail early.
-    let cache = (item.positions.len() <= CACHE_VERTICES)
-        .then(|| VertexCache::new(&item.clip_from_local, item.positions, vp));
+    // Small meshes (boxes) come with each vertex transformed, clip-tested and
+    // snapped once; their front-facing triangles go first: the result does not
+    // depend on the order within a draw (GREATER keeps the maximum; ties go to the
+    // smaller id), but back faces drawn after the front ones mostly fail early.
     let passes = if cache.is_some() { 2 } else { 1 };
     // Facing of the first triangles, from the first pass (computed once).
     const KEEP: usize = 64;
     let mut facings = [None; KEEP];
     for pass in 0..passes {
         for (k, &t) in item.triangles.iter().enumerate() {
-            match &cache {
+            match cache {
                 Some(c) => {
                     if let Some(&i) = t.iter().find(|&&i| i as usize >= item.positions.len()) {
                         return Err(Error::IndexOutOfRange {
@@ -143,9 +171,21 @@ pub(crate) fn setup_item(
                     if (facing == Some(Facing::Front)) != (pass == 0) {
                         continue;
                     }
+                    if pass == 1 && cull == CullMode::Back {
+                        st.triangles_in += 1;
+                        st.triangles_culled += 1;
+                        continue;
+                    }
                     c.setup(t, facing, vp, &mut s);
                 }
-                None => setup_into(clip_vertices(item, k)?, vp, &mut s),
+                None => {
+                    setup_into(clip_vertices(item, k)?, vp, &mut s);
+                    if cull == CullMode::Back && s.facing != Some(Facing::Front) {
+                        st.triangles_in += 1;
+                        st.triangles_culled += 1;
+                        continue;
+                    }
+                }
             }
             st.triangles_in += 1;
             if s.clipped {
@@ -154,15 +194,19 @@ pub(crate) fn setup_item(
             let id = (u64::from(item.object) << 32) | k as u64;
             let mut any = false;
             let mut stop = false;
-            for_each_fan_tri(s.polygon(), |t| {
-                if stop {
-                    return;
-                }
-                if let Some(pb) = pixel_bounds(t, cov, vp.width, vp.height) {
+            let poly = s.polygon();
+            for i in 1..poly.len().saturating_sub(1) {
+                let Some(t) = Tri::new(poly[0], poly[i], poly[i + 1]) else {
+                    continue;
+                };
+                if let Some(pb) = pixel_bounds(&t, cov, vp.width, vp.height) {
                     any = true;
-                    stop = f(t, pb, id);
+                    if f.tri(&t, pb, id) {
+                        stop = true;
+                        break;
+                    }
                 }
-            });
+            }
             if !any {
                 st.triangles_culled += 1;
             }
@@ -178,37 +222,9 @@ pub(crate) fn setup_item(
 const PARALLEL_MIN_PIXELS: u64 = 256 * 256;
 
 impl DepthTarget {
-    /// Whether the whole mesh can be skipped in tile rows `ty0..ty1` (counted in `st`).
-    #[allow(clippy::too_many_arguments)]
-    pub(crate) fn mesh_hidden(
-        &self,
-        item: &DrawItem,
-        p: &Projected,
-        ty0: u32,
-        ty1: u32,
-        st: &mut RasterStats,
-    ) -> Result<bool> {
-        let skip = match p {
-            Projected::Unknown => false,
-            Projected::Offscreen => true,
-            Projected::Bounds(b) => {
-                let l = &self.layout;
-                let base = (ty0 * l.tiles_x) as usize;
-                hidden(l, &self.tiles[base..], ty0, ty1, b)
-            }
-        };
-        if skip {
-            check_indices(item)?;
-            let n = item.triangles.len() as u64;
-            st.triangles_in += n;
-            st.triangles_culled += n;
-            st.meshes_rejected_hiz += 1;
-        }
-        Ok(skip)
-    }
-
     /// Draws the triangles of one mesh with the GREATER depth test (ties to the
-    /// smaller id when the id target is enabled).
+    /// smaller id when the id target is enabled), skipping those the cull mode
+    /// ([`DepthTarget::set_cull`]) names.
     ///
     /// # Errors
     /// [`Error::IndexOutOfRange`] when a triangle names a missing vertex (triangles
@@ -218,42 +234,42 @@ impl DepthTarget {
         let l = self.layout;
         let (ty0, ty1) = self.draw_rows.unwrap_or((0, l.tiles_y));
         let mut st = RasterStats::default();
-        let mut skip = RowSkip::new();
-        let (t0, t1) = ((ty0 * l.tiles_x) as usize, (ty1 * l.tiles_x) as usize);
-        let hidden = ty0 >= ty1
-            || match project(&item.clip_from_local, item.positions, vp.width, vp.height) {
-                Projected::Unknown => false,
-                Projected::Offscreen => true,
-                Projected::Bounds(b) => {
-                    (b.y1 >> l.shift) < ty0
-                        || (b.y0 >> l.shift) >= ty1
-                        || skip.compute(&l, &self.tiles[t0..t1], ty0, ty1, &b)
-                }
+        let mut drawn = false;
+        let mut r = Ok(());
+        if ty0 < ty1 {
+            let px = l.tile_pixels();
+            let (t0, t1) = ((ty0 * l.tiles_x) as usize, (ty1 * l.tiles_x) as usize);
+            let mut band = Band {
+                layout: l,
+                ty0,
+                ty1,
+                depth: &mut self.depth[t0 * px..t1 * px],
+                ids: self
+                    .ids
+                    .as_deref_mut()
+                    .map(|ids| &mut ids[t0 * px..t1 * px]),
+                tiles: &mut self.tiles[t0..t1],
             };
-        if hidden {
+            let mut st2 = RasterStats::default();
+            let mut skip = RowSkip::new();
+            match draw_mesh(
+                &vp, &mut band, item, cov, self.cull, &mut skip, None, &mut st, &mut st2,
+            ) {
+                Ok(d) => drawn = d,
+                Err(e) => {
+                    drawn = true;
+                    r = Err(e);
+                }
+            }
+            st.add(&st2);
+        }
+        if !drawn {
             check_indices(item)?;
             let n = item.triangles.len() as u64;
             st.triangles_in += n;
             st.triangles_culled += n;
             st.meshes_rejected_hiz += 1;
-            self.stats.add(&st);
-            return Ok(());
         }
-        let px = l.tile_pixels();
-        let mut band = Band {
-            layout: l,
-            ty0,
-            ty1,
-            depth: &mut self.depth[t0 * px..t1 * px],
-            ids: self
-                .ids
-                .as_deref_mut()
-                .map(|ids| &mut ids[t0 * px..t1 * px]),
-            tiles: &mut self.tiles[t0..t1],
-        };
-        let mut st2 = RasterStats::default();
-        let r = draw_item(&vp, &mut band, item, cov, &skip, &mut st, &mut st2);
-        st.add(&st2);
         self.stats.add(&st);
         r
     }
@@ -336,6 +352,7 @@ impl DepthTarget {
         use rayon::prelude::*;
         let vp = self.vp;
         let l = self.layout;
+        let cull = self.cull;
         for it in items {
             check_indices(it)?;
         }
@@ -378,21 +395,27 @@ impl DepthTarget {
                 let mut setups = Vec::new();
                 let mut skip = RowSkip::new();
                 for (k, (it, p)) in items.iter().zip(&projected).enumerate() {
-                    match p {
-                        Projected::Offscreen => continue,
-                        Projected::Bounds(sb) => {
-                            if (sb.y1 >> l.shift) < ty0 || (sb.y0 >> l.shift) >= ty1 {
-                                continue;
-                            }
-                            if skip.compute(&l, band.tiles, ty0, ty1, sb) {
-                                continue;
-                            }
+                    if let Projected::Bounds(sb) = p {
+                        if (sb.y1 >> l.shift) < ty0 || (sb.y0 >> l.shift) >= ty1 {
+                            continue;
                         }
-                        Projected::Unknown => skip.reset(),
                     }
                     let mut sst = RasterStats::default();
                     // Indices were checked above.
-                    let _ = draw_item(&vp, &mut band, it, cov, &skip, &mut sst, &mut st);
+                    let drawn = draw_mesh(
+                        &vp,
+                        &mut band,
+                        it,
+                        cov,
+                        cull,
+                        &mut skip,
+                        Some(p),
+                        &mut sst,
+                        &mut st,
+                    );
+                    if !matches!(drawn, Ok(true)) {
+                        continue;
+                    }
                     setups.push((
                         k as u32,
                         sst.triangles_clipped as u32,

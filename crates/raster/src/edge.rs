@@ -122,17 +122,6 @@ impl Tri {
     }
 }
 
-/// Calls `f` with each fan triangle `(v0, v_i, v_{i+1})` of a snapped polygon that has
-/// non-zero area.
-#[inline(always)]
-pub(crate) fn for_each_fan_tri(poly: &[SnappedVertex], mut f: impl FnMut(&Tri)) {
-    for i in 1..poly.len().saturating_sub(1) {
-        if let Some(t) = Tri::new(poly[0], poly[i], poly[i + 1]) {
-            f(&t);
-        }
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -37,80 +37,142 @@ pub(crate) enum Projected {
 
 /// Projects `positions` with `clip_from_local` exactly as setup does (f32 product,
 /// f64 division).
+#[inline(always)]
 pub(crate) fn project(m: &Mat4, positions: &[Vec4], width: u32, height: u32) -> Projected {
-    project_iter(positions.iter().map(|p| *m * *p), width, height)
+    let mut acc = Acc::new(width, height);
+    for chunk in positions.chunks(LANES) {
+        acc.add(&std::array::from_fn(|k| *m * chunk[lane(k, chunk.len())]));
+    }
+    acc.finish(positions.len(), width, height)
 }
 
 /// [`project`] of clip-space points.
+#[inline(always)]
 pub(crate) fn project_clip(clip: &[Vec4], width: u32, height: u32) -> Projected {
-    project_iter(clip.iter().copied(), width, height)
+    let mut acc = Acc::new(width, height);
+    for chunk in clip.chunks(LANES) {
+        acc.add(&std::array::from_fn(|k| chunk[lane(k, chunk.len())]));
+    }
+    acc.finish(clip.len(), width, height)
 }
 
+/// Vertices processed together, lane by lane (vectorized by the compiler).
+const LANES: usize = 8;
+
+/// The vertex of a chunk of `n` that lane `k` takes: short chunks repeat their
+/// first vertex, which changes no bound, outcode or flag.
 #[inline(always)]
-fn project_iter(clip: impl Iterator<Item = Vec4>, width: u32, height: u32) -> Projected {
-    let mut count = 0usize;
-    let (mut xmin, mut xmax) = (f64::INFINITY, f64::NEG_INFINITY);
-    let (mut ymin, mut ymax) = (f64::INFINITY, f64::NEG_INFINITY);
-    let mut zmax: f64 = 0.0;
-    let mut unknown = false;
-    // Bit k set: every vertex so far is strictly outside frustum plane k.
-    let mut all_out = 0x3fu32;
-    // Side planes pushed out by the margin, so that snapping and outer-conservative
-    // coverage at the viewport border cannot matter.
-    let gx = 1.0 + 2.0 * MARGIN_PX / width as f64;
-    let gy = 1.0 + 2.0 * MARGIN_PX / height as f64;
-    for c in clip {
-        count += 1;
-        let (x, y, z, w) = (c.x as f64, c.y as f64, c.z as f64, c.w as f64);
-        let out = u32::from(w - z < 0.0)
-            | u32::from(z < 0.0) << 1
-            | u32::from(gx * w + x < 0.0) << 2
-            | u32::from(gx * w - x < 0.0) << 3
-            | u32::from(gy * w + y < 0.0) << 4
-            | u32::from(gy * w - y < 0.0) << 5;
-        all_out &= out;
-        // Strictly inside near and far planes, w clearly positive.
-        if unknown || w.is_nan() || w <= 0.0 || z > w * (1.0 - 1e-6) || z < 0.0 {
-            unknown = true;
-            continue;
+fn lane(k: usize, n: usize) -> usize {
+    if k < n {
+        k
+    } else {
+        0
+    }
+}
+
+/// Running bounds of projected vertices.
+struct Acc {
+    /// Side-plane factors, pushed out by the margin.
+    gx: f64,
+    gy: f64,
+    xmin: f64,
+    xmax: f64,
+    ymin: f64,
+    ymax: f64,
+    zmax: f64,
+    unknown: bool,
+    /// Bit k set: every vertex so far is strictly outside frustum plane k.
+    all_out: u32,
+}
+
+impl Acc {
+    #[inline(always)]
+    fn new(width: u32, height: u32) -> Self {
+        Acc {
+            gx: 1.0 + 2.0 * MARGIN_PX / width as f64,
+            gy: 1.0 + 2.0 * MARGIN_PX / height as f64,
+            xmin: f64::INFINITY,
+            xmax: f64::NEG_INFINITY,
+            ymin: f64::INFINITY,
+            ymax: f64::NEG_INFINITY,
+            zmax: 0.0,
+            unknown: false,
+            all_out: 0x3f,
         }
-        // One division; the product differs from x / w by at most an ulp (covered
-        // by the margins).
-        let iw = 1.0 / w;
-        let (sx, sy) = (x * iw, y * iw);
-        xmin = xmin.min(sx);
-        xmax = xmax.max(sx);
-        ymin = ymin.min(sy);
-        ymax = ymax.max(sy);
-        zmax = zmax.max(z * iw);
     }
-    // All vertices outside one frustum plane: so is their convex hull (homogeneous
-    // clipping would remove every triangle).
-    if count == 0 || all_out != 0 {
-        return Projected::Offscreen;
+
+    /// Adds eight clip-space vertices. Side planes are pushed out by the margin,
+    /// so that snapping and outer-conservative coverage at the viewport border
+    /// cannot matter.
+    #[inline(always)]
+    fn add(&mut self, clip: &[Vec4; LANES]) {
+        let (gx, gy) = (self.gx, self.gy);
+        let mut all_out = 0x3fu32;
+        let mut unknown = false;
+        let (mut xmin, mut xmax) = (f64::INFINITY, f64::NEG_INFINITY);
+        let (mut ymin, mut ymax) = (f64::INFINITY, f64::NEG_INFINITY);
+        let mut zmax: f64 = 0.0;
+        for c in clip {
+            let (x, y, z, w) = (c.x as f64, c.y as f64, c.z as f64, c.w as f64);
+            let out = u32::from(w - z < 0.0)
+                | u32::from(z < 0.0) << 1
+                | u32::from(gx * w + x < 0.0) << 2
+                | u32::from(gx * w - x < 0.0) << 3
+                | u32::from(gy * w + y < 0.0) << 4
+                | u32::from(gy * w - y < 0.0) << 5;
+            all_out &= out;
+            // Strictly inside near and far planes, w clearly positive; otherwise the
+            // bounds are not used.
+            unknown |= w.is_nan() || w <= 0.0 || z > w * (1.0 - 1e-6) || z < 0.0;
+            // One division; the product differs from x / w by at most an ulp
+            // (covered by the margins).
+            let iw = 1.0 / w;
+            let (sx, sy) = (x * iw, y * iw);
+            xmin = xmin.min(sx);
+            xmax = xmax.max(sx);
+            ymin = ymin.min(sy);
+            ymax = ymax.max(sy);
+            zmax = zmax.max(z * iw);
+        }
+        self.all_out &= all_out;
+        self.unknown |= unknown;
+        self.xmin = self.xmin.min(xmin);
+        self.xmax = self.xmax.max(xmax);
+        self.ymin = self.ymin.min(ymin);
+        self.ymax = self.ymax.max(ymax);
+        self.zmax = self.zmax.max(zmax);
     }
-    if unknown {
-        return Projected::Unknown;
+
+    #[inline(always)]
+    fn finish(&self, count: usize, width: u32, height: u32) -> Projected {
+        // All vertices outside one frustum plane: so is their convex hull
+        // (homogeneous clipping would remove every triangle).
+        if count == 0 || self.all_out != 0 {
+            return Projected::Offscreen;
+        }
+        if self.unknown {
+            return Projected::Unknown;
+        }
+        let (w, h) = (width as f64, height as f64);
+        let px0 = ((self.xmin + 1.0) * 0.5 * w - MARGIN_PX).floor();
+        let px1 = ((self.xmax + 1.0) * 0.5 * w + MARGIN_PX).floor();
+        let py0 = ((1.0 - self.ymax) * 0.5 * h - MARGIN_PX).floor();
+        let py1 = ((1.0 - self.ymin) * 0.5 * h + MARGIN_PX).floor();
+        if !(px0.is_finite() && px1.is_finite() && py0.is_finite() && py1.is_finite()) {
+            return Projected::Unknown;
+        }
+        if px1 < 0.0 || py1 < 0.0 || px0 > w - 1.0 || py0 > h - 1.0 {
+            return Projected::Offscreen;
+        }
+        Projected::Bounds(ScreenBounds {
+            x0: px0.max(0.0) as u32,
+            x1: px1.min(w - 1.0) as u32,
+            y0: py0.max(0.0) as u32,
+            y1: py1.min(h - 1.0) as u32,
+            // (1e-12 ≫ the few f64 ulps by which setup's z / w can differ.)
+            zmax: f32_up(self.zmax * (1.0 + 1e-12)),
+        })
     }
-    let (w, h) = (width as f64, height as f64);
-    let px0 = ((xmin + 1.0) * 0.5 * w - MARGIN_PX).floor();
-    let px1 = ((xmax + 1.0) * 0.5 * w + MARGIN_PX).floor();
-    let py0 = ((1.0 - ymax) * 0.5 * h - MARGIN_PX).floor();
-    let py1 = ((1.0 - ymin) * 0.5 * h + MARGIN_PX).floor();
-    if !(px0.is_finite() && px1.is_finite() && py0.is_finite() && py1.is_finite()) {
-        return Projected::Unknown;
-    }
-    if px1 < 0.0 || py1 < 0.0 || px0 > w - 1.0 || py0 > h - 1.0 {
-        return Projected::Offscreen;
-    }
-    Projected::Bounds(ScreenBounds {
-        x0: px0.max(0.0) as u32,
-        x1: px1.min(w - 1.0) as u32,
-        y0: py0.max(0.0) as u32,
-        y1: py1.min(h - 1.0) as u32,
-        zmax: f32_up(zmax * (1.0 + 1e-12)),
-        // (1e-12 ≫ the few f64 ulps by which setup's z / w can differ.)
-    })
 }
 
 /// Whether every tile of the tile rows `ty0..ty1` under `b` holds only depths

@@ -72,7 +72,7 @@ pub use backend::{
 pub use clip::MAX_CLIPPED_VERTICES;
 pub use coverage::{Coverage, DepthPick};
 pub use depth_target::{DepthTarget, TileSize, BACKGROUND, NO_ID};
-pub use draw::{aabb_corners, DrawItem, AABB_TRIANGLES};
+pub use draw::{aabb_corners, CullMode, DrawItem, AABB_TRIANGLES};
 pub use error::{Error, Result};
 pub use hstencil::{HierarchicalOptions, HierarchicalStencil, TileClass};
 pub use query::{meets_apex_region, QueryMode, QueryOptions, APEX_EPS, VISIBLE};

@@ -11,9 +11,8 @@
 
 use crate::coverage::Coverage;
 use crate::depth_target::DepthTarget;
-use crate::dispatch::query_item;
-use crate::draw::{aabb_corners, DrawItem, AABB_TRIANGLES};
-use crate::hiz::project_clip;
+use crate::dispatch::{query_box, query_mesh};
+use crate::draw::{aabb_corners, DrawItem};
 use crate::receivers::ReceiverTarget;
 use crate::stats::RasterStats;
 use crate::traverse::QueryView;
@@ -82,7 +81,7 @@ impl DepthTarget {
         let view = self.query_view(receivers);
         let any = opts.mode == QueryMode::Any;
         let mut st2 = RasterStats::default();
-        let count = query_item(&self.vp, &view, item, opts.coverage, any, st, &mut st2)?;
+        let count = query_mesh(&self.vp, &view, item, opts.coverage, any, st, &mut st2)?;
         st.add(&st2);
         st.queries += 1;
         Ok(count.min(u64::from(VISIBLE - 1)) as u32)
@@ -137,36 +136,17 @@ impl DepthTarget {
         receivers: Option<&ReceiverTarget>,
         st: &mut RasterStats,
     ) -> Result<u32> {
-        let corners = aabb_corners(min, max);
-        let clip = corners.map(|p| clip_from_local * p);
-        // Most boxes lie wholly beyond the near plane, with twice the widening of the
-        // exact test to spare (the f32 corners differ from its f64 ones by ~2⁻²⁴ of
-        // the scale): [`meets_apex_region`] would reject them at its first plane.
-        let scale = clip
-            .iter()
-            .map(|c| (c.x.abs() + c.y.abs() + c.z.abs() + c.w.abs()) as f64)
-            .fold(0.0, f64::max);
-        let delta = 2.0 * APEX_EPS * scale;
-        let beyond_near = clip
-            .iter()
-            .all(|c| (c.z as f64) - (c.w as f64) + delta < 0.0);
-        if !beyond_near && meets_apex_region(&clip_from_local, min, max) {
-            st.queries += 1;
-            st.queries_apex += 1;
-            return Ok(VISIBLE);
-        }
-        let item = DrawItem {
-            clip_from_local,
-            positions: &corners,
-            triangles: &AABB_TRIANGLES,
-            object: 0,
-        };
-        let p = project_clip(&clip, self.width(), self.height());
-        if self.mesh_hidden(&item, &p, 0, self.layout.tiles_y, st)? {
-            st.queries += 1;
-            return Ok(0);
-        }
-        self.query_item(&item, opts, receivers, st)
+        let view = self.query_view(receivers);
+        let any = opts.mode == QueryMode::Any;
+        Ok(query_box(
+            &self.vp,
+            &view,
+            &clip_from_local,
+            (min, max),
+            opts.coverage,
+            any,
+            st,
+        ))
     }
 
     /// One query over the union of several boxes (a CHC++ multiquery, or a node's

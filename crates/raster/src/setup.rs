@@ -195,29 +195,84 @@ pub(crate) const CACHE_VERTICES: usize = 32;
 /// vertices are inside takes them from here instead of recomputing them — the same
 /// values [`setup_into`] computes.
 pub(crate) struct VertexCache {
-    pub clip: [Vec4; CACHE_VERTICES],
+    clip: [Vec4; CACHE_VERTICES],
     inside: [bool; CACHE_VERTICES],
     snapped: [SnappedVertex; CACHE_VERTICES],
+    len: usize,
 }
 
 impl VertexCache {
-    /// Fills the cache for `positions` (at most [`CACHE_VERTICES`]).
+    /// Vertices processed together, lane by lane.
+    const L: usize = 8;
+
+    /// Stage 1: the clip positions of `positions` (at most [`CACHE_VERTICES`]),
+    /// the glam product of [`setup_into`] (so the same values). Enough for the
+    /// screen bounds of a mesh; [`VertexCache::snap`] completes the cache.
     #[inline(always)]
-    pub fn new(m: &glam::Mat4, positions: &[Vec4], vp: &Viewport) -> Self {
+    pub fn transform(m: &glam::Mat4, positions: &[Vec4]) -> Self {
         debug_assert!(positions.len() <= CACHE_VERTICES);
         let mut c = VertexCache {
             clip: [Vec4::ZERO; CACHE_VERTICES],
             inside: [false; CACHE_VERTICES],
             snapped: [SnappedVertex::default(); CACHE_VERTICES],
+            len: positions.len(),
         };
-        for (k, p) in positions.iter().enumerate() {
-            let v = *m * *p;
-            c.clip[k] = v;
-            let d = v.as_dvec4();
-            c.inside[k] =
-                vp.planes.iter().all(|pl| pl.dot(d) >= 0.0) && snap(d, vp, &mut c.snapped[k]);
+        for (o, p) in c.clip.iter_mut().zip(positions) {
+            *o = *m * *p;
         }
         c
+    }
+
+    /// The clip positions.
+    #[inline(always)]
+    pub fn clip(&self) -> &[Vec4] {
+        &self.clip[..self.len]
+    }
+
+    /// Stage 2: whether each vertex lies inside every clip plane, and its snapped
+    /// position — [`snap`] and the plane tests of `DVec4::dot`, written lane by
+    /// lane, eight vertices at a time (the last chunk padded with copies of its
+    /// first vertex) so that the compiler vectorizes them; the values are the same.
+    #[inline(always)]
+    pub fn snap(&mut self, vp: &Viewport) {
+        const L: usize = VertexCache::L;
+        let (hw, hh) = (0.5 * vp.width as f64, 0.5 * vp.height as f64);
+        let sub = SUBPIXEL as f64;
+        for base in (0..self.len).step_by(L) {
+            let n = (self.len - base).min(L);
+            let v = |k: usize| self.clip[base + if k < n { k } else { 0 }];
+            let x: [f64; L] = std::array::from_fn(|k| v(k).x as f64);
+            let y: [f64; L] = std::array::from_fn(|k| v(k).y as f64);
+            let z: [f64; L] = std::array::from_fn(|k| v(k).z as f64);
+            let w: [f64; L] = std::array::from_fn(|k| v(k).w as f64);
+            let mut inside = [true; L];
+            for pl in &vp.planes {
+                for k in 0..L {
+                    // `DVec4::dot`: ((x·x' + y·y') + z·z') + w·w'.
+                    let d = pl.x * x[k] + pl.y * y[k] + pl.z * z[k] + pl.w * w[k];
+                    inside[k] &= d >= 0.0;
+                }
+            }
+            let mut sx = [0i64; L];
+            let mut sy = [0i64; L];
+            let mut sz = [0f64; L];
+            for k in 0..L {
+                inside[k] &= !(w[k].is_nan() || w[k] <= 0.0);
+                let fx = ((x[k] / w[k] + 1.0) * hw * sub).round();
+                let fy = ((1.0 - y[k] / w[k]) * hh * sub).round();
+                sx[k] = fx.clamp(-SNAP_LIMIT, SNAP_LIMIT) as i64;
+                sy[k] = fy.clamp(-SNAP_LIMIT, SNAP_LIMIT) as i64;
+                sz[k] = (z[k] / w[k]).clamp(0.0, 1.0);
+            }
+            for k in 0..n {
+                self.inside[base + k] = inside[k];
+                self.snapped[base + k] = SnappedVertex {
+                    x: sx[k],
+                    y: sy[k],
+                    z: sz[k],
+                };
+            }
+        }
     }
 
     /// Facing of the triangle with (checked) vertex indices `t`.

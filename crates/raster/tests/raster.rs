@@ -975,3 +975,63 @@ fn threaded_backend_holds_results_until_the_gate_opens() {
     let s = b.stats();
     assert_eq!((s.queries, s.waits), (5, 1));
 }
+
+/// Back-face culling: a closed box seen from outside leaves the depth of its
+/// front faces (the same buffer as drawing all faces here); seen from inside it
+/// draws nothing, so it hides nothing (culling stays conservative); a lone
+/// back-facing triangle is counted as culled.
+#[test]
+fn back_face_culling_keeps_front_faces_and_never_hides_more() {
+    let (w, h) = (64u32, 48u32);
+    let m = perspective(1.0, w as f32 / h as f32, 0.5);
+    let boxes = [
+        (Vec3::new(-1.0, -0.7, -6.0), Vec3::new(0.8, 0.9, -4.0)),
+        (Vec3::new(-3.0, -2.0, -9.0), Vec3::new(-1.5, 1.5, -7.5)),
+        (Vec3::new(0.5, -3.0, -12.0), Vec3::new(4.0, -1.0, -8.0)),
+    ];
+    let draw = |cull: CullMode, boxes: &[(Vec3, Vec3)]| {
+        let mut t = DepthTarget::new(w, h, TileSize::T8, false).unwrap();
+        t.set_cull(cull);
+        for (k, &(a, b)) in boxes.iter().enumerate() {
+            t.draw_aabb(m, a, b, k as u32, Coverage::Standard);
+        }
+        t
+    };
+    let (mut all, mut front) = (draw(CullMode::None, &boxes), draw(CullMode::Back, &boxes));
+    assert_eq!(all.depth_rows(), front.depth_rows());
+    let (sa, sf) = (all.take_stats(), front.take_stats());
+    assert_eq!(sa.triangles_in, sf.triangles_in);
+    assert!(
+        sf.triangles_culled >= sa.triangles_culled + 3 * 6 - 3,
+        "{sf:?}"
+    );
+    assert!(sf.pixels_tested < sa.pixels_tested);
+    // The eye inside a box: every face is a back face.
+    let around = [(Vec3::splat(-2.0), Vec3::splat(2.0))];
+    let (inside_all, inside_front) = (draw(CullMode::None, &around), draw(CullMode::Back, &around));
+    assert!(inside_all.depth_rows().iter().all(|&d| d > 0.0));
+    assert!(inside_front.depth_rows().iter().all(|&d| d == BACKGROUND));
+    // One clockwise (back-facing) triangle.
+    let mut t = DepthTarget::new(w, h, TileSize::T8, false).unwrap();
+    t.set_cull(CullMode::Back);
+    let cw = [
+        Vec4::new(-0.5, -0.5, 0.5, 1.0),
+        Vec4::new(0.0, 0.5, 0.5, 1.0),
+        Vec4::new(0.5, -0.5, 0.5, 1.0),
+    ];
+    let item = DrawItem {
+        clip_from_local: Mat4::IDENTITY,
+        positions: &cw,
+        triangles: &[[0, 1, 2]],
+        object: 0,
+    };
+    t.draw(&item, Coverage::Standard).unwrap();
+    let s = t.take_stats();
+    assert_eq!(
+        (s.triangles_in, s.triangles_culled, s.pixels_written),
+        (1, 1, 0)
+    );
+    t.set_cull(CullMode::None);
+    t.draw(&item, Coverage::Standard).unwrap();
+    assert!(t.take_stats().pixels_written > 0);
+}
