@@ -147,7 +147,7 @@ pub(crate) fn setup_item(
     // smaller id), but back faces drawn after the front ones mostly fail early.
     let passes = if cache.is_some() { 2 } else { 1 };
     // Facing of the first triangles, from the first pass (computed once).
-    const KEEP: usize = 64;
+    const KEEP: usize = 16;
     let mut facings = [None; KEEP];
     for pass in 0..passes {
         for (k, &t) in item.triangles.iter().enumerate() {
@@ -230,6 +230,11 @@ impl DepthTarget {
     /// [`Error::IndexOutOfRange`] when a triangle names a missing vertex (triangles
     /// before it are drawn).
     pub fn draw(&mut self, item: &DrawItem, cov: Coverage) -> Result<()> {
+        self.draw_one(item, cov, false)
+    }
+
+    /// [`DepthTarget::draw`]; `checked`: the indices are known to be in range.
+    fn draw_one(&mut self, item: &DrawItem, cov: Coverage, checked: bool) -> Result<()> {
         let vp = self.vp;
         let l = self.layout;
         let (ty0, ty1) = self.draw_rows.unwrap_or((0, l.tiles_y));
@@ -264,7 +269,9 @@ impl DepthTarget {
             st.add(&st2);
         }
         if !drawn {
-            check_indices(item)?;
+            if !checked {
+                check_indices(item)?;
+            }
             let n = item.triangles.len() as u64;
             st.triangles_in += n;
             st.triangles_culled += n;
@@ -307,7 +314,7 @@ impl DepthTarget {
         }
         if threads <= 1 || pixels < PARALLEL_MIN_PIXELS {
             for it in items {
-                self.draw(it, cov)?;
+                self.draw_one(it, cov, true)?;
             }
             return Ok(());
         }

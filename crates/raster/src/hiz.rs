@@ -107,40 +107,67 @@ impl Acc {
     #[inline(always)]
     fn add(&mut self, clip: &[Vec4; LANES]) {
         let (gx, gy) = (self.gx, self.gy);
-        let mut all_out = 0x3fu32;
-        let mut unknown = false;
-        let (mut xmin, mut xmax) = (f64::INFINITY, f64::NEG_INFINITY);
-        let (mut ymin, mut ymax) = (f64::INFINITY, f64::NEG_INFINITY);
-        let mut zmax: f64 = 0.0;
-        for c in clip {
-            let (x, y, z, w) = (c.x as f64, c.y as f64, c.z as f64, c.w as f64);
-            let out = u32::from(w - z < 0.0)
+        let x: [f64; LANES] = std::array::from_fn(|k| clip[k].x as f64);
+        let y: [f64; LANES] = std::array::from_fn(|k| clip[k].y as f64);
+        let z: [f64; LANES] = std::array::from_fn(|k| clip[k].z as f64);
+        let w: [f64; LANES] = std::array::from_fn(|k| clip[k].w as f64);
+        // Per lane, with non-short-circuit operators and plain selects (a NaN never
+        // wins, like `f64::min`), so the compiler vectorizes across vertices.
+        let mut out = [0u32; LANES];
+        let mut unknown = [false; LANES];
+        let (mut xmin, mut xmax) = ([f64::INFINITY; LANES], [f64::NEG_INFINITY; LANES]);
+        let (mut ymin, mut ymax) = ([f64::INFINITY; LANES], [f64::NEG_INFINITY; LANES]);
+        let mut zmax = [0f64; LANES];
+        for k in 0..LANES {
+            let (x, y, z, w) = (x[k], y[k], z[k], w[k]);
+            out[k] = u32::from(w - z < 0.0)
                 | u32::from(z < 0.0) << 1
                 | u32::from(gx * w + x < 0.0) << 2
                 | u32::from(gx * w - x < 0.0) << 3
                 | u32::from(gy * w + y < 0.0) << 4
                 | u32::from(gy * w - y < 0.0) << 5;
-            all_out &= out;
             // Strictly inside near and far planes, w clearly positive; otherwise the
             // bounds are not used.
-            unknown |= w.is_nan() || w <= 0.0 || z > w * (1.0 - 1e-6) || z < 0.0;
+            unknown[k] = w.is_nan() | (w <= 0.0) | (z > w * (1.0 - 1e-6)) | (z < 0.0);
             // One division; the product differs from x / w by at most an ulp
             // (covered by the margins).
             let iw = 1.0 / w;
-            let (sx, sy) = (x * iw, y * iw);
-            xmin = xmin.min(sx);
-            xmax = xmax.max(sx);
-            ymin = ymin.min(sy);
-            ymax = ymax.max(sy);
-            zmax = zmax.max(z * iw);
+            let (sx, sy, sz) = (x * iw, y * iw, z * iw);
+            xmin[k] = if sx < xmin[k] { sx } else { xmin[k] };
+            xmax[k] = if sx > xmax[k] { sx } else { xmax[k] };
+            ymin[k] = if sy < ymin[k] { sy } else { ymin[k] };
+            ymax[k] = if sy > ymax[k] { sy } else { ymax[k] };
+            zmax[k] = if sz > zmax[k] { sz } else { zmax[k] };
         }
-        self.all_out &= all_out;
-        self.unknown |= unknown;
-        self.xmin = self.xmin.min(xmin);
-        self.xmax = self.xmax.max(xmax);
-        self.ymin = self.ymin.min(ymin);
-        self.ymax = self.ymax.max(ymax);
-        self.zmax = self.zmax.max(zmax);
+        for k in 0..LANES {
+            self.all_out &= out[k];
+            self.unknown |= unknown[k];
+            self.xmin = if xmin[k] < self.xmin {
+                xmin[k]
+            } else {
+                self.xmin
+            };
+            self.xmax = if xmax[k] > self.xmax {
+                xmax[k]
+            } else {
+                self.xmax
+            };
+            self.ymin = if ymin[k] < self.ymin {
+                ymin[k]
+            } else {
+                self.ymin
+            };
+            self.ymax = if ymax[k] > self.ymax {
+                ymax[k]
+            } else {
+                self.ymax
+            };
+            self.zmax = if zmax[k] > self.zmax {
+                zmax[k]
+            } else {
+                self.zmax
+            };
+        }
     }
 
     #[inline(always)]

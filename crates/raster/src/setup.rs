@@ -187,8 +187,10 @@ fn setup_planes<const N: usize>(d: [DVec4; 3], planes: &[DVec4; N], vp: &Viewpor
     s.len = poly.len;
 }
 
-/// Most vertices a mesh may have to use the per-vertex cache of [`VertexCache`].
-pub(crate) const CACHE_VERTICES: usize = 32;
+/// Most vertices a mesh may have to use the per-vertex cache of [`VertexCache`]
+/// (a box's eight: the cache is built, moved and cleared once per mesh, so it is
+/// kept small).
+pub(crate) const CACHE_VERTICES: usize = 8;
 
 /// Per-vertex setup of a small mesh (a box): clip position, whether the vertex lies
 /// inside every clip plane, and its snapped position. A triangle whose three
