@@ -8,6 +8,7 @@
 //! as "no surface" without a branch; tile bounds ignore them.
 
 use crate::draw::CullMode;
+use crate::hiz::RowSkip;
 use crate::setup::Viewport;
 use crate::stats::RasterStats;
 use crate::{Error, Result, MAX_TARGET_SIZE};
@@ -132,6 +133,8 @@ pub struct DepthTarget {
     pub(crate) draw_rows: Option<(u32, u32)>,
     /// Facing culled by draws.
     pub(crate) cull: CullMode,
+    /// Scratch of [`DepthTarget::draw`]'s hidden-row test (kept, not rebuilt per mesh).
+    pub(crate) skip: Box<RowSkip>,
 }
 
 impl DepthTarget {
@@ -168,6 +171,7 @@ impl DepthTarget {
             threads: 0,
             draw_rows: None,
             cull: CullMode::None,
+            skip: Box::new(RowSkip::new()),
         };
         t.clear();
         Ok(t)

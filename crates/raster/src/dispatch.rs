@@ -321,14 +321,17 @@ fn query_box_impl(
     // Most boxes lie wholly beyond the near plane, with twice the widening of the
     // exact test to spare (the f32 corners differ from its f64 ones by ~2⁻²⁴ of
     // the scale): [`meets_apex_region`] would reject them at its first plane.
-    let scale = clip
-        .iter()
-        .map(|c| (c.x.abs() + c.y.abs() + c.z.abs() + c.w.abs()) as f64)
-        .fold(0.0, f64::max);
+    // (Plain selects and `&`, so the eight corners vectorize.)
+    let mut scale = 0f64;
+    for c in clip {
+        let s = (c.x.abs() + c.y.abs() + c.z.abs() + c.w.abs()) as f64;
+        scale = if s > scale { s } else { scale };
+    }
     let delta = 2.0 * APEX_EPS * scale;
-    let beyond_near = clip
-        .iter()
-        .all(|c| (c.z as f64) - (c.w as f64) + delta < 0.0);
+    let mut beyond_near = true;
+    for c in clip {
+        beyond_near &= (c.z as f64) - (c.w as f64) + delta < 0.0;
+    }
     if !beyond_near && meets_apex_region(clip_from_local, min, max) {
         st.queries_apex += 1;
         return VISIBLE;

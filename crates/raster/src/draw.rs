@@ -256,9 +256,16 @@ impl DepthTarget {
                 tiles: &mut self.tiles[t0..t1],
             };
             let mut st2 = RasterStats::default();
-            let mut skip = RowSkip::new();
             match draw_mesh(
-                &vp, &mut band, item, cov, self.cull, &mut skip, None, &mut st, &mut st2,
+                &vp,
+                &mut band,
+                item,
+                cov,
+                self.cull,
+                &mut self.skip,
+                None,
+                &mut st,
+                &mut st2,
             ) {
                 Ok(d) => drawn = d,
                 Err(e) => {

@@ -252,6 +252,7 @@ const MAX_TILE_ROWS: usize = 4096;
 /// A row's state when a mesh starts depends only on the meshes drawn before it
 /// into that row, in submission order, so the rows skipped — and the tiles
 /// counted — are the same for the serial path and for any split into bands.
+#[derive(Clone, Debug)]
 pub(crate) struct RowSkip {
     /// First and last tile row of the rectangle (`r1 < r0`: no rows skipped).
     r0: u32,
@@ -295,7 +296,11 @@ impl RowSkip {
             return true;
         }
         let words = ((r1 - r0) / 64 + 1) as usize;
-        self.bits[..words].fill(0);
+        if words == 1 {
+            self.bits[0] = 0;
+        } else {
+            self.bits[..words].fill(0);
+        }
         for ty in r0..r1 + 1 {
             let hid = row_hidden(l, tiles, ty0, ty, tx0, tx1, b.zmax);
             all &= hid;
