@@ -37,10 +37,15 @@
 //! - [`setup_triangle`] / [`facing`]: the rasterizer's own setup (snapped post-clip
 //!   polygon), for references and the stencil stage.
 //!
+//! - [`CullMode`]: draws may skip back faces ([`DepthTarget::set_cull`]), as a GPU
+//!   does for closed occluders; queries never cull.
+//!
 //! Whole meshes (draws and box queries) whose projected rectangle lies under tiles
 //! that are all strictly nearer than the mesh's nearest vertex are skipped before
-//! setup. The per-mesh pipeline is compiled twice (portable and AVX2, chosen at
-//! runtime; bit-identical results, `SHADOWCULL_RASTER_SCALAR=1` forces portable).
+//! setup. The per-mesh pipeline (vertex stage, bounds, setup, traversal) is
+//! compiled three times — portable, AVX2 and AVX-512 — and chosen at runtime;
+//! the results are bit-identical (`SHADOWCULL_RASTER_SCALAR=1` forces portable,
+//! `SHADOWCULL_RASTER_AVX2=1` caps at AVX2).
 
 mod backend;
 mod clip;
