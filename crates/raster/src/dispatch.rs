@@ -212,13 +212,6 @@ impl TriSink for Query<'_, '_> {
     }
 }
 
-/// The vertex stage of a small mesh (`None` for a large one): clip positions only.
-#[inline(always)]
-fn transform(item: &DrawItem) -> Option<VertexCache> {
-    (item.positions.len() <= CACHE_VERTICES)
-        .then(|| VertexCache::transform(&item.clip_from_local, item.positions))
-}
-
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 fn draw_mesh_impl(
@@ -232,16 +225,18 @@ fn draw_mesh_impl(
     st_setup: &mut RasterStats,
     st: &mut RasterStats,
 ) -> Result<bool> {
-    let (p, cache) = match projected {
-        Some(p) => (*p, None),
-        None => {
-            let c = transform(item);
-            let p = match &c {
-                Some(c) => project_clip(c.clip(), vp.width, vp.height),
-                None => project(&item.clip_from_local, item.positions, vp.width, vp.height),
-            };
-            (p, c)
+    // The cache is filled in place (moving it costs a copy per mesh).
+    let small = item.positions.len() <= CACHE_VERTICES;
+    let mut cache = VertexCache::empty();
+    let mut transformed = false;
+    let p = match projected {
+        Some(p) => *p,
+        None if small => {
+            cache.transform_into(&item.clip_from_local, item.positions);
+            transformed = true;
+            project_clip(cache.clip(), vp.width, vp.height)
         }
+        None => project(&item.clip_from_local, item.positions, vp.width, vp.height),
     };
     let l = band.layout;
     match p {
@@ -256,9 +251,11 @@ fn draw_mesh_impl(
         }
         Projected::Unknown => skip.reset(),
     }
-    let mut cache = cache.or_else(|| transform(item));
-    if let Some(c) = &mut cache {
-        c.snap(vp);
+    if small {
+        if !transformed {
+            cache.transform_into(&item.clip_from_local, item.positions);
+        }
+        cache.snap(vp);
     }
     let mut sink = Draw {
         band,
@@ -266,7 +263,15 @@ fn draw_mesh_impl(
         skip,
         st,
     };
-    setup_item(vp, item, cov, cull, cache.as_ref(), st_setup, &mut sink)?;
+    setup_item(
+        vp,
+        item,
+        cov,
+        cull,
+        small.then_some(&cache),
+        st_setup,
+        &mut sink,
+    )?;
     Ok(true)
 }
 
@@ -280,9 +285,11 @@ fn query_mesh_impl(
     st_setup: &mut RasterStats,
     st: &mut RasterStats,
 ) -> Result<u64> {
-    let mut cache = transform(item);
-    if let Some(c) = &mut cache {
-        c.snap(vp);
+    let small = item.positions.len() <= CACHE_VERTICES;
+    let mut cache = VertexCache::empty();
+    if small {
+        cache.transform_into(&item.clip_from_local, item.positions);
+        cache.snap(vp);
     }
     let mut sink = Query {
         view,
@@ -296,7 +303,7 @@ fn query_mesh_impl(
         item,
         cov,
         CullMode::None,
-        cache.as_ref(),
+        small.then_some(&cache),
         st_setup,
         &mut sink,
     )?;
@@ -316,7 +323,8 @@ fn query_box_impl(
     use crate::draw::{aabb_corners, AABB_TRIANGLES};
     st.queries += 1;
     let corners = aabb_corners(min, max);
-    let mut cache = VertexCache::transform(clip_from_local, &corners);
+    let mut cache = VertexCache::empty();
+    cache.transform_into(clip_from_local, &corners);
     let clip = cache.clip();
     // Most boxes lie wholly beyond the near plane, with twice the widening of the
     // exact test to spare (the f32 corners differ from its f64 ones by ~2⁻²⁴ of

@@ -123,7 +123,7 @@ pub enum CullMode {
 
 /// Sets up every triangle of `item`, feeding each fan triangle that can cover a
 /// pixel of the target, with its pixel bounds and id, to `f`. `cache` holds the
-/// vertex stage of a small mesh ([`VertexCache::transform`], then
+/// vertex stage of a small mesh ([`VertexCache::transform_into`], then
 /// [`VertexCache::snap`]; `None` for large ones).
 #[inline(always)]
 pub(crate) fn setup_item(

@@ -207,22 +207,28 @@ impl VertexCache {
     /// Vertices processed together, lane by lane.
     const L: usize = 8;
 
+    /// An empty cache, to fill in place with [`VertexCache::transform_into`]
+    /// (the cache is a few hundred bytes: built where it is used, not moved).
+    #[inline(always)]
+    pub fn empty() -> Self {
+        VertexCache {
+            clip: [Vec4::ZERO; CACHE_VERTICES],
+            inside: [false; CACHE_VERTICES],
+            snapped: [SnappedVertex::default(); CACHE_VERTICES],
+            len: 0,
+        }
+    }
+
     /// Stage 1: the clip positions of `positions` (at most [`CACHE_VERTICES`]),
     /// the glam product of [`setup_into`] (so the same values). Enough for the
     /// screen bounds of a mesh; [`VertexCache::snap`] completes the cache.
     #[inline(always)]
-    pub fn transform(m: &glam::Mat4, positions: &[Vec4]) -> Self {
+    pub fn transform_into(&mut self, m: &glam::Mat4, positions: &[Vec4]) {
         debug_assert!(positions.len() <= CACHE_VERTICES);
-        let mut c = VertexCache {
-            clip: [Vec4::ZERO; CACHE_VERTICES],
-            inside: [false; CACHE_VERTICES],
-            snapped: [SnappedVertex::default(); CACHE_VERTICES],
-            len: positions.len(),
-        };
-        for (o, p) in c.clip.iter_mut().zip(positions) {
+        self.len = positions.len();
+        for (o, p) in self.clip.iter_mut().zip(positions) {
             *o = *m * *p;
         }
-        c
     }
 
     /// The clip positions.
