@@ -95,12 +95,13 @@ pub(crate) fn avx2_available() -> bool {
     level() >= Level::Avx2
 }
 
-/// Defines `name(args)`, running `imp` at [`level`], and `name_at(level, args)`,
-/// running it at `level` (capped at [`detected`], so any level is safe to ask for).
+/// Defines `name(args)`, running the body at [`level`], and `name_at(level, args)`,
+/// running it at `level` (capped at [`detected`], so any level is safe to ask for);
+/// the body is compiled once per level.
 macro_rules! multiversioned {
     ($(
         $(#[$m:meta])*
-        fn $name:ident / $at:ident ($($a:ident : $t:ty),* $(,)?) -> $r:ty = $imp:ident;
+        fn $name:ident / $at:ident ($($a:ident : $t:ty),* $(,)?) -> $r:ty $body:block
     )*) => {$(
         $(#[$m])*
         #[inline]
@@ -111,17 +112,20 @@ macro_rules! multiversioned {
 
         #[allow(clippy::too_many_arguments)]
         pub(crate) fn $at(level: Level, $($a: $t),*) -> $r {
+            #[inline(always)]
+            #[allow(clippy::too_many_arguments)]
+            fn imp($($a: $t),*) -> $r $body
             #[cfg(target_arch = "x86_64")]
             {
                 #[target_feature(enable = "avx2")]
                 #[allow(clippy::too_many_arguments)]
                 fn avx2($($a: $t),*) -> $r {
-                    $imp($($a),*)
+                    imp($($a),*)
                 }
                 #[target_feature(enable = "avx512f,avx512vl,avx512bw,avx512dq,avx2")]
                 #[allow(clippy::too_many_arguments)]
                 fn avx512($($a: $t),*) -> $r {
-                    $imp($($a),*)
+                    imp($($a),*)
                 }
                 match level.min(detected()) {
                     // SAFETY: `detected` found AVX-512 F/VL/BW/DQ and AVX2 on this CPU.
@@ -133,7 +137,7 @@ macro_rules! multiversioned {
             }
             #[cfg(not(target_arch = "x86_64"))]
             let _ = level;
-            $imp($($a),*)
+            imp($($a),*)
         }
     )*};
 }
@@ -152,7 +156,56 @@ multiversioned! {
         projected: Option<&Projected>,
         st_setup: &mut RasterStats,
         st: &mut RasterStats,
-    ) -> Result<bool> = draw_mesh_impl;
+    ) -> Result<bool> {
+        // The cache is filled in place (moving it costs a copy per mesh).
+        let small = item.positions.len() <= CACHE_VERTICES;
+        let mut cache = VertexCache::empty();
+        let mut transformed = false;
+        let p = match projected {
+            Some(p) => *p,
+            None if small => {
+                cache.transform_into(&item.clip_from_local, item.positions);
+                transformed = true;
+                project_clip(cache.clip(), vp.width, vp.height)
+            }
+            None => project(&item.clip_from_local, item.positions, vp.width, vp.height),
+        };
+        let l = band.layout;
+        match p {
+            Projected::Offscreen => return Ok(false),
+            Projected::Bounds(b) => {
+                if (b.y1 >> l.shift) < band.ty0
+                    || (b.y0 >> l.shift) >= band.ty1
+                    || skip.compute(&l, band.tiles, band.ty0, band.ty1, &b)
+                {
+                    return Ok(false);
+                }
+            }
+            Projected::Unknown => skip.reset(),
+        }
+        if small {
+            if !transformed {
+                cache.transform_into(&item.clip_from_local, item.positions);
+            }
+            cache.snap(vp);
+        }
+        let mut sink = Draw {
+            band,
+            cov,
+            skip,
+            st,
+        };
+        setup_item(
+            vp,
+            item,
+            cov,
+            cull,
+            small.then_some(&cache),
+            st_setup,
+            &mut sink,
+        )?;
+        Ok(true)
+    }
 
     /// Counts the samples of `item` passing the query test (1 at the first with `any`).
     fn query_mesh / query_mesh_at(
@@ -163,7 +216,31 @@ multiversioned! {
         any: bool,
         st_setup: &mut RasterStats,
         st: &mut RasterStats,
-    ) -> Result<u64> = query_mesh_impl;
+    ) -> Result<u64> {
+        let small = item.positions.len() <= CACHE_VERTICES;
+        let mut cache = VertexCache::empty();
+        if small {
+            cache.transform_into(&item.clip_from_local, item.positions);
+            cache.snap(vp);
+        }
+        let mut sink = Query {
+            view,
+            cov,
+            any,
+            st,
+            count: 0,
+        };
+        setup_item(
+            vp,
+            item,
+            cov,
+            CullMode::None,
+            small.then_some(&cache),
+            st_setup,
+            &mut sink,
+        )?;
+        Ok(sink.count)
+    }
 
     /// The query of the box `(min, max)`: [`VISIBLE`] when it meets the apex
     /// region, 0 when hierarchical z hides its screen rectangle, else the count of
@@ -176,7 +253,65 @@ multiversioned! {
         cov: Coverage,
         any: bool,
         st: &mut RasterStats,
-    ) -> u32 = query_box_impl;
+    ) -> u32 {
+        let (min, max) = bounds;
+        use crate::draw::{aabb_corners, AABB_TRIANGLES};
+        st.queries += 1;
+        let corners = aabb_corners(min, max);
+        let mut cache = VertexCache::empty();
+        cache.transform_into(clip_from_local, &corners);
+        let clip = cache.clip();
+        // Most boxes lie wholly beyond the near plane, with twice the widening of the
+        // exact test to spare (the f32 corners differ from its f64 ones by ~2⁻²⁴ of
+        // the scale): [`meets_apex_region`] would reject them at its first plane.
+        // (Plain selects and `&`, so the eight corners vectorize.)
+        let mut scale = 0f64;
+        for c in clip {
+            let s = (c.x.abs() + c.y.abs() + c.z.abs() + c.w.abs()) as f64;
+            scale = if s > scale { s } else { scale };
+        }
+        let delta = 2.0 * APEX_EPS * scale;
+        let mut beyond_near = true;
+        for c in clip {
+            beyond_near &= (c.z as f64) - (c.w as f64) + delta < 0.0;
+        }
+        if !beyond_near && meets_apex_region(clip_from_local, min, max) {
+            st.queries_apex += 1;
+            return VISIBLE;
+        }
+        let n = AABB_TRIANGLES.len() as u64;
+        let skip = match project_clip(clip, vp.width, vp.height) {
+            Projected::Unknown => false,
+            Projected::Offscreen => true,
+            Projected::Bounds(b) => hidden(&view.layout, view.tiles, 0, view.layout.tiles_y, &b),
+        };
+        if skip {
+            st.triangles_in += n;
+            st.triangles_culled += n;
+            st.meshes_rejected_hiz += 1;
+            return 0;
+        }
+        cache.snap(vp);
+        let item = DrawItem {
+            clip_from_local: *clip_from_local,
+            positions: &corners,
+            triangles: &AABB_TRIANGLES,
+            object: 0,
+        };
+        let mut st2 = RasterStats::default();
+        let mut sink = Query {
+            view,
+            cov,
+            any,
+            st: &mut st2,
+            count: 0,
+        };
+        // Box indices are in range.
+        let _ = setup_item(vp, &item, cov, CullMode::None, Some(&cache), st, &mut sink);
+        let count = sink.count;
+        st.add(&st2);
+        count.min(u64::from(VISIBLE - 1)) as u32
+    }
 }
 
 /// [`setup_item`]'s consumer for draws.
@@ -210,172 +345,6 @@ impl TriSink for Query<'_, '_> {
         self.count += query_tri(self.view, t, pb, self.cov, self.any, self.st);
         self.any && self.count > 0
     }
-}
-
-#[inline(always)]
-#[allow(clippy::too_many_arguments)]
-fn draw_mesh_impl(
-    vp: &Viewport,
-    band: &mut Band,
-    item: &DrawItem,
-    cov: Coverage,
-    cull: CullMode,
-    skip: &mut RowSkip,
-    projected: Option<&Projected>,
-    st_setup: &mut RasterStats,
-    st: &mut RasterStats,
-) -> Result<bool> {
-    // The cache is filled in place (moving it costs a copy per mesh).
-    let small = item.positions.len() <= CACHE_VERTICES;
-    let mut cache = VertexCache::empty();
-    let mut transformed = false;
-    let p = match projected {
-        Some(p) => *p,
-        None if small => {
-            cache.transform_into(&item.clip_from_local, item.positions);
-            transformed = true;
-            project_clip(cache.clip(), vp.width, vp.height)
-        }
-        None => project(&item.clip_from_local, item.positions, vp.width, vp.height),
-    };
-    let l = band.layout;
-    match p {
-        Projected::Offscreen => return Ok(false),
-        Projected::Bounds(b) => {
-            if (b.y1 >> l.shift) < band.ty0
-                || (b.y0 >> l.shift) >= band.ty1
-                || skip.compute(&l, band.tiles, band.ty0, band.ty1, &b)
-            {
-                return Ok(false);
-            }
-        }
-        Projected::Unknown => skip.reset(),
-    }
-    if small {
-        if !transformed {
-            cache.transform_into(&item.clip_from_local, item.positions);
-        }
-        cache.snap(vp);
-    }
-    let mut sink = Draw {
-        band,
-        cov,
-        skip,
-        st,
-    };
-    setup_item(
-        vp,
-        item,
-        cov,
-        cull,
-        small.then_some(&cache),
-        st_setup,
-        &mut sink,
-    )?;
-    Ok(true)
-}
-
-#[inline(always)]
-fn query_mesh_impl(
-    vp: &Viewport,
-    view: &QueryView,
-    item: &DrawItem,
-    cov: Coverage,
-    any: bool,
-    st_setup: &mut RasterStats,
-    st: &mut RasterStats,
-) -> Result<u64> {
-    let small = item.positions.len() <= CACHE_VERTICES;
-    let mut cache = VertexCache::empty();
-    if small {
-        cache.transform_into(&item.clip_from_local, item.positions);
-        cache.snap(vp);
-    }
-    let mut sink = Query {
-        view,
-        cov,
-        any,
-        st,
-        count: 0,
-    };
-    setup_item(
-        vp,
-        item,
-        cov,
-        CullMode::None,
-        small.then_some(&cache),
-        st_setup,
-        &mut sink,
-    )?;
-    Ok(sink.count)
-}
-
-#[inline(always)]
-fn query_box_impl(
-    vp: &Viewport,
-    view: &QueryView,
-    clip_from_local: &Mat4,
-    (min, max): (Vec3, Vec3),
-    cov: Coverage,
-    any: bool,
-    st: &mut RasterStats,
-) -> u32 {
-    use crate::draw::{aabb_corners, AABB_TRIANGLES};
-    st.queries += 1;
-    let corners = aabb_corners(min, max);
-    let mut cache = VertexCache::empty();
-    cache.transform_into(clip_from_local, &corners);
-    let clip = cache.clip();
-    // Most boxes lie wholly beyond the near plane, with twice the widening of the
-    // exact test to spare (the f32 corners differ from its f64 ones by ~2⁻²⁴ of
-    // the scale): [`meets_apex_region`] would reject them at its first plane.
-    // (Plain selects and `&`, so the eight corners vectorize.)
-    let mut scale = 0f64;
-    for c in clip {
-        let s = (c.x.abs() + c.y.abs() + c.z.abs() + c.w.abs()) as f64;
-        scale = if s > scale { s } else { scale };
-    }
-    let delta = 2.0 * APEX_EPS * scale;
-    let mut beyond_near = true;
-    for c in clip {
-        beyond_near &= (c.z as f64) - (c.w as f64) + delta < 0.0;
-    }
-    if !beyond_near && meets_apex_region(clip_from_local, min, max) {
-        st.queries_apex += 1;
-        return VISIBLE;
-    }
-    let n = AABB_TRIANGLES.len() as u64;
-    let skip = match project_clip(clip, vp.width, vp.height) {
-        Projected::Unknown => false,
-        Projected::Offscreen => true,
-        Projected::Bounds(b) => hidden(&view.layout, view.tiles, 0, view.layout.tiles_y, &b),
-    };
-    if skip {
-        st.triangles_in += n;
-        st.triangles_culled += n;
-        st.meshes_rejected_hiz += 1;
-        return 0;
-    }
-    cache.snap(vp);
-    let item = DrawItem {
-        clip_from_local: *clip_from_local,
-        positions: &corners,
-        triangles: &AABB_TRIANGLES,
-        object: 0,
-    };
-    let mut st2 = RasterStats::default();
-    let mut sink = Query {
-        view,
-        cov,
-        any,
-        st: &mut st2,
-        count: 0,
-    };
-    // Box indices are in range.
-    let _ = setup_item(vp, &item, cov, CullMode::None, Some(&cache), st, &mut sink);
-    let count = sink.count;
-    st.add(&st2);
-    count.min(u64::from(VISIBLE - 1)) as u32
 }
 
 #[cfg(test)]

@@ -247,6 +247,16 @@ fn round_down_f32(x: f64) -> f32 {
     }
 }
 
+/// Per-lane edge steps `k·step` of a tile row of width `T`, and whether lane `k`
+/// lies in `lanes.0..=lanes.1`.
+#[inline(always)]
+fn lane_setup<const T: usize>(p: &Prep, lanes: (usize, usize)) -> ([[f64; T]; 3], [bool; T]) {
+    (
+        std::array::from_fn(|i| std::array::from_fn(|k| k as f64 * p.stepf[i])),
+        std::array::from_fn(|k| k >= lanes.0 && k <= lanes.1),
+    )
+}
+
 /// Accumulated results of [`rows_std`].
 #[derive(Default)]
 struct RowAcc {
@@ -277,9 +287,7 @@ fn rows_std<const T: usize>(
     acc: &mut RowAcc,
 ) {
     let (z0, z1, z2, inv) = (tri.z[0], tri.z[1], tri.z[2], tri.inv_area);
-    let kstep: [[f64; T]; 3] =
-        std::array::from_fn(|i| std::array::from_fn(|k| k as f64 * p.stepf[i]));
-    let eligible: [bool; T] = std::array::from_fn(|k| k >= lanes.0 && k <= lanes.1);
+    let (kstep, eligible) = lane_setup::<T>(p, lanes);
     let fullm = full as u32;
     let no_testm = no_test as u32;
     // Per-lane accumulators over all rows, reduced once at the end. Plain
@@ -356,9 +364,7 @@ fn rows_fill<const T: usize>(
     depth: &mut [f32],
 ) -> (f32, f32) {
     let (z0, z1, z2, inv) = (tri.z[0], tri.z[1], tri.z[2], tri.inv_area);
-    let kstep: [[f64; T]; 3] =
-        std::array::from_fn(|i| std::array::from_fn(|k| k as f64 * p.stepf[i]));
-    let eligible: [bool; T] = std::array::from_fn(|k| k >= lanes.0 && k <= lanes.1);
+    let (kstep, eligible) = lane_setup::<T>(p, lanes);
     let mut vmin = [f32::INFINITY; T];
     let mut vmax = [f32::NEG_INFINITY; T];
     for row in depth.chunks_exact_mut(T) {
@@ -407,9 +413,7 @@ fn rows_query<const T: usize>(
     tested: &mut u64,
 ) -> u64 {
     let (z0, z1, z2, inv) = (tri.z[0], tri.z[1], tri.z[2], tri.inv_area);
-    let kstep: [[f64; T]; 3] =
-        std::array::from_fn(|i| std::array::from_fn(|k| k as f64 * p.stepf[i]));
-    let eligible: [bool; T] = std::array::from_fn(|k| k >= lanes.0 && k <= lanes.1);
+    let (kstep, eligible) = lane_setup::<T>(p, lanes);
     let mut pass = 0u32;
     let mut te = 0u32;
     for (r, row) in depth.chunks_exact(T).enumerate() {
