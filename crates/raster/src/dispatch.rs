@@ -16,9 +16,9 @@ use crate::coverage::Coverage;
 use crate::depth_target::Band;
 use crate::draw::{setup_item, CullMode, DrawItem, TriSink};
 use crate::edge::Tri;
-use crate::hiz::{hidden, project, project_clip, Projected, RowSkip};
+use crate::hiz::{hidden, project, project_lanes, Projected, RowSkip};
 use crate::query::{meets_apex_region, APEX_EPS, VISIBLE};
-use crate::setup::{VertexCache, Viewport, CACHE_VERTICES};
+use crate::setup::{widen, VertexCache, Viewport, CACHE_VERTICES};
 use crate::stats::RasterStats;
 use crate::traverse::{draw_tri, query_tri, QueryView};
 use crate::Result;
@@ -166,7 +166,8 @@ multiversioned! {
             None if small => {
                 cache.transform_into(&item.clip_from_local, item.positions);
                 transformed = true;
-                project_clip(cache.clip(), vp.width, vp.height)
+                let (lanes, n) = cache.lanes();
+                project_lanes(lanes, n, vp.width, vp.height)
             }
             None => project(&item.clip_from_local, item.positions, vp.width, vp.height),
         };
@@ -257,30 +258,39 @@ multiversioned! {
         let (min, max) = bounds;
         use crate::draw::{aabb_corners, AABB_TRIANGLES};
         st.queries += 1;
-        let corners = aabb_corners(min, max);
         let mut cache = VertexCache::empty();
-        cache.transform_into(clip_from_local, &corners);
-        let clip = cache.clip();
-        // Most boxes lie wholly beyond the near plane, with twice the widening of the
-        // exact test to spare (the f32 corners differ from its f64 ones by ~2⁻²⁴ of
-        // the scale): [`meets_apex_region`] would reject them at its first plane.
-        // (Plain selects and `&`, so the eight corners vectorize.)
+        cache.transform_box(clip_from_local, min, max);
+        let (lanes, _) = cache.lanes();
+        let [x, y, z, w] = widen(lanes);
+        // Most boxes lie wholly outside one plane of the apex region (beyond the
+        // near plane, or behind the eye and beside the view), with twice the
+        // widening of the exact test to spare (the f32 corners differ from its f64
+        // ones by ~2⁻²⁴ of the scale): [`meets_apex_region`] would reject them at
+        // its first test. (Plain selects and `&`, so the eight corners vectorize.)
         let mut scale = 0f64;
-        for c in clip {
-            let s = (c.x.abs() + c.y.abs() + c.z.abs() + c.w.abs()) as f64;
+        for k in 0..8 {
+            let s = f64::from(
+                lanes[0][k].abs() + lanes[1][k].abs() + lanes[2][k].abs() + lanes[3][k].abs(),
+            );
             scale = if s > scale { s } else { scale };
         }
         let delta = 2.0 * APEX_EPS * scale;
-        let mut beyond_near = true;
-        for c in clip {
-            beyond_near &= (c.z as f64) - (c.w as f64) + delta < 0.0;
+        // All corners strictly outside: near plane z ≥ w, then w ± x ≥ 0, w ± y ≥ 0.
+        let mut out = [true; 5];
+        for k in 0..8 {
+            out[0] &= z[k] - w[k] + delta < 0.0;
+            out[1] &= w[k] - x[k] + delta < 0.0;
+            out[2] &= w[k] + x[k] + delta < 0.0;
+            out[3] &= w[k] - y[k] + delta < 0.0;
+            out[4] &= w[k] + y[k] + delta < 0.0;
         }
-        if !beyond_near && meets_apex_region(clip_from_local, min, max) {
+        let outside = out[0] | out[1] | out[2] | out[3] | out[4];
+        if !outside && meets_apex_region(clip_from_local, min, max) {
             st.queries_apex += 1;
             return VISIBLE;
         }
         let n = AABB_TRIANGLES.len() as u64;
-        let skip = match project_clip(clip, vp.width, vp.height) {
+        let skip = match project_lanes(lanes, 8, vp.width, vp.height) {
             Projected::Unknown => false,
             Projected::Offscreen => true,
             Projected::Bounds(b) => hidden(&view.layout, view.tiles, 0, view.layout.tiles_y, &b),
@@ -292,6 +302,7 @@ multiversioned! {
             return 0;
         }
         cache.snap(vp);
+        let corners = aabb_corners(min, max);
         let item = DrawItem {
             clip_from_local: *clip_from_local,
             positions: &corners,

@@ -7,6 +7,7 @@
 
 use crate::coverage::f32_up;
 use crate::depth_target::{Layout, TileBounds};
+use crate::setup::{transform_lanes, widen, Lanes, CACHE_VERTICES};
 use glam::{Mat4, Vec4};
 
 /// Pixel margin added around the projected rectangle: covers snapping (1/512 px),
@@ -41,34 +42,25 @@ pub(crate) enum Projected {
 pub(crate) fn project(m: &Mat4, positions: &[Vec4], width: u32, height: u32) -> Projected {
     let mut acc = Acc::new(width, height);
     for chunk in positions.chunks(LANES) {
-        acc.add(&std::array::from_fn(|k| *m * chunk[lane(k, chunk.len())]));
+        // Short chunks repeat their first vertex, which changes no bound, outcode or
+        // flag.
+        let n = chunk.len();
+        acc.add(&transform_lanes(m, |k| chunk[if k < n { k } else { 0 }]));
     }
     acc.finish(positions.len(), width, height)
 }
 
-/// [`project`] of clip-space points.
+/// [`project`] of the `count` clip-space vertices of `lanes` (lanes from `count`
+/// on repeat a vertex).
 #[inline(always)]
-pub(crate) fn project_clip(clip: &[Vec4], width: u32, height: u32) -> Projected {
+pub(crate) fn project_lanes(lanes: &Lanes, count: usize, width: u32, height: u32) -> Projected {
     let mut acc = Acc::new(width, height);
-    for chunk in clip.chunks(LANES) {
-        acc.add(&std::array::from_fn(|k| chunk[lane(k, chunk.len())]));
-    }
-    acc.finish(clip.len(), width, height)
+    acc.add(lanes);
+    acc.finish(count, width, height)
 }
 
 /// Vertices processed together, lane by lane (vectorized by the compiler).
-const LANES: usize = 8;
-
-/// The vertex of a chunk of `n` that lane `k` takes: short chunks repeat their
-/// first vertex, which changes no bound, outcode or flag.
-#[inline(always)]
-fn lane(k: usize, n: usize) -> usize {
-    if k < n {
-        k
-    } else {
-        0
-    }
-}
+const LANES: usize = CACHE_VERTICES;
 
 /// Running bounds of projected vertices.
 struct Acc {
@@ -105,12 +97,9 @@ impl Acc {
     /// so that snapping and outer-conservative coverage at the viewport border
     /// cannot matter.
     #[inline(always)]
-    fn add(&mut self, clip: &[Vec4; LANES]) {
+    fn add(&mut self, clip: &Lanes) {
         let (gx, gy) = (self.gx, self.gy);
-        let x: [f64; LANES] = std::array::from_fn(|k| clip[k].x as f64);
-        let y: [f64; LANES] = std::array::from_fn(|k| clip[k].y as f64);
-        let z: [f64; LANES] = std::array::from_fn(|k| clip[k].z as f64);
-        let w: [f64; LANES] = std::array::from_fn(|k| clip[k].w as f64);
+        let [x, y, z, w] = widen(clip);
         // Per lane, with non-short-circuit operators and plain selects (a NaN never
         // wins, like `f64::min`), so the compiler vectorizes across vertices.
         let mut out = [0u32; LANES];
@@ -205,6 +194,7 @@ impl Acc {
 /// Whether every tile of the tile rows `ty0..ty1` under `b` holds only depths
 /// strictly nearer than `b.zmax` (background counts as farthest). `tiles` holds the
 /// bounds of those rows, starting at row `ty0`.
+#[inline(always)]
 pub(crate) fn hidden(
     l: &Layout,
     tiles: &[TileBounds],
@@ -218,6 +208,7 @@ pub(crate) fn hidden(
 
 /// The tile columns `tx0..=tx1` and rows `r0..=r1` under `b`, rows limited to
 /// `ty0..ty1` (empty when `r1 < r0`).
+#[inline(always)]
 fn row_span(l: &Layout, ty0: u32, ty1: u32, b: &ScreenBounds) -> (u32, u32, u32, u32) {
     let s = l.shift;
     let (r0, r1) = ((b.y0 >> s).max(ty0), (b.y1 >> s).min(ty1.saturating_sub(1)));
@@ -280,6 +271,7 @@ impl RowSkip {
     /// Marks the hidden rows of `b` among tile rows `ty0..ty1` (whose bounds `tiles`
     /// holds, starting at row `ty0`); true when every such row is hidden (the mesh
     /// can be skipped in these rows).
+    #[inline(always)]
     pub fn compute(
         &mut self,
         l: &Layout,

@@ -197,22 +197,63 @@ pub(crate) const CACHE_VERTICES: usize = 8;
 /// vertices are inside takes them from here instead of recomputing them — the same
 /// values [`setup_into`] computes.
 pub(crate) struct VertexCache {
-    clip: [Vec4; CACHE_VERTICES],
+    /// Clip positions, lane by lane: vertex k in lane k; lanes from `len` on hold
+    /// copies of vertex 0 (they change no bound, outcode or flag).
+    clip: Lanes,
     inside: [bool; CACHE_VERTICES],
     snapped: [SnappedVertex; CACHE_VERTICES],
     len: usize,
 }
 
-impl VertexCache {
-    /// Vertices processed together, lane by lane.
-    const L: usize = 8;
+/// Clip-space x, y, z and w of up to eight vertices, one vertex per lane.
+pub(crate) type Lanes = [[f32; CACHE_VERTICES]; 4];
 
+/// `m · p(k)` for the eight lanes — the glam product `Mat4 * Vec4`
+/// (`((X·x + Y·y) + Z·z) + W·w` by columns, no fused operations), so the same
+/// values, computed across vertices so that the compiler vectorizes it.
+#[inline(always)]
+pub(crate) fn transform_lanes(m: &glam::Mat4, p: impl Fn(usize) -> Vec4) -> Lanes {
+    const L: usize = CACHE_VERTICES;
+    // Plain loops into initialized arrays (`array::map` and `from_fn` went through
+    // the stack here).
+    let mut pos = [[0f32; L]; 4];
+    for k in 0..L {
+        let v = p(k);
+        pos[0][k] = v.x;
+        pos[1][k] = v.y;
+        pos[2][k] = v.z;
+        pos[3][k] = v.w;
+    }
+    let cols = [m.x_axis, m.y_axis, m.z_axis, m.w_axis];
+    let mut out = [[0f32; L]; 4];
+    for i in 0..4 {
+        let c = [cols[0][i], cols[1][i], cols[2][i], cols[3][i]];
+        for k in 0..L {
+            out[i][k] = c[0] * pos[0][k] + c[1] * pos[1][k] + c[2] * pos[2][k] + c[3] * pos[3][k];
+        }
+    }
+    out
+}
+
+/// The lanes in f64 (exact).
+#[inline(always)]
+pub(crate) fn widen(l: &Lanes) -> [[f64; CACHE_VERTICES]; 4] {
+    let mut out = [[0f64; CACHE_VERTICES]; 4];
+    for i in 0..4 {
+        for k in 0..CACHE_VERTICES {
+            out[i][k] = f64::from(l[i][k]);
+        }
+    }
+    out
+}
+
+impl VertexCache {
     /// An empty cache, to fill in place with [`VertexCache::transform_into`]
     /// (the cache is a few hundred bytes: built where it is used, not moved).
     #[inline(always)]
     pub fn empty() -> Self {
         VertexCache {
-            clip: [Vec4::ZERO; CACHE_VERTICES],
+            clip: [[0.0; CACHE_VERTICES]; 4],
             inside: [false; CACHE_VERTICES],
             snapped: [SnappedVertex::default(); CACHE_VERTICES],
             len: 0,
@@ -225,68 +266,85 @@ impl VertexCache {
     #[inline(always)]
     pub fn transform_into(&mut self, m: &glam::Mat4, positions: &[Vec4]) {
         debug_assert!(positions.len() <= CACHE_VERTICES);
-        self.len = positions.len();
-        for (o, p) in self.clip.iter_mut().zip(positions) {
-            *o = *m * *p;
+        let n = positions.len();
+        self.len = n;
+        if n > 0 {
+            self.clip = transform_lanes(m, |k| positions[if k < n { k } else { 0 }]);
         }
     }
 
-    /// The clip positions.
+    /// [`VertexCache::transform_into`] of the eight corners of the box `(min, max)`
+    /// in the order of [`crate::draw::aabb_corners`] (the same values).
     #[inline(always)]
-    pub fn clip(&self) -> &[Vec4] {
-        &self.clip[..self.len]
+    pub fn transform_box(&mut self, m: &glam::Mat4, min: glam::Vec3, max: glam::Vec3) {
+        self.len = 8;
+        self.clip = transform_lanes(m, |c| {
+            Vec4::new(
+                if c & 1 != 0 { max.x } else { min.x },
+                if c & 2 != 0 { max.y } else { min.y },
+                if c & 4 != 0 { max.z } else { min.z },
+                1.0,
+            )
+        });
+    }
+
+    /// The clip positions, lane by lane, and how many lanes are vertices.
+    #[inline(always)]
+    pub fn lanes(&self) -> (&Lanes, usize) {
+        (&self.clip, self.len)
+    }
+
+    /// The clip position of vertex `i`.
+    #[inline(always)]
+    fn at(&self, i: usize) -> Vec4 {
+        let c = &self.clip;
+        Vec4::new(c[0][i], c[1][i], c[2][i], c[3][i])
     }
 
     /// Stage 2: whether each vertex lies inside every clip plane, and its snapped
     /// position — [`snap`] and the plane tests of `DVec4::dot`, written lane by
-    /// lane, eight vertices at a time (the last chunk padded with copies of its
-    /// first vertex) so that the compiler vectorizes them; the values are the same.
+    /// lane over the eight lanes so that the compiler vectorizes them; the values
+    /// are the same.
     #[inline(always)]
     pub fn snap(&mut self, vp: &Viewport) {
-        const L: usize = VertexCache::L;
+        const L: usize = CACHE_VERTICES;
         let (hw, hh) = (0.5 * vp.width as f64, 0.5 * vp.height as f64);
         let sub = SUBPIXEL as f64;
-        for base in (0..self.len).step_by(L) {
-            let n = (self.len - base).min(L);
-            let v = |k: usize| self.clip[base + if k < n { k } else { 0 }];
-            let x: [f64; L] = std::array::from_fn(|k| v(k).x as f64);
-            let y: [f64; L] = std::array::from_fn(|k| v(k).y as f64);
-            let z: [f64; L] = std::array::from_fn(|k| v(k).z as f64);
-            let w: [f64; L] = std::array::from_fn(|k| v(k).w as f64);
-            let mut inside = [true; L];
-            for pl in &vp.planes {
-                for k in 0..L {
-                    // `DVec4::dot`: ((x·x' + y·y') + z·z') + w·w'.
-                    let d = pl.x * x[k] + pl.y * y[k] + pl.z * z[k] + pl.w * w[k];
-                    inside[k] &= d >= 0.0;
-                }
-            }
-            let mut sx = [0i64; L];
-            let mut sy = [0i64; L];
-            let mut sz = [0f64; L];
+        let n = self.len;
+        let [x, y, z, w] = widen(&self.clip);
+        let mut inside = [true; L];
+        for pl in &vp.planes {
             for k in 0..L {
-                inside[k] &= !(w[k].is_nan() || w[k] <= 0.0);
-                let fx = ((x[k] / w[k] + 1.0) * hw * sub).round();
-                let fy = ((1.0 - y[k] / w[k]) * hh * sub).round();
-                sx[k] = fx.clamp(-SNAP_LIMIT, SNAP_LIMIT) as i64;
-                sy[k] = fy.clamp(-SNAP_LIMIT, SNAP_LIMIT) as i64;
-                sz[k] = (z[k] / w[k]).clamp(0.0, 1.0);
+                // `DVec4::dot`: ((x·x' + y·y') + z·z') + w·w'.
+                let d = pl.x * x[k] + pl.y * y[k] + pl.z * z[k] + pl.w * w[k];
+                inside[k] &= d >= 0.0;
             }
-            for k in 0..n {
-                self.inside[base + k] = inside[k];
-                self.snapped[base + k] = SnappedVertex {
-                    x: sx[k],
-                    y: sy[k],
-                    z: sz[k],
-                };
-            }
+        }
+        let mut sx = [0i64; L];
+        let mut sy = [0i64; L];
+        let mut sz = [0f64; L];
+        for k in 0..L {
+            inside[k] &= !(w[k].is_nan() || w[k] <= 0.0);
+            let fx = ((x[k] / w[k] + 1.0) * hw * sub).round();
+            let fy = ((1.0 - y[k] / w[k]) * hh * sub).round();
+            sx[k] = fx.clamp(-SNAP_LIMIT, SNAP_LIMIT) as i64;
+            sy[k] = fy.clamp(-SNAP_LIMIT, SNAP_LIMIT) as i64;
+            sz[k] = (z[k] / w[k]).clamp(0.0, 1.0);
+        }
+        for k in 0..n {
+            self.inside[k] = inside[k];
+            self.snapped[k] = SnappedVertex {
+                x: sx[k],
+                y: sy[k],
+                z: sz[k],
+            };
         }
     }
 
     /// Facing of the triangle with (checked) vertex indices `t`.
     #[inline(always)]
     pub fn facing(&self, t: [u32; 3]) -> Option<Facing> {
-        facing(t.map(|i| self.clip[i as usize]))
+        facing(t.map(|i| self.at(i as usize)))
     }
 
     /// [`setup_into`] for the triangle with (checked) vertex indices `t`, whose
@@ -305,7 +363,7 @@ impl VertexCache {
                 s.len = 3;
             }
         } else {
-            setup_into([self.clip[a], self.clip[b], self.clip[c]], vp, s);
+            setup_into([self.at(a), self.at(b), self.at(c)], vp, s);
         }
     }
 }
@@ -313,6 +371,45 @@ impl VertexCache {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn lane_transform_is_the_glam_product_bit_for_bit() {
+        // A small LCG: values of mixed magnitude and sign, w = 0 included.
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        let mut r = move || {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1);
+            let u = (state >> 40) as f32 / (1u64 << 24) as f32;
+            (u - 0.5) * 10f32.powi((state >> 33) as i32 % 7 - 3)
+        };
+        for _ in 0..200 {
+            let m = glam::Mat4::from_cols_array(&std::array::from_fn(|_| r()));
+            let p: [Vec4; 8] =
+                std::array::from_fn(|k| Vec4::new(r(), r(), r(), if k == 3 { 0.0 } else { r() }));
+            let lanes = transform_lanes(&m, |k| p[k]);
+            let (lo, hi) = (
+                glam::Vec3::new(r(), r(), r()),
+                glam::Vec3::new(r(), r(), r()),
+            );
+            let mut cache = VertexCache::empty();
+            cache.transform_box(&m, lo, hi);
+            let corners = crate::draw::aabb_corners(lo, hi);
+            for k in 0..8 {
+                let want = m * p[k];
+                let got = Vec4::new(lanes[0][k], lanes[1][k], lanes[2][k], lanes[3][k]);
+                assert_eq!(
+                    got.to_array().map(f32::to_bits),
+                    want.to_array().map(f32::to_bits)
+                );
+                let want = m * corners[k];
+                assert_eq!(
+                    cache.at(k).to_array().map(f32::to_bits),
+                    want.to_array().map(f32::to_bits)
+                );
+            }
+        }
+    }
 
     #[test]
     fn facing_follows_ndc_winding_and_w_sign() {

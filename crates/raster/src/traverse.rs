@@ -351,8 +351,8 @@ fn rows_std<const T: usize>(
     }
 }
 
-/// Standard-coverage writes over whole tile rows that every eligible lane
-/// covers and wins (a full tile nearer than all it holds): the depths of
+/// Standard-coverage writes over whole tile rows, every lane covered and
+/// winning (a full-width tile nearer than all it holds): the depths of
 /// [`rows_std`], bit for bit, without tests; returns their minimum and maximum.
 #[inline(always)]
 fn rows_fill<const T: usize>(
@@ -360,11 +360,10 @@ fn rows_fill<const T: usize>(
     p: &Prep,
     mut e: [f64; 3],
     stepy: [f64; 3],
-    lanes: (usize, usize),
     depth: &mut [f32],
 ) -> (f32, f32) {
     let (z0, z1, z2, inv) = (tri.z[0], tri.z[1], tri.z[2], tri.inv_area);
-    let (kstep, eligible) = lane_setup::<T>(p, lanes);
+    let (kstep, _) = lane_setup::<T>(p, (0, T - 1));
     let mut vmin = [f32::INFINITY; T];
     let mut vmax = [f32::NEG_INFINITY; T];
     for row in depth.chunks_exact_mut(T) {
@@ -375,17 +374,10 @@ fn rows_fill<const T: usize>(
             let b = e[1] + kstep[1][k];
             let c = e[2] + kstep[2][k];
             let z = ((a * z0 + b * z1 + c * z2) * inv) as f32;
-            out[k] = if eligible[k] { z } else { row[k] };
-            vmin[k] = if eligible[k] && z < vmin[k] {
-                z
-            } else {
-                vmin[k]
-            };
-            vmax[k] = if eligible[k] && z > vmax[k] {
-                z
-            } else {
-                vmax[k]
-            };
+            out[k] = z;
+            // Plain selects, so the loop vectorizes.
+            vmin[k] = if z < vmin[k] { z } else { vmin[k] };
+            vmax[k] = if z > vmax[k] { z } else { vmax[k] };
         }
         *row = out;
         for i in 0..3 {
@@ -517,18 +509,18 @@ pub(crate) fn draw_tri(
                 && cov == Coverage::Standard
                 && band.ids.is_none()
                 && (px0, px1, py0, py1) == rect
+                && px1 - px0 + 1 == 1 << l.shift
             {
                 // Every in-target pixel is covered and nearer than all the tile
                 // holds: write the plane; the tile's bounds become those of the new
                 // depths (what the incremental update or a rescan would give).
                 let e0: [f64; 3] = std::array::from_fn(|i| c.e00[i] as f64);
-                let lanes = (0, (px1 - px0) as usize);
                 let tw = 1usize << l.shift;
                 let depth = &mut band.depth[tile_base..tile_base + (py1 - py0 + 1) as usize * tw];
                 let (zmin, zmax) = match l.shift {
-                    2 => rows_fill::<4>(tri, &p, e0, stepyf, lanes, depth),
-                    3 => rows_fill::<8>(tri, &p, e0, stepyf, lanes, depth),
-                    _ => rows_fill::<16>(tri, &p, e0, stepyf, lanes, depth),
+                    2 => rows_fill::<4>(tri, &p, e0, stepyf, depth),
+                    3 => rows_fill::<8>(tri, &p, e0, stepyf, depth),
+                    _ => rows_fill::<16>(tri, &p, e0, stepyf, depth),
                 };
                 let n = u64::from((px1 - px0 + 1) * (py1 - py0 + 1));
                 st.pixels_tested += n;
