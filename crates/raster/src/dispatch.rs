@@ -268,10 +268,9 @@ multiversioned! {
         // ones by ~2⁻²⁴ of the scale): [`meets_apex_region`] would reject them at
         // its first test. (Plain selects and `&`, so the eight corners vectorize.)
         let mut scale = 0f64;
+        let [cx, cy, cz, cw] = lanes;
         for k in 0..8 {
-            let s = f64::from(
-                lanes[0][k].abs() + lanes[1][k].abs() + lanes[2][k].abs() + lanes[3][k].abs(),
-            );
+            let s = f64::from(cx[k].abs() + cy[k].abs() + cz[k].abs() + cw[k].abs());
             scale = if s > scale { s } else { scale };
         }
         let delta = 2.0 * APEX_EPS * scale;

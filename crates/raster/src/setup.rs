@@ -217,8 +217,7 @@ pub(crate) fn transform_lanes(m: &glam::Mat4, p: impl Fn(usize) -> Vec4) -> Lane
     // Plain loops into initialized arrays (`array::map` and `from_fn` went through
     // the stack here).
     let mut pos = [[0f32; L]; 4];
-    for k in 0..L {
-        let v = p(k);
+    for (k, v) in (0..L).map(p).enumerate() {
         pos[0][k] = v.x;
         pos[1][k] = v.y;
         pos[2][k] = v.z;
