@@ -208,6 +208,25 @@ multiversioned! {
         Ok(true)
     }
 
+    /// The screen bounds of each of `items` into `out` (same length), as
+    /// [`draw_mesh`] computes them.
+    fn project_items / project_items_at(
+        vp: &Viewport,
+        items: &[DrawItem],
+        out: &mut [Projected],
+    ) -> () {
+        for (it, o) in items.iter().zip(out) {
+            *o = if it.positions.len() <= CACHE_VERTICES {
+                let mut cache = VertexCache::empty();
+                cache.transform_into(&it.clip_from_local, it.positions);
+                let (lanes, n) = cache.lanes();
+                project_lanes(lanes, n, vp.width, vp.height)
+            } else {
+                project(&it.clip_from_local, it.positions, vp.width, vp.height)
+            };
+        }
+    }
+
     /// Counts the samples of `item` passing the query test (1 at the first with `any`).
     fn query_mesh / query_mesh_at(
         vp: &Viewport,

@@ -5,10 +5,10 @@
 
 use crate::clip::MAX_CLIPPED_VERTICES;
 use crate::coverage::{pixel_bounds, Coverage};
-use crate::depth_target::{Band, DepthTarget};
-use crate::dispatch::draw_mesh;
+use crate::depth_target::{Band, DepthTarget, Layout};
+use crate::dispatch::{draw_mesh, project_items};
 use crate::edge::Tri;
-use crate::hiz::{project, Projected, RowSkip};
+use crate::hiz::{hidden, Projected, RowSkip};
 use crate::setup::SnappedVertex;
 use crate::setup::{setup_into, Facing, Setup, VertexCache, Viewport};
 use crate::stats::RasterStats;
@@ -221,6 +221,65 @@ pub(crate) fn setup_item(
 /// Smallest target (pixels) for which batches are binned and run in parallel.
 const PARALLEL_MIN_PIXELS: u64 = 256 * 256;
 
+/// Tile-row cuts `[0, …, tiles_y]` of about `bands` parallel bands of similar
+/// estimated work: each mesh costs its screen rectangle's width in tiles plus a
+/// fixed setup share in every tile row it reaches (all rows when its bounds are
+/// unknown). Evenly sized bands left one thread with nearly all the work when the
+/// meshes crowd a few rows (a street view's horizon).
+#[cfg(feature = "parallel")]
+fn band_rows(projected: &[Projected], l: &Layout, bands: usize) -> Vec<u32> {
+    const SETUP_TILES: u64 = 4;
+    let rows = l.tiles_y as usize;
+    if rows == 0 {
+        return vec![0, 0];
+    }
+    // Difference array of the per-row work.
+    let mut diff = vec![0i64; rows + 1];
+    for p in projected {
+        let (r0, r1, w) = match p {
+            Projected::Offscreen => continue,
+            Projected::Unknown => (0, rows - 1, u64::from(l.tiles_x)),
+            Projected::Bounds(b) => (
+                (b.y0 >> l.shift) as usize,
+                (b.y1 >> l.shift) as usize,
+                u64::from((b.x1 >> l.shift) - (b.x0 >> l.shift) + 1),
+            ),
+        };
+        let w = (w + SETUP_TILES) as i64;
+        diff[r0] += w;
+        diff[r1 + 1] -= w;
+    }
+    // Prefix sums of the per-row work; every row costs something (clearing,
+    // bounds), so empty rows still split.
+    let mut prefix = Vec::with_capacity(rows + 1);
+    prefix.push(0u64);
+    let mut run = 0i64;
+    for d in &diff[..rows] {
+        run += d;
+        prefix.push(prefix[prefix.len() - 1] + run as u64 + 1);
+    }
+    let total = prefix[rows];
+    let bands = bands.clamp(1, rows) as u64;
+    // Cut k goes to the row boundary whose prefix is nearest k/bands of the total,
+    // so a heavy row gets cuts on both sides.
+    let mut cuts = vec![0u32];
+    for k in 1..bands {
+        let target = total * k / bands;
+        let r = prefix.partition_point(|&p| p < target);
+        let r = if r > 0 && target - prefix[r - 1] < prefix.get(r).map_or(u64::MAX, |p| p - target)
+        {
+            r - 1
+        } else {
+            r
+        };
+        if r > cuts[cuts.len() - 1] as usize && r < rows {
+            cuts.push(r as u32);
+        }
+    }
+    cuts.push(l.tiles_y);
+    cuts
+}
+
 impl DepthTarget {
     /// Draws the triangles of one mesh with the GREATER depth test (ties to the
     /// smaller id when the id target is enabled), skipping those the cull mode
@@ -367,36 +426,42 @@ impl DepthTarget {
         let vp = self.vp;
         let l = self.layout;
         let cull = self.cull;
-        for it in items {
-            check_indices(it)?;
-        }
+        // (Indices were checked by `draw_batch`.)
         // Screen bounds of every item (in parallel, order kept).
-        let projected: Vec<Projected> = items
-            .par_iter()
-            .map(|it| project(&it.clip_from_local, it.positions, vp.width, vp.height))
-            .collect();
-        // Bands of tile rows, several per thread for balance; each band sets up and
-        // draws, in submission order, the items whose bounds reach it.
-        let bands = (threads * 4).min(l.tiles_y as usize).max(1) as u32;
-        let rows_per = l.tiles_y.div_ceil(bands);
+        let mut projected = vec![Projected::Offscreen; items.len()];
+        projected
+            .par_chunks_mut(256)
+            .zip(items.par_chunks(256))
+            .for_each(|(out, its)| project_items(&vp, its, out));
+        // Bands of tile rows, several per thread, of similar estimated work; each
+        // band sets up and draws, in submission order, the items whose bounds reach
+        // it.
+        let cuts = band_rows(&projected, &l, threads * 4);
         let tile_px = l.tile_pixels();
-        let band_tiles = (rows_per * l.tiles_x) as usize;
-        let ids_chunks: Vec<Option<&mut [u64]>> = match self.ids.as_deref_mut() {
-            Some(ids) => ids.chunks_mut(band_tiles * tile_px).map(Some).collect(),
-            None => (0..l.tiles_y.div_ceil(rows_per)).map(|_| None).collect(),
-        };
+        let mut parts = Vec::with_capacity(cuts.len());
+        let (mut depth, mut tiles) = (&mut self.depth[..], &mut self.tiles[..]);
+        let mut ids = self.ids.as_deref_mut();
+        for w in cuts.windows(2) {
+            let n = ((w[1] - w[0]) * l.tiles_x) as usize;
+            let (d, dr) = std::mem::take(&mut depth).split_at_mut(n * tile_px);
+            let (t, tr) = std::mem::take(&mut tiles).split_at_mut(n);
+            let i = match ids.take() {
+                Some(all) => {
+                    let (i, ir) = all.split_at_mut(n * tile_px);
+                    ids = Some(ir);
+                    Some(i)
+                }
+                None => None,
+            };
+            (depth, tiles) = (dr, tr);
+            parts.push((w[0], w[1], d, t, i));
+        }
         // Per band: traversal counters and, per item set up there, its setup counters
         // (triangles clipped, culled); the first band that set an item up reports them.
         type BandOut = (RasterStats, Vec<(u32, u32, u32)>);
-        let outs: Vec<BandOut> = self
-            .depth
-            .par_chunks_mut(band_tiles * tile_px)
-            .zip(self.tiles.par_chunks_mut(band_tiles))
-            .zip(ids_chunks.into_par_iter())
-            .enumerate()
-            .map(|(b, ((depth, tiles), ids))| {
-                let ty0 = b as u32 * rows_per;
-                let ty1 = (ty0 + rows_per).min(l.tiles_y);
+        let outs: Vec<BandOut> = parts
+            .into_par_iter()
+            .map(|(ty0, ty1, depth, tiles, ids)| {
                 let mut band = Band {
                     layout: l,
                     ty0,
@@ -410,7 +475,12 @@ impl DepthTarget {
                 let mut skip = RowSkip::new();
                 for (k, (it, p)) in items.iter().zip(&projected).enumerate() {
                     if let Projected::Bounds(sb) = p {
-                        if (sb.y1 >> l.shift) < ty0 || (sb.y0 >> l.shift) >= ty1 {
+                        // Outside the band, or hidden in every row of it here (what
+                        // `draw_mesh` would find first, without its call and setup).
+                        if (sb.y1 >> l.shift) < ty0
+                            || (sb.y0 >> l.shift) >= ty1
+                            || hidden(&l, band.tiles, ty0, ty1, sb)
+                        {
                             continue;
                         }
                     }
@@ -461,5 +531,60 @@ impl DepthTarget {
             .map(|it| it.triangles.len() as u64)
             .sum::<u64>();
         Ok(())
+    }
+}
+
+#[cfg(all(test, feature = "parallel"))]
+mod tests {
+    use super::*;
+    use crate::hiz::ScreenBounds;
+
+    fn layout(tiles_y: u32) -> Layout {
+        Layout {
+            width: 800,
+            height: tiles_y * 8,
+            tiles_x: 100,
+            tiles_y,
+            shift: 3,
+        }
+    }
+
+    fn rect(y0: u32, y1: u32) -> Projected {
+        Projected::Bounds(ScreenBounds {
+            x0: 0,
+            x1: 15,
+            y0,
+            y1,
+            zmax: 0.5,
+        })
+    }
+
+    fn check(cuts: &[u32], l: &Layout, bands: usize) {
+        assert_eq!(cuts.first(), Some(&0));
+        assert_eq!(cuts.last(), Some(&l.tiles_y));
+        assert!(cuts.windows(2).all(|w| w[0] < w[1]), "{cuts:?}");
+        assert!(cuts.len() <= bands + 1, "{cuts:?}");
+    }
+
+    #[test]
+    fn bands_split_where_the_meshes_crowd() {
+        let l = layout(100);
+        // Nothing to draw: even split of the uniform row cost.
+        let cuts = band_rows(&[], &l, 4);
+        check(&cuts, &l, 4);
+        assert_eq!(cuts, vec![0, 25, 50, 75, 100]);
+        // A horizon: thousands of small meshes in tile rows 50 and 51, one tall one.
+        let mut p = vec![rect(400, 415); 4000];
+        p.push(rect(0, 799));
+        p.push(Projected::Offscreen);
+        let cuts = band_rows(&p, &l, 8);
+        check(&cuts, &l, 8);
+        // Each crowded row gets a band of its own; the light rows around them make
+        // one band each.
+        assert_eq!(cuts, vec![0, 50, 51, 52, 100]);
+        // Unknown bounds cost every row; a single row makes one band.
+        let one = layout(1);
+        let cuts = band_rows(&[Projected::Unknown], &one, 8);
+        assert_eq!(cuts, vec![0, 1]);
     }
 }
