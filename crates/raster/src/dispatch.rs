@@ -20,7 +20,7 @@ use crate::hiz::{hidden, project, project_lanes, Projected, RowSkip};
 use crate::query::{meets_apex_region, APEX_EPS, VISIBLE};
 use crate::setup::{widen, VertexCache, Viewport, CACHE_VERTICES};
 use crate::stats::RasterStats;
-use crate::traverse::{draw_tri, query_tri, QueryView};
+use crate::traverse::{draw_tri, probe_passes, query_tri, QueryView};
 use crate::Result;
 use glam::{Mat4, Vec3};
 
@@ -243,13 +243,7 @@ multiversioned! {
             cache.transform_into(&item.clip_from_local, item.positions);
             cache.snap(vp);
         }
-        let mut sink = Query {
-            view,
-            cov,
-            any,
-            st,
-            count: 0,
-        };
+        let mut sink = Query::new(view, cov, any, st);
         setup_item(
             vp,
             item,
@@ -259,7 +253,7 @@ multiversioned! {
             st_setup,
             &mut sink,
         )?;
-        Ok(sink.count)
+        Ok(sink.finish())
     }
 
     /// The query of the box `(min, max)`: [`VISIBLE`] when it meets the apex
@@ -328,16 +322,10 @@ multiversioned! {
             object: 0,
         };
         let mut st2 = RasterStats::default();
-        let mut sink = Query {
-            view,
-            cov,
-            any,
-            st: &mut st2,
-            count: 0,
-        };
+        let mut sink = Query::new(view, cov, any, &mut st2);
         // Box indices are in range.
         let _ = setup_item(vp, &item, cov, CullMode::None, Some(&cache), st, &mut sink);
-        let count = sink.count;
+        let count = sink.finish();
         st.add(&st2);
         count.min(u64::from(VISIBLE - 1)) as u32
     }
@@ -366,11 +354,61 @@ struct Query<'a, 'b> {
     any: bool,
     st: &'a mut RasterStats,
     count: u64,
+    /// Any-samples queries first probe every triangle's centroid pixel
+    /// ([`probe_passes`]) and traverse the triangles kept here only when no probe
+    /// passed: most visible boxes then need no tile loop at all.
+    pending: [Option<(Tri, PixelBounds)>; PENDING],
+    deferred: usize,
+}
+
+/// Pixel bounds `(x0, x1, y0, y1)` of a triangle.
+type PixelBounds = (i64, i64, i64, i64);
+
+/// Triangles an any-samples query defers (a box's twelve; more are traversed at
+/// once).
+const PENDING: usize = 12;
+
+impl<'a, 'b> Query<'a, 'b> {
+    #[inline(always)]
+    fn new(view: &'a QueryView<'b>, cov: Coverage, any: bool, st: &'a mut RasterStats) -> Self {
+        Query {
+            view,
+            cov,
+            any,
+            st,
+            count: 0,
+            pending: [None; PENDING],
+            deferred: 0,
+        }
+    }
+
+    /// Traverses the deferred triangles (until one passes); the count.
+    #[inline(always)]
+    fn finish(mut self) -> u64 {
+        for (t, pb) in self.pending[..self.deferred].iter().flatten() {
+            if self.count > 0 {
+                break;
+            }
+            self.count += query_tri(self.view, t, *pb, self.cov, true, self.st);
+        }
+        self.count
+    }
 }
 
 impl TriSink for Query<'_, '_> {
     #[inline(always)]
-    fn tri(&mut self, t: &Tri, pb: (i64, i64, i64, i64), _id: u64) -> bool {
+    fn tri(&mut self, t: &Tri, pb: PixelBounds, _id: u64) -> bool {
+        if self.any && self.cov == Coverage::Standard {
+            if probe_passes(self.view, t, pb, self.st) {
+                self.count = 1;
+                return true;
+            }
+            if let Some(slot) = self.pending.get_mut(self.deferred) {
+                *slot = Some((*t, pb));
+                self.deferred += 1;
+                return false;
+            }
+        }
         self.count += query_tri(self.view, t, pb, self.cov, self.any, self.st);
         self.any && self.count > 0
     }

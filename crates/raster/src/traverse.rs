@@ -644,6 +644,36 @@ pub(crate) struct QueryView<'a> {
     pub receiver_tiles: Option<&'a [f32]>,
 }
 
+/// Any-samples shortcut for standard coverage: whether the pixel under the
+/// triangle's centroid (in pixel bounds `pb`) is covered and passes. The edge
+/// values and depth are those traversal computes there (exact integers;
+/// [`Tri::depth`], which the row loops match bit for bit), so a pass here is a
+/// pass traversal would find; a miss decides nothing.
+#[inline(always)]
+pub(crate) fn probe_passes(
+    v: &QueryView,
+    tri: &Tri,
+    pb: (i64, i64, i64, i64),
+    st: &mut RasterStats,
+) -> bool {
+    let sum = |f: fn(&crate::edge::Edge) -> i64| tri.e.iter().map(f).sum::<i64>();
+    let x = sum(|e| e.ox).div_euclid(3 * SUBPIXEL);
+    let y = sum(|e| e.oy).div_euclid(3 * SUBPIXEL);
+    if x < pb.0 || x > pb.1 || y < pb.2 || y > pb.3 {
+        return false;
+    }
+    let off = edge_offsets(tri, Coverage::Standard);
+    let e = tri.e.map(|e| e.at_pixel(x, y));
+    if (0..3).any(|i| e[i] + off[i] < 0) {
+        return false;
+    }
+    st.pixels_tested += 1;
+    let z = tri.depth(e[0], e[1], e[2]) as f32;
+    // In the target, as `pb` is.
+    let k = v.layout.pixel_index(x as u32, y as u32);
+    z >= v.depth[k] && v.receivers.is_none_or(|r| z >= r[k])
+}
+
 /// Counts the covered samples of `tri` passing GEQUAL (and the receiver restriction).
 /// With `any`, stops at the first passing sample and returns 1. `pb` are the
 /// triangle's pixel bounds ([`pixel_bounds`]).

@@ -858,6 +858,20 @@ fn receivers_restrict_query_counts() {
     // In front of the receivers: counts exactly the marked half.
     assert_eq!(t.query(&item, &o, Some(&r)).unwrap(), w * h / 2);
     assert_eq!(t.query(&item, &o, None).unwrap(), w * h);
+    // Any-samples: the lower-right triangle's centroid lies over the unmarked
+    // half, so its probe fails and traversal finds the marked pixels left of it.
+    let any = QueryOptions {
+        mode: QueryMode::Any,
+        ..Default::default()
+    };
+    let lower_right = DrawItem {
+        triangles: &tris[..1],
+        ..item
+    };
+    let before = t.stats().pixels_tested;
+    assert_eq!(t.query(&lower_right, &any, Some(&r)).unwrap(), 1);
+    assert!(t.stats().pixels_tested > before + 1, "traversal ran");
+    assert_eq!(t.query(&item, &any, Some(&r)).unwrap(), 1);
     // Behind the receivers: nothing.
     let q = quad(-5.0);
     let item = DrawItem {
@@ -867,6 +881,7 @@ fn receivers_restrict_query_counts() {
         object: 0,
     };
     assert_eq!(t.query(&item, &o, Some(&r)).unwrap(), 0);
+    assert_eq!(t.query(&item, &any, Some(&r)).unwrap(), 0);
     let _ = &mut t;
 }
 
