@@ -25,7 +25,8 @@
 //! # What is here
 //! - [`DepthTarget`]: depth (and optional primitive-id) target in tile-major layout
 //!   with hierarchical z; [`DepthTarget::draw`] / [`DepthTarget::draw_batch`]
-//!   (batches are binned into bands of tile rows and rasterized in parallel with
+//!   (batches are binned into bands of tile rows of similar estimated work and
+//!   rasterized in parallel with
 //!   rayon on large targets — identical output), [`DepthTarget::query`] /
 //!   [`DepthTarget::query_aabb`] / [`DepthTarget::query_aabbs`] (GEQUAL sample
 //!   counts or any-samples, apex-region test, optional receiver restriction).
