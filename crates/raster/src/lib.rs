@@ -60,6 +60,7 @@ mod hiz;
 mod hstencil;
 mod near_cap;
 mod open_edges;
+mod prefetch;
 mod query;
 mod receivers;
 mod setup;

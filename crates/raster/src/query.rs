@@ -13,6 +13,7 @@ use crate::coverage::Coverage;
 use crate::depth_target::DepthTarget;
 use crate::dispatch::{query_box, query_mesh};
 use crate::draw::{aabb_corners, DrawItem};
+use crate::prefetch;
 use crate::receivers::ReceiverTarget;
 use crate::stats::RasterStats;
 use crate::traverse::QueryView;
@@ -68,6 +69,15 @@ impl DepthTarget {
             tiles: &self.tiles,
             receivers: receivers.map(|r| r.depth.as_slice()),
             receiver_tiles: receivers.map(|r| r.tile_min.as_slice()),
+        }
+    }
+
+    /// Prefetches the depth tiles under a box queried soon.
+    #[inline(always)]
+    fn prefetch_box(&self, m: &Mat4, b: Option<&(Vec3, Vec3)>) {
+        if let Some(&(lo, hi)) = b {
+            let ends = (lo.extend(1.0), hi.extend(1.0));
+            prefetch::span(m, ends, &self.layout, &self.depth, &self.tiles);
         }
     }
 
@@ -213,20 +223,9 @@ impl DepthTarget {
                     .par_chunks(chunk)
                     .map(|bs| {
                         let mut st = RasterStats::default();
-                        let v = bs
-                            .iter()
-                            .map(|&(a, b)| {
-                                this.query_aabb_inner(
-                                    clip_from_local,
-                                    a,
-                                    b,
-                                    opts,
-                                    receivers,
-                                    &mut st,
-                                )
-                                .expect("box indices are in range")
-                            })
-                            .collect();
+                        let mut v = Vec::with_capacity(bs.len());
+                        this.query_run(clip_from_local, bs, opts, receivers, &mut st, &mut v)
+                            .expect("receivers were checked");
                         (v, st)
                     })
                     .collect();
@@ -238,10 +237,34 @@ impl DepthTarget {
             }
         }
         let mut st = RasterStats::default();
-        for &(a, b) in boxes {
-            out.push(self.query_aabb_inner(clip_from_local, a, b, opts, receivers, &mut st)?);
-        }
+        let r = self.query_run(clip_from_local, boxes, opts, receivers, &mut st, out);
         self.stats.add(&st);
+        r
+    }
+
+    /// Queries `boxes` in order into `out`, prefetching the depth tiles a few
+    /// boxes ahead while recent queries read depth (when hierarchical z rejects
+    /// nearly every box, as in a street view, they read none and prefetches would
+    /// only cost).
+    fn query_run(
+        &self,
+        clip_from_local: Mat4,
+        boxes: &[(Vec3, Vec3)],
+        opts: &QueryOptions,
+        receivers: Option<&ReceiverTarget>,
+        st: &mut RasterStats,
+        out: &mut Vec<u32>,
+    ) -> Result<()> {
+        // Bit k: the query k boxes back read depth (tiles or a probed pixel).
+        let mut recent = u32::MAX;
+        for (k, &(a, b)) in boxes.iter().enumerate() {
+            if (recent & 0xff).count_ones() >= 2 {
+                self.prefetch_box(&clip_from_local, boxes.get(k + prefetch::AHEAD));
+            }
+            let read = st.tiles_touched + st.pixels_tested;
+            out.push(self.query_aabb_inner(clip_from_local, a, b, opts, receivers, st)?);
+            recent = recent << 1 | u32::from(st.tiles_touched + st.pixels_tested > read);
+        }
         Ok(())
     }
 }
