@@ -74,6 +74,11 @@ struct Prep {
     step_y: [i64; 3],
     offf: [f64; 3],
     stepf: [f64; 3],
+    /// Per lane `k` of a tile row the edge steps `k·step_x` (exact), computed once
+    /// per triangle rather than per tile.
+    kstep: [[f64; MAX_TILE]; 3],
+    /// The edge steps per row, `step_y` in f64 (exact).
+    stepyf: [f64; 3],
     /// The triangle is small: use the vertex depth range for every tile.
     single_tile: bool,
     /// Bounds of every depth it produces.
@@ -95,6 +100,8 @@ fn prep(tri: &Tri, pb: (i64, i64, i64, i64), cov: Coverage, l: &Layout) -> Prep 
         step_y,
         offf: off.map(|o| o as f64),
         stepf: step_x.map(|o| o as f64),
+        kstep: step_x.map(|o| std::array::from_fn(|k| k as f64 * o as f64)),
+        stepyf: step_y.map(|o| o as f64),
         // Small triangles (at most two tiles across): the vertex depth range is
         // nearly as tight as the per-tile corner range and much cheaper.
         single_tile: (pb.1 - pb.0) < 2 << l.shift && (pb.3 - pb.2) < 2 << l.shift,
@@ -209,12 +216,15 @@ fn eval_row_cons_n<const N: usize>(
     }
 }
 
-/// Per-lane edge steps `k·step` of a tile row of width `T`, and whether lane `k`
-/// lies in `lanes.0..=lanes.1`.
+/// Per-lane edge steps `k·step` of a tile row ([`Prep::kstep`]), and whether lane
+/// `k` of a row of width `T` lies in `lanes.0..=lanes.1`.
 #[inline(always)]
-fn lane_setup<const T: usize>(p: &Prep, lanes: (usize, usize)) -> ([[f64; T]; 3], [bool; T]) {
+fn lane_setup<const T: usize>(
+    p: &Prep,
+    lanes: (usize, usize),
+) -> (&[[f64; MAX_TILE]; 3], [bool; T]) {
     (
-        std::array::from_fn(|i| std::array::from_fn(|k| k as f64 * p.stepf[i])),
+        &p.kstep,
         std::array::from_fn(|k| k >= lanes.0 && k <= lanes.1),
     )
 }
@@ -466,7 +476,7 @@ pub(crate) fn draw_tri(
                     + p.step_x[i] * (px0 - rect.0) as i64
                     + p.step_y[i] * (py0 - rect.2) as i64) as f64
             });
-            let stepyf = p.step_y.map(|s| s as f64);
+            let stepyf = p.stepyf;
             if no_test
                 && cov == Coverage::Standard
                 && band.ids.is_none()
@@ -705,7 +715,7 @@ pub(crate) fn query_tri(
                     + p.step_x[i] * (px0 - rect.0) as i64
                     + p.step_y[i] * (py0 - rect.2) as i64) as f64
             });
-            let stepyf = p.step_y.map(|s| s as f64);
+            let stepyf = p.stepyf;
             if cov == Coverage::Standard {
                 let e0: [f64; 3] = std::array::from_fn(|i| {
                     (c.e00[i] + p.step_y[i] * (py0 - rect.2) as i64) as f64
