@@ -222,11 +222,10 @@ fn eval_row_cons_n<const N: usize>(
 fn lane_setup<const T: usize>(
     p: &Prep,
     lanes: (usize, usize),
-) -> (&[[f64; MAX_TILE]; 3], [bool; T]) {
-    (
-        &p.kstep,
-        std::array::from_fn(|k| k >= lanes.0 && k <= lanes.1),
-    )
+) -> (&[[f64; MAX_TILE]; 3], [u32; T]) {
+    // One bit per lane, spread by shifts (no per-lane compare-and-convert).
+    let bits = ((2u32 << lanes.1) - 1) & !((1u32 << lanes.0) - 1);
+    (&p.kstep, std::array::from_fn(|k| (bits >> k) & 1))
 }
 
 /// Accumulated results of [`rows_std`].
@@ -285,7 +284,7 @@ fn rows_std<const T: usize>(
             let inside = ((a + p.offf[0] >= 0.0) as u32)
                 & ((b + p.offf[1] >= 0.0) as u32)
                 & ((c + p.offf[2] >= 0.0) as u32);
-            let m = (eligible[k] as u32) & (fullm | inside);
+            let m = eligible[k] & (fullm | inside);
             let z = ((a * z0 + b * z1 + c * z2) * inv) as f32;
             let d = row[k];
             let win = m & (no_testm | ((z > d) as u32));
@@ -393,7 +392,7 @@ fn rows_query<const T: usize>(
             let inside = ((a + p.offf[0] >= 0.0) as u32)
                 & ((b + p.offf[1] >= 0.0) as u32)
                 & ((c + p.offf[2] >= 0.0) as u32);
-            let m = (eligible[k] as u32) & ((full as u32) | inside);
+            let m = eligible[k] & ((full as u32) | inside);
             let z = ((a * z0 + b * z1 + c * z2) * inv) as f32;
             te += m;
             pass += m & ((z >= row[k]) as u32) & ((z >= rec[k]) as u32);
