@@ -16,7 +16,7 @@ use crate::coverage::Coverage;
 use crate::depth_target::Band;
 use crate::draw::{setup_item, CullMode, DrawItem, TriSink};
 use crate::edge::Tri;
-use crate::hiz::{hidden, project, project_lanes, Projected, RowSkip};
+use crate::hiz::{hidden, project, project_lanes, project_wide, Projected, RowSkip};
 use crate::query::{meets_apex_region, APEX_EPS, VISIBLE};
 use crate::setup::{widen, VertexCache, Viewport, CACHE_VERTICES};
 use crate::stats::RasterStats;
@@ -274,7 +274,8 @@ multiversioned! {
         let mut cache = VertexCache::empty();
         cache.transform_box(clip_from_local, min, max);
         let (lanes, _) = cache.lanes();
-        let [x, y, z, w] = widen(lanes);
+        let wide = widen(lanes);
+        let [x, y, z, w] = &wide;
         // Most boxes lie wholly outside one plane of the apex region (beyond the
         // near plane, or behind the eye and beside the view), with twice the
         // widening of the exact test to spare (the f32 corners differ from its f64
@@ -302,7 +303,7 @@ multiversioned! {
             return VISIBLE;
         }
         let n = AABB_TRIANGLES.len() as u64;
-        let skip = match project_lanes(lanes, 8, vp.width, vp.height) {
+        let skip = match project_wide(&wide, 8, vp.width, vp.height) {
             Projected::Unknown => false,
             Projected::Offscreen => true,
             Projected::Bounds(b) => hidden(&view.layout, view.tiles, 0, view.layout.tiles_y, &b),

@@ -7,7 +7,7 @@
 
 use crate::coverage::f32_up;
 use crate::depth_target::{Layout, TileBounds};
-use crate::setup::{transform_lanes, widen, Lanes, CACHE_VERTICES};
+use crate::setup::{transform_lanes, widen, Lanes, Wide, CACHE_VERTICES};
 use glam::{Mat4, Vec4};
 
 /// Pixel margin added around the projected rectangle: covers snapping (1/512 px),
@@ -45,7 +45,9 @@ pub(crate) fn project(m: &Mat4, positions: &[Vec4], width: u32, height: u32) -> 
         // Short chunks repeat their first vertex, which changes no bound, outcode or
         // flag.
         let n = chunk.len();
-        acc.add(&transform_lanes(m, |k| chunk[if k < n { k } else { 0 }]));
+        acc.add(&widen(&transform_lanes(m, |k| {
+            chunk[if k < n { k } else { 0 }]
+        })));
     }
     acc.finish(positions.len(), width, height)
 }
@@ -54,8 +56,14 @@ pub(crate) fn project(m: &Mat4, positions: &[Vec4], width: u32, height: u32) -> 
 /// on repeat a vertex).
 #[inline(always)]
 pub(crate) fn project_lanes(lanes: &Lanes, count: usize, width: u32, height: u32) -> Projected {
+    project_wide(&widen(lanes), count, width, height)
+}
+
+/// [`project_lanes`] of lanes already widened to f64 ([`widen`]).
+#[inline(always)]
+pub(crate) fn project_wide(wide: &Wide, count: usize, width: u32, height: u32) -> Projected {
     let mut acc = Acc::new(width, height);
-    acc.add(lanes);
+    acc.add(wide);
     acc.finish(count, width, height)
 }
 
@@ -97,9 +105,9 @@ impl Acc {
     /// so that snapping and outer-conservative coverage at the viewport border
     /// cannot matter.
     #[inline(always)]
-    fn add(&mut self, clip: &Lanes) {
+    fn add(&mut self, clip: &Wide) {
         let (gx, gy) = (self.gx, self.gy);
-        let [x, y, z, w] = widen(clip);
+        let [x, y, z, w] = clip;
         // Per lane, with non-short-circuit operators and plain selects (a NaN never
         // wins, like `f64::min`), so the compiler vectorizes across vertices.
         let mut out = [0u32; LANES];

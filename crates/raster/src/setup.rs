@@ -234,9 +234,12 @@ pub(crate) fn transform_lanes(m: &glam::Mat4, p: impl Fn(usize) -> Vec4) -> Lane
     out
 }
 
+/// [`Lanes`] in f64.
+pub(crate) type Wide = [[f64; CACHE_VERTICES]; 4];
+
 /// The lanes in f64 (exact).
 #[inline(always)]
-pub(crate) fn widen(l: &Lanes) -> [[f64; CACHE_VERTICES]; 4] {
+pub(crate) fn widen(l: &Lanes) -> Wide {
     let mut out = [[0f64; CACHE_VERTICES]; 4];
     for i in 0..4 {
         for k in 0..CACHE_VERTICES {
