@@ -418,6 +418,26 @@ pub(crate) fn draw_tri(
     skip: &RowSkip,
     st: &mut RasterStats,
 ) {
+    // The common case (standard coverage, no id target) gets a copy of its own
+    // with the other paths compiled out: a lean tile loop spills less.
+    if cov == Coverage::Standard && band.ids.is_none() {
+        draw_tri_as::<true>(band, tri, pb, Coverage::Standard, id, skip, st)
+    } else {
+        draw_tri_as::<false>(band, tri, pb, cov, id, skip, st)
+    }
+}
+
+/// [`draw_tri`]; `FAST`: the coverage is standard and there is no id target.
+#[inline(always)]
+fn draw_tri_as<const FAST: bool>(
+    band: &mut Band,
+    tri: &Tri,
+    pb: (i64, i64, i64, i64),
+    cov: Coverage,
+    id: u64,
+    skip: &RowSkip,
+    st: &mut RasterStats,
+) {
     let l = band.layout;
     let p = prep(tri, pb, cov, &l);
     let (tx0, tx1, ty0, ty1) = p.tiles;
@@ -476,12 +496,7 @@ pub(crate) fn draw_tri(
                     + p.step_y[i] * (py0 - rect.2) as i64) as f64
             });
             let stepyf = p.stepyf;
-            if no_test
-                && cov == Coverage::Standard
-                && band.ids.is_none()
-                && (px0, px1, py0, py1) == rect
-                && px1 - px0 + 1 == 1 << l.shift
-            {
+            if no_test && FAST && (px0, px1, py0, py1) == rect && px1 - px0 + 1 == 1 << l.shift {
                 // Every in-target pixel is covered and nearer than all the tile
                 // holds: write the plane; the tile's bounds become those of the new
                 // depths (what the incremental update or a rescan would give).
@@ -503,7 +518,7 @@ pub(crate) fn draw_tri(
                 };
                 continue;
             }
-            if cov == Coverage::Standard && band.ids.is_none() {
+            if FAST {
                 // Fast path: whole tile rows, fixed width.
                 let mut acc = RowAcc {
                     new_min: f32::INFINITY,
@@ -657,6 +672,24 @@ pub(crate) fn query_tri(
     any: bool,
     st: &mut RasterStats,
 ) -> u64 {
+    // Standard coverage gets a copy of its own (see `draw_tri`).
+    if cov == Coverage::Standard {
+        query_tri_as::<true>(v, tri, pb, Coverage::Standard, any, st)
+    } else {
+        query_tri_as::<false>(v, tri, pb, cov, any, st)
+    }
+}
+
+/// [`query_tri`]; `STANDARD`: the coverage is standard.
+#[inline(always)]
+fn query_tri_as<const STANDARD: bool>(
+    v: &QueryView,
+    tri: &Tri,
+    pb: (i64, i64, i64, i64),
+    cov: Coverage,
+    any: bool,
+    st: &mut RasterStats,
+) -> u64 {
     let l = v.layout;
     let p = prep(tri, pb, cov, &l);
     let (tx0, tx1, ty0, ty1) = p.tiles;
@@ -715,7 +748,7 @@ pub(crate) fn query_tri(
                     + p.step_y[i] * (py0 - rect.2) as i64) as f64
             });
             let stepyf = p.stepyf;
-            if cov == Coverage::Standard {
+            if STANDARD {
                 let e0: [f64; 3] = std::array::from_fn(|i| {
                     (c.e00[i] + p.step_y[i] * (py0 - rect.2) as i64) as f64
                 });
