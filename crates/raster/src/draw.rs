@@ -135,6 +135,28 @@ pub(crate) fn setup_item(
     st: &mut RasterStats,
     f: &mut impl TriSink,
 ) -> Result<()> {
+    // Small meshes (boxes) and the rest get a copy each, the other's path compiled
+    // out (a leaner loop spills less).
+    if cache.is_some() {
+        setup_item_as::<true>(vp, item, cov, cull, cache, st, f)
+    } else {
+        setup_item_as::<false>(vp, item, cov, cull, None, st, f)
+    }
+}
+
+/// [`setup_item`]; `CACHED`: `cache` is `Some`.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn setup_item_as<const CACHED: bool>(
+    vp: &Viewport,
+    item: &DrawItem,
+    cov: Coverage,
+    cull: CullMode,
+    cache: Option<&VertexCache>,
+    st: &mut RasterStats,
+    f: &mut impl TriSink,
+) -> Result<()> {
+    let cache = if CACHED { cache } else { None };
     let mut s = Setup {
         facing: None,
         clipped: false,
