@@ -95,6 +95,19 @@ pub(crate) fn avx2_available() -> bool {
     level() >= Level::Avx2
 }
 
+/// The screen bounds of `item`; a small mesh's vertex stage is left in `cache`
+/// (filled in place: moving it costs a copy per mesh).
+#[inline(always)]
+fn screen_bounds(vp: &Viewport, item: &DrawItem, cache: &mut VertexCache) -> Projected {
+    if item.positions.len() <= CACHE_VERTICES {
+        cache.transform_into(&item.clip_from_local, item.positions);
+        let (lanes, n) = cache.lanes();
+        project_lanes(lanes, n, vp.width, vp.height)
+    } else {
+        project(&item.clip_from_local, item.positions, vp.width, vp.height)
+    }
+}
+
 /// Defines `name(args)`, running the body at [`level`], and `name_at(level, args)`,
 /// running it at `level` (capped at [`detected`], so any level is safe to ask for);
 /// the body is compiled once per level.
@@ -160,16 +173,10 @@ multiversioned! {
         // The cache is filled in place (moving it costs a copy per mesh).
         let small = item.positions.len() <= CACHE_VERTICES;
         let mut cache = VertexCache::empty();
-        let mut transformed = false;
+        let transformed = projected.is_none() && small;
         let p = match projected {
             Some(p) => *p,
-            None if small => {
-                cache.transform_into(&item.clip_from_local, item.positions);
-                transformed = true;
-                let (lanes, n) = cache.lanes();
-                project_lanes(lanes, n, vp.width, vp.height)
-            }
-            None => project(&item.clip_from_local, item.positions, vp.width, vp.height),
+            None => screen_bounds(vp, item, &mut cache),
         };
         let l = band.layout;
         match p {
@@ -215,15 +222,9 @@ multiversioned! {
         items: &[DrawItem],
         out: &mut [Projected],
     ) -> () {
+        let mut cache = VertexCache::empty();
         for (it, o) in items.iter().zip(out) {
-            *o = if it.positions.len() <= CACHE_VERTICES {
-                let mut cache = VertexCache::empty();
-                cache.transform_into(&it.clip_from_local, it.positions);
-                let (lanes, n) = cache.lanes();
-                project_lanes(lanes, n, vp.width, vp.height)
-            } else {
-                project(&it.clip_from_local, it.positions, vp.width, vp.height)
-            };
+            *o = screen_bounds(vp, it, &mut cache);
         }
     }
 
