@@ -7,8 +7,8 @@
 use criterion::{criterion_group, criterion_main, Criterion};
 use scene::procedural::city::{city, CityParams};
 use scene::{Camera, Light, Scene};
-use shadowcull::config::{PipelineOptions, StencilBackend};
 use shadowcull::frame::FrameRunner;
+use shadowcull::pipeline::{PipelineOptions, StencilBackend};
 use std::path::Path;
 
 const RES: (u32, u32) = (1280, 1024);
@@ -38,10 +38,16 @@ fn variants() -> [(&'static str, PipelineOptions); 3] {
     ]
 }
 
-fn bench_view(c: &mut Criterion, group: &str, scene: &Scene, camera: &Camera, light: Light) {
+fn bench_view(
+    c: &mut Criterion,
+    group: &str,
+    scene: &std::sync::Arc<Scene>,
+    camera: &Camera,
+    light: Light,
+) {
     let mut g = c.benchmark_group(group);
     g.sample_size(10);
-    let mut runner = FrameRunner::new(scene);
+    let mut runner = FrameRunner::new(scene.clone());
     for (name, options) in variants() {
         // Warm silhouette cache: a static scene's steady state.
         g.bench_function(format!("frame_{name}"), |b| {
@@ -54,7 +60,7 @@ fn bench_view(c: &mut Criterion, group: &str, scene: &Scene, camera: &Camera, li
     }
     g.bench_function("frame_bf_cold_silhouettes", |b| {
         b.iter(|| {
-            runner.reset_caches();
+            let mut runner = FrameRunner::new(scene.clone());
             runner
                 .frame(0, camera, &[light], RES, &variants()[0].1, false)
                 .expect("frame")
@@ -65,7 +71,7 @@ fn bench_view(c: &mut Criterion, group: &str, scene: &Scene, camera: &Camera, li
 
 fn bench_city(c: &mut Criterion) {
     let loaded = city(&CityParams::default()).expect("default city");
-    let scene = Scene::new(loaded.graph.clone()).expect("flatten");
+    let scene = std::sync::Arc::new(Scene::new(loaded.graph.clone()).expect("flatten"));
     // The default job's first light: 1.5 scene heights above the centre.
     let light = shadowcull::config::LightSpec::AboveScene(1.5)
         .resolve(&loaded, &scene.bounds(), 0, std::path::Path::new("<bench>"))
@@ -97,7 +103,7 @@ fn bench_box_city(c: &mut Criterion) {
         .camera(RES.0 as f64 / RES.1 as f64)
         .expect("camera");
     let light = loaded.lights[0].1;
-    let scene = Scene::new(loaded.graph).expect("flatten");
+    let scene = std::sync::Arc::new(Scene::new(loaded.graph).expect("flatten"));
     bench_view(c, "city_16384/street", &scene, &camera, light);
 }
 

@@ -21,8 +21,9 @@
 use criterion::{criterion_group, criterion_main, Criterion, SamplingMode};
 use scene::procedural::city::{city, CityParams};
 use scene::{Camera, Light, Scene};
-use shadowcull::config::{default_job, CullingSpec, PipelineOptions};
+use shadowcull::config::default_job;
 use shadowcull::frame::{FrameRunner, LightFrame};
+use shadowcull::pipeline::{CullingSpec, PipelineOptions};
 use std::path::Path;
 use std::time::Duration;
 
@@ -68,7 +69,7 @@ fn print_counters(id: &str, out: &[LightFrame]) {
 fn bench_view(
     c: &mut Criterion,
     group: &str,
-    scene: &Scene,
+    scene: &std::sync::Arc<Scene>,
     camera: &Camera,
     lights: &[Light],
     res: (u32, u32),
@@ -80,7 +81,7 @@ fn bench_view(
         .measurement_time(Duration::from_secs(3));
     for &(name, culling) in MODES {
         let options = options(culling);
-        let mut runner = FrameRunner::new(scene);
+        let mut runner = FrameRunner::new(scene.clone());
         let mut frame = |f: u32| {
             runner
                 .frame(f, camera, lights, res, &options, false)
@@ -97,7 +98,7 @@ fn bench_view(
 fn bench_city(c: &mut Criterion) {
     let job = default_job();
     let loaded = city(&CityParams::default()).expect("default city");
-    let scene = Scene::new(loaded.graph.clone()).expect("flatten");
+    let scene = std::sync::Arc::new(Scene::new(loaded.graph.clone()).expect("flatten"));
     let lights: Vec<Light> = job
         .lights
         .iter()
@@ -136,7 +137,7 @@ fn bench_box_city(c: &mut Criterion) {
         .camera(res.0 as f64 / res.1 as f64)
         .expect("camera");
     let light = loaded.lights[0].1;
-    let scene = Scene::new(loaded.graph).expect("flatten");
+    let scene = std::sync::Arc::new(Scene::new(loaded.graph).expect("flatten"));
     bench_view(c, "city_16384/street", &scene, &camera, &[light], res);
 }
 

@@ -1,6 +1,6 @@
 //! One view, or one camera path, through the stencil shadow pipeline, timed per stage.
 //!
-//! `cargo run --release --example shadow_bench -- SCENE CAMERA WxH [--stencil bf|db|h|hybrid]
+//! `cargo run --release --example shadow_bench -- SCENE CAMERA WxH [--stencil bf|db|h|hybrid|none]
 //! [--scissor on|off] [--method auto|zpass|zfail|zpplus] [--counters 8|wide] [--tile 4|8|16]
 //! [--full-shadow on|off] [--map N] [--culling none|frustum|exact|chc|chcpp]
 //! [--coverage conservative|point] [--threshold T] [--light-res N]
@@ -60,19 +60,20 @@
 
 use anyhow::{bail, Context};
 use glam::DVec3;
+use raster::StencilBits;
 use scene::load::Loaded;
 use scene::{Camera, CameraPath, Light, LookAt, Scene};
 use serde_json::{json, Map, Value};
-use shadowcull::config::{
-    CoverageSpec, CullingSpec, LightSpec, Method, PipelineOptions, StencilBackend, StencilBitsSpec,
-};
+use shadowcull::config::LightSpec;
 use shadowcull::frame::{FrameRunner, LightFrame};
-use shadowcull::stats::FrameStats;
+use shadowcull::pipeline::{CoverageSpec, CullingSpec, PipelineOptions, StencilBackend};
+use shadowcull::stats::FrameRow;
+use shadowgen::MethodChoice;
 use std::path::PathBuf;
 use std::time::Instant;
 
 const USAGE: &str =
-    "usage: shadow_bench SCENE CAMERA WxH [--stencil bf|db|h|hybrid] [--scissor on|off] \
+    "usage: shadow_bench SCENE CAMERA WxH [--stencil bf|db|h|hybrid|none] [--scissor on|off] \
 [--method auto|zpass|zfail|zpplus] [--counters 8|wide] [--tile 4|8|16] [--full-shadow on|off] \
 [--map N] [--culling none|frustum|exact|chc|chcpp] [--coverage conservative|point] \
 [--threshold T] [--light-res N] [--two-sided] [--reference] \
@@ -87,6 +88,7 @@ const STENCILS: &[(&str, StencilBackend)] = &[
     ("db", StencilBackend::Db),
     ("h", StencilBackend::H),
     ("hybrid", StencilBackend::Hybrid),
+    ("none", StencilBackend::None),
 ];
 const CULLINGS: &[(&str, CullingSpec)] = &[
     ("none", CullingSpec::None),
@@ -95,16 +97,13 @@ const CULLINGS: &[(&str, CullingSpec)] = &[
     ("chc", CullingSpec::Chc),
     ("chcpp", CullingSpec::Chcpp),
 ];
-const METHODS: &[(&str, Method)] = &[
-    ("auto", Method::Auto),
-    ("zpass", Method::Zpass),
-    ("zfail", Method::Zfail),
-    ("zpplus", Method::Zpplus),
+const METHODS: &[(&str, MethodChoice)] = &[
+    ("auto", MethodChoice::Auto),
+    ("zpass", MethodChoice::ZPass),
+    ("zfail", MethodChoice::ZFail),
+    ("zpplus", MethodChoice::ZpPlus),
 ];
-const COUNTERS: &[(&str, StencilBitsSpec)] = &[
-    ("8", StencilBitsSpec::Eight),
-    ("wide", StencilBitsSpec::Wide),
-];
+const COUNTERS: &[(&str, StencilBits)] = &[("8", StencilBits::Eight), ("wide", StencilBits::Wide)];
 const COVERAGES: &[(&str, CoverageSpec)] = &[
     ("conservative", CoverageSpec::Conservative),
     ("point", CoverageSpec::Point),
@@ -368,15 +367,16 @@ fn city() -> anyhow::Result<Loaded> {
 /// One frame's statistics row (the one light's) and the wall-clock time of the
 /// frame without the reference.
 struct Sample {
-    row: FrameStats,
+    row: FrameRow,
     wall_ms: f64,
 }
 
 type Get<T> = fn(&Sample) -> T;
 
 /// Per-frame times reported as series (path) or medians (one view).
-const TIMES: [(&str, Get<f64>); 7] = [
+const TIMES: [(&str, Get<f64>); 8] = [
     ("frame_ms", |s| s.row.frame_ms),
+    ("pipeline_frame_ms", |s| s.row.pipeline_frame_ms),
     ("wall_ms", |s| s.wall_ms),
     ("eye_ms", |s| s.row.shadow.eye_ms),
     ("light_ms", |s| s.row.shadow.light_ms),
@@ -443,7 +443,7 @@ fn run(
 }
 
 /// The settings and scene size, common to both modes.
-fn settings(a: &Args, row: &FrameStats) -> Map<String, Value> {
+fn settings(a: &Args, row: &FrameRow) -> Map<String, Value> {
     let p = &a.pipeline;
     let v = json!({
         "scene": a.scene.display().to_string(),
@@ -610,7 +610,7 @@ fn main() -> anyhow::Result<()> {
         scene::load::load_path(&a.scene)?
     };
     let light = light(&a, &loaded)?;
-    let scene = Scene::new(loaded.graph.clone())?;
+    let scene = std::sync::Arc::new(Scene::new(loaded.graph.clone())?);
     eprintln!(
         "shadow_bench: {} objects, {} triangles, {}x{}, {}",
         scene.objects().len(),
@@ -623,7 +623,7 @@ fn main() -> anyhow::Result<()> {
         }
     );
     // One runner for every frame: per-view state persists as in a running application.
-    let mut runner = FrameRunner::new(&scene);
+    let mut runner = FrameRunner::new(scene);
     let (line, last) = match &a.path {
         Some(name) => {
             let path = camera_path(&a, &loaded, name)?;
@@ -635,8 +635,11 @@ fn main() -> anyhow::Result<()> {
         }
     };
     if let Some(path) = &a.mask {
-        let bytes: Vec<u8> = last
+        let shadow = last
             .shadow
+            .as_ref()
+            .context("--mask needs a stencil backend, not --stencil none")?;
+        let bytes: Vec<u8> = shadow
             .raw_nonzero
             .iter()
             .map(|&s| if s { 255 } else { 0 })

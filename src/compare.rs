@@ -7,13 +7,14 @@
 //! and shared by every variant with the same reference options; each variant
 //! starts with cold silhouette caches so no variant inherits another's work.
 
-use crate::config::{
-    CoverageSpec, CullingSpec, Job, NamedPipeline, PipelineOptions, StencilBackend,
-};
+use crate::config::{load_scene_for_job, resolve_lights};
+use crate::config::{Job, NamedPipeline};
 use crate::error::io_err;
 use crate::frame::FrameRunner;
-use crate::run::{atomic, frame_camera, load_scene_for_job, resolve_lights};
-use crate::stats::FrameStats;
+use crate::pipeline::{CoverageSpec, CullingSpec, PipelineOptions, StencilBackend};
+use crate::run::{atomic, frame_camera};
+use crate::stats::median;
+use crate::stats::FrameRow;
 use crate::{Error, Result};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
@@ -98,9 +99,9 @@ fn spec_name<T: Serialize>(v: &T) -> String {
 }
 
 impl VariantRow {
-    fn from_rows(name: &str, p: &PipelineOptions, rows: &[FrameStats]) -> Self {
-        let med = |f: fn(&FrameStats) -> f64| median(rows.iter().map(f).collect());
-        let sum = |f: fn(&FrameStats) -> u64| rows.iter().map(f).sum::<u64>();
+    fn from_rows(name: &str, p: &PipelineOptions, rows: &[FrameRow]) -> Self {
+        let med = |f: fn(&FrameRow) -> f64| median(&rows.iter().map(f).collect::<Vec<_>>());
+        let sum = |f: fn(&FrameRow) -> u64| rows.iter().map(f).sum::<u64>();
         VariantRow {
             name: name.to_string(),
             rows: rows.len() as u64,
@@ -235,11 +236,10 @@ pub fn compare_job(
         .frame_count()
         .min(options.max_frames.unwrap_or(u32::MAX));
     let res = job.resolution;
-    let mut runner = FrameRunner::new(&scene);
+    let mut runner = FrameRunner::new(scene);
     runner.cache_references(true);
     let mut table = Vec::new();
     for v in variants(job) {
-        runner.reset_caches();
         let mut rows = Vec::new();
         for frame in 0..frames {
             let camera = frame_camera(&path, frame, res, file)?;
@@ -312,14 +312,6 @@ fn plot(rows: &[VariantRow], path: &Path) -> std::result::Result<(), Box<dyn std
     Ok(())
 }
 
-fn median(mut v: Vec<f64>) -> f64 {
-    if v.is_empty() {
-        return 0.0;
-    }
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
-}
-
 /// A CSV field, quoted when it holds a comma, quote or line break.
 fn csv_field(s: &str) -> String {
     if s.contains([',', '"', '\n', '\r']) {
@@ -335,7 +327,7 @@ mod tests {
 
     #[test]
     fn row_aggregates_medians_and_sums() {
-        let mut rows = vec![FrameStats::default(); 3];
+        let mut rows = vec![FrameRow::default(); 3];
         for (i, r) in rows.iter_mut().enumerate() {
             r.frame_ms = [5.0, 1.0, 3.0][i];
             r.shadow.pixels_processed = 10 * (i as u64 + 1);

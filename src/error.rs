@@ -28,6 +28,16 @@ pub enum Error {
         /// What is wrong.
         message: String,
     },
+    /// A [`crate::PipelineOptions`] field or a [`crate::FrameInput`] value is
+    /// out of range (a viewport size, an invalid light). Fix: change the named
+    /// field.
+    #[error("{field}: {message}")]
+    Options {
+        /// The field (`tile`, `viewport`, `lights[1]`).
+        field: String,
+        /// What is wrong.
+        message: String,
+    },
     /// Reading or writing a file failed.
     #[error("{}: {source}", path.display())]
     Io {
@@ -41,6 +51,7 @@ pub enum Error {
 /// Result with the facade's [`Error`].
 pub type Result<T> = std::result::Result<T, Error>;
 
+#[cfg(feature = "jobs")]
 pub(crate) fn io_err(path: &std::path::Path) -> impl FnOnce(std::io::Error) -> Error + '_ {
     move |source| Error::Io {
         path: path.to_path_buf(),

@@ -84,7 +84,8 @@
 //! infinite depth are silhouette pixels.
 
 use crate::mask::is_unlit;
-use crate::pipeline::EyePass;
+use crate::reference::EyeSurface;
+use crate::surface::RayPlane;
 use crate::Result;
 use glam::{DMat3, DMat4, DVec3, DVec4, Vec4};
 use raster::{Coverage, DepthTarget, DrawItem, RasterStats, TileSize};
@@ -406,18 +407,19 @@ pub fn classify(
     scene: &Scene,
     camera: &Camera,
     light: &Light,
-    eye: &EyePass,
+    eye: EyeSurface<'_>,
+    (w, h): (u32, u32),
     map_size: u32,
     two_sided: bool,
 ) -> Result<ShadowMapClass> {
     light.validate()?;
     let start = std::time::Instant::now();
-    let (w, h) = (eye.target.width(), eye.target.height());
     let n = w as usize * h as usize;
-    if eye.depth.len() != n || eye.primitive.len() != n {
+    let depth = eye.depth.unwrap_or(&[]);
+    if depth.len() != n || eye.primitive.len() != n {
         return Err(raster::Error::MaskLength {
             expected: n,
-            got: eye.depth.len().min(eye.primitive.len()),
+            got: depth.len().min(eye.primitive.len()),
             width: w,
             height: h,
         }
@@ -518,18 +520,13 @@ pub fn classify(
                 };
                 let tri = scene.world_triangle(obj, t as usize);
                 let dir = rays.direction(x as f64 + 0.5, y as f64 + 0.5);
-                let nrm = (tri[1] - tri[0]).cross(tri[2] - tri[0]);
+                let plane = RayPlane::new(&tri, e);
+                let nrm = plane.normal;
                 // The unlit decision exactly as the mask assembly makes it.
-                let den = nrm.dot(dir);
-                let t_hit = if den != 0.0 {
-                    nrm.dot(tri[0] - e) / den
-                } else {
-                    0.0
-                };
-                if is_unlit(&tri, e, light, e + dir * t_hit, two_sided) {
+                if is_unlit(&tri, e, light, plane.point_or_origin(e, dir), two_sided) {
                     continue;
                 }
-                let z = f64::from(eye.depth[i]);
+                let z = f64::from(depth[i]);
                 if z.is_nan() || z <= 0.0 {
                     si_row[x] = true;
                     continue;
@@ -732,7 +729,16 @@ mod tests {
         let cam = overview_camera();
         let meshes = MeshCache::new(scene);
         let eye = eye_pass(scene, &meshes, &cam, W, H).unwrap();
-        let class = classify(scene, &cam, light, &eye, map_size, two_sided).unwrap();
+        let class = classify(
+            scene,
+            &cam,
+            light,
+            eye.surface(),
+            (W, H),
+            map_size,
+            two_sided,
+        )
+        .unwrap();
         let opts = ReferenceOptions {
             two_sided,
             ..ReferenceOptions::default()
@@ -865,7 +871,7 @@ mod tests {
         let meshes = MeshCache::new(&scene);
         let eye = eye_pass(&scene, &meshes, &cam, W, H).unwrap();
         let (_, light) = lights()[2];
-        let class = classify(&scene, &cam, &light, &eye, 64, false).unwrap();
+        let class = classify(&scene, &cam, &light, eye.surface(), (W, H), 64, false).unwrap();
         for i in 0..(W * H) as usize {
             if eye.primitive[i].is_none() {
                 assert!(!class.shadowed[i] && !class.silhouette[i]);
@@ -878,17 +884,17 @@ mod tests {
             apex_angle: 150f64.to_radians(),
             range: Some(30.0),
         };
-        let class = classify(&scene, &cam, &wide, &eye, 64, false).unwrap();
+        let class = classify(&scene, &cam, &wide, eye.surface(), (W, H), 64, false).unwrap();
         assert_eq!((class.maps, class.map_texels), (6, 6 * 64 * 64));
         assert!(matches!(
-            classify(&scene, &cam, &light, &eye, 0, false),
+            classify(&scene, &cam, &light, eye.surface(), (W, H), 0, false),
             Err(crate::Error::Raster(raster::Error::InvalidSize { .. }))
         ));
         let bad = Light::Directional {
             direction: DVec3::ZERO,
         };
         assert!(matches!(
-            classify(&scene, &cam, &bad, &eye, 64, false),
+            classify(&scene, &cam, &bad, eye.surface(), (W, H), 64, false),
             Err(crate::Error::Scene(_))
         ));
     }
@@ -900,7 +906,7 @@ mod tests {
         let meshes = MeshCache::new(&scene);
         let mut eye = eye_pass(&scene, &meshes, &cam, W, H).unwrap();
         let (_, light) = lights()[0];
-        let class = classify(&scene, &cam, &light, &eye, 512, false).unwrap();
+        let class = classify(&scene, &cam, &light, eye.surface(), (W, H), 512, false).unwrap();
         eye.target.keep_only(&class.silhouette).unwrap();
         let (tx, ty) = eye.target.tile_counts();
         let mut live = 0;

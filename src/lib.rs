@@ -1,10 +1,27 @@
 //! # shadowcull
 //!
 //! CPU-side culling middleware for stencil shadow volumes in scenes with many
-//! objects. This facade crate holds the batch-job configuration (RON), the
-//! per-frame statistics, the exact ray-cast shadow reference every other
-//! stage is measured against, the shadow pipeline (eye pass, volumes,
-//! stencil, mask) and shadow-mask comparison and output.
+//! objects. A host renderer builds a [`Pipeline`] from its [`scene::Scene`]
+//! once and calls [`Pipeline::frame`] every frame: it gets the potentially
+//! shadowed receivers (PSR), per light the potential shadow casters (PSC)
+//! and the shadow volumes to draw, and — with a CPU stencil backend — the
+//! exact shadow mask. See [`Pipeline`] for a complete example, and
+//! `docs/host.md` of the repository for the host guide.
+//!
+//! Besides the pipeline the crate holds the exact ray-cast shadow reference
+//! every option is measured against ([`mod@reference`]), the four-class masks
+//! ([`mask`]), per-frame statistics ([`stats`]), and, with the `jobs`
+//! feature, RON batch jobs ([`config`], [`run`], [`compare`]).
+//!
+//! # Features
+//! - `gltf`, `obj`: the scene loaders (passed to `shadowcull-scene`);
+//! - `jobs`: RON jobs, `run` and `compare` (adds ron, serde_json);
+//! - `images`: PNG masks and the `compare` plot (adds png, plotters);
+//! - `cli`: the `shadowcull` binary (adds clap, indicatif, anyhow,
+//!   tracing-subscriber).
+//!
+//! All are on by default; a renderer that links the library alone uses
+//! `default-features = false`.
 //!
 //! # Conventions
 //! See `DESIGN.md` of the project: right-handed world, +y up, reversed Z with
@@ -12,16 +29,29 @@
 //! the four classes of [`mask::PixelClass`].
 #![forbid(unsafe_code)]
 
+#[cfg(feature = "jobs")]
 pub mod compare;
+#[cfg(feature = "jobs")]
 pub mod config;
 mod error;
+#[cfg(feature = "jobs")]
 pub mod frame;
 pub mod hybrid;
 pub mod mask;
 pub mod pipeline;
 pub mod reference;
+#[cfg(feature = "jobs")]
 pub mod run;
 pub mod stats;
+mod surface;
 
 pub use error::{Error, Result};
+pub use pipeline::{
+    CoverageSpec, CullingSpec, FrameInput, FrameOutput, LightOutput, Pipeline, PipelineOptions,
+    StencilBackend,
+};
+pub use raster;
 pub use scene;
+pub use shadowgen;
+pub use stats::FrameStats;
+pub use visibility;

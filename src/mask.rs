@@ -2,9 +2,12 @@
 //! every producer of masks shares, comparison against the reference, and PNG
 //! output.
 
+use crate::surface::RayPlane;
 use glam::DVec3;
 use scene::{faces_light, Camera, Light, ObjectId, Scene};
+#[cfg(feature = "images")]
 use std::io::Write;
+#[cfg(feature = "images")]
 use std::path::Path;
 
 /// What one pixel shows with respect to one light.
@@ -134,15 +137,7 @@ pub fn assemble(
             let unlit = facing_unlit
                 || (!everywhere && {
                     let dir = rays.direction(x as f64 + 0.5, y as f64 + 0.5);
-                    // Eye-relative plane intersection keeps precision far from the origin.
-                    let n = (tri[1] - tri[0]).cross(tri[2] - tri[0]);
-                    let den = n.dot(dir);
-                    let t_hit = if den != 0.0 {
-                        n.dot(tri[0] - e) / den
-                    } else {
-                        0.0
-                    };
-                    !light.reaches(e + dir * t_hit)
+                    !light.reaches(RayPlane::new(&tri, e).point_or_origin(e, dir))
                 });
             *px = if unlit {
                 PixelClass::Unlit
@@ -226,6 +221,7 @@ impl Mask {
             })
     }
 
+    #[cfg(feature = "images")]
     /// Writes the mask as an 8-bit greyscale PNG (0 lit, 255 shadow, 128 unlit,
     /// 64 background; row 0 at the top).
     ///
@@ -298,6 +294,7 @@ pub fn compare(reference: &Mask, ambiguous: &[bool], mask: &Mask) -> Comparison 
     out
 }
 
+#[cfg(feature = "images")]
 /// Writes an 8-bit greyscale image (`width × height` bytes, row 0 at the top) as a PNG file.
 ///
 /// # Errors
@@ -306,6 +303,7 @@ pub fn write_grey_png(path: &Path, width: u32, height: u32, grey: &[u8]) -> std:
     write_png(path, width, height, png::ColorType::Grayscale, grey)
 }
 
+#[cfg(feature = "images")]
 /// Writes 8-bit pixels as a PNG file.
 pub(crate) fn write_png(
     path: &Path,

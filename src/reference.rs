@@ -536,12 +536,9 @@ fn near_own_prism(
 
 /// Distance along the ray to the triangle's plane (infinite when parallel).
 fn plane_distance(tri: &[DVec3; 3], o: DVec3, d: DVec3) -> f64 {
-    let n = (tri[1] - tri[0]).cross(tri[2] - tri[0]);
-    let den = n.dot(d);
-    if den == 0.0 {
-        return f64::INFINITY;
-    }
-    n.dot(tri[0] - o) / den
+    crate::surface::RayPlane::new(tri, o)
+        .hit(d)
+        .unwrap_or(f64::INFINITY)
 }
 
 /// Class of surface point `q` on triangle `k`; `eye` and `q` centre-relative,

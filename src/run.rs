@@ -5,16 +5,14 @@
 //! `summary.json` and every image are written atomically (temp file +
 //! rename), so an interrupted run leaves valid files.
 
-use crate::config::{load_scene, resolve_camera, Job};
+use crate::config::{load_scene_for_job, resolve_lights, Job};
 use crate::error::io_err;
 use crate::frame::FrameRunner;
 use crate::mask::Mask;
 use crate::reference::ReferenceMask;
-use crate::stats::{CheckStats, FrameStats, ReferenceStats, ShadowStats};
+use crate::stats::{CheckStats, FrameRow, ReferenceStats, ShadowStats};
 use crate::{Error, Result};
-use glam::{DVec3, Vec3};
-use scene::load::Loaded;
-use scene::{Light, Mesh, Scene, SceneCounts, Transform};
+use scene::{Light, SceneCounts};
 use serde::Serialize;
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -54,92 +52,17 @@ pub struct RunSummary {
     pub mean_reference_ms: f64,
     /// Mean pipeline time per frame and light (ms; the rows' `frame_ms`).
     pub mean_frame_ms: f64,
+    /// Median whole-frame time: the wall time of [`crate::Pipeline::frame`]
+    /// for all lights, the reference and file output excluded (ms).
+    pub frame_ms_median: f64,
+    /// Mean whole-frame time, as `frame_ms_median` (ms).
+    pub frame_ms_mean: f64,
     /// Sum of every row's reference counters.
     pub totals: ReferenceStats,
     /// Sum of every row's pipeline counters (times summed too).
     pub shadow_totals: ShadowStats,
     /// Sum of every row's comparison counters.
     pub check_totals: CheckStats,
-}
-
-/// Loads the job's scene (with its optional ground quad) and flattens it.
-///
-/// # Errors
-/// Loader and graph errors, naming the file.
-pub fn prepare_scene(job: &Job, base: &Path) -> Result<(Loaded, Scene)> {
-    let mut loaded = load_scene(&job.scene, base)?;
-    if let Some(g) = job.ground {
-        // Bounds before the ground, to centre it under the scene.
-        let probe = Scene::new(loaded.graph.clone())?;
-        let c = if probe.bounds().is_empty() {
-            DVec3::ZERO
-        } else {
-            probe.bounds().center()
-        };
-        let h = g.size * 0.5;
-        let quad = Mesh::new(
-            "ground",
-            &[
-                Vec3::new(-h, 0.0, -h),
-                Vec3::new(-h, 0.0, h),
-                Vec3::new(h, 0.0, h),
-                Vec3::new(h, 0.0, -h),
-            ],
-            &[[0, 1, 2], [0, 2, 3]],
-        )?;
-        let m = loaded.graph.add_mesh(quad);
-        loaded.graph.add_instance(
-            "ground",
-            m,
-            Transform::translation(DVec3::new(c.x, g.y as f64, c.z)),
-        );
-    }
-    let scene = Scene::new(loaded.graph.clone())?;
-    Ok((loaded, scene))
-}
-
-/// Loads `job`'s scene (paths relative to `job_file`'s directory) and
-/// resolves its camera path.
-///
-/// # Errors
-/// Loader, graph and camera errors, naming the file or job field.
-pub fn load_scene_for_job(
-    job: &Job,
-    job_file: Option<&Path>,
-) -> Result<(Loaded, Scene, scene::CameraPath)> {
-    let base = job_file.and_then(Path::parent).unwrap_or(Path::new("."));
-    let file = job_file.unwrap_or(Path::new("<default job>"));
-    let (loaded, scene) = prepare_scene(job, base)?;
-    let path = resolve_camera(&job.camera, &loaded, &scene.bounds(), file)?;
-    Ok((loaded, scene, path))
-}
-
-/// The job's lights: its `lights`, else the scene's named lights, else one
-/// point light above the scene.
-///
-/// # Errors
-/// A light that fails validation or names a missing scene light.
-pub fn resolve_lights(
-    job: &Job,
-    loaded: &Loaded,
-    bounds: &scene::Aabb,
-    file: &Path,
-) -> Result<Vec<Light>> {
-    if !job.lights.is_empty() {
-        return job
-            .lights
-            .iter()
-            .enumerate()
-            .map(|(i, l)| l.resolve(loaded, bounds, i, file))
-            .collect();
-    }
-    if loaded.lights.is_empty() {
-        Ok(vec![
-            crate::config::LightSpec::AboveScene(1.5).resolve(loaded, bounds, 0, file)?
-        ])
-    } else {
-        Ok(loaded.lights.iter().map(|(_, l)| *l).collect())
-    }
 }
 
 /// Runs `job` (read from `job_file`, or the bundled default when `None`),
@@ -151,7 +74,7 @@ pub fn run_job(
     job: &Job,
     job_file: Option<&Path>,
     options: &RunOptions,
-    on_frame: &mut dyn FnMut(&FrameStats, u32),
+    on_frame: &mut dyn FnMut(&FrameRow, u32),
 ) -> Result<RunSummary> {
     let name = job_file
         .map(|p| p.display().to_string())
@@ -168,7 +91,10 @@ pub fn run_job(
         .min(options.max_frames.unwrap_or(u32::MAX));
     let (w, h) = job.resolution;
 
-    let mut runner = FrameRunner::new(&scene);
+    let counts = scene.counts();
+    let warnings = scene.warnings().to_vec();
+    let mut runner = FrameRunner::new(scene);
+    let mut frame_times = Vec::with_capacity(frames as usize);
 
     let out = &options.out_dir;
     std::fs::create_dir_all(out).map_err(io_err(out))?;
@@ -178,9 +104,8 @@ pub fn run_job(
     }
     let csv_path = out.join("stats.csv");
     let mut csv = std::fs::File::create(&csv_path).map_err(io_err(&csv_path))?;
-    writeln!(csv, "{}", FrameStats::csv_header()).map_err(io_err(&csv_path))?;
+    writeln!(csv, "{}", FrameRow::csv_header()).map_err(io_err(&csv_path))?;
 
-    let counts = scene.counts();
     let mut totals = ReferenceStats::default();
     let mut shadow_totals = ShadowStats::default();
     let mut check_totals = CheckStats::default();
@@ -198,18 +123,26 @@ pub fn run_job(
             &job.pipeline,
             with_reference,
         )?;
+        if let Some(first) = results.first() {
+            frame_times.push(first.row.pipeline_frame_ms);
+        }
         for (li, lf) in results.iter().enumerate() {
             let row = &lf.row;
             if frame % job.outputs.image_every == 0 {
                 if job.outputs.masks {
                     let p = frames_dir.join(format!("{frame}_{li}_mask.png"));
-                    atomic(&p, |tmp| lf.shadow.mask.write_png(tmp))?;
+                    if let Some(shadow) = &lf.shadow {
+                        atomic(&p, |tmp| shadow.mask.write_png(tmp))?;
+                    }
                     if let Some(r) = &lf.reference {
                         let p = frames_dir.join(format!("{frame}_{li}_reference.png"));
                         atomic(&p, |tmp| r.mask.write_png(tmp))?;
                     }
                 }
-                if let (true, Some(t)) = (job.outputs.tile_image, &lf.shadow.tiles) {
+                if let (true, Some(t)) = (
+                    job.outputs.tile_image,
+                    lf.shadow.as_ref().and_then(|s| s.tiles.as_ref()),
+                ) {
                     // [Aila04 Fig. 1]: lit, shadow and boundary tiles of the frame.
                     let p = frames_dir.join(format!("{frame}_{li}_tiles.png"));
                     let rgb = t.rgb(w, h);
@@ -217,9 +150,9 @@ pub fn run_job(
                         crate::mask::write_png(tmp, w, h, png::ColorType::Rgb, &rgb)
                     })?;
                 }
-                if let (true, Some(r)) = (job.outputs.shaded, &lf.reference) {
+                if let (true, Some(r), Some(s)) = (job.outputs.shaded, &lf.reference, &lf.shadow) {
                     let p = frames_dir.join(format!("{frame}_{li}_shaded.png"));
-                    atomic(&p, |tmp| write_shaded(&lf.shadow.mask, r, tmp))?;
+                    atomic(&p, |tmp| write_shaded(&s.mask, r, tmp))?;
                 }
             }
             if lf.reference.is_some() {
@@ -241,7 +174,7 @@ pub fn run_job(
         job: name,
         scene: counts,
         bounds,
-        warnings: scene.warnings().to_vec(),
+        warnings,
         resolution: job.resolution,
         frames,
         lights,
@@ -253,6 +186,8 @@ pub fn run_job(
             0.0
         },
         mean_frame_ms: frame_ms_sum / rows,
+        frame_ms_median: crate::stats::median(&frame_times),
+        frame_ms_mean: frame_times.iter().sum::<f64>() / frame_times.len().max(1) as f64,
         totals,
         shadow_totals,
         check_totals,

@@ -115,7 +115,7 @@ pub struct CheckStats {
 
 /// Everything measured for one frame and one light.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
-pub struct FrameStats {
+pub struct FrameRow {
     /// Frame number, from 0.
     pub frame: u32,
     /// Light index in the job.
@@ -131,6 +131,36 @@ pub struct FrameStats {
     /// The pipeline's time for this light: eye pass + silhouettes + volumes +
     /// stencil (ms); scene load, the reference and image output excluded.
     pub frame_ms: f64,
+    /// Wall time of the whole [`crate::Pipeline::frame`] call of this frame,
+    /// all lights together (ms; [`FrameStats::frame_ms`]); repeated on each
+    /// light's row of the frame.
+    pub pipeline_frame_ms: f64,
+}
+
+/// Frame-level counters of one [`crate::Pipeline::frame`] call; the
+/// per-light counters are each light's [`ShadowStats`].
+///
+/// Growth rule: fields are only added (new counters), never renamed or
+/// removed within a major version.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+#[non_exhaustive]
+pub struct FrameStats {
+    /// Wall time of the whole `frame` call, every light included (ms).
+    pub frame_ms: f64,
+    /// The eye pass, with culling its traversal and the receiver points (ms).
+    pub eye_ms: f64,
+    /// Objects in the scene.
+    pub objects: u64,
+    /// Triangles of all objects.
+    pub triangles: u64,
+    /// Objects the eye pass drew (the PSR; all objects without culling).
+    pub psr: u64,
+    /// Occlusion queries of the eye pass.
+    pub eye_queries: u64,
+    /// Waits for eye-pass query results.
+    pub eye_waits: u64,
+    /// Lights of the frame.
+    pub lights: u32,
 }
 
 /// `add` for summing rows into run totals, over the named fields.
@@ -194,11 +224,11 @@ summable!(CheckStats {
 /// the tracing event can never disagree.
 macro_rules! stats_row {
     ($( $name:ident : $($path:ident).+ ),* $(,)?) => {
-        impl FrameStats {
+        impl FrameRow {
             /// Column names of the flattened row, in order.
             pub const COLUMNS: &'static [&'static str] = &[$(stringify!($name)),*];
 
-            /// The flattened row's values, formatted for CSV, in [`FrameStats::COLUMNS`] order.
+            /// The flattened row's values, formatted for CSV, in [`FrameRow::COLUMNS`] order.
             pub fn values(&self) -> Vec<String> {
                 vec![$(format_value(&self.$($path).+)),*]
             }
@@ -257,6 +287,17 @@ stats_row! {
     ambiguous_pixels: check.ambiguous_pixels,
     compared_pixels: check.compared_pixels,
     frame_ms: frame_ms,
+    pipeline_frame_ms: pipeline_frame_ms,
+}
+
+/// The median of `values` (the upper one of an even count; 0 when empty).
+pub fn median(values: &[f64]) -> f64 {
+    let mut v = values.to_vec();
+    if v.is_empty() {
+        return 0.0;
+    }
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
 }
 
 trait CsvValue {
@@ -281,7 +322,7 @@ fn format_value<T: CsvValue>(v: &T) -> String {
     v.csv()
 }
 
-impl FrameStats {
+impl FrameRow {
     /// The CSV header line (no newline).
     pub fn csv_header() -> String {
         Self::COLUMNS.join(",")
@@ -318,8 +359,8 @@ mod tests {
     fn tracing_event_fields_are_the_csv_columns() {
         let names = Arc::new(Mutex::new(Vec::new()));
         let sub = tracing_subscriber::registry().with(Capture(names.clone()));
-        tracing::subscriber::with_default(sub, || FrameStats::default().emit());
-        assert_eq!(*names.lock().unwrap(), FrameStats::COLUMNS);
+        tracing::subscriber::with_default(sub, || FrameRow::default().emit());
+        assert_eq!(*names.lock().unwrap(), FrameRow::COLUMNS);
     }
 
     #[test]
@@ -349,14 +390,14 @@ mod tests {
 
     #[test]
     fn row_matches_header() {
-        let mut s = FrameStats {
+        let mut s = FrameRow {
             frame: 3,
             light: 1,
             ..Default::default()
         };
         s.reference.shadow = 42;
         s.reference.reference_ms = 1.23456;
-        let cols = FrameStats::csv_header();
+        let cols = FrameRow::csv_header();
         let row = s.csv_row();
         assert_eq!(cols.split(',').count(), row.split(',').count());
         let pairs: Vec<(&str, &str)> = cols.split(',').zip(row.split(',')).collect();

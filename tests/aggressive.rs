@@ -14,9 +14,9 @@
 
 mod common;
 
-use shadowcull::config::{CoverageSpec, CullingSpec, PipelineOptions, StencilBackend};
 use shadowcull::frame::FrameRunner;
 use shadowcull::mask::PixelClass;
+use shadowcull::pipeline::{CoverageSpec, CullingSpec, PipelineOptions, StencilBackend};
 
 #[derive(Debug, Default)]
 struct Tally {
@@ -77,7 +77,10 @@ fn aggressive_options_are_measured_against_the_exact_mask() {
             },
         ),
     ];
-    let mut runners: Vec<FrameRunner> = variants.iter().map(|_| FrameRunner::new(&scene)).collect();
+    let mut runners: Vec<FrameRunner> = variants
+        .iter()
+        .map(|_| FrameRunner::new(scene.clone()))
+        .collect();
     let mut tally: Vec<Tally> = variants.iter().map(|_| Tally::default()).collect();
     let mut shaded = 0u64;
     for f in 0..frames {
@@ -94,8 +97,7 @@ fn aggressive_options_are_measured_against_the_exact_mask() {
             .collect();
         for (li, exact) in outs[0].iter().enumerate() {
             shaded += exact
-                .shadow
-                .mask
+                .mask()
                 .pixels
                 .iter()
                 .filter(|p| **p != PixelClass::Background)
@@ -103,11 +105,10 @@ fn aggressive_options_are_measured_against_the_exact_mask() {
             for (k, out) in outs.iter().enumerate() {
                 let lf = &out[li];
                 let differ = exact
-                    .shadow
-                    .mask
+                    .mask()
                     .pixels
                     .iter()
-                    .zip(&lf.shadow.mask.pixels)
+                    .zip(&lf.mask().pixels)
                     .filter(|(p, q)| p != q)
                     .count() as u64;
                 let t = &mut tally[k];

@@ -362,7 +362,7 @@ fn run_log_format_json_prints_one_event_per_row() {
         .filter(|v: &serde_json::Value| v["target"] == "shadowcull::frame")
         .collect();
     assert_eq!(events.len(), 2);
-    for key in shadowcull::stats::FrameStats::COLUMNS {
+    for key in shadowcull::stats::FrameRow::COLUMNS {
         assert!(
             events[0].get(*key).is_some(),
             "event lacks {key}: {}",

@@ -6,8 +6,8 @@
 
 mod common;
 
-use shadowcull::config::{CullingSpec, PipelineOptions, StencilBackend};
 use shadowcull::frame::FrameRunner;
+use shadowcull::pipeline::{CullingSpec, PipelineOptions, StencilBackend};
 
 #[test]
 fn culled_eye_pass_keeps_every_mask_along_the_street_path() {
@@ -29,7 +29,7 @@ fn culled_eye_pass_keeps_every_mask_along_the_street_path() {
         (CullingSpec::Chcpp, 256),
     ]
     .into_iter()
-    .map(|c| (c, FrameRunner::new(&scene)))
+    .map(|c| (c, FrameRunner::new(scene.clone())))
     .collect();
     let (mut psr, mut psc, mut queries) = ([0u64; 5], [0u64; 10], [0u64; 5]);
     for f in 0..20 {
@@ -55,11 +55,10 @@ fn culled_eye_pass_keeps_every_mask_along_the_street_path() {
         for k in 1..5 {
             for (li, (a, b)) in outs[0].iter().zip(&outs[k]).enumerate() {
                 let differ = a
-                    .shadow
-                    .mask
+                    .mask()
                     .pixels
                     .iter()
-                    .zip(&b.shadow.mask.pixels)
+                    .zip(&b.mask().pixels)
                     .filter(|(p, q)| p != q)
                     .count();
                 assert_eq!(

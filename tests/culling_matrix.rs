@@ -22,10 +22,10 @@ mod common;
 use glam::{DMat4, DQuat, DVec3, Vec3};
 use scene::procedural::analytic;
 use scene::{Camera, Light, Mesh, Scene, SceneGraph, Transform};
-use shadowcull::config::{CoverageSpec, CullingSpec, PipelineOptions, StencilBackend};
 use shadowcull::frame::{FrameRunner, LightFrame};
 use shadowcull::mask::{compare, ClassCounts, Mask};
 use shadowcull::pipeline::{eye_pass, MeshCache};
+use shadowcull::pipeline::{CoverageSpec, CullingSpec, PipelineOptions, StencilBackend};
 use shadowcull::reference::{reference_mask, ReferenceMask, ReferenceOptions, TriangleBvh};
 use std::sync::OnceLock;
 use std::time::Instant;
@@ -40,13 +40,14 @@ const STENCIL: StencilBackend = StencilBackend::H;
 /// A scene with what the checks share: the rasterizer's mesh data (for the
 /// reference's eye pass) and the reference's triangle BVH.
 struct Fixture {
-    scene: Scene,
+    scene: std::sync::Arc<Scene>,
     meshes: MeshCache,
     bvh: TriangleBvh,
 }
 
 impl Fixture {
-    fn new(scene: Scene) -> Self {
+    fn new(scene: impl Into<std::sync::Arc<Scene>>) -> Self {
+        let scene = scene.into();
         Fixture {
             meshes: MeshCache::new(&scene),
             bvh: TriangleBvh::new(&scene),
@@ -165,10 +166,10 @@ fn run_case(case: &Case, two_sided: bool) -> Outcome {
         two_sided,
         ..Default::default()
     };
-    let mut plain = FrameRunner::new(&fx.scene);
+    let mut plain = FrameRunner::new(fx.scene.clone());
     let mut culled: Vec<((CullingSpec, u32), FrameRunner)> = culled_runners(case)
         .into_iter()
-        .map(|c| (c, FrameRunner::new(&fx.scene)))
+        .map(|c| (c, FrameRunner::new(fx.scene.clone())))
         .collect();
     let mut out = Outcome {
         totals: std::iter::once((CullingSpec::None, 0))
@@ -192,13 +193,13 @@ fn run_case(case: &Case, two_sided: bool) -> Outcome {
             .unwrap();
         out.totals[0].1.add(&a);
         out.counts
-            .push(a.iter().map(|l| l.shadow.mask.counts()).collect());
+            .push(a.iter().map(|l| l.mask().counts()).collect());
         if case.reference_every > 0 && frame % case.reference_every == 0 {
             let eye = eye_pass(&fx.scene, &fx.meshes, cam, w, h).unwrap();
             for (li, (light, lf)) in lights.iter().zip(&a).enumerate() {
                 let r = reference_mask(&fx.bvh, cam, light, w, h, &ropts, Some(eye.surface()));
                 out.references += 1;
-                match reference_rule(&r, &lf.shadow.mask) {
+                match reference_rule(&r, lf.mask()) {
                     Ok(n) => out.compared += n,
                     Err(e) => out.failures.push(format!("{}: {e}", what(li))),
                 }
@@ -215,7 +216,7 @@ fn run_case(case: &Case, two_sided: bool) -> Outcome {
                 .unwrap();
             out.totals[k + 1].1.add(&b);
             for (li, (x, y)) in a.iter().zip(&b).enumerate() {
-                let (p, q) = (&x.shadow.mask.pixels, &y.shadow.mask.pixels);
+                let (p, q) = (&x.mask().pixels, &y.mask().pixels);
                 let differ: Vec<(u32, u32, String)> = (0..p.len())
                     .filter(|&i| p[i] != q[i])
                     .map(|i| {
@@ -369,7 +370,7 @@ struct Job {
 /// ceiling cross there; light 0 is above all of them ("above the ceiling"),
 /// light 1 inside the large box (a closed box of 12 unwelded triangles).
 fn shared_cornell() -> Option<&'static Job> {
-    use shadowcull::run::{load_scene_for_job, resolve_lights};
+    use shadowcull::config::{load_scene_for_job, resolve_lights};
     static F: OnceLock<Option<Job>> = OnceLock::new();
     F.get_or_init(|| {
         let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));

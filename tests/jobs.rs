@@ -1,9 +1,9 @@
 //! The job files in `data/jobs/`: they parse, and the shared-scene test views
 //! show their scenes with shadows the reference can compute.
 
+use shadowcull::config::prepare_scene;
 use shadowcull::config::{default_job, resolve_camera, Job};
 use shadowcull::reference::{reference_mask, TriangleBvh};
-use shadowcull::run::prepare_scene;
 use std::path::{Path, PathBuf};
 
 fn jobs_dir() -> PathBuf {

@@ -321,8 +321,8 @@ fn shared_jobs(pick: &str) -> Vec<std::path::PathBuf> {
 /// such a pixel's analysis).
 #[test]
 fn shared_jobs_match_the_reference() {
+    use shadowcull::config::load_scene_for_job;
     use shadowcull::config::Job;
-    use shadowcull::run::load_scene_for_job;
     let mut failures = Vec::new();
     for f in shared_jobs("") {
         let job = Job::from_file(&f).unwrap();
@@ -403,8 +403,8 @@ fn shared_jobs_match_the_reference() {
 #[test]
 fn hierarchical_stencil_matches_brute_force_on_shared_jobs() {
     use raster::TileSize;
+    use shadowcull::config::load_scene_for_job;
     use shadowcull::config::Job;
-    use shadowcull::run::load_scene_for_job;
     let mut failures = Vec::new();
     let (mut views, mut boundary, mut fs_changed) = (0u64, 0u64, 0u64);
     for f in shared_jobs("") {
@@ -500,15 +500,17 @@ fn hierarchical_stencil_matches_brute_force_on_shared_jobs() {
 /// 128² light views) leave every mask pixel as it is without culling.
 #[test]
 fn culling_keeps_every_shared_job_mask() {
-    use shadowcull::config::{CullingSpec, Job, PipelineOptions, StencilBackend};
+    use shadowcull::config::Job;
+    use shadowcull::config::{load_scene_for_job, resolve_lights};
     use shadowcull::frame::FrameRunner;
-    use shadowcull::run::{load_scene_for_job, resolve_lights};
+    use shadowcull::pipeline::{CullingSpec, PipelineOptions, StencilBackend};
     let mut failures = Vec::new();
     let (mut casters, mut culled) = (0u64, 0u64);
     for f in shared_jobs("") {
         let job = Job::from_file(&f).unwrap();
         let (w, h) = job.resolution;
         let (loaded, scene, path) = load_scene_for_job(&job, Some(&f)).unwrap();
+        let scene = std::sync::Arc::new(scene);
         let lights = resolve_lights(&job, &loaded, &scene.bounds(), &f).unwrap();
         let name = f.file_name().unwrap().to_string_lossy().to_string();
         for two_sided in [false, true] {
@@ -523,7 +525,10 @@ fn culling_keeps_every_shared_job_mask() {
                 culling: CullingSpec::Chc,
                 ..base
             };
-            let (mut plain, mut cull) = (FrameRunner::new(&scene), FrameRunner::new(&scene));
+            let (mut plain, mut cull) = (
+                FrameRunner::new(scene.clone()),
+                FrameRunner::new(scene.clone()),
+            );
             for frame in 0..job.frame_count() {
                 let cam = path.at(frame).unwrap().camera(w as f64 / h as f64).unwrap();
                 let a = plain
@@ -536,11 +541,10 @@ fn culling_keeps_every_shared_job_mask() {
                     casters += x.row.shadow.psc;
                     culled += y.row.shadow.psc;
                     let differ = x
-                        .shadow
-                        .mask
+                        .mask()
                         .pixels
                         .iter()
-                        .zip(&y.shadow.mask.pixels)
+                        .zip(&y.mask().pixels)
                         .filter(|(p, q)| p != q)
                         .count();
                     if differ > 0 {
@@ -569,8 +573,8 @@ fn culling_keeps_every_shared_job_mask() {
 #[ignore = "diagnostic for shared_jobs_match_the_reference"]
 fn diagnose_shared_job_mismatches() {
     use scene::{faces_light, ObjectId};
+    use shadowcull::config::load_scene_for_job;
     use shadowcull::config::Job;
-    use shadowcull::run::load_scene_for_job;
     let pick = std::env::var("SHADOWCULL_DIAG").unwrap_or_default();
     for f in shared_jobs(&pick) {
         let job = Job::from_file(&f).unwrap();
@@ -796,8 +800,8 @@ fn diagnose_shared_job_mismatches() {
 #[ignore = "diagnostic for shared_jobs_match_the_reference"]
 fn diagnose_one_pixel() {
     use scene::{faces_light, ObjectId};
+    use shadowcull::config::load_scene_for_job;
     use shadowcull::config::Job;
-    use shadowcull::run::load_scene_for_job;
     let Ok(spec) = std::env::var("SHADOWCULL_DIAG_PIXEL") else {
         return;
     };

@@ -11,7 +11,7 @@ use clap::{Parser, Subcommand, ValueEnum};
 use shadowcull::compare::{compare_job, CompareOptions};
 use shadowcull::config::{default_job, Job};
 use shadowcull::run::{run_job, RunOptions};
-use shadowcull::stats::FrameStats;
+use shadowcull::stats::FrameRow;
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -196,7 +196,7 @@ fn run(
         );
     }
     let nlights = job.lights.len().max(1) as u64;
-    let mut on_frame = |row: &FrameStats, frames: u32| {
+    let mut on_frame = |row: &FrameRow, frames: u32| {
         if let Some(b) = &bar {
             b.set_length(frames as u64 * nlights);
             b.inc(1);

@@ -214,7 +214,7 @@ pub fn check_hierarchical(
 /// unculled runs would take minutes in the test profile) and its `street`
 /// camera path.
 #[allow(dead_code)] // not every test binary uses it
-pub fn street_city() -> (Scene, CameraPath) {
+pub fn street_city() -> (std::sync::Arc<Scene>, CameraPath) {
     let loaded = city(&CityParams {
         blocks_x: 6,
         blocks_z: 6,
@@ -228,7 +228,7 @@ pub fn street_city() -> (Scene, CameraPath) {
         .unwrap()
         .1
         .clone();
-    (Scene::new(loaded.graph).unwrap(), path)
+    (std::sync::Arc::new(Scene::new(loaded.graph).unwrap()), path)
 }
 
 /// The culling tests' lights for a city: a point light 1.5 scene heights

@@ -44,12 +44,15 @@ use glam::{Mat4, Vec4};
 /// Width of the stencil counters.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(rename_all = "lowercase"))]
 pub enum StencilBits {
     /// 8-bit counters with wrapping arithmetic, like a GPU stencil buffer
-    /// (a count of 256 aliases to 0).
+    /// (a count of 256 aliases to 0). Spelled `bits8` (or `eight`) in serde.
     #[default]
+    #[cfg_attr(feature = "serde", serde(rename = "bits8", alias = "eight"))]
     Eight,
-    /// `i32` counters (wrapping too, but far out of reach): shows where 8 bits alias.
+    /// `i32` counters (wrapping too, but far out of reach): shows where 8 bits
+    /// alias. Spelled `wide` in serde.
     Wide,
 }
 

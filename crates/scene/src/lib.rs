@@ -5,6 +5,9 @@
 //! every other shadowcull crate shares (`Aabb`, `Plane`, `Frustum`, `Camera`,
 //! `Light`), plus the one transform path and the one facing rule.
 //!
+//! Cargo features, both default: `gltf` — the glTF loader `load::gltf` (gltf-json, serde_json);
+//! `obj` — the OBJ loader `load::obj` (tobj, spade). Box city and procedural scenes are always built.
+//!
 //! # Conventions
 //! - Right-handed world, +y up, column vectors; glam `f32` for vertex data,
 //!   `f64` for transforms, camera and light positions, planes and facing.

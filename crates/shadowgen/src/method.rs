@@ -29,6 +29,7 @@ use scene::{Aabb, Camera, Light};
 #[derive(
     Clone, Copy, Debug, Default, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize,
 )]
+#[serde(rename_all = "lowercase")]
 pub enum MethodChoice {
     /// zpass where [`zpass_is_safe`], else zfail.
     ///

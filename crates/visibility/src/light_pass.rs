@@ -87,6 +87,7 @@ struct ViewSlot {
 pub struct LightPass {
     slots: Vec<ViewSlot>,
     receivers: Prepared,
+    views: Vec<LightView>,
 }
 
 /// The view's culling planes (inside positive) from its clip matrix: the
@@ -112,6 +113,13 @@ impl LightPass {
     /// A light pass with no history.
     pub fn new() -> Self {
         LightPass::default()
+    }
+
+    /// The light views of the last [`LightPass::run`] (empty before the
+    /// first): fitted to the intersection body, each with its world → clip
+    /// matrix, kind and resolution.
+    pub fn views(&self) -> &[LightView] {
+        &self.views
     }
 
     /// Carries every light view's state over to a rebuilt hierarchy
@@ -176,6 +184,7 @@ impl LightPass {
             ..Default::default()
         };
         let mut in_psc = vec![false; scene.objects().len()];
+        self.views.clone_from(&views);
         let prepared = &self.receivers;
         // The views are independent: each has its own culler and targets.
         let results: Vec<Result<CullResult>> = self

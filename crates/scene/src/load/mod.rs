@@ -2,10 +2,16 @@
 //! by the real byte length, and reports bad input as an [`Error`] naming the
 //! file and the element or line — never a panic. Entry points that take bytes
 //! exist for fuzzing.
+//!
+//! The glTF and OBJ loaders sit behind the default cargo features `gltf` and
+//! `obj`; the box-city loader is always built.
 
 pub mod box_city;
+#[cfg(feature = "gltf")]
 pub mod gltf;
+#[cfg(feature = "obj")]
 pub mod obj;
+#[cfg(feature = "obj")]
 mod triangulate;
 
 use crate::{CameraPath, Error, Light, LookAt, Result, SceneGraph};
@@ -84,10 +90,14 @@ pub(crate) fn read_file(path: &Path, referenced_from: Option<&Path>) -> Result<V
 /// `citysc 1` header (box city).
 ///
 /// # Errors
-/// The loader's error, or [`Error::Load`] for an unknown extension.
+/// The loader's error, or [`Error::Load`] for an unknown extension or a
+/// format whose cargo feature (`gltf`, `obj`) is disabled.
 pub fn load_path(path: &Path) -> Result<Loaded> {
     if path.is_dir() {
+        #[cfg(feature = "obj")]
         return obj::load_obj_dir(path).map(Loaded::from_graph);
+        #[cfg(not(feature = "obj"))]
+        return Err(feature_disabled(path, "a directory of .obj files", "obj"));
     }
     let ext = path
         .extension()
@@ -95,8 +105,14 @@ pub fn load_path(path: &Path) -> Result<Loaded> {
         .map(str::to_ascii_lowercase)
         .unwrap_or_default();
     match ext.as_str() {
+        #[cfg(feature = "gltf")]
         "gltf" | "glb" => gltf::load_gltf(path).map(Loaded::from_graph),
+        #[cfg(not(feature = "gltf"))]
+        "gltf" | "glb" => Err(feature_disabled(path, "glTF", "gltf")),
+        #[cfg(feature = "obj")]
         "obj" => obj::load_obj(path).map(Loaded::from_graph),
+        #[cfg(not(feature = "obj"))]
+        "obj" => Err(feature_disabled(path, "OBJ", "obj")),
         "txt" | "citysc" => box_city::load_box_city(path),
         _ => Err(Error::Load {
             file: PathBuf::from(path),
@@ -105,5 +121,48 @@ pub fn load_path(path: &Path) -> Result<Loaded> {
                 "unknown scene format `.{ext}` (expected .gltf, .glb, .obj, a directory of .obj, or a box-city .txt)"
             ),
         }),
+    }
+}
+
+/// The error for a format whose loader was compiled out.
+#[cfg(not(all(feature = "gltf", feature = "obj")))]
+fn feature_disabled(path: &Path, format: &str, feature: &str) -> Error {
+    Error::Load {
+        file: PathBuf::from(path),
+        element: "file name".into(),
+        message: format!(
+            "{format} support is disabled: build shadowcull-scene with the `{feature}` feature"
+        ),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    /// `load_path` on a format whose feature is off names the feature.
+    #[cfg(not(all(feature = "gltf", feature = "obj")))]
+    fn assert_disabled(file: &str, feature: &str) {
+        match super::load_path(std::path::Path::new(file)) {
+            Err(crate::Error::Load { message, .. }) => {
+                assert!(
+                    message.contains(&format!("`{feature}` feature")),
+                    "{message}"
+                )
+            }
+            other => panic!("{file}: expected a disabled-feature error, got {other:?}"),
+        }
+    }
+
+    #[cfg(not(feature = "gltf"))]
+    #[test]
+    fn gltf_without_its_feature_is_an_error_naming_it() {
+        assert_disabled("missing.gltf", "gltf");
+        assert_disabled("missing.GLB", "gltf");
+    }
+
+    #[cfg(not(feature = "obj"))]
+    #[test]
+    fn obj_without_its_feature_is_an_error_naming_it() {
+        assert_disabled("missing.obj", "obj");
+        assert_disabled(env!("CARGO_MANIFEST_DIR"), "obj");
     }
 }

@@ -4,7 +4,9 @@
 //! workspace root) skip with a printed note when it is absent.
 
 mod box_city;
+#[cfg(feature = "gltf")]
 mod gltf;
+#[cfg(feature = "obj")]
 mod obj;
 mod procedural;
 

@@ -1,0 +1,407 @@
+//! RON job files: which scene, views, lights, outputs and pipeline options a
+//! batch run uses.
+//!
+//! The schema grows without breaking old jobs: `version: 1`, and every field
+//! but `scene` has a default. Unknown fields and bad values are errors with
+//! line and column (or the field's path).
+
+use crate::pipeline::PipelineOptions;
+use crate::{Error, Result};
+use glam::DVec3;
+use scene::procedural::city::CityParams;
+use scene::LookAt;
+use serde::Deserialize;
+use std::path::{Path, PathBuf};
+
+/// The job schema version this build reads.
+pub const JOB_VERSION: u32 = 1;
+
+/// A batch job.
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Job {
+    /// Schema version; must be [`JOB_VERSION`].
+    #[serde(default = "default_version")]
+    pub version: u32,
+    /// The scene to load or generate.
+    pub scene: SceneSpec,
+    /// An optional ground quad added under the scene.
+    #[serde(default)]
+    pub ground: Option<Ground>,
+    /// Viewport `(width, height)` in pixels; default 800×600.
+    #[serde(default = "default_resolution")]
+    pub resolution: (u32, u32),
+    /// The view(s): a camera or camera path.
+    #[serde(default)]
+    pub camera: CameraSpec,
+    /// Number of frames; default: the camera's sequence length, else 1.
+    #[serde(default)]
+    pub frames: Option<u32>,
+    /// Lights; each frame is computed once per light. Default: the scene's
+    /// named lights, else one point light above the scene.
+    #[serde(default)]
+    pub lights: Vec<LightSpec>,
+    /// Which files to write.
+    #[serde(default)]
+    pub outputs: Outputs,
+    /// Pipeline options.
+    #[serde(default)]
+    pub pipeline: PipelineOptions,
+    /// Variants `shadowcull compare` runs on the same frames (empty: brute
+    /// force, depth bounds, and scissor with depth bounds, each otherwise
+    /// like `pipeline`).
+    #[serde(default)]
+    pub pipelines: Vec<NamedPipeline>,
+}
+
+fn default_version() -> u32 {
+    JOB_VERSION
+}
+
+fn default_resolution() -> (u32, u32) {
+    (800, 600)
+}
+
+/// Where the scene comes from. Relative paths are relative to the job file.
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+pub enum SceneSpec {
+    /// A glTF 2.0 file (`.gltf` or `.glb`).
+    Gltf(PathBuf),
+    /// An OBJ file, or a directory of OBJ files loaded in name order.
+    Obj(PathBuf),
+    /// A box-city benchmark file (`citysc 1`).
+    BoxCity(PathBuf),
+    /// The procedural city with parameters (`City(())` for the defaults).
+    City(CityParams),
+    /// Several scenes combined into one.
+    Group(Vec<SceneSpec>),
+}
+
+/// A ground quad: a square of side `size` centred under the scene bounds, at height `y`, facing up.
+#[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Ground {
+    /// Edge length.
+    pub size: f32,
+    /// Height of the quad.
+    pub y: f32,
+}
+
+/// The view of each frame.
+#[derive(Clone, Debug, PartialEq, Deserialize, Default)]
+pub enum CameraSpec {
+    /// A fixed pose.
+    Fixed(LookAt),
+    /// One pose per frame, in order (frame i uses pose i).
+    Sequence(Vec<LookAt>),
+    /// A camera the scene names (box city: `street`, `bird`).
+    Named(String),
+    /// A camera path the scene names (`street`, `bird`).
+    Path(String),
+    /// Keyframes `(frame, pose)`, linearly interpolated.
+    Keyframes(Vec<(f64, LookAt)>),
+    /// Default: the scene's `street` path if it has one, else a view of the
+    /// whole scene bounds from the side.
+    #[default]
+    Auto,
+}
+
+/// A light of the job.
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+pub enum LightSpec {
+    /// Point light; `range` limits it.
+    Point {
+        /// Position.
+        position: DVec3,
+        /// Optional range.
+        #[serde(default)]
+        range: Option<f64>,
+    },
+    /// Spot light; `apex_deg` is the full cone angle in degrees.
+    Spot {
+        /// Position.
+        position: DVec3,
+        /// Axis direction.
+        direction: DVec3,
+        /// Full apex angle in degrees, (0, 180).
+        apex_deg: f64,
+        /// Optional range.
+        #[serde(default)]
+        range: Option<f64>,
+    },
+    /// Directional light travelling along `direction`.
+    Directional(DVec3),
+    /// The sun at `elevation_deg` above the horizon and `azimuth_deg`
+    /// counter-clockwise from +x seen from above (toward −z).
+    Sun {
+        /// Elevation in degrees.
+        elevation_deg: f64,
+        /// Azimuth in degrees.
+        azimuth_deg: f64,
+    },
+    /// A point light above the centre of the scene bounds at
+    /// `min.y + factor · height` (height = bounds' y extent).
+    AboveScene(f64),
+    /// A light the scene names (box city: `light`).
+    Named(String),
+}
+
+/// Files a run writes besides `stats.csv` and `summary.json`.
+#[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct Outputs {
+    /// `frames/<frame>_<light>_mask.png`: the four-class reference mask.
+    pub masks: bool,
+    /// `frames/<frame>_<light>_shaded.png`: a shaded image of the frame.
+    pub shaded: bool,
+    /// `frames/<frame>_<light>_tiles.png`: the hierarchical stencil's tile
+    /// classification (lit white, shadow blue, boundary orange, background
+    /// black; [Aila04 Fig. 1]); only with `pipeline.stencil: h`.
+    pub tile_image: bool,
+    /// Write images only for every n-th frame (1 = all).
+    pub image_every: u32,
+}
+
+impl Default for Outputs {
+    fn default() -> Self {
+        Outputs {
+            masks: false,
+            shaded: false,
+            tile_image: false,
+            image_every: 1,
+        }
+    }
+}
+
+/// One variant of `shadowcull compare`: a name and its pipeline options.
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct NamedPipeline {
+    /// Row name in `compare.csv` and label in `compare.svg`.
+    pub name: String,
+    /// The options (defaults as in the job's `pipeline`).
+    #[serde(default)]
+    pub pipeline: PipelineOptions,
+}
+
+impl Job {
+    /// Parses a job from RON text; `file` names it in errors.
+    ///
+    /// # Errors
+    /// [`Error::Job`] with line and column for syntax errors, unknown fields
+    /// and bad values.
+    pub fn from_ron(text: &str, file: &Path) -> Result<Job> {
+        let job: Job = ron::Options::default()
+            .with_default_extension(ron::extensions::Extensions::IMPLICIT_SOME)
+            .from_str(text)
+            .map_err(|e| Error::Job {
+                file: file.to_path_buf(),
+                location: format!("{}:{}", e.position.line, e.position.col),
+                message: e.code.to_string(),
+            })?;
+        job.validate(file)?;
+        Ok(job)
+    }
+
+    /// Reads and parses a job file.
+    ///
+    /// # Errors
+    /// [`Error::Io`] or [`Error::Job`].
+    pub fn from_file(path: &Path) -> Result<Job> {
+        let text = std::fs::read_to_string(path).map_err(crate::error::io_err(path))?;
+        Job::from_ron(&text, path)
+    }
+
+    /// The number of frames the job asks for.
+    pub fn frame_count(&self) -> u32 {
+        self.frames.unwrap_or(match &self.camera {
+            CameraSpec::Sequence(v) => v.len().max(1) as u32,
+            _ => 1,
+        })
+    }
+}
+
+/// The bundled default job: the procedural city's `street` path at 800×600,
+/// a point light 1.5× the city height above its centre and a sun at 35°
+/// elevation, azimuth 30° from +x; conservative CHC++ culling (PSR, PSC) and
+/// the hierarchical stencil; masks and shaded images written.
+pub fn default_job() -> Job {
+    Job {
+        version: JOB_VERSION,
+        scene: SceneSpec::City(CityParams::default()),
+        ground: None,
+        resolution: (800, 600),
+        camera: CameraSpec::Path("street".into()),
+        frames: Some(8),
+        lights: vec![
+            LightSpec::AboveScene(1.5),
+            LightSpec::Sun {
+                elevation_deg: 35.0,
+                azimuth_deg: 30.0,
+            },
+        ],
+        outputs: Outputs {
+            masks: true,
+            shaded: true,
+            tile_image: true,
+            image_every: 1,
+        },
+        pipeline: PipelineOptions {
+            stencil: crate::pipeline::StencilBackend::H,
+            culling: crate::pipeline::CullingSpec::Chcpp,
+            ..PipelineOptions::default()
+        },
+        pipelines: Vec::new(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::pipeline::{CoverageSpec, CullingSpec, StencilBackend};
+    use shadowgen::MethodChoice;
+
+    fn parse(s: &str) -> Result<Job> {
+        Job::from_ron(s, Path::new("test.ron"))
+    }
+
+    #[test]
+    fn minimal_job_gets_defaults() {
+        let j = parse("(scene: Obj(\"a.obj\"))").unwrap();
+        assert_eq!(j.version, 1);
+        assert_eq!(j.resolution, (800, 600));
+        assert_eq!(j.camera, CameraSpec::Auto);
+        assert_eq!(j.pipeline.reference_every, 1);
+        assert_eq!(j.frame_count(), 1);
+    }
+
+    /// The culling fields as the issue spells them, and bad values naming
+    /// their field.
+    #[test]
+    fn culling_fields_parse_and_bad_values_name_their_field() {
+        let j = parse(
+            r#"(version: 1, scene: City(()), pipeline: (culling: chcpp, coverage: conservative,
+                light_resolution: 1024, query_threshold: 0,
+                chcpp: (batch: 50, revisit: 5, seed: 1)))"#,
+        )
+        .unwrap();
+        let p = &j.pipeline;
+        assert_eq!(
+            (p.culling, p.coverage),
+            (CullingSpec::Chcpp, CoverageSpec::Conservative)
+        );
+        assert_eq!(
+            p.culling(),
+            visibility::Culling::ChcPlusPlus(visibility::ChcppOptions::default())
+        );
+        let j = parse(
+            r#"(version: 1, scene: City(()), pipeline: (coverage: point, chcpp: (seed: 9)))"#,
+        )
+        .unwrap();
+        assert_eq!(j.pipeline.coverage, CoverageSpec::Point);
+        assert_eq!((j.pipeline.chcpp.batch, j.pipeline.chcpp.seed), (50, 9));
+        for (text, field) in [
+            ("chcpp: (batch: 0)", "pipeline.chcpp"),
+            ("light_resolution: 4", "pipeline.light_resolution"),
+        ] {
+            let e = parse(&format!(
+                "(version: 1, scene: City(()), pipeline: ({text}))"
+            ))
+            .unwrap_err()
+            .to_string();
+            assert!(e.contains(field), "{e}");
+        }
+        for text in ["culling: chcp", "coverage: exact", "chcpp: (batches: 5)"] {
+            let e = parse(&format!(
+                "(version: 1, scene: City(()), pipeline: ({text}))"
+            ));
+            assert!(e.is_err(), "{text}");
+        }
+    }
+
+    #[test]
+    fn full_job_parses() {
+        let j = parse(
+            r#"(
+                version: 1,
+                scene: Group([Obj("a.obj"), City((seed: 7))]),
+                ground: Some((size: 100.0, y: 0.0)),
+                resolution: (320, 240),
+                camera: Sequence([
+                    (eye: (0.0, 1.0, 5.0), target: (0.0, 0.0, 0.0), up: (0.0, 1.0, 0.0), fov_y_deg: 60.0, near: 0.1),
+                    (eye: (5.0, 5.0, 5.0), target: (0.0, 0.0, 0.0), up: (0.0, 1.0, 0.0), fov_y_deg: 60.0, near: 0.1),
+                ]),
+                lights: [
+                    Point(position: (0.0, 10.0, 0.0)),
+                    Spot(position: (0.0, 10.0, 0.0), direction: (0.0, -1.0, 0.0), apex_deg: 60.0, range: Some(50.0)),
+                    Directional((0.3, -1.0, 0.2)),
+                    Sun(elevation_deg: 35.0, azimuth_deg: 30.0),
+                    AboveScene(1.5),
+                    Named("light"),
+                ],
+                outputs: (masks: true, shaded: false),
+                pipeline: (method: zfail, stencil: db, scissor: true, two_sided: true, reference_every: 2),
+                pipelines: [(name: "bf"), (name: "zp+", pipeline: (method: zpplus, stencil_bits: wide))],
+            )"#,
+        )
+        .unwrap();
+        assert_eq!(j.frame_count(), 2);
+        assert_eq!(j.lights.len(), 6);
+        assert_eq!(j.pipeline.method, MethodChoice::ZFail);
+        assert_eq!(j.pipeline.stencil, StencilBackend::Db);
+        assert!(j.pipeline.scissor);
+        assert!(j.pipeline.reference_options().two_sided);
+        let o = j.pipeline.shadow_options();
+        assert!(o.two_sided && o.depth_bounds && o.scissor);
+        assert_eq!(j.pipelines.len(), 2);
+        assert_eq!(j.pipelines[0].pipeline, PipelineOptions::default());
+        assert_eq!(j.pipelines[1].pipeline.method, MethodChoice::ZpPlus);
+    }
+
+    #[test]
+    fn errors_name_line_and_column_or_field() {
+        let e = parse("(\n  scene: Obj(\"a.obj\"),\n  colour: 3,\n)")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("test.ron:3:"), "{e}");
+        assert!(e.contains("colour"), "{e}");
+        let e = parse("(scene: Obj(\"a.obj\"), resolution: (0, 10))")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("resolution"), "{e}");
+        let e = parse("(scene: Obj(\"a.obj\"), version: 2)")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("version"), "{e}");
+        let e = parse("(scene: Obj(\"a.obj\"), lights: [Spot(position: (0.0,1.0,0.0), direction: (0.0,0.0,0.0), apex_deg: 30.0)])")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("lights[0]") && e.contains("direction"), "{e}");
+        let e = parse("(resolution: (10, 10))").unwrap_err().to_string();
+        assert!(e.contains("scene"), "{e}");
+        let e = parse("(scene: Obj(\"a.obj\"), pipeline: (stencil: hier))")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("hier"), "{e}");
+        let e = parse("(scene: Obj(\"a.obj\"), pipeline: (stencil: h, tile: 12))")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("pipeline.tile") && e.contains("12"), "{e}");
+        let e = parse("(scene: Obj(\"a.obj\"), pipeline: (stencil: hybrid, map_size: 5))")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("pipeline.map_size"), "{e}");
+        let e = parse("(scene: Obj(\"a.obj\"), pipeline: (counters: bits16))")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("bits16"), "{e}");
+        let e = parse("(scene: Obj(\"a.obj\"), pipeline: (reference: (two_sided: true)))")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("pipeline.reference.two_sided"), "{e}");
+        let e = parse("(scene: Obj(\"a.obj\"), pipelines: [(name: \"a\"), (name: \"a\")])")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("pipelines[1].name"), "{e}");
+    }
+}

@@ -1,0 +1,296 @@
+//! The eye pass [Steiner §2.5.1]: every object (or, with culling, the
+//! objects a CHC traversal finds visible: the potentially shadowed receivers,
+//! PSR [Steiner §4.3]) rasterized into a depth and primitive-id target with
+//! hierarchical z, and the visible surface points the light pass marks as
+//! receivers.
+
+use crate::reference::PrimitiveId;
+use crate::surface::RayPlane;
+use crate::Result;
+use glam::Vec4;
+use raster::{Coverage, DepthTarget, DrawItem, TileSize};
+use scene::{Camera, ObjectId, Scene};
+
+/// Per-mesh vertex data in the rasterizer's form (`w = 1`), built once per scene.
+#[derive(Debug)]
+pub struct MeshCache {
+    positions: Vec<Vec<Vec4>>,
+}
+
+impl MeshCache {
+    /// Converts every mesh of `scene`.
+    pub fn new(scene: &Scene) -> Self {
+        MeshCache {
+            positions: scene
+                .graph()
+                .meshes()
+                .iter()
+                .map(|m| m.positions().iter().map(|p| p.extend(1.0)).collect())
+                .collect(),
+        }
+    }
+}
+
+/// The eye pass's result: depth with hierarchical z, and per pixel (row 0 at the
+/// top) the visible primitive.
+#[derive(Debug)]
+pub struct EyePass {
+    /// Depth and primitive-id target.
+    pub target: DepthTarget,
+    /// Per pixel the visible `(object, triangle)`, `None` for background.
+    pub primitive: Vec<Option<PrimitiveId>>,
+    /// Per pixel (row 0 at the top) the rasterized depth, reversed Z
+    /// ([`raster::BACKGROUND`] where nothing was drawn).
+    pub depth: Vec<f32>,
+}
+
+impl EyePass {
+    /// The visible surface as the reference takes it: primitive ids and depth.
+    pub fn surface(&self) -> crate::reference::EyeSurface<'_> {
+        crate::reference::EyeSurface {
+            primitive: &self.primitive,
+            depth: Some(&self.depth),
+        }
+    }
+}
+
+/// Rasterizes every object (both faces, standard coverage) into a fresh
+/// `width × height` depth and primitive-id target.
+///
+/// # Errors
+/// [`crate::Error::Raster`] for a target larger than the rasterizer allows.
+pub fn eye_pass(
+    scene: &Scene,
+    meshes: &MeshCache,
+    camera: &Camera,
+    width: u32,
+    height: u32,
+) -> Result<EyePass> {
+    eye_pass_reusing(scene, meshes, camera, width, height, None)
+}
+
+/// [`eye_pass`], reusing `previous`'s buffers when it has the same size (a
+/// frame's fresh multi-megabyte buffers otherwise cost page faults every frame).
+///
+/// # Errors
+/// As [`eye_pass`].
+pub fn eye_pass_reusing(
+    scene: &Scene,
+    meshes: &MeshCache,
+    camera: &Camera,
+    width: u32,
+    height: u32,
+    previous: Option<EyePass>,
+) -> Result<EyePass> {
+    let (mut target, primitive, depth) = match previous {
+        Some(p) if (p.target.width(), p.target.height()) == (width, height) => {
+            let mut t = p.target;
+            t.clear();
+            (t, p.primitive, p.depth)
+        }
+        _ => (
+            DepthTarget::new(width, height, TileSize::T8, true)?,
+            Vec::new(),
+            Vec::new(),
+        ),
+    };
+    target.set_threads(rayon::current_num_threads());
+    // Front to back (by the distance from the eye to each object's bounds centre), so
+    // hierarchical z rejects most hidden triangles; the depth and ids do not
+    // depend on the order (nearest depth, then smallest id, wins).
+    let mut order: Vec<(f64, usize)> = scene
+        .objects()
+        .iter()
+        .enumerate()
+        .map(|(i, o)| (o.world_bounds.center().distance_squared(camera.position), i))
+        .collect();
+    order.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let objects = scene.objects();
+    let items: Vec<DrawItem> = order
+        .iter()
+        .map(|&(_, i)| (i, &objects[i]))
+        .map(|(i, o)| DrawItem {
+            clip_from_local: scene::transform::clip_from_local(camera, &o.world_from_local),
+            positions: &meshes.positions[o.mesh.0 as usize],
+            triangles: scene.graph().meshes()[o.mesh.0 as usize].triangles(),
+            object: i as u32,
+        })
+        .collect();
+    // One batch: bands of tile rows in parallel; equal to drawing one by one.
+    target.draw_batch(&items, Coverage::Standard)?;
+    Ok(EyePass::from_target(target, primitive, depth))
+}
+
+impl EyePass {
+    /// The eye pass of a rendered `target`, filling (and reusing) the
+    /// row-major id and depth vectors.
+    fn from_target(
+        target: DepthTarget,
+        mut primitive: Vec<Option<PrimitiveId>>,
+        mut depth: Vec<f32>,
+    ) -> EyePass {
+        use rayon::prelude::*;
+        let (width, height) = (target.width() as usize, target.height() as usize);
+        primitive.resize(width * height, None);
+        depth.resize(width * height, raster::BACKGROUND);
+        primitive
+            .par_chunks_mut(width)
+            .zip(depth.par_chunks_mut(width))
+            .enumerate()
+            .for_each(|(y, (prims, depths))| {
+                target.for_each_in_row(y as u32, |x, d, id| {
+                    prims[x as usize] = id.map(|(o, t)| (ObjectId(o), t));
+                    depths[x as usize] = d;
+                });
+            });
+        EyePass {
+            target,
+            primitive,
+            depth,
+        }
+    }
+}
+
+/// Per-run state of the culled eye pass (PSR, [Steiner §4.3]): the object
+/// hierarchy, the meshes in the backend's form, and the eye view's
+/// persistent CHC state.
+#[derive(Debug)]
+pub struct EyeCulling {
+    hierarchy: visibility::Hierarchy,
+    meshes: visibility::MeshData,
+    culler: visibility::ViewCuller,
+}
+
+impl EyeCulling {
+    /// The state for `scene` (no history yet).
+    pub fn new(scene: &Scene) -> Self {
+        EyeCulling {
+            hierarchy: visibility::Hierarchy::from_scene(scene),
+            meshes: visibility::MeshData::from_scene(scene),
+            culler: visibility::ViewCuller::new(),
+        }
+    }
+}
+
+impl EyeCulling {
+    /// Forgets the eye view's CHC history (the hierarchy stays).
+    pub(crate) fn reset(&mut self) {
+        self.culler.reset();
+    }
+
+    /// The hierarchy and meshes the eye and light passes share.
+    pub(crate) fn parts(&self) -> (&visibility::Hierarchy, &visibility::MeshData) {
+        (&self.hierarchy, &self.meshes)
+    }
+}
+
+/// The eye's visible surface points (world, f64), row-major, one per pixel:
+/// the pixel-centre ray met with the visible triangle's plane (as the mask
+/// assembly computes them), NaN on background pixels — the fragment-level
+/// receivers of the light pass, which skips the NaN points. A point is
+/// joined to its left neighbour when both lie on the same triangle's plane
+/// (and the rays meet it): the points of a run lie on one line, in order.
+pub fn visible_points(scene: &Scene, camera: &Camera, eye: &EyePass) -> visibility::ReceiverPoints {
+    let mut out = visibility::ReceiverPoints::default();
+    visible_points_into(scene, camera, eye, &mut out);
+    out
+}
+
+/// [`visible_points`] into `out` (reused from frame to frame: no allocation).
+pub fn visible_points_into(
+    scene: &Scene,
+    camera: &Camera,
+    eye: &EyePass,
+    out: &mut visibility::ReceiverPoints,
+) {
+    use rayon::prelude::*;
+    let (w, h) = (eye.target.width(), eye.target.height());
+    let rays = camera.rays(w, h);
+    let e = camera.position;
+    let n = (w * h) as usize;
+    out.points.resize(n, glam::DVec3::NAN);
+    out.joined.resize(n, false);
+    out.points
+        .par_chunks_mut(w as usize)
+        .zip(out.joined.par_chunks_mut(w as usize))
+        .zip(eye.primitive.par_chunks(w as usize))
+        .enumerate()
+        .for_each(|(y, ((row, joined), prims))| {
+            // The plane of the row's last triangle: runs of pixels share one.
+            let mut last: Option<((ObjectId, u32), RayPlane)> = None;
+            let mut prev: Option<(ObjectId, u32)> = None;
+            let (base, step) = rays.row(y as f64 + 0.5);
+            for (x, ((p, j), prim)) in row.iter_mut().zip(joined.iter_mut()).zip(prims).enumerate()
+            {
+                let Some(prim) = *prim else {
+                    *p = glam::DVec3::NAN;
+                    *j = false;
+                    prev = None;
+                    continue;
+                };
+                let plane = match last {
+                    Some((q, plane)) if q == prim => plane,
+                    _ => {
+                        let plane =
+                            RayPlane::new(&scene.world_triangle(prim.0, prim.1 as usize), e);
+                        last = Some((prim, plane));
+                        plane
+                    }
+                };
+                let dir = base + step * (x as f64 + 0.5);
+                let t_hit = plane.hit(dir);
+                let hit = t_hit.is_some();
+                *p = e + dir * t_hit.unwrap_or(0.0);
+                *j = hit && prev == Some(prim);
+                prev = hit.then_some(prim);
+            }
+        });
+}
+
+/// The eye pass with occlusion culling: only the objects `culling` finds
+/// visible (the potentially shadowed receivers, PSR) are drawn, one by one
+/// through an occlusion backend, with the same transform path and coverage as
+/// [`eye_pass`]. With a conservative traversal (threshold 0) the depth and
+/// primitive ids equal [`eye_pass`]'s (point `sampling` is aggressive). Returns the pass and the traversal's
+/// result (the PSR and its counters).
+///
+/// # Errors
+/// As [`eye_pass`].
+#[allow(clippy::too_many_arguments)]
+pub fn eye_pass_culled(
+    scene: &Scene,
+    state: &mut EyeCulling,
+    camera: &Camera,
+    width: u32,
+    height: u32,
+    culling: visibility::Culling,
+    threshold: u32,
+    sampling: visibility::Sampling,
+    previous: Option<EyePass>,
+) -> Result<(EyePass, visibility::CullResult)> {
+    let (target, primitive, depth) = match previous {
+        Some(p) if (p.target.width(), p.target.height()) == (width, height) => {
+            (p.target, p.primitive, p.depth)
+        }
+        _ => (
+            DepthTarget::new(width, height, TileSize::T8, true)?,
+            Vec::new(),
+            Vec::new(),
+        ),
+    };
+    let mut backend = raster::SyncBackend::new(target);
+    let clip = |w: &glam::DMat4| scene::transform::clip_from_local(camera, w);
+    let view = visibility::ViewSetup::eye_sampled(camera, &clip, threshold, sampling);
+    let result = state.culler.cull(
+        &state.hierarchy,
+        scene,
+        &state.meshes,
+        &view,
+        culling,
+        &mut backend,
+    )?;
+    Ok((
+        EyePass::from_target(backend.into_target(), primitive, depth),
+        result,
+    ))
+}

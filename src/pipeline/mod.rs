@@ -1,0 +1,601 @@
+//! [`Pipeline`]: the whole per-frame flow of DESIGN.md behind one call.
+//!
+//! A host builds a [`Pipeline`] once from a [`Scene`] and [`PipelineOptions`],
+//! then calls [`Pipeline::frame`] every frame with a [`FrameInput`] (viewport,
+//! camera, lights) and reads the [`FrameOutput`]: the potentially shadowed
+//! receivers (PSR), per light the potential shadow casters (PSC), the shadow
+//! volumes to draw, the light views used, statistics and — when a CPU stencil
+//! backend is chosen — the four-class shadow mask. The output borrows the
+//! pipeline's buffers and stays valid until the next `frame` call.
+//!
+//! The stages, one module each, in the order data flows:
+//! 1. `eye` — the eye pass: depth and primitive ids, culled by CHC/CHC++
+//!    (PSR) or not, and the visible surface points [Steiner §2.5.1, §4.3];
+//! 2. `light` — per light the light views and the light pass (PSC)
+//!    [Steiner §4.3.1–4.3.3];
+//! 3. `volume` — silhouettes, method choice and shadow volumes [AW, EK];
+//! 4. `stencil` — the brute-force, hierarchical \[Aila04\] or hybrid
+//!    \[ChanDurand04\] stencil and the mask.
+
+pub mod eye;
+mod light;
+mod options;
+pub mod stencil;
+mod volume;
+
+pub use eye::{
+    eye_pass, eye_pass_culled, eye_pass_reusing, visible_points, visible_points_into, EyeCulling,
+    EyePass, MeshCache,
+};
+pub use options::{
+    BadOption, ChcppSpec, CoverageSpec, CullingSpec, PipelineOptions, StencilBackend,
+};
+pub use stencil::{
+    shadow_mask, shadow_mask_for, Backend, ShadowFrame, ShadowOptions, ShadowScratch, TileImage,
+};
+
+use crate::mask::Mask;
+use crate::reference::{reference_mask, ReferenceMask, TriangleBvh};
+use crate::stats::{FrameStats, ShadowStats};
+use crate::{Error, Result};
+use light::LightCulling;
+use raster::VolumeBuffer;
+use scene::{Camera, Light, ObjectId, Scene};
+use shadowgen::VolumeStats;
+use std::sync::Arc;
+use std::time::Instant;
+use visibility::LightView;
+
+/// What one frame is computed for.
+#[derive(Clone, Copy, Debug)]
+pub struct FrameInput<'a> {
+    /// Viewport width in pixels, `1..=`[`raster::MAX_TARGET_SIZE`].
+    pub width: u32,
+    /// Viewport height in pixels, `1..=`[`raster::MAX_TARGET_SIZE`].
+    pub height: u32,
+    /// The eye (reversed Z, infinite far plane; see [`Camera`]).
+    pub camera: Camera,
+    /// The lights of this frame. Per-light state (silhouette cache, light
+    /// views, culling history) is kept by position in this slice.
+    pub lights: &'a [Light],
+}
+
+/// One light's persistent state and last result.
+#[derive(Debug)]
+struct LightState {
+    light: Light,
+    culling: LightCulling,
+    scratch: ShadowScratch,
+    volume_stats: VolumeStats,
+    stats: ShadowStats,
+    shadow: Option<ShadowFrame>,
+}
+
+impl LightState {
+    fn new(light: Light) -> Self {
+        LightState {
+            light,
+            culling: LightCulling::default(),
+            scratch: ShadowScratch::default(),
+            volume_stats: VolumeStats::default(),
+            stats: ShadowStats::default(),
+            shadow: None,
+        }
+    }
+}
+
+/// The shadow-volume culling pipeline: owns the scene and everything a frame
+/// needs — the object hierarchy, per-view CHC state of the eye and of every
+/// light view, silhouette caches, render targets and volume buffers — and
+/// reuses it from frame to frame.
+///
+/// ```
+/// use glam::{DMat4, DVec3, UVec3, Vec3};
+/// use shadowcull::scene::{Camera, Light, Mesh, ObjectId, Scene, SceneGraph, Transform};
+/// use shadowcull::{CullingSpec, FrameInput, Pipeline, PipelineOptions, StencilBackend};
+/// // The host's arrays: a ground quad and a unit cube (corner i: x, y, z = bits 0, 1, 2 of i).
+/// let quad = [[-9., 0., -9.], [-9., 0., 9.], [9., 0., 9.], [9., 0., -9.]].map(Vec3::from);
+/// let corners: Vec<Vec3> = (0..8u32).map(|i| UVec3::new(i & 1, i >> 1 & 1, i >> 2 & 1).as_vec3()).collect();
+/// let faces = [[0, 2, 3, 1], [4, 5, 7, 6], [0, 1, 5, 4], [2, 6, 7, 3], [0, 4, 6, 2], [1, 3, 7, 5]];
+/// let tris: Vec<[u32; 3]> = faces.iter().flat_map(|&[a, b, c, d]| [[a, b, c], [a, c, d]]).collect();
+/// let mut graph = SceneGraph::new();
+/// let ground = graph.add_mesh(Mesh::new("ground", &quad, &[[0, 1, 2], [0, 2, 3]])?);
+/// let cube = graph.add_mesh(Mesh::new("cube", &corners, &tris)?);
+/// graph.add_instance("ground", ground, Transform::Matrix(DMat4::IDENTITY));
+/// graph.add_instance("cube", cube, Transform::translation(DVec3::new(0.0, 0.5, 0.0)));
+/// // Culled PSR and PSC, volumes only: a GPU host draws them itself.
+/// let options = PipelineOptions { culling: CullingSpec::Chcpp, stencil: StencilBackend::None, ..Default::default() };
+/// let mut pipeline = Pipeline::new(Scene::new(graph)?, options)?;
+/// let camera = Camera::look_at(DVec3::new(6.0, 5.0, 8.0), DVec3::ZERO, DVec3::Y, 1.0, 4.0 / 3.0, 0.1)?;
+/// let lights = [Light::Point { position: DVec3::new(2.0, 8.0, 1.0), range: None }];
+/// let out = pipeline.frame(&FrameInput { width: 320, height: 240, camera, lights: &lights })?;
+/// assert_eq!(out.psr(), &[ObjectId(0), ObjectId(1)]);
+/// let light = out.light(0).unwrap();
+/// assert!(light.psc().contains(&ObjectId(1)));
+/// let volumes = light.volumes(); // one range per caster: draw its indices with its method
+/// let cube_volume = volumes.ranges.iter().find(|r| r.object == 1).unwrap();
+/// assert!(!volumes.indices[cube_volume.indices()].is_empty());
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+pub struct Pipeline {
+    scene: Arc<Scene>,
+    options: PipelineOptions,
+    counts: scene::SceneCounts,
+    meshes: MeshCache,
+    /// Hierarchy, meshes and the eye view's CHC state, built on first culled frame.
+    culling: Option<EyeCulling>,
+    eye: Option<EyePass>,
+    camera: Option<Camera>,
+    receivers: visibility::ReceiverPoints,
+    /// Every object id, ascending: the PSR and casters without culling.
+    all: Vec<ObjectId>,
+    psr: Vec<ObjectId>,
+    lights: Vec<LightState>,
+    active: usize,
+    stats: FrameStats,
+    bvh: Option<TriangleBvh>,
+    bvh_ms: f64,
+}
+
+impl std::fmt::Debug for Pipeline {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Pipeline")
+            .field("objects", &self.counts.objects)
+            .field("options", &self.options)
+            .field("lights", &self.active)
+            .finish_non_exhaustive()
+    }
+}
+
+impl Pipeline {
+    /// A pipeline over `scene` (owned, or shared with other pipelines through
+    /// an [`Arc`]) with `options`. Scene-derived data (the rasterizer's mesh
+    /// form, and with culling the object hierarchy) is built here or on the
+    /// first culled frame.
+    ///
+    /// # Errors
+    /// [`Error::Options`] naming the bad field of `options`.
+    pub fn new(scene: impl Into<Arc<Scene>>, options: PipelineOptions) -> Result<Pipeline> {
+        check_options(&options)?;
+        let scene = scene.into();
+        let n = scene.objects().len() as u32;
+        Ok(Pipeline {
+            counts: scene.counts(),
+            meshes: MeshCache::new(&scene),
+            culling: None,
+            eye: None,
+            camera: None,
+            receivers: Default::default(),
+            all: (0..n).map(ObjectId).collect(),
+            psr: Vec::new(),
+            lights: Vec::new(),
+            active: 0,
+            stats: FrameStats::default(),
+            bvh: None,
+            bvh_ms: 0.0,
+            options,
+            scene,
+        })
+    }
+
+    /// The scene.
+    pub fn scene(&self) -> &Scene {
+        &self.scene
+    }
+
+    /// The options in force.
+    pub fn options(&self) -> &PipelineOptions {
+        &self.options
+    }
+
+    /// Replaces the options. When they differ from the current ones, every
+    /// per-view and per-light state (culling history, silhouette caches,
+    /// targets) starts cold, as in a new pipeline; scene-derived data is kept.
+    ///
+    /// # Errors
+    /// [`Error::Options`] naming the bad field (the old options stay).
+    pub fn set_options(&mut self, options: PipelineOptions) -> Result<()> {
+        check_options(&options)?;
+        if options != self.options {
+            self.options = options;
+            if let Some(c) = &mut self.culling {
+                c.reset();
+            }
+            self.lights.clear();
+            self.active = 0;
+        }
+        Ok(())
+    }
+
+    /// Runs one frame: the eye pass, then for every light the light pass,
+    /// the volumes and (unless `stencil` is [`StencilBackend::None`]) the
+    /// stencil and mask. Its wall time is [`FrameStats::frame_ms`].
+    ///
+    /// # Errors
+    /// [`Error::Options`] for a viewport out of range or an invalid light
+    /// (naming `lights[i]`); rasterizer errors.
+    pub fn frame(&mut self, input: &FrameInput<'_>) -> Result<FrameOutput<'_>> {
+        let (w, h) = (input.width, input.height);
+        if !(1..=raster::MAX_TARGET_SIZE).contains(&w)
+            || !(1..=raster::MAX_TARGET_SIZE).contains(&h)
+        {
+            return Err(Error::Options {
+                field: "viewport".into(),
+                message: format!(
+                    "{w}×{h} must be between 1×1 and {0}×{0}",
+                    raster::MAX_TARGET_SIZE
+                ),
+            });
+        }
+        for (i, l) in input.lights.iter().enumerate() {
+            l.validate().map_err(|e| Error::Options {
+                field: format!("lights[{i}]"),
+                message: e.to_string(),
+            })?;
+        }
+        let start = Instant::now();
+        let camera = &input.camera;
+        let scene: &Scene = &self.scene;
+        let o = self.options;
+        let culled = o.culling != CullingSpec::None;
+
+        // 1. Eye pass (PSR) and, for the light pass, the visible surface points.
+        let previous = self.eye.take();
+        let (eye, eye_queries, eye_waits) = if culled {
+            let state = self.culling.get_or_insert_with(|| EyeCulling::new(scene));
+            let (eye, r) = eye_pass_culled(
+                scene,
+                state,
+                camera,
+                w,
+                h,
+                o.culling(),
+                o.query_threshold,
+                o.coverage.sampling(),
+                previous,
+            )?;
+            self.psr.clear();
+            self.psr.extend_from_slice(&r.rendered);
+            self.psr.sort_unstable();
+            visible_points_into(scene, camera, &eye, &mut self.receivers);
+            (eye, r.stats.queries, r.stats.waits)
+        } else {
+            let eye = eye_pass_reusing(scene, &self.meshes, camera, w, h, previous)?;
+            self.psr.clone_from(&self.all);
+            (eye, 0, 0)
+        };
+        let eye_ms = ms(start);
+
+        // Per-light state follows the light's position in the slice.
+        let n = input.lights.len();
+        self.lights.truncate(n);
+        for (i, l) in input.lights.iter().enumerate() {
+            match self.lights.get_mut(i) {
+                Some(s) => s.light = *l,
+                None => self.lights.push(LightState::new(*l)),
+            }
+        }
+
+        // 2. Light passes (PSC) of all lights, concurrently.
+        if let Some(state) = &self.culling {
+            use rayon::prelude::*;
+            let (hierarchy, meshes) = state.parts();
+            light::light_passes(
+                self.lights.par_iter_mut().map(|s| &mut s.culling),
+                input.lights,
+                hierarchy,
+                scene,
+                meshes,
+                camera,
+                &self.receivers,
+                &o.light_pass_options(),
+            )?;
+        }
+
+        // 3.–4. Per light: volumes, then the stencil and mask.
+        let shadow_options = o.shadow_options();
+        let psr = self.psr.len() as u64;
+        for s in &mut self.lights {
+            let casters: &[ObjectId] = if culled { &s.culling.psc } else { &self.all };
+            let volumes = volume::build_for(
+                scene,
+                camera,
+                &s.light,
+                casters,
+                &shadow_options,
+                (w, h),
+                &mut s.scratch.volumes,
+                &mut s.scratch.cache,
+            )?;
+            s.volume_stats = volumes;
+            s.shadow = match o.stencil {
+                StencilBackend::None => None,
+                _ => Some(stencil::stencil_volumes(
+                    scene,
+                    camera,
+                    &s.light,
+                    &eye,
+                    &shadow_options,
+                    &mut s.scratch,
+                    volumes,
+                )?),
+            };
+            let (light_queries, light_waits, light_ms) = if culled {
+                (s.culling.stats.queries, s.culling.stats.waits, s.culling.ms)
+            } else {
+                (0, 0, 0.0)
+            };
+            s.stats = light_stats(
+                &volumes,
+                s.shadow.as_ref(),
+                s.scratch.volumes.triangle_count() as u64,
+                eye_ms,
+                light_ms,
+                psr,
+                casters.len() as u64,
+                eye_queries + light_queries,
+                eye_waits + light_waits,
+            );
+        }
+        self.eye = Some(eye);
+        self.camera = Some(*camera);
+        self.active = n;
+        self.stats = FrameStats {
+            frame_ms: ms(start),
+            eye_ms,
+            objects: self.counts.objects as u64,
+            triangles: self.counts.drawn_triangles as u64,
+            psr,
+            eye_queries,
+            eye_waits,
+            lights: n as u32,
+        };
+        Ok(FrameOutput { pipeline: self })
+    }
+
+    /// The output of the last [`Pipeline::frame`] call, again (`None` before
+    /// the first).
+    pub fn last_output(&self) -> Option<FrameOutput<'_>> {
+        self.eye.as_ref().map(|_| FrameOutput { pipeline: self })
+    }
+
+    /// The exact ray-cast shadow mask [`crate::reference`] of light `light`
+    /// (its index in the last frame's lights) on the last frame's visible
+    /// surface, with the options' reference settings: the check every
+    /// culling and stencil option is measured against. The triangle BVH is
+    /// built on first use.
+    ///
+    /// # Errors
+    /// [`Error::Options`] before the first frame or for a light index out of
+    /// range.
+    pub fn reference_mask(&mut self, light: usize) -> Result<ReferenceMask> {
+        let (Some(eye), Some(camera)) = (&self.eye, &self.camera) else {
+            return Err(Error::Options {
+                field: "reference_mask".into(),
+                message: "no frame has run yet".into(),
+            });
+        };
+        let Some(state) = self.lights[..self.active].get(light) else {
+            return Err(Error::Options {
+                field: "reference_mask".into(),
+                message: format!("light {light} of {} lights", self.active),
+            });
+        };
+        let scene = &self.scene;
+        let bvh_ms = &mut self.bvh_ms;
+        let bvh = self.bvh.get_or_insert_with(|| {
+            let t = Instant::now();
+            let b = TriangleBvh::new(scene);
+            *bvh_ms = ms(t);
+            b
+        });
+        Ok(reference_mask(
+            bvh,
+            camera,
+            &state.light,
+            eye.target.width(),
+            eye.target.height(),
+            &self.options.reference_options(),
+            Some(eye.surface()),
+        ))
+    }
+
+    /// Time spent building the reference's triangle BVH (ms), 0 until
+    /// [`Pipeline::reference_mask`] first ran.
+    pub fn reference_bvh_ms(&self) -> f64 {
+        self.bvh_ms
+    }
+}
+
+/// A frame's results, borrowed from the [`Pipeline`] until its next `frame`.
+#[derive(Clone, Copy)]
+pub struct FrameOutput<'a> {
+    pipeline: &'a Pipeline,
+}
+
+impl std::fmt::Debug for FrameOutput<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("FrameOutput")
+            .field("psr", &self.psr().len())
+            .field("lights", &self.pipeline.active)
+            .finish_non_exhaustive()
+    }
+}
+
+impl<'a> FrameOutput<'a> {
+    /// The potentially shadowed receivers: the objects the eye pass drew,
+    /// ascending (every object without culling).
+    pub fn psr(&self) -> &'a [ObjectId] {
+        &self.pipeline.psr
+    }
+
+    /// Frame-level statistics.
+    pub fn stats(&self) -> &'a FrameStats {
+        &self.pipeline.stats
+    }
+
+    /// The number of lights of the frame.
+    pub fn light_count(&self) -> usize {
+        self.pipeline.active
+    }
+
+    /// Light `i`'s results (`i` its index in [`FrameInput::lights`]).
+    pub fn light(&self, i: usize) -> Option<LightOutput<'a>> {
+        self.pipeline.lights[..self.pipeline.active]
+            .get(i)
+            .map(|state| self.light_output(state))
+    }
+
+    /// Every light's results, in [`FrameInput::lights`] order.
+    pub fn lights(self) -> impl ExactSizeIterator<Item = LightOutput<'a>> + 'a {
+        self.pipeline.lights[..self.pipeline.active]
+            .iter()
+            .map(move |state| self.light_output(state))
+    }
+
+    fn light_output(self, state: &'a LightState) -> LightOutput<'a> {
+        let culled = self.pipeline.options.culling != CullingSpec::None;
+        LightOutput {
+            state,
+            casters: if culled {
+                &state.culling.psc
+            } else {
+                &self.pipeline.all
+            },
+        }
+    }
+
+    /// The eye pass: reversed-Z depth and the visible `(object, triangle)`
+    /// per pixel, row 0 at the top.
+    pub fn eye(&self) -> &'a EyePass {
+        self.pipeline
+            .eye
+            .as_ref()
+            .expect("a FrameOutput exists only after a frame")
+    }
+}
+
+/// One light's results in a [`FrameOutput`].
+#[derive(Clone, Copy)]
+pub struct LightOutput<'a> {
+    state: &'a LightState,
+    casters: &'a [ObjectId],
+}
+
+impl std::fmt::Debug for LightOutput<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("LightOutput")
+            .field("light", &self.state.light)
+            .field("psc", &self.psc().len())
+            .field("volume_ranges", &self.volumes().ranges.len())
+            .finish_non_exhaustive()
+    }
+}
+
+impl<'a> LightOutput<'a> {
+    /// The light.
+    pub fn light(&self) -> &'a Light {
+        &self.state.light
+    }
+
+    /// The potential shadow casters: the objects whose volumes were built,
+    /// ascending (every object without culling).
+    pub fn psc(&self) -> &'a [ObjectId] {
+        self.casters
+    }
+
+    /// The shadow volumes to draw: positions in each caster's local space
+    /// (`w = 0` for points at infinity), indices, and one range per caster
+    /// (object, segment, `world_from_local`, method, cap ranges, scissor,
+    /// depth bounds). See `docs/host.md` for drawing them on a GPU.
+    pub fn volumes(&self) -> &'a VolumeBuffer {
+        &self.state.scratch.volumes
+    }
+
+    /// The light views the light pass used (empty without culling).
+    pub fn views(&self) -> &'a [LightView] {
+        self.state.culling.pass.views()
+    }
+
+    /// This light's counters (the frame's eye figures repeated).
+    pub fn stats(&self) -> &'a ShadowStats {
+        &self.state.stats
+    }
+
+    /// Volume construction counters (silhouette cache hits and misses, methods).
+    pub fn volume_stats(&self) -> &'a VolumeStats {
+        &self.state.volume_stats
+    }
+
+    /// The four-class shadow mask; `None` with [`StencilBackend::None`].
+    pub fn mask(&self) -> Option<&'a Mask> {
+        self.state.shadow.as_ref().map(|s| &s.mask)
+    }
+
+    /// The stencil stage's full output (mask, raw stencil, tile image);
+    /// `None` with [`StencilBackend::None`].
+    pub fn shadow(&self) -> Option<&'a ShadowFrame> {
+        self.state.shadow.as_ref()
+    }
+}
+
+#[allow(clippy::too_many_arguments)]
+fn light_stats(
+    v: &VolumeStats,
+    shadow: Option<&ShadowFrame>,
+    volume_triangles: u64,
+    eye_ms: f64,
+    light_ms: f64,
+    psr: u64,
+    psc: u64,
+    queries: u64,
+    waits: u64,
+) -> ShadowStats {
+    let mut s = ShadowStats {
+        eye_ms,
+        silhouette_ms: v.silhouette_ms,
+        volume_ms: v.volume_ms,
+        volume_triangles,
+        silhouette_edges: v.silhouette_edges as u64,
+        zpass_casters: v.zpass as u64,
+        zfail_casters: v.zfail as u64,
+        zpplus_casters: v.zpplus as u64,
+        psr,
+        psc,
+        queries,
+        waits,
+        light_ms,
+        ..Default::default()
+    };
+    if let Some(f) = shadow {
+        let st = &f.stencil;
+        s.stencil_ms = f.stencil_ms;
+        s.volume_triangles = f.volume_triangles;
+        s.pixels_processed = st.pixels_processed;
+        s.stencil_updates = st.stencil_updates;
+        s.pixels_touched = st.pixels_touched;
+        s.shadowed_pixels = f.mask.counts().shadow;
+        s.h_fragments = st.h_fragments;
+        s.tile_tests = st.tile_tests;
+        s.tiles_lit = st.tiles_lit;
+        s.tiles_shadow = st.tiles_shadow;
+        s.tiles_boundary = st.tiles_boundary;
+        s.pixel_bytes = st.pixel_bytes;
+        s.tile_bytes = st.tile_bytes;
+        s.bandwidth_bytes = st.bandwidth_bytes();
+        s.silhouette_pixels = f.silhouette_pixels;
+        s.map_ms = f.map_ms;
+    }
+    s
+}
+
+fn check_options(options: &PipelineOptions) -> Result<()> {
+    options.validate().map_err(|e| Error::Options {
+        field: e.field.into(),
+        message: e.message,
+    })
+}
+
+fn ms(t: Instant) -> f64 {
+    t.elapsed().as_secs_f64() * 1e3
+}

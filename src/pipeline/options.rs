@@ -1,0 +1,280 @@
+//! The pipeline's options: what [`super::Pipeline`] computes and how. The
+//! RON job's `pipeline` section deserializes straight into
+//! [`PipelineOptions`]; [`PipelineOptions::shadow_options`],
+//! [`PipelineOptions::culling`] and [`PipelineOptions::light_pass_options`]
+//! are the one place they map onto the stages' own option types.
+
+use raster::StencilBits;
+use serde::{Deserialize, Serialize};
+use shadowgen::MethodChoice;
+
+/// Stencil backend (`stencil: bf`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum StencilBackend {
+    /// Brute force: every volume fragment on a non-background pixel.
+    #[default]
+    Bf,
+    /// Brute force with the per-volume depth-bounds test [EK "Computing Depth Bounds"].
+    Db,
+    /// Hierarchical shadow volumes \[Aila04\] (`tile`, `full_shadow`).
+    H,
+    /// Shadow map plus volumes at its silhouette pixels \[ChanDurand04\] (`map_size`).
+    Hybrid,
+    /// No CPU stencil and no mask: PSR, PSC and the volumes only, for a host
+    /// that draws the volumes on its GPU.
+    None,
+}
+
+/// Occlusion culling (`culling: chc`) of the eye pass (PSR) and of the light
+/// views (PSC: shadow volumes only for potential casters) [Steiner §2.5.1, §4.3].
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum CullingSpec {
+    /// Draw every object.
+    #[default]
+    None,
+    /// View-frustum culling.
+    Frustum,
+    /// Stop-and-wait hierarchical occlusion culling.
+    Exact,
+    /// Coherent hierarchical culling.
+    Chc,
+    /// CHC++: batched queries, multiqueries, revisits (`chcpp`).
+    Chcpp,
+}
+
+/// How culling samples pixels (`coverage: conservative`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum CoverageSpec {
+    /// Conservative queries, occluders and receivers: the mask equals the
+    /// unculled one.
+    #[default]
+    Conservative,
+    /// Pixel-centre sampling (aggressive; its mismatch is measured).
+    Point,
+}
+
+impl CoverageSpec {
+    /// The traversals' sampling.
+    pub fn sampling(self) -> visibility::Sampling {
+        match self {
+            CoverageSpec::Conservative => visibility::Sampling::Conservative,
+            CoverageSpec::Point => visibility::Sampling::Point,
+        }
+    }
+}
+
+/// CHC++ parameters (`chcpp: (batch: 50, revisit: 5, seed: 1)`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct ChcppSpec {
+    /// Previously invisible nodes queried together.
+    pub batch: u32,
+    /// A visible leaf is re-queried every this many frames.
+    pub revisit: u32,
+    /// Seed of the revisit phases.
+    pub seed: u64,
+}
+
+impl Default for ChcppSpec {
+    fn default() -> Self {
+        let o = visibility::ChcppOptions::default();
+        ChcppSpec {
+            batch: o.batch,
+            revisit: o.revisit,
+            seed: o.seed,
+        }
+    }
+}
+
+/// Pipeline options: how shadows are computed and how often the reference checks them.
+#[derive(Clone, Copy, Debug, PartialEq, Deserialize, Serialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct PipelineOptions {
+    /// Volume method per caster (`auto`, `zpass`, `zfail`, `zpplus`).
+    pub method: MethodChoice,
+    /// Stencil backend.
+    pub stencil: StencilBackend,
+    /// Per-volume scissor rectangles.
+    pub scissor: bool,
+    /// Per-volume depth-bounds test for any backend (`stencil: db` is `bf` with it).
+    pub depth_bounds: bool,
+    /// Stencil counter width (`bits8` or `wide`).
+    #[serde(alias = "stencil_bits")]
+    pub counters: StencilBits,
+    /// Tile size of the hierarchical stencil: 4, 8 or 16.
+    pub tile: u32,
+    /// The hierarchical stencil's full-shadow bit [Aila04 §4.3.2].
+    pub full_shadow: bool,
+    /// Shadow-map size of the hybrid (texels per side).
+    pub map_size: u32,
+    /// Occlusion culling of the eye pass (the objects it draws are the
+    /// potentially shadowed receivers, PSR) and of the light pass (shadow
+    /// volumes only for the potential shadow casters, PSC).
+    pub culling: CullingSpec,
+    /// A node counts as visible above this many samples (0: conservative).
+    pub query_threshold: u32,
+    /// How culling samples pixels (`conservative` or the aggressive `point`).
+    pub coverage: CoverageSpec,
+    /// CHC++ parameters (with `culling: chcpp`).
+    pub chcpp: ChcppSpec,
+    /// Side of every light view (or cube face) of the light pass, in pixels.
+    pub light_resolution: u32,
+    /// Every triangle casts (back-facing ones flipped); the reference uses the same rule.
+    pub two_sided: bool,
+    /// Lights with a range extrude their shadow volumes finitely (always closed).
+    pub finite_extrusion: bool,
+    /// Compute the reference mask every n-th frame (0 = never).
+    pub reference_every: u32,
+    /// The reference's options (depth-error bound; its `two_sided` must equal
+    /// the pipeline's or be left out).
+    pub reference: crate::reference::ReferenceOptions,
+}
+
+impl Default for PipelineOptions {
+    fn default() -> Self {
+        PipelineOptions {
+            method: MethodChoice::Auto,
+            stencil: StencilBackend::Bf,
+            scissor: false,
+            depth_bounds: false,
+            counters: StencilBits::Eight,
+            tile: 8,
+            full_shadow: true,
+            map_size: 2048,
+            culling: CullingSpec::None,
+            query_threshold: 0,
+            coverage: CoverageSpec::Conservative,
+            chcpp: ChcppSpec::default(),
+            light_resolution: 1024,
+            two_sided: false,
+            finite_extrusion: false,
+            reference_every: 1,
+            reference: Default::default(),
+        }
+    }
+}
+
+impl PipelineOptions {
+    /// The culling traversal.
+    pub fn culling(&self) -> visibility::Culling {
+        match self.culling {
+            CullingSpec::None => visibility::Culling::None,
+            CullingSpec::Frustum => visibility::Culling::Frustum,
+            CullingSpec::Exact => visibility::Culling::Exact,
+            CullingSpec::Chc => visibility::Culling::Chc,
+            CullingSpec::Chcpp => visibility::Culling::ChcPlusPlus(visibility::ChcppOptions {
+                batch: self.chcpp.batch,
+                revisit: self.chcpp.revisit,
+                seed: self.chcpp.seed,
+            }),
+        }
+    }
+
+    /// The shadow stage's options.
+    pub fn shadow_options(&self) -> super::stencil::ShadowOptions {
+        super::stencil::ShadowOptions {
+            method: self.method,
+            two_sided: self.two_sided,
+            backend: match self.stencil {
+                StencilBackend::Bf | StencilBackend::Db | StencilBackend::None => {
+                    super::stencil::Backend::Brute
+                }
+                StencilBackend::H => super::stencil::Backend::Hierarchical {
+                    tile: match self.tile {
+                        4 => raster::TileSize::T4,
+                        16 => raster::TileSize::T16,
+                        _ => raster::TileSize::T8,
+                    },
+                    full_shadow: self.full_shadow,
+                },
+                StencilBackend::Hybrid => super::stencil::Backend::Hybrid {
+                    map_size: self.map_size,
+                },
+            },
+            bits: self.counters,
+            scissor: self.scissor,
+            depth_bounds: self.depth_bounds || self.stencil == StencilBackend::Db,
+            finite_extrusion: self.finite_extrusion,
+        }
+    }
+
+    /// The reference's options, with the pipeline's two-sided rule.
+    pub fn reference_options(&self) -> crate::reference::ReferenceOptions {
+        crate::reference::ReferenceOptions {
+            two_sided: self.two_sided,
+            ..self.reference
+        }
+    }
+}
+
+/// A [`PipelineOptions`] field with a bad value: its name and what is wrong.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct BadOption {
+    /// The field, as the job spells it (`tile`, `chcpp`, `reference.two_sided`).
+    pub field: &'static str,
+    /// What is wrong, with the value.
+    pub message: String,
+}
+
+impl PipelineOptions {
+    /// Checks every field's range.
+    ///
+    /// # Errors
+    /// The first bad field ([`BadOption`]).
+    pub fn validate(&self) -> std::result::Result<(), BadOption> {
+        let bad = |field, message| Err(BadOption { field, message });
+        let p = self;
+        if !(p.reference.depth_error >= 0.0 && p.reference.depth_error < 1e-2) {
+            return bad("reference.depth_error", "must lie in [0, 0.01)".into());
+        }
+        if ![4, 8, 16].contains(&p.tile) {
+            return bad("tile", format!("{} is not 4, 8 or 16", p.tile));
+        }
+        if p.chcpp.batch == 0 || p.chcpp.revisit == 0 {
+            return bad(
+                "chcpp",
+                format!(
+                    "batch ({}) and revisit ({}) must be at least 1",
+                    p.chcpp.batch, p.chcpp.revisit
+                ),
+            );
+        }
+        if !(8..=raster::MAX_TARGET_SIZE).contains(&p.light_resolution) {
+            return bad(
+                "light_resolution",
+                format!(
+                    "{} is not in 8..={}",
+                    p.light_resolution,
+                    raster::MAX_TARGET_SIZE
+                ),
+            );
+        }
+        if !(16..=raster::MAX_TARGET_SIZE).contains(&p.map_size) {
+            return bad(
+                "map_size",
+                format!("{} is not in 16..={}", p.map_size, raster::MAX_TARGET_SIZE),
+            );
+        }
+        if p.reference.two_sided && !p.two_sided {
+            return bad(
+                "reference.two_sided",
+                "set two_sided instead: the pipeline and its reference use one rule".into(),
+            );
+        }
+        Ok(())
+    }
+
+    /// The light pass's options (PSC).
+    pub fn light_pass_options(&self) -> visibility::LightPassOptions {
+        visibility::LightPassOptions {
+            culling: self.culling(),
+            sampling: self.coverage.sampling(),
+            resolution: self.light_resolution,
+            threshold: self.query_threshold,
+            two_sided: self.two_sided,
+        }
+    }
+}

@@ -1,0 +1,324 @@
+//! The stencil stage [Aila04 §3–4, EK]: one light's shadow volumes drawn
+//! into a brute-force, hierarchical or hybrid stencil on the eye depth
+//! buffer, and the raw stencil plus the primitive ids assembled into the
+//! four-class mask ([`crate::mask::assemble`]).
+
+use super::eye::EyePass;
+use super::volume::build_for;
+use crate::mask::{assemble, Mask};
+use crate::Result;
+use raster::{
+    HierarchicalOptions, HierarchicalStencil, StencilBits, StencilStats, StencilTarget, TileClass,
+    TileSize, VolumeBuffer,
+};
+use scene::{Camera, Light, ObjectId, Scene};
+use shadowgen::{MethodChoice, SilhouetteCache, VolumeStats};
+
+/// Which stencil backend draws the volumes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Backend {
+    /// Brute force: every volume fragment ([`StencilTarget`]).
+    Brute,
+    /// Hierarchical shadow volumes \[Aila04\] ([`HierarchicalStencil`]).
+    Hierarchical {
+        /// Tile size of the classification.
+        tile: TileSize,
+        /// The full-shadow bit [Aila04 §4.3.2].
+        full_shadow: bool,
+    },
+    /// A shadow map decides every pixel whose four nearest map comparisons
+    /// agree; the volumes (hierarchical stencil, 8×8 tiles, FS on) run only at
+    /// the others \[ChanDurand04\]. Not exact.
+    Hybrid {
+        /// Shadow-map texels per side (per cube face for point lights).
+        map_size: u32,
+    },
+}
+
+/// The tile classification of a hierarchical frame ([Aila04 Fig. 1]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct TileImage {
+    /// Tile side in pixels.
+    pub tile: u32,
+    /// Tiles across and down.
+    pub tiles_x: u32,
+    /// Tiles down.
+    pub tiles_y: u32,
+    /// Row-major classes.
+    pub classes: Vec<TileClass>,
+}
+
+impl TileImage {
+    /// RGB pixels of a `width × height` image: every pixel takes its tile's
+    /// colour — lit white, shadow dark blue, boundary orange, background black.
+    pub fn rgb(&self, width: u32, height: u32) -> Vec<u8> {
+        let mut out = Vec::with_capacity((width * height * 3) as usize);
+        for y in 0..height {
+            for x in 0..width {
+                let c = self.classes[((y / self.tile) * self.tiles_x + x / self.tile) as usize];
+                out.extend_from_slice(match c {
+                    TileClass::Background => &[0, 0, 0],
+                    TileClass::Lit => &[235, 235, 235],
+                    TileClass::Shadow => &[40, 60, 140],
+                    TileClass::Boundary => &[245, 150, 40],
+                });
+            }
+        }
+        out
+    }
+}
+
+/// Options of the shadow stage.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ShadowOptions {
+    /// Stencil backend.
+    pub backend: Backend,
+    /// Volume method per caster.
+    pub method: MethodChoice,
+    /// Every triangle casts (matches the reference's two-sided mode).
+    pub two_sided: bool,
+    /// 8-bit wrapping stencil or wide counters.
+    pub bits: StencilBits,
+    /// Per-volume scissor test ([`raster::VolumeRange::scissor`]).
+    pub scissor: bool,
+    /// Per-volume depth-bounds test (`stencil: db`).
+    pub depth_bounds: bool,
+    /// Point and spot lights with a range extrude their volumes finitely
+    /// ([`shadowgen::BuildOptions::finite_extrusion`]).
+    pub finite_extrusion: bool,
+}
+
+impl Default for ShadowOptions {
+    fn default() -> Self {
+        ShadowOptions {
+            backend: Backend::Brute,
+            method: MethodChoice::Auto,
+            two_sided: false,
+            bits: StencilBits::Eight,
+            scissor: false,
+            depth_bounds: false,
+            finite_extrusion: false,
+        }
+    }
+}
+
+/// The shadow stage's output for one light.
+#[derive(Clone, Debug)]
+pub struct ShadowFrame {
+    /// The four-class mask.
+    pub mask: Mask,
+    /// Volume construction counters.
+    pub volumes: VolumeStats,
+    /// Volume triangles drawn.
+    pub volume_triangles: u64,
+    /// Stencil counters.
+    pub stencil: StencilStats,
+    /// Per pixel (row-major, row 0 at the top): the raw stencil is non-zero,
+    /// whatever the surface's facing.
+    pub raw_nonzero: Vec<bool>,
+    /// Wall time of the stencil stage: clearing, every volume drawn (for the
+    /// hierarchical backend its tile bounds, both stages), the resolve, mask
+    /// assembly (ms).
+    pub stencil_ms: f64,
+    /// The hierarchical backend's tile classification.
+    pub tiles: Option<TileImage>,
+    /// Hybrid: pixels left to the volumes (the shadow map's silhouette pixels).
+    pub silhouette_pixels: u64,
+    /// Hybrid: shadow-map rendering and classification (ms), inside `stencil_ms`.
+    pub map_ms: f64,
+}
+
+/// Scratch kept across frames: the silhouette cache and the volume buffer.
+#[derive(Default)]
+pub struct ShadowScratch {
+    pub(crate) cache: SilhouetteCache,
+    pub(crate) volumes: VolumeBuffer,
+    stencil: Option<StencilTarget>,
+    hierarchical: Option<HierarchicalStencil>,
+}
+
+impl std::fmt::Debug for ShadowScratch {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ShadowScratch")
+            .field("volume_ranges", &self.volumes.ranges.len())
+            .finish_non_exhaustive()
+    }
+}
+
+/// Builds every object's shadow volume for `light`, stencils them on the eye
+/// depth buffer and assembles the mask.
+///
+/// # Errors
+/// Invalid light ([`crate::Error::Shadowgen`]) or rasterizer errors.
+pub fn shadow_mask(
+    scene: &Scene,
+    camera: &Camera,
+    light: &Light,
+    eye: &EyePass,
+    options: &ShadowOptions,
+    scratch: &mut ShadowScratch,
+) -> Result<ShadowFrame> {
+    let casters: Vec<ObjectId> = (0..scene.objects().len() as u32).map(ObjectId).collect();
+    shadow_mask_for(scene, camera, light, eye, options, scratch, &casters)
+}
+
+/// [`shadow_mask`] with shadow volumes for `casters` only (the potential
+/// shadow casters of the light pass).
+///
+/// # Errors
+/// As [`shadow_mask`]; also a caster id outside the scene.
+pub fn shadow_mask_for(
+    scene: &Scene,
+    camera: &Camera,
+    light: &Light,
+    eye: &EyePass,
+    options: &ShadowOptions,
+    scratch: &mut ShadowScratch,
+    casters: &[ObjectId],
+) -> Result<ShadowFrame> {
+    let viewport = (eye.target.width(), eye.target.height());
+    let volumes = build_for(
+        scene,
+        camera,
+        light,
+        casters,
+        options,
+        viewport,
+        &mut scratch.volumes,
+        &mut scratch.cache,
+    )?;
+    stencil_volumes(scene, camera, light, eye, options, scratch, volumes)
+}
+
+/// The stencil stage alone: draws the volumes already in `scratch` (built by
+/// [`super::volume::build_for`], whose counters `volumes` are) with
+/// `options.backend` and assembles the mask.
+///
+/// # Errors
+/// Rasterizer errors; for the hybrid, an invalid light.
+pub(crate) fn stencil_volumes(
+    scene: &Scene,
+    camera: &Camera,
+    light: &Light,
+    eye: &EyePass,
+    options: &ShadowOptions,
+    scratch: &mut ShadowScratch,
+    volumes: VolumeStats,
+) -> Result<ShadowFrame> {
+    let (w, h) = (eye.target.width(), eye.target.height());
+    let t = std::time::Instant::now();
+    let mut stats = StencilStats::default();
+    let tests = raster::StencilTests {
+        scissor: options.scissor,
+        depth_bounds: options.depth_bounds,
+    };
+    let clip: Vec<glam::Mat4> = scratch
+        .volumes
+        .ranges
+        .iter()
+        .map(|r| scene::transform::clip_from_local(camera, &r.world_from_local))
+        .collect();
+    let ranges: Vec<_> = clip.iter().copied().zip(&scratch.volumes.ranges).collect();
+    let mut raw_nonzero = Vec::new();
+    let mut tiles = None;
+    let (mut silhouette_pixels, mut map_ms) = (0, 0.0);
+    match options.backend {
+        Backend::Brute => {
+            let mut stencil = match scratch.stencil.take() {
+                Some(mut s) if (s.width(), s.height(), s.bits()) == (w, h, options.bits) => {
+                    s.clear();
+                    s
+                }
+                _ => StencilTarget::new(w, h, options.bits)?,
+            };
+            stencil.draw_volumes(&eye.target, &ranges, &scratch.volumes, tests, &mut stats)?;
+            stencil.resolve(&eye.target, &mut raw_nonzero, &mut stats)?;
+            scratch.stencil = Some(stencil);
+        }
+        Backend::Hierarchical { tile, full_shadow } => {
+            let want = HierarchicalOptions {
+                tile,
+                bits: options.bits,
+                full_shadow,
+            };
+            let mut stencil = match scratch.hierarchical.take() {
+                Some(mut s) if (s.width(), s.height(), s.options()) == (w, h, want) => {
+                    s.clear();
+                    s
+                }
+                _ => HierarchicalStencil::new(w, h, want)?,
+            };
+            stencil.draw_volumes(&eye.target, &ranges, &scratch.volumes, tests, &mut stats)?;
+            stencil.resolve(&eye.target, &mut raw_nonzero, &mut stats)?;
+            let (tiles_x, tiles_y) = stencil.tile_counts();
+            tiles = Some(TileImage {
+                tile: tile.pixels(),
+                tiles_x,
+                tiles_y,
+                classes: stencil.tile_classes(),
+            });
+            scratch.hierarchical = Some(stencil);
+        }
+        Backend::Hybrid { map_size } => {
+            let class = crate::hybrid::classify(
+                scene,
+                camera,
+                light,
+                eye.surface(),
+                (w, h),
+                map_size,
+                options.two_sided,
+            )?;
+            // The computation mask: volumes see only the silhouette pixels' depth.
+            // The hierarchical stencil then skips every tile without one, as a
+            // GPU's hierarchical z rejects them [ChanDurand04].
+            let mut masked = eye.target.clone();
+            masked.keep_only(&class.silhouette)?;
+            let want = HierarchicalOptions {
+                tile: TileSize::T8,
+                bits: options.bits,
+                full_shadow: true,
+            };
+            let mut stencil = match scratch.hierarchical.take() {
+                Some(mut s) if (s.width(), s.height(), s.options()) == (w, h, want) => {
+                    s.clear();
+                    s
+                }
+                _ => HierarchicalStencil::new(w, h, want)?,
+            };
+            stencil.draw_volumes(&masked, &ranges, &scratch.volumes, tests, &mut stats)?;
+            stencil.resolve(&masked, &mut raw_nonzero, &mut stats)?;
+            for (i, r) in raw_nonzero.iter_mut().enumerate() {
+                if !class.silhouette[i] {
+                    *r = class.shadowed[i];
+                }
+            }
+            scratch.hierarchical = Some(stencil);
+            silhouette_pixels = class.silhouette_pixels;
+            map_ms = class.map_ms;
+        }
+    }
+    let volume_triangles = stats.triangles;
+    let shadowed = |i: usize| raw_nonzero[i];
+    let mask = assemble(
+        scene,
+        camera,
+        light,
+        w,
+        h,
+        &eye.primitive,
+        shadowed,
+        options.two_sided,
+    );
+    Ok(ShadowFrame {
+        mask,
+        volumes,
+        volume_triangles,
+        stencil: stats,
+        raw_nonzero,
+        stencil_ms: t.elapsed().as_secs_f64() * 1e3,
+        tiles,
+        silhouette_pixels,
+        map_ms,
+    })
+}

@@ -1,0 +1,364 @@
+//! `shadowcull::Pipeline` end to end, as a host drives it: one call per
+//! frame, outputs read from the borrowed `FrameOutput`; masks checked
+//! against the ray-cast reference and against the unculled pipeline.
+
+mod common;
+
+use glam::DVec3;
+use scene::{Camera, CameraPath, Light, ObjectId, Scene};
+use shadowcull::mask::compare;
+use shadowcull::{
+    CullingSpec, Error, FrameInput, Pipeline, PipelineOptions, Result, StencilBackend,
+};
+use std::sync::Arc;
+
+const W: u32 = 160;
+const H: u32 = 120;
+
+fn city() -> (Arc<Scene>, CameraPath) {
+    let loaded = scene::procedural::city::city(&scene::procedural::city::CityParams {
+        blocks_x: 3,
+        blocks_z: 3,
+        ..Default::default()
+    })
+    .unwrap();
+    let path = loaded
+        .paths
+        .iter()
+        .find(|(n, _)| n == "street")
+        .unwrap()
+        .1
+        .clone();
+    (Arc::new(Scene::new(loaded.graph).unwrap()), path)
+}
+
+/// The city's point light and sun, and a spot light over the street the
+/// camera looks down at its first frame.
+fn lights(scene: &Scene, path: &CameraPath) -> Vec<Light> {
+    let b = scene.bounds();
+    let pose = path.at(0).unwrap();
+    let ahead = pose.eye + (pose.target - pose.eye).normalize() * 15.0;
+    let mut l = common::city_lights(scene).to_vec();
+    l.push(Light::Spot {
+        position: DVec3::new(ahead.x + 3.0, f64::from(b.max.y) * 1.2, ahead.z - 2.0),
+        direction: DVec3::new(-0.1, -1.0, 0.1),
+        apex_angle: 100f64.to_radians(),
+        range: None,
+    });
+    l
+}
+
+fn camera(path: &CameraPath, frame: u32) -> Camera {
+    path.at(frame)
+        .unwrap()
+        .camera(f64::from(W) / f64::from(H))
+        .unwrap()
+}
+
+fn options(culling: CullingSpec, stencil: StencilBackend) -> PipelineOptions {
+    PipelineOptions {
+        culling,
+        stencil,
+        light_resolution: 256,
+        ..Default::default()
+    }
+}
+
+/// Conservative CHC++ in the pipeline changes no pixel of the unculled mask,
+/// and both match the reference; PSR and PSC are subsets of the scene and the
+/// volumes name exactly the PSC.
+#[test]
+fn culled_frames_equal_unculled_frames_and_the_reference() -> Result<()> {
+    let (scene, path) = city();
+    let lights = lights(&scene, &path);
+    let mut culled = Pipeline::new(
+        scene.clone(),
+        options(CullingSpec::Chcpp, StencilBackend::H),
+    )?;
+    let mut plain = Pipeline::new(scene.clone(), options(CullingSpec::None, StencilBackend::H))?;
+    let n = scene.objects().len();
+    let mut culled_some = false;
+    for frame in [0, 2, 4, 6] {
+        let input = FrameInput {
+            width: W,
+            height: H,
+            camera: camera(&path, frame),
+            lights: &lights,
+        };
+        let masks: Vec<_> = {
+            let out = culled.frame(&input)?;
+            assert_eq!(out.light_count(), lights.len());
+            assert!(out.psr().windows(2).all(|w| w[0] < w[1]), "PSR ascending");
+            assert!(out.psr().len() <= n && !out.psr().is_empty());
+            culled_some |= out.psr().len() < n;
+            for l in out.lights() {
+                let psc = l.psc();
+                assert!(psc.windows(2).all(|w| w[0] < w[1]), "PSC ascending");
+                let named: Vec<ObjectId> = l
+                    .volumes()
+                    .ranges
+                    .iter()
+                    .map(|r| ObjectId(r.object))
+                    .collect();
+                assert_eq!(named, psc, "one volume range per caster, in PSC order");
+                assert_eq!(l.stats().psc as usize, psc.len());
+                assert!(!l.views().is_empty(), "culled lights report their views");
+                assert!(l.views().iter().all(|v| v.resolution == 256));
+            }
+            let s = out.stats();
+            assert!(s.frame_ms >= s.eye_ms && s.eye_ms > 0.0);
+            assert_eq!(s.psr as usize, out.psr().len());
+            out.lights().map(|l| l.mask().unwrap().clone()).collect()
+        };
+        let out = plain.frame(&input)?;
+        assert_eq!(out.psr().len(), n);
+        for (li, (m, l)) in masks.iter().zip(out.lights()).enumerate() {
+            assert_eq!(l.psc().len(), n);
+            assert!(l.views().is_empty());
+            assert_eq!(
+                m,
+                l.mask().unwrap(),
+                "frame {frame} light {li}: culled = unculled"
+            );
+        }
+        for (li, m) in masks.iter().enumerate() {
+            let r = culled.reference_mask(li)?;
+            let c = compare(&r.mask, &r.ambiguous, m);
+            assert!(c.compared > 500, "frame {frame} light {li}: {c:?}");
+            assert_eq!(c.mismatches, 0, "frame {frame} light {li}: {c:?}");
+        }
+    }
+    assert!(culled_some, "the street path culls objects");
+    Ok(())
+}
+
+/// `stencil: none` (a GPU host): the same PSR, PSC and volumes as with the
+/// CPU stencil, and no mask.
+#[test]
+fn volumes_only_pipeline_gives_the_same_volumes_and_no_mask() -> Result<()> {
+    let (scene, path) = city();
+    let lights = lights(&scene, &path);
+    let mut gpu = Pipeline::new(
+        scene.clone(),
+        options(CullingSpec::Chcpp, StencilBackend::None),
+    )?;
+    let mut cpu = Pipeline::new(scene, options(CullingSpec::Chcpp, StencilBackend::H))?;
+    for frame in 0..3 {
+        let input = FrameInput {
+            width: W,
+            height: H,
+            camera: camera(&path, frame),
+            lights: &lights,
+        };
+        let a = gpu.frame(&input)?;
+        let b = cpu.frame(&input)?;
+        assert_eq!(a.psr(), b.psr());
+        for (x, y) in a.lights().zip(b.lights()) {
+            assert!(x.mask().is_none() && x.shadow().is_none());
+            assert!(y.mask().is_some());
+            assert_eq!(x.psc(), y.psc());
+            let (u, v) = (x.volumes(), y.volumes());
+            assert_eq!(u.positions, v.positions);
+            assert_eq!(u.indices, v.indices);
+            assert_eq!(u.ranges, v.ranges);
+            assert_eq!(x.stats().volume_triangles as usize, u.triangle_count());
+            assert_eq!(x.stats().pixels_processed, 0);
+        }
+    }
+    Ok(())
+}
+
+/// Changing options starts the per-view state cold: the next frames equal a
+/// new pipeline's with those options, counters included.
+#[test]
+fn set_options_equals_a_fresh_pipeline() -> Result<()> {
+    let (scene, path) = city();
+    let lights = lights(&scene, &path);
+    let a = options(CullingSpec::Chc, StencilBackend::Bf);
+    let b = options(CullingSpec::Chcpp, StencilBackend::H);
+    let mut switched = Pipeline::new(scene.clone(), a)?;
+    let input = |frame| FrameInput {
+        width: W,
+        height: H,
+        camera: camera(&path, frame),
+        lights: &lights,
+    };
+    switched.frame(&input(0))?;
+    switched.frame(&input(1))?;
+    switched.set_options(b)?;
+    assert_eq!(switched.options(), &b);
+    let mut fresh = Pipeline::new(scene, b)?;
+    for frame in 2..5 {
+        let x = switched.frame(&input(frame))?;
+        let (psr, xs): (Vec<_>, Vec<_>) = (
+            x.psr().to_vec(),
+            x.lights()
+                .map(|l| (l.psc().to_vec(), l.mask().cloned(), l.stats().queries))
+                .collect(),
+        );
+        let y = fresh.frame(&input(frame))?;
+        assert_eq!(psr, y.psr());
+        let ys: Vec<_> = y
+            .lights()
+            .map(|l| (l.psc().to_vec(), l.mask().cloned(), l.stats().queries))
+            .collect();
+        assert_eq!(xs, ys, "frame {frame}");
+    }
+    Ok(())
+}
+
+/// Bad options and inputs are errors naming their field; nothing panics and
+/// the pipeline keeps working afterwards.
+#[test]
+fn bad_options_and_inputs_name_their_field() -> Result<()> {
+    let (scene, path) = city();
+    let field = |r: Result<()>| match r {
+        Err(Error::Options { field, .. }) => field,
+        other => panic!("expected an options error, got {other:?}"),
+    };
+    let bad_tile = PipelineOptions {
+        tile: 12,
+        ..Default::default()
+    };
+    assert_eq!(
+        field(Pipeline::new(scene.clone(), bad_tile).map(|_| ())),
+        "tile"
+    );
+    let bad_res = PipelineOptions {
+        light_resolution: 2,
+        ..Default::default()
+    };
+    assert_eq!(
+        field(Pipeline::new(scene.clone(), bad_res).map(|_| ())),
+        "light_resolution"
+    );
+    let mut p = Pipeline::new(
+        scene.clone(),
+        options(CullingSpec::Chcpp, StencilBackend::H),
+    )?;
+    assert_eq!(field(p.reference_mask(0).map(|_| ())), "reference_mask");
+    assert_eq!(field(p.set_options(bad_tile)), "tile");
+    let cam = camera(&path, 0);
+    let good = lights(&scene, &path);
+    for (w, h) in [(0, 10), (10, 0), (raster::MAX_TARGET_SIZE + 1, 8)] {
+        let input = FrameInput {
+            width: w,
+            height: h,
+            camera: cam,
+            lights: &good,
+        };
+        assert_eq!(field(p.frame(&input).map(|_| ())), "viewport");
+    }
+    let broken = [
+        good[0],
+        Light::Spot {
+            position: DVec3::ZERO,
+            direction: DVec3::ZERO,
+            apex_angle: 1.0,
+            range: None,
+        },
+    ];
+    let input = FrameInput {
+        width: W,
+        height: H,
+        camera: cam,
+        lights: &broken,
+    };
+    assert_eq!(field(p.frame(&input).map(|_| ())), "lights[1]");
+    let input = FrameInput {
+        width: W,
+        height: H,
+        camera: cam,
+        lights: &good,
+    };
+    assert_eq!(p.frame(&input)?.light_count(), good.len());
+    assert_eq!(
+        field(p.reference_mask(good.len()).map(|_| ())),
+        "reference_mask"
+    );
+    assert!(p.reference_mask(0).is_ok());
+    // No lights: an eye pass and PSR only.
+    let input = FrameInput {
+        width: W,
+        height: H,
+        camera: cam,
+        lights: &[],
+    };
+    let out = p.frame(&input)?;
+    assert_eq!(out.light_count(), 0);
+    assert!(out.light(0).is_none() && !out.psr().is_empty());
+    Ok(())
+}
+
+/// Per-light state follows the light's slot: fewer lights drop state, more
+/// lights add cold state, and results stay those of a fresh pipeline.
+#[test]
+fn changing_the_number_of_lights_keeps_results_exact() -> Result<()> {
+    let (scene, path) = city();
+    let all = lights(&scene, &path);
+    let mut p = Pipeline::new(
+        scene.clone(),
+        options(CullingSpec::Chcpp, StencilBackend::H),
+    )?;
+    let mut unculled = Pipeline::new(scene, options(CullingSpec::None, StencilBackend::H))?;
+    for (frame, k) in [(0u32, 3usize), (1, 1), (2, 2), (3, 3)] {
+        let input = FrameInput {
+            width: W,
+            height: H,
+            camera: camera(&path, frame),
+            lights: &all[..k],
+        };
+        let masks: Vec<_> = p
+            .frame(&input)?
+            .lights()
+            .map(|l| l.mask().cloned())
+            .collect();
+        let plain: Vec<_> = unculled
+            .frame(&input)?
+            .lights()
+            .map(|l| l.mask().cloned())
+            .collect();
+        assert_eq!(masks.len(), k);
+        assert_eq!(masks, plain, "frame {frame} with {k} lights");
+    }
+    Ok(())
+}
+
+/// A pipeline can move to another thread, and its results do not depend on
+/// the size of the rayon pool it runs in.
+#[test]
+fn results_are_identical_for_any_thread_count() -> Result<()> {
+    fn assert_send<T: Send>() {}
+    assert_send::<Pipeline>();
+    let (scene, path) = city();
+    let lights = lights(&scene, &path);
+    let run = |threads: usize| -> Result<Vec<_>> {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        pool.install(|| {
+            let mut p = Pipeline::new(
+                scene.clone(),
+                options(CullingSpec::Chcpp, StencilBackend::H),
+            )?;
+            let mut frames = Vec::new();
+            for frame in 0..3 {
+                let out = p.frame(&FrameInput {
+                    width: W,
+                    height: H,
+                    camera: camera(&path, frame),
+                    lights: &lights,
+                })?;
+                let lights: Vec<_> = out
+                    .lights()
+                    .map(|l| (l.psc().to_vec(), l.volumes().clone(), l.mask().cloned()))
+                    .collect();
+                frames.push((out.psr().to_vec(), lights));
+            }
+            Ok(frames)
+        })
+    };
+    assert_eq!(run(1)?, run(3)?);
+    Ok(())
+}
