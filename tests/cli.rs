@@ -203,6 +203,12 @@ fn run_writes_stats_summary_and_images() {
     let summary: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
     assert_eq!(summary["frames"], 2);
+    // Whole-frame time: the wall time of `Pipeline::frame`, all lights.
+    let (median, mean) = (
+        summary["frame_ms_median"].as_f64().unwrap(),
+        summary["frame_ms_mean"].as_f64().unwrap(),
+    );
+    assert!(median > 0.0 && mean > 0.0, "{summary}");
     for f in [
         "0_0_mask.png",
         "0_1_mask.png",
@@ -227,6 +233,10 @@ fn run_writes_stats_summary_and_images() {
             .map(|c| v[idx(c)].parse::<u64>().unwrap())
             .sum();
         assert_eq!(sum, 64 * 48);
+        // Each light's row repeats its frame's whole-frame time, which holds
+        // the eye pass and this light's stages.
+        let get = |c: &str| v[idx(c)].parse::<f64>().unwrap();
+        assert!(get("pipeline_frame_ms") >= get("eye_ms"), "{row}");
         // The pipeline ran and matched the reference (ambiguous pixels aside).
         let num = |c: &str| v[idx(c)].parse::<f64>().unwrap();
         assert!(num("volume_triangles") > 0.0 && num("pixels_processed") > 0.0);

@@ -16,20 +16,7 @@ const W: u32 = 160;
 const H: u32 = 120;
 
 fn city() -> (Arc<Scene>, CameraPath) {
-    let loaded = scene::procedural::city::city(&scene::procedural::city::CityParams {
-        blocks_x: 3,
-        blocks_z: 3,
-        ..Default::default()
-    })
-    .unwrap();
-    let path = loaded
-        .paths
-        .iter()
-        .find(|(n, _)| n == "street")
-        .unwrap()
-        .1
-        .clone();
-    (Arc::new(Scene::new(loaded.graph).unwrap()), path)
+    common::city_with_street(3)
 }
 
 /// The city's point light and sun, and a spot light over the street the
@@ -204,6 +191,25 @@ fn set_options_equals_a_fresh_pipeline() -> Result<()> {
             .collect();
         assert_eq!(xs, ys, "frame {frame}");
     }
+    // Back to no culling: no light pass runs, every object casts.
+    let none = options(CullingSpec::None, StencilBackend::H);
+    switched.set_options(none)?;
+    let x = switched.frame(&input(5))?;
+    let xs: Vec<_> = x
+        .lights()
+        .map(|l| {
+            assert!(l.views().is_empty());
+            assert_eq!((l.stats().queries, l.stats().light_ms), (0, 0.0));
+            (l.psc().len(), l.mask().cloned())
+        })
+        .collect();
+    let mut fresh = Pipeline::new(switched.scene().clone(), none)?;
+    let y = fresh.frame(&input(5))?;
+    let ys: Vec<_> = y
+        .lights()
+        .map(|l| (l.psc().len(), l.mask().cloned()))
+        .collect();
+    assert_eq!(xs, ys);
     Ok(())
 }
 

@@ -277,7 +277,7 @@ impl Pipeline {
         }
 
         // 2. Light passes (PSC) of all lights, concurrently.
-        if let Some(state) = &self.culling {
+        if let (true, Some(state)) = (culled, &self.culling) {
             use rayon::prelude::*;
             let (hierarchy, meshes) = state.parts();
             light::light_passes(

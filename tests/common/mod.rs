@@ -215,9 +215,15 @@ pub fn check_hierarchical(
 /// camera path.
 #[allow(dead_code)] // not every test binary uses it
 pub fn street_city() -> (std::sync::Arc<Scene>, CameraPath) {
+    city_with_street(6)
+}
+
+/// The procedural city of `blocks × blocks` blocks and its `street` camera path.
+#[allow(dead_code)] // not every test binary uses it
+pub fn city_with_street(blocks: u32) -> (std::sync::Arc<Scene>, CameraPath) {
     let loaded = city(&CityParams {
-        blocks_x: 6,
-        blocks_z: 6,
+        blocks_x: blocks,
+        blocks_z: blocks,
         ..Default::default()
     })
     .unwrap();
