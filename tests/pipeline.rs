@@ -331,40 +331,48 @@ fn changing_the_number_of_lights_keeps_results_exact() -> Result<()> {
 }
 
 /// A pipeline can move to another thread, and its results do not depend on
-/// the size of the rayon pool it runs in.
+/// the pool it runs in: its own (`threads`), the host's, or rayon's global one.
 #[test]
 fn results_are_identical_for_any_thread_count() -> Result<()> {
     fn assert_send<T: Send>() {}
     assert_send::<Pipeline>();
     let (scene, path) = city();
     let lights = lights(&scene, &path);
-    let run = |threads: usize| -> Result<Vec<_>> {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap();
-        pool.install(|| {
-            let mut p = Pipeline::new(
-                scene.clone(),
-                options(CullingSpec::Chcpp, StencilBackend::H),
-            )?;
-            let mut frames = Vec::new();
-            for frame in 0..3 {
-                let out = p.frame(&FrameInput {
-                    width: W,
-                    height: H,
-                    camera: camera(&path, frame),
-                    lights: &lights,
-                })?;
-                let lights: Vec<_> = out
-                    .lights()
-                    .map(|l| (l.psc().to_vec(), l.volumes().clone(), l.mask().cloned()))
-                    .collect();
-                frames.push((out.psr().to_vec(), lights));
-            }
-            Ok(frames)
-        })
+    let run = |threads: u32, host_pool: Option<usize>| -> Result<(Vec<_>, _)> {
+        let mut p = Pipeline::new(
+            scene.clone(),
+            PipelineOptions {
+                threads,
+                ..options(CullingSpec::Chcpp, StencilBackend::H)
+            },
+        )?;
+        if let Some(n) = host_pool {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(n)
+                .build()
+                .unwrap();
+            p.set_thread_pool(Some(Arc::new(pool)))?;
+        }
+        let mut frames = Vec::new();
+        for frame in 0..3 {
+            let out = p.frame(&FrameInput {
+                width: W,
+                height: H,
+                camera: camera(&path, frame),
+                lights: &lights,
+            })?;
+            let lights: Vec<_> = out
+                .lights()
+                .map(|l| (l.psc().to_vec(), l.volumes().clone(), l.mask().cloned()))
+                .collect();
+            frames.push((out.psr().to_vec(), lights));
+        }
+        let reference = p.reference_mask(0)?.mask;
+        Ok((frames, reference))
     };
-    assert_eq!(run(1)?, run(3)?);
+    let one = run(1, None)?;
+    assert_eq!(one, run(0, None)?, "own pool of 1 = global pool");
+    assert_eq!(one, run(0, Some(3))?, "own pool of 1 = host pool of 3");
+    assert_eq!(one, run(2, None)?, "own pool of 1 = own pool of 2");
     Ok(())
 }

@@ -135,6 +135,11 @@ pub struct Pipeline {
     stats: FrameStats,
     bvh: Option<TriangleBvh>,
     bvh_ms: f64,
+    /// The pool frames run in: the host's, or one of `options.threads`
+    /// threads; `None` runs on rayon's global pool.
+    pool: Option<Arc<rayon::ThreadPool>>,
+    /// The pool came from [`Pipeline::set_thread_pool`] (kept across option changes).
+    host_pool: bool,
 }
 
 impl std::fmt::Debug for Pipeline {
@@ -173,9 +178,24 @@ impl Pipeline {
             stats: FrameStats::default(),
             bvh: None,
             bvh_ms: 0.0,
+            pool: own_pool(options.threads)?,
+            host_pool: false,
             options,
             scene,
         })
+    }
+
+    /// Runs every following frame (and [`Pipeline::reference_mask`]) in the
+    /// host's rayon `pool` instead of rayon's global pool or the pipeline's own
+    /// (`options.threads`); `None` returns to those. Results are identical
+    /// for any pool size.
+    pub fn set_thread_pool(&mut self, pool: Option<Arc<rayon::ThreadPool>>) -> Result<()> {
+        self.host_pool = pool.is_some();
+        self.pool = match pool {
+            Some(p) => Some(p),
+            None => own_pool(self.options.threads)?,
+        };
+        Ok(())
     }
 
     /// The scene.
@@ -197,6 +217,9 @@ impl Pipeline {
     pub fn set_options(&mut self, options: PipelineOptions) -> Result<()> {
         check_options(&options)?;
         if options != self.options {
+            if !self.host_pool && options.threads != self.options.threads {
+                self.pool = own_pool(options.threads)?;
+            }
             self.options = options;
             if let Some(c) = &mut self.culling {
                 c.reset();
@@ -215,6 +238,14 @@ impl Pipeline {
     /// [`Error::Options`] for a viewport out of range or an invalid light
     /// (naming `lights[i]`); rasterizer errors.
     pub fn frame(&mut self, input: &FrameInput<'_>) -> Result<FrameOutput<'_>> {
+        match self.pool.clone() {
+            Some(pool) => pool.install(|| self.run_frame(input))?,
+            None => self.run_frame(input)?,
+        }
+        Ok(FrameOutput { pipeline: self })
+    }
+
+    fn run_frame(&mut self, input: &FrameInput<'_>) -> Result<()> {
         let (w, h) = (input.width, input.height);
         if !(1..=raster::MAX_TARGET_SIZE).contains(&w)
             || !(1..=raster::MAX_TARGET_SIZE).contains(&h)
@@ -350,7 +381,7 @@ impl Pipeline {
             eye_waits,
             lights: n as u32,
         };
-        Ok(FrameOutput { pipeline: self })
+        Ok(())
     }
 
     /// The output of the last [`Pipeline::frame`] call, again (`None` before
@@ -383,21 +414,30 @@ impl Pipeline {
         };
         let scene = &self.scene;
         let bvh_ms = &mut self.bvh_ms;
-        let bvh = self.bvh.get_or_insert_with(|| {
-            let t = Instant::now();
-            let b = TriangleBvh::new(scene);
-            *bvh_ms = ms(t);
-            b
-        });
-        Ok(reference_mask(
-            bvh,
-            camera,
-            &state.light,
-            eye.target.width(),
-            eye.target.height(),
-            &self.options.reference_options(),
-            Some(eye.surface()),
-        ))
+        let options = self.options.reference_options();
+        let pool = self.pool.clone();
+        let bvh = &mut self.bvh;
+        let mut run = move || {
+            let bvh = bvh.get_or_insert_with(|| {
+                let t = Instant::now();
+                let b = TriangleBvh::new(scene);
+                *bvh_ms = ms(t);
+                b
+            });
+            reference_mask(
+                bvh,
+                camera,
+                &state.light,
+                eye.target.width(),
+                eye.target.height(),
+                &options,
+                Some(eye.surface()),
+            )
+        };
+        Ok(match pool {
+            Some(pool) => pool.install(run),
+            None => run(),
+        })
     }
 
     /// Time spent building the reference's triangle BVH (ms), 0 until
@@ -587,6 +627,22 @@ fn light_stats(
         s.map_ms = f.map_ms;
     }
     s
+}
+
+/// A pool of `threads` workers, `None` for 0 (rayon's global pool).
+fn own_pool(threads: u32) -> Result<Option<Arc<rayon::ThreadPool>>> {
+    if threads == 0 {
+        return Ok(None);
+    }
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads as usize)
+        .thread_name(|i| format!("shadowcull-{i}"))
+        .build()
+        .map(|p| Some(Arc::new(p)))
+        .map_err(|e| Error::Options {
+            field: "threads".into(),
+            message: e.to_string(),
+        })
 }
 
 fn check_options(options: &PipelineOptions) -> Result<()> {

@@ -126,6 +126,10 @@ pub struct PipelineOptions {
     pub two_sided: bool,
     /// Lights with a range extrude their shadow volumes finitely (always closed).
     pub finite_extrusion: bool,
+    /// Worker threads of the pipeline's own rayon pool; 0 (the default) runs
+    /// on rayon's global pool, or on the pool given to
+    /// [`super::Pipeline::set_thread_pool`]. Results are identical for any count.
+    pub threads: u32,
     /// Compute the reference mask every n-th frame (0 = never).
     pub reference_every: u32,
     /// The reference's options (depth-error bound; its `two_sided` must equal
@@ -151,6 +155,7 @@ impl Default for PipelineOptions {
             light_resolution: 1024,
             two_sided: false,
             finite_extrusion: false,
+            threads: 0,
             reference_every: 1,
             reference: Default::default(),
         }
@@ -257,6 +262,9 @@ impl PipelineOptions {
                 "map_size",
                 format!("{} is not in 16..={}", p.map_size, raster::MAX_TARGET_SIZE),
             );
+        }
+        if p.threads > 1024 {
+            return bad("threads", format!("{} is not in 0..=1024", p.threads));
         }
         if p.reference.two_sided && !p.two_sided {
             return bad(
