@@ -376,3 +376,74 @@ fn results_are_identical_for_any_thread_count() -> Result<()> {
     assert_eq!(one, run(2, None)?, "own pool of 1 = own pool of 2");
     Ok(())
 }
+
+/// A host's own matrices: an off-centre, jittered OpenGL projection with a
+/// finite far plane. Culled masks equal unculled ones and the reference.
+#[test]
+fn host_matrices_give_exact_masks() -> Result<()> {
+    use glam::{DMat4, DVec4};
+    use scene::ClipDepth;
+    let (scene, path) = city();
+    let lights = lights(&scene, &path);
+    let pose = path.at(1).unwrap();
+    let f = (pose.target - pose.eye).normalize();
+    let s = f.cross(DVec3::Y).normalize();
+    let u = s.cross(f);
+    let e = pose.eye;
+    let view = DMat4::from_cols(
+        DVec4::new(s.x, u.x, -f.x, 0.0),
+        DVec4::new(s.y, u.y, -f.y, 0.0),
+        DVec4::new(s.z, u.z, -f.z, 0.0),
+        DVec4::new(-s.dot(e), -u.dot(e), f.dot(e), 1.0),
+    );
+    let mut culled = Pipeline::new(
+        scene.clone(),
+        options(CullingSpec::Chcpp, StencilBackend::H),
+    )?;
+    let mut plain = Pipeline::new(scene, options(CullingSpec::None, StencilBackend::H))?;
+    for (k, jitter) in [(0.0, 0.0), (0.37, -0.21), (-0.5, 0.5)]
+        .into_iter()
+        .enumerate()
+    {
+        // Off-centre frustum l, r, b, t at the near plane n, far plane 400.
+        let (l, r, b, t, n, far) = (-0.09, 0.12, -0.06, 0.1, 0.1, 400.0);
+        let projection = DMat4::from_cols(
+            DVec4::new(2.0 * n / (r - l), 0.0, 0.0, 0.0),
+            DVec4::new(0.0, 2.0 * n / (t - b), 0.0, 0.0),
+            DVec4::new(
+                (r + l) / (r - l) + 2.0 * jitter.0 / f64::from(W),
+                (t + b) / (t - b) + 2.0 * jitter.1 / f64::from(H),
+                -(far + n) / (far - n),
+                -1.0,
+            ),
+            DVec4::new(0.0, 0.0, -2.0 * far * n / (far - n), 0.0),
+        );
+        let camera = Camera::from_view_projection(view, projection, ClipDepth::NegativeOneToOne)
+            .expect("a perspective host camera");
+        assert!(camera.shift.length() > 0.1, "off-centre");
+        let input = FrameInput {
+            width: W,
+            height: H,
+            camera,
+            lights: &lights,
+        };
+        let masks: Vec<_> = culled
+            .frame(&input)?
+            .lights()
+            .map(|l| l.mask().unwrap().clone())
+            .collect();
+        let out = plain.frame(&input)?;
+        for (li, (m, p)) in masks.iter().zip(out.lights()).enumerate() {
+            assert_eq!(
+                m,
+                p.mask().unwrap(),
+                "view {k} light {li}: culled = unculled"
+            );
+            let r = culled.reference_mask(li)?;
+            let c = compare(&r.mask, &r.ambiguous, m);
+            assert!(c.compared > 500, "view {k} light {li}: {c:?}");
+            assert_eq!(c.mismatches, 0, "view {k} light {li}: {c:?}");
+        }
+    }
+    Ok(())
+}

@@ -1,7 +1,7 @@
 //! Cameras: pose in f64, reversed-Z projection with an infinite far plane.
 
 use crate::{Error, Frustum, Plane, Result};
-use glam::{DMat3, DMat4, DQuat, DVec3, DVec4};
+use glam::{DMat3, DMat4, DQuat, DVec2, DVec3, DVec4};
 
 /// A pinhole camera.
 ///
@@ -20,6 +20,11 @@ pub struct Camera {
     pub aspect: f64,
     /// Distance of the near plane, > 0.
     pub near: f64,
+    /// Off-centre shift of the projection in normalized device coordinates
+    /// (x right, y up): the view axis lands at `shift` instead of the
+    /// viewport centre. Zero for [`Camera::look_at`]; a host projection's
+    /// off-centre or jitter terms ([`Camera::from_view_projection`]).
+    pub shift: DVec2,
 }
 
 /// A camera placement independent of the viewport: where it stands and looks.
@@ -107,6 +112,7 @@ impl Camera {
             fov_y,
             aspect,
             near,
+            shift: DVec2::ZERO,
         };
         cam.validate()?;
         Ok(cam)
@@ -132,6 +138,9 @@ impl Camera {
         if !(self.near > 0.0 && self.near.is_finite()) {
             return Err(cam_err("near", "must be positive and finite"));
         }
+        if !self.shift.is_finite() {
+            return Err(cam_err("shift", "must be finite"));
+        }
         Ok(())
     }
 
@@ -147,13 +156,15 @@ impl Camera {
     }
 
     /// Reversed-Z projection with an infinite far plane (right-handed, view looks down −z):
-    /// `clip = (x·f/aspect, y·f, near, −z_view)`, so depth = near / distance.
+    /// `clip = (x·f/aspect − shift.x·z, y·f − shift.y·z, near, −z_view)`, so
+    /// depth = near / distance and a view-axis point lands at `shift` in NDC.
     pub fn projection(&self) -> DMat4 {
         let f = 1.0 / (0.5 * self.fov_y).tan();
         DMat4::from_cols(
             DVec4::new(f / self.aspect, 0.0, 0.0, 0.0),
             DVec4::new(0.0, f, 0.0, 0.0),
-            DVec4::new(0.0, 0.0, 0.0, -1.0),
+            // `0 − shift`, not `−shift`: +0.0 (not −0.0) for a centred camera.
+            DVec4::new(0.0 - self.shift.x, 0.0 - self.shift.y, 0.0, -1.0),
             DVec4::new(0.0, 0.0, self.near, 0.0),
         )
     }
@@ -176,6 +187,7 @@ impl Camera {
             orientation: self.orientation,
             tan_half_fov: (0.5 * self.fov_y).tan(),
             aspect: self.aspect,
+            shift: self.shift,
             width: width as f64,
             height: height as f64,
         }
@@ -185,11 +197,13 @@ impl Camera {
     pub fn frustum(&self) -> Frustum {
         let t = (0.5 * self.fov_y).tan();
         let (hx, hy) = (t * self.aspect, t);
+        // NDC corner (±1, ±1) at view direction ((±1 − shift)·h, −1).
+        let (sx, sy) = (self.shift.x * hx, self.shift.y * hy);
         let view_dirs = [
-            DVec3::new(-hx, -hy, -1.0),
-            DVec3::new(hx, -hy, -1.0),
-            DVec3::new(hx, hy, -1.0),
-            DVec3::new(-hx, hy, -1.0),
+            DVec3::new(-hx - sx, -hy - sy, -1.0),
+            DVec3::new(hx - sx, -hy - sy, -1.0),
+            DVec3::new(hx - sx, hy - sy, -1.0),
+            DVec3::new(-hx - sx, hy - sy, -1.0),
         ];
         let dirs = view_dirs.map(|d| self.orientation * d);
         let near_corners = dirs.map(|d| self.position + d * self.near);
@@ -220,6 +234,7 @@ pub struct Rays {
     orientation: DQuat,
     tan_half_fov: f64,
     aspect: f64,
+    shift: DVec2,
     width: f64,
     height: f64,
 }
@@ -229,8 +244,8 @@ impl Rays {
     /// units, row 0 at the top).
     #[inline]
     pub fn direction(&self, px: f64, py: f64) -> DVec3 {
-        let ndc_x = 2.0 * px / self.width - 1.0;
-        let ndc_y = 1.0 - 2.0 * py / self.height;
+        let ndc_x = 2.0 * px / self.width - 1.0 - self.shift.x;
+        let ndc_y = 1.0 - 2.0 * py / self.height - self.shift.y;
         let t = self.tan_half_fov;
         let d = DVec3::new(ndc_x * t * self.aspect, ndc_y * t, -1.0);
         (self.orientation * d).normalize()
@@ -243,8 +258,8 @@ impl Rays {
     #[inline]
     pub fn row(&self, py: f64) -> (DVec3, DVec3) {
         let t = self.tan_half_fov;
-        let ndc_y = 1.0 - 2.0 * py / self.height;
-        let base = DVec3::new(-t * self.aspect, ndc_y * t, -1.0);
+        let ndc_y = 1.0 - 2.0 * py / self.height - self.shift.y;
+        let base = DVec3::new((-1.0 - self.shift.x) * t * self.aspect, ndc_y * t, -1.0);
         let step = DVec3::new(2.0 * t * self.aspect / self.width, 0.0, 0.0);
         (self.orientation * base, self.orientation * step)
     }
