@@ -19,11 +19,12 @@
 //! `Pipeline::frame`, all lights), `mismatch_pixels`,
 //! `mismatch_off_boundary`, `culled_vs_unculled_differing_pixels`, …
 
-use glam::{DMat4, DQuat, DVec3};
+use glam::{DMat4, DQuat, DVec3, DVec4};
 use shadowcull::mask::compare;
 use shadowcull::raster::VolumeMethod;
 use shadowcull::scene::{Camera, Light};
-use std::sync::Arc;
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 
 /// A mesh as a host keeps it: flat positions and a triangle index list.
 struct HostMesh {
@@ -37,6 +38,41 @@ struct HostObject {
     world: DMat4,
 }
 
+/// Everything the host owns: meshes, objects and lights.
+struct HostWorld {
+    meshes: Vec<HostMesh>,
+    objects: Vec<HostObject>,
+    lights: Vec<Light>,
+}
+
+/// A pipeline with the ids of the host's meshes and objects (in host order;
+/// objects the host adds later are appended).
+struct Uploaded {
+    pipeline: Pipeline,
+    meshes: Vec<MeshId>,
+    objects: Vec<ObjectId>,
+}
+
+impl Uploaded {
+    fn new(pipeline: Pipeline) -> Self {
+        Uploaded {
+            pipeline,
+            meshes: Vec::new(),
+            objects: Vec::new(),
+        }
+    }
+}
+
+/// A scene edit the host makes between frames (indices into its own lists).
+enum HostEdit {
+    /// Object `i` moves to a new world matrix.
+    Move(usize, DMat4),
+    /// Object `i` is removed.
+    Remove(usize),
+    /// A new object of mesh `m` appears.
+    Add(usize, DMat4),
+}
+
 /// What the host took from one frame.
 #[derive(Default)]
 struct Drawn {
@@ -47,55 +83,70 @@ struct Drawn {
     frame_ms: f64,
 }
 
+impl Drawn {
+    fn new(psr: usize, frame_ms: f64) -> Self {
+        Drawn {
+            psr,
+            frame_ms,
+            ..Default::default()
+        }
+    }
+}
+
 // glue:begin
-use shadowcull::scene::{Mesh, MeshId, Scene, SceneGraph, Transform};
+use shadowcull::scene::{ClipDepth, Mesh, MeshId, ObjectId, Scene, SceneGraph};
 use shadowcull::{CullingSpec, FrameInput, Pipeline, PipelineOptions, StencilBackend};
 
-/// Uploads the host's arrays once: a scene mesh per host mesh, an instance per object.
-fn upload(meshes: &[HostMesh], objects: &[HostObject]) -> shadowcull::Result<Arc<Scene>> {
-    let mut graph = SceneGraph::new();
-    for m in meshes {
-        let positions: Vec<glam::Vec3> = m.positions.iter().map(|&p| p.into()).collect();
-        let tris: Vec<[u32; 3]> = m.indices.chunks(3).map(|t| [t[0], t[1], t[2]]).collect();
-        graph.add_mesh(Mesh::new("mesh", &positions, &tris)?);
-    }
-    for o in objects {
-        let transform = Transform::Matrix(o.world);
-        graph.add_instance("object", MeshId(o.mesh as u32), transform);
-    }
-    Ok(Arc::new(Scene::new(graph)?))
-}
-
-/// Conservative CHC++ from the eye and the lights, volumes for the PSC only. A
-/// GPU host chooses `StencilBackend::None`; the CPU stencil is on here so the
-/// example can check its masks.
-fn pipeline(scene: Arc<Scene>, culling: CullingSpec) -> shadowcull::Result<Pipeline> {
-    let stencil = StencilBackend::H;
-    Pipeline::new(
-        scene,
-        PipelineOptions {
-            culling,
-            stencil,
-            ..Default::default()
-        },
-    )
-}
-
-/// One frame: the call, then what a renderer reads to draw its shadows.
-fn host_frame(p: &mut Pipeline, input: &FrameInput) -> shadowcull::Result<Drawn> {
-    let out = p.frame(input)?;
-    let (psr, frame_ms) = (out.psr().len(), out.stats().frame_ms);
-    let mut d = Drawn {
-        psr,
-        frame_ms,
+/// A pipeline holding the host's meshes, objects and lights, with their ids.
+fn upload(world: &HostWorld, culling: CullingSpec) -> shadowcull::Result<Uploaded> {
+    let stencil = StencilBackend::H; // a GPU host: None (here: to check the masks)
+    let options = PipelineOptions {
+        culling,
+        stencil,
         ..Default::default()
     };
+    let pipeline = Pipeline::new(Scene::new(SceneGraph::new())?, options)?;
+    let mut u = Uploaded::new(pipeline);
+    for m in &world.meshes {
+        let positions: Vec<glam::Vec3> = m.positions.iter().map(|&q| q.into()).collect();
+        let tris: Vec<[u32; 3]> = m.indices.chunks(3).map(|t| [t[0], t[1], t[2]]).collect();
+        u.meshes
+            .push(u.pipeline.add_mesh(Mesh::new("mesh", &positions, &tris)?));
+    }
+    for o in &world.objects {
+        u.objects
+            .push(u.pipeline.add_object(u.meshes[o.mesh], o.world)?);
+    }
+    for l in &world.lights {
+        u.pipeline.add_light(*l)?;
+    }
+    Ok(u)
+}
+
+/// The host's scene edits of one frame, by the ids the upload returned.
+fn edit(u: &mut Uploaded, e: &HostEdit) -> shadowcull::Result<()> {
+    match *e {
+        HostEdit::Move(i, m) => u.pipeline.set_transform(u.objects[i], m)?,
+        HostEdit::Remove(i) => u.pipeline.remove_object(u.objects[i])?,
+        HostEdit::Add(mesh, m) => u.objects.push(u.pipeline.add_object(u.meshes[mesh], m)?),
+    }
+    Ok(())
+}
+
+/// A frame from the host's view and projection; what a renderer reads to draw shadows.
+fn host_frame(
+    p: &mut Pipeline,
+    size: (u32, u32),
+    [view, proj]: [DMat4; 2],
+) -> shadowcull::Result<Drawn> {
+    let camera = Camera::from_view_projection(view, proj, ClipDepth::NegativeOneToOne)?;
+    let out = p.frame(&FrameInput::new(size.0, size.1, camera))?;
+    let mut d = Drawn::new(out.psr().len(), out.stats().frame_ms);
     for light in out.lights() {
         d.psc += light.psc().len();
         let v = light.volumes();
         for r in &v.ranges {
-            // Bind r.world_from_local, set the stencil ops of r.method, the
-            // scissor and depth bounds, then draw these indices.
+            // Bind r.world_from_local, set r.method's stencil ops, scissor and depth bounds:
             let _triangles = &v.indices[r.indices()];
             d.volume_triangles += r.triangle_count();
             d.non_zpass_ranges += usize::from(r.method != VolumeMethod::ZPass);
@@ -162,8 +213,9 @@ fn quads(faces: &[[u32; 4]]) -> Vec<u32> {
 }
 
 /// A 22 × 23 grid of cubes and towers with pseudo-random sizes and turns
-/// (506 objects) plus the ground; streets run along x between the rows.
-fn world() -> (Vec<HostMesh>, Vec<HostObject>) {
+/// (506 objects) plus the ground, streets along x between the rows; a point
+/// light and a sun.
+fn world() -> HostWorld {
     let meshes = vec![ground(120.0), cube(), tower()];
     let mut objects = vec![HostObject {
         mesh: 0,
@@ -190,45 +242,7 @@ fn world() -> (Vec<HostMesh>, Vec<HostObject>) {
             });
         }
     }
-    (meshes, objects)
-}
-
-/// The camera of frame `f` of `n`: down a street, rising at the end.
-fn camera(f: u32, n: u32, (w, h): (u32, u32)) -> anyhow::Result<Camera> {
-    let t = f64::from(f) / f64::from(n.max(2) - 1);
-    let eye = DVec3::new(-95.0 + 170.0 * t, 2.0 + 25.0 * t * t, 4.0);
-    let target = eye + DVec3::new(1.0, -0.15 - 0.4 * t * t, 0.25 * (6.0 * t).sin());
-    Ok(Camera::look_at(
-        eye,
-        target,
-        DVec3::Y,
-        60f64.to_radians(),
-        f64::from(w) / f64::from(h),
-        0.1,
-    )?)
-}
-
-fn median(v: &mut [f64]) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v.get(v.len() / 2).copied().unwrap_or(0.0)
-}
-
-fn main() -> anyhow::Result<()> {
-    let (mut frames, mut every, mut size) = (60u32, 10u32, (320u32, 240u32));
-    let args: Vec<String> = std::env::args().skip(1).collect();
-    for pair in args.chunks(2) {
-        let value = pair.get(1).map(String::as_str).unwrap_or("");
-        match pair[0].as_str() {
-            "--frames" => frames = value.parse()?,
-            "--reference-every" => every = value.parse()?,
-            "--size" => {
-                let (w, h) = value.split_once('x').ok_or_else(|| anyhow::anyhow!("--size WxH"))?;
-                size = (w.parse()?, h.parse()?);
-            }
-            other => anyhow::bail!("unknown flag {other}; usage: host_loop [--frames N] [--reference-every K] [--size WxH]"),
-        }
-    }
-    let lights = [
+    let lights = vec![
         Light::Point {
             position: DVec3::new(15.0, 70.0, -10.0),
             range: None,
@@ -237,35 +251,196 @@ fn main() -> anyhow::Result<()> {
             direction: DVec3::new(-0.45, -1.0, -0.3),
         },
     ];
-    let (meshes, objects) = world();
-    let scene = upload(&meshes, &objects)?;
-    let mut culled = pipeline(scene.clone(), CullingSpec::Chcpp)?;
-    let mut unculled = pipeline(scene.clone(), CullingSpec::None)?;
+    HostWorld {
+        meshes,
+        objects,
+        lights,
+    }
+}
+
+/// Frame `f`'s edits: object 1 circles its lot; a third of the way along the
+/// path the object beside the street is removed, half way a tower appears.
+fn edits(f: u32, n: u32, world: &HostWorld) -> Vec<HostEdit> {
+    let a = f64::from(f) * 0.2;
+    let base = world.objects[1].world;
+    let mut e = vec![HostEdit::Move(
+        1,
+        DMat4::from_translation(DVec3::new(3.0 * a.cos(), 0.0, 3.0 * a.sin())) * base,
+    )];
+    if f == n / 3 {
+        e.push(HostEdit::Remove(12));
+    }
+    if f == n / 2 {
+        let m = DMat4::from_scale_rotation_translation(
+            DVec3::new(3.0, 12.0, 3.0),
+            DQuat::IDENTITY,
+            DVec3::new(-10.0, 0.0, 8.5),
+        );
+        e.push(HostEdit::Add(2, m));
+    }
+    e
+}
+
+/// The host's view and projection of frame `f` of `n`: down a street,
+/// rising at the end; OpenGL-style, with a far plane and a TAA jitter.
+fn host_matrices(f: u32, n: u32, (w, h): (u32, u32)) -> (DMat4, DMat4) {
+    let t = f64::from(f) / f64::from(n.max(2) - 1);
+    let eye = DVec3::new(-95.0 + 170.0 * t, 2.0 + 25.0 * t * t, 4.0);
+    let dir = DVec3::new(1.0, -0.15 - 0.4 * t * t, 0.25 * (6.0 * t).sin()).normalize();
+    let side = dir.cross(DVec3::Y).normalize();
+    let up = side.cross(dir);
+    let view = DMat4::from_cols(
+        DVec4::new(side.x, up.x, -dir.x, 0.0),
+        DVec4::new(side.y, up.y, -dir.y, 0.0),
+        DVec4::new(side.z, up.z, -dir.z, 0.0),
+        DVec4::new(-side.dot(eye), -up.dot(eye), dir.dot(eye), 1.0),
+    );
+    let (near, far, fy) = (0.1, 2000.0, 1.0 / 30f64.to_radians().tan());
+    // Halton (2, 3) jitter in pixels, as a TAA renderer shifts its projection.
+    let halton = |mut i: u32, b: u32| {
+        let (mut r, mut f) = (0.0, 1.0);
+        while i > 0 {
+            f /= f64::from(b);
+            r += f * f64::from(i % b);
+            i /= b;
+        }
+        r - 0.5
+    };
+    let (jx, jy) = (
+        2.0 * halton(f + 1, 2) / f64::from(w),
+        2.0 * halton(f + 1, 3) / f64::from(h),
+    );
+    let projection = DMat4::from_cols(
+        DVec4::new(fy * f64::from(h) / f64::from(w), 0.0, 0.0, 0.0),
+        DVec4::new(0.0, fy, 0.0, 0.0),
+        DVec4::new(jx, jy, -(far + near) / (far - near), -1.0),
+        DVec4::new(0.0, 0.0, -2.0 * far * near / (far - near), 0.0),
+    );
+    (view, projection)
+}
+
+fn median(v: &mut [f64]) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v.get(v.len() / 2).copied().unwrap_or(0.0)
+}
+
+/// Counts heap allocations while [`COUNTING`] is set: the allocations made
+/// inside `Pipeline::frame` calls (the pool's threads included: they only
+/// work inside a call).
+struct CountingAllocator;
+
+static COUNTING: AtomicBool = AtomicBool::new(false);
+static ALLOCATIONS: AtomicU64 = AtomicU64::new(0);
+static BYTES: AtomicU64 = AtomicU64::new(0);
+static FREED: AtomicU64 = AtomicU64::new(0);
+
+// SAFETY: forwards every call to the system allocator unchanged; the counters
+// are atomics and allocate nothing.
+unsafe impl GlobalAlloc for CountingAllocator {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        if COUNTING.load(Ordering::Relaxed) {
+            ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+            BYTES.fetch_add(layout.size() as u64, Ordering::Relaxed);
+        }
+        // SAFETY: the caller's contract, passed on.
+        unsafe { System.alloc(layout) }
+    }
+
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        if COUNTING.load(Ordering::Relaxed) {
+            FREED.fetch_add(layout.size() as u64, Ordering::Relaxed);
+        }
+        // SAFETY: the caller's contract, passed on.
+        unsafe { System.dealloc(ptr, layout) }
+    }
+
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        if COUNTING.load(Ordering::Relaxed) {
+            ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+            BYTES.fetch_add(new_size as u64, Ordering::Relaxed);
+            FREED.fetch_add(layout.size() as u64, Ordering::Relaxed);
+        }
+        // SAFETY: the caller's contract, passed on.
+        unsafe { System.realloc(ptr, layout, new_size) }
+    }
+}
+
+#[global_allocator]
+static ALLOCATOR: CountingAllocator = CountingAllocator;
+
+/// Runs `f` with the allocation counters on: `(allocations, bytes allocated,
+/// bytes freed)` during the call.
+fn counted<T>(f: impl FnOnce() -> T) -> (T, [u64; 3]) {
+    for c in [&ALLOCATIONS, &BYTES, &FREED] {
+        c.store(0, Ordering::SeqCst);
+    }
+    COUNTING.store(true, Ordering::SeqCst);
+    let r = f();
+    COUNTING.store(false, Ordering::SeqCst);
+    let counts = [&ALLOCATIONS, &BYTES, &FREED].map(|c| c.load(Ordering::SeqCst));
+    (r, counts)
+}
+
+fn main() -> anyhow::Result<()> {
+    let (mut frames, mut every, mut size) = (60u32, 10u32, (320u32, 240u32));
+    let mut there_and_back = true;
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    for pair in args.chunks(2) {
+        let value = pair.get(1).map(String::as_str).unwrap_or("");
+        match pair[0].as_str() {
+            "--frames" => frames = value.parse()?,
+            "--reference-every" => every = value.parse()?,
+            "--there-and-back" => there_and_back = value == "on",
+            "--size" => {
+                let (w, h) = value.split_once('x').ok_or_else(|| anyhow::anyhow!("--size WxH"))?;
+                size = (w.parse()?, h.parse()?);
+            }
+            other => anyhow::bail!("unknown flag {other}; usage: host_loop [--frames N] [--reference-every K] [--size WxH] [--there-and-back on|off]"),
+        }
+    }
+    let world = world();
+    let mut culled = upload(&world, CullingSpec::Chcpp)?;
+    let mut unculled = upload(&world, CullingSpec::None)?;
     let (mut psr, mut psc, mut ms) = (Vec::new(), Vec::new(), Vec::new());
     let (mut mismatch, mut off_boundary, mut ambiguous, mut compared, mut differing) =
         (0u64, 0u64, 0u64, 0u64, 0u64);
     let (mut volume_triangles, mut zfail_ranges, mut checked) = (0usize, 0usize, 0u32);
-    for f in 0..frames {
-        let cam = camera(f, frames, size)?;
-        let input = FrameInput {
-            width: size.0,
-            height: size.1,
-            camera: cam,
-            lights: &lights,
-        };
-        let d = host_frame(&mut culled, &input)?;
+    // Forward along the path (edits included), then back (the moving object only).
+    let steps = if there_and_back { 2 * frames } else { frames };
+    let (mut allocations_max, mut bytes_max, mut warmup_bytes) = (0u64, 0u64, 0i64);
+    for k in 0..steps {
+        let backward = k >= frames;
+        let f = if backward { 2 * frames - 1 - k } else { k };
+        for e in edits(f, frames, &world) {
+            if backward && !matches!(e, HostEdit::Move(..)) {
+                continue;
+            }
+            edit(&mut culled, &e)?;
+            edit(&mut unculled, &e)?;
+        }
+        let (view, projection) = host_matrices(f, frames, size);
+        let (d, [allocations, bytes, freed]) =
+            counted(|| host_frame(&mut culled.pipeline, size, [view, projection]));
+        let d = d?;
+        if backward {
+            allocations_max = allocations_max.max(allocations);
+            bytes_max = bytes_max.max(bytes);
+        } else {
+            warmup_bytes += bytes as i64 - freed as i64;
+        }
         psr.push(d.psr as f64);
         psc.push(d.psc as f64);
         ms.push(d.frame_ms);
         volume_triangles += d.volume_triangles;
         zfail_ranges += d.non_zpass_ranges;
         let masks: Vec<_> = {
-            let out = culled.last_output().expect("a frame ran");
-            out.lights().map(|l| l.mask().cloned()).collect()
+            let out = culled.pipeline.last_output().expect("a frame ran");
+            out.lights().map(|l| (l.id(), l.mask().cloned())).collect()
         };
         // The same frame without culling: conservative culling changes no pixel.
-        let plain = unculled.frame(&input)?;
-        for (m, p) in masks.iter().zip(plain.lights()) {
+        host_frame(&mut unculled.pipeline, size, [view, projection])?;
+        let plain = unculled.pipeline.last_output().expect("a frame ran");
+        for ((_, m), p) in masks.iter().zip(plain.lights()) {
             let (m, p) = (m.as_ref().expect("mask"), p.mask().expect("mask"));
             differing += m
                 .pixels
@@ -274,10 +449,10 @@ fn main() -> anyhow::Result<()> {
                 .filter(|(a, b)| a != b)
                 .count() as u64;
         }
-        if every > 0 && f % every == 0 {
+        if every > 0 && k % every == 0 {
             checked += 1;
-            for (li, m) in masks.iter().enumerate() {
-                let r = culled.reference_mask(li)?;
+            for (id, m) in &masks {
+                let r = culled.pipeline.reference_mask(*id)?;
                 let c = compare(&r.mask, &r.ambiguous, m.as_ref().expect("mask"));
                 mismatch += c.mismatches;
                 off_boundary += c.mismatches - c.mismatches_on_boundary;
@@ -287,11 +462,16 @@ fn main() -> anyhow::Result<()> {
         }
     }
     let line = serde_json::json!({
-        "frames": frames,
-        "objects": scene.objects().len(),
+        "frames": steps,
+        "objects": culled.pipeline.scene().counts().objects,
+        "moving_objects": 1,
+        "there_and_back": there_and_back,
+        "allocations_per_frame_max": allocations_max,
+        "bytes_allocated_per_frame_max": bytes_max,
+        "warmup_bytes": warmup_bytes,
         "width": size.0,
         "height": size.1,
-        "lights": lights.len(),
+        "lights": world.lights.len(),
         "psr_median": median(&mut psr),
         "psc_median": median(&mut psc),
         "frame_ms_median": median(&mut ms),

@@ -9,7 +9,7 @@
 //! so the comparison measures the shadow stage alone.
 
 use crate::mask::{compare, Mask};
-use crate::pipeline::{FrameInput, Pipeline, PipelineOptions, ShadowFrame};
+use crate::pipeline::{FrameInput, LightId, Pipeline, PipelineOptions, ShadowFrame};
 use crate::reference::ReferenceMask;
 use crate::stats::{CheckStats, FrameRow, ReferenceStats, SceneStats};
 use crate::Result;
@@ -26,6 +26,8 @@ type ReferenceKey = (u32, usize, (bool, u64));
 #[derive(Debug)]
 pub struct FrameRunner {
     pipeline: Option<Pipeline>,
+    /// The pipeline's ids of the job's lights, in job order.
+    lights: Vec<LightId>,
     scene: Arc<Scene>,
     /// Reference masks by (frame, light, reference options), when caching.
     references: Option<HashMap<ReferenceKey, ReferenceMask>>,
@@ -64,6 +66,7 @@ impl FrameRunner {
     pub fn new(scene: impl Into<Arc<Scene>>) -> Self {
         FrameRunner {
             pipeline: None,
+            lights: Vec::new(),
             scene: scene.into(),
             references: None,
             bvh_ms: 0.0,
@@ -102,15 +105,29 @@ impl FrameRunner {
                 .pipeline
                 .insert(Pipeline::new(self.scene.clone(), *options)?),
         };
+        // The job's lights, kept by job order (a change of count starts over).
+        if self.lights.len() != lights.len() {
+            for id in self.lights.drain(..) {
+                pipeline.remove_light(id)?;
+            }
+            for l in lights {
+                self.lights.push(pipeline.add_light(*l)?);
+            }
+        } else {
+            for (&id, l) in self.lights.iter().zip(lights) {
+                pipeline.set_light(id, *l)?;
+            }
+        }
         let out = pipeline.frame(&FrameInput {
             width,
             height,
             camera: *camera,
-            lights,
         })?;
         let frame_stats = *out.stats();
-        let mut rows: Vec<LightFrame> = out
-            .lights()
+        let mut rows: Vec<LightFrame> = self
+            .lights
+            .iter()
+            .filter_map(|&id| out.light(id))
             .enumerate()
             .map(|(li, l)| {
                 let shadow = *l.stats();
@@ -147,7 +164,7 @@ impl FrameRunner {
                     Some(r) => (r, 0.0),
                     None => {
                         let t = Instant::now();
-                        let r = pipeline.reference_mask(li)?;
+                        let r = pipeline.reference_mask(self.lights[li])?;
                         (r, t.elapsed().as_secs_f64() * 1e3)
                     }
                 };

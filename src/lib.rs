@@ -47,8 +47,8 @@ mod surface;
 
 pub use error::{Error, Result};
 pub use pipeline::{
-    CoverageSpec, CullingSpec, FrameInput, FrameOutput, LightOutput, Pipeline, PipelineOptions,
-    StencilBackend,
+    CoverageSpec, CullingSpec, FrameInput, FrameOutput, LightId, LightOutput, Pipeline,
+    PipelineOptions, StencilBackend,
 };
 pub use raster;
 pub use scene;

@@ -8,7 +8,7 @@ use glam::DVec3;
 use scene::{Camera, CameraPath, Light, ObjectId, Scene};
 use shadowcull::mask::compare;
 use shadowcull::{
-    CullingSpec, Error, FrameInput, Pipeline, PipelineOptions, Result, StencilBackend,
+    CullingSpec, Error, FrameInput, LightId, Pipeline, PipelineOptions, Result, StencilBackend,
 };
 use std::sync::Arc;
 
@@ -42,6 +42,24 @@ fn camera(path: &CameraPath, frame: u32) -> Camera {
         .unwrap()
 }
 
+/// A pipeline over `scene` with `options` and `lights` added (ids in order).
+fn pipeline(
+    scene: &Arc<Scene>,
+    options: PipelineOptions,
+    lights: &[Light],
+) -> Result<(Pipeline, Vec<LightId>)> {
+    let mut p = Pipeline::new(scene.clone(), options)?;
+    let ids = lights
+        .iter()
+        .map(|l| p.add_light(*l))
+        .collect::<Result<_>>()?;
+    Ok((p, ids))
+}
+
+fn input(path: &CameraPath, frame: u32) -> FrameInput {
+    FrameInput::new(W, H, camera(path, frame))
+}
+
 fn options(culling: CullingSpec, stencil: StencilBackend) -> PipelineOptions {
     PipelineOptions {
         culling,
@@ -58,20 +76,20 @@ fn options(culling: CullingSpec, stencil: StencilBackend) -> PipelineOptions {
 fn culled_frames_equal_unculled_frames_and_the_reference() -> Result<()> {
     let (scene, path) = city();
     let lights = lights(&scene, &path);
-    let mut culled = Pipeline::new(
-        scene.clone(),
+    let (mut culled, culled_ids) = pipeline(
+        &scene,
         options(CullingSpec::Chcpp, StencilBackend::H),
+        &lights,
     )?;
-    let mut plain = Pipeline::new(scene.clone(), options(CullingSpec::None, StencilBackend::H))?;
+    let (mut plain, _) = pipeline(
+        &scene,
+        options(CullingSpec::None, StencilBackend::H),
+        &lights,
+    )?;
     let n = scene.objects().len();
     let mut culled_some = false;
     for frame in [0, 2, 4, 6] {
-        let input = FrameInput {
-            width: W,
-            height: H,
-            camera: camera(&path, frame),
-            lights: &lights,
-        };
+        let input = input(&path, frame);
         let masks: Vec<_> = {
             let out = culled.frame(&input)?;
             assert_eq!(out.light_count(), lights.len());
@@ -109,7 +127,7 @@ fn culled_frames_equal_unculled_frames_and_the_reference() -> Result<()> {
             );
         }
         for (li, m) in masks.iter().enumerate() {
-            let r = culled.reference_mask(li)?;
+            let r = culled.reference_mask(culled_ids[li])?;
             let c = compare(&r.mask, &r.ambiguous, m);
             assert!(c.compared > 500, "frame {frame} light {li}: {c:?}");
             assert_eq!(c.mismatches, 0, "frame {frame} light {li}: {c:?}");
@@ -125,18 +143,18 @@ fn culled_frames_equal_unculled_frames_and_the_reference() -> Result<()> {
 fn volumes_only_pipeline_gives_the_same_volumes_and_no_mask() -> Result<()> {
     let (scene, path) = city();
     let lights = lights(&scene, &path);
-    let mut gpu = Pipeline::new(
-        scene.clone(),
+    let (mut gpu, _) = pipeline(
+        &scene,
         options(CullingSpec::Chcpp, StencilBackend::None),
+        &lights,
     )?;
-    let mut cpu = Pipeline::new(scene, options(CullingSpec::Chcpp, StencilBackend::H))?;
+    let (mut cpu, _) = pipeline(
+        &scene,
+        options(CullingSpec::Chcpp, StencilBackend::H),
+        &lights,
+    )?;
     for frame in 0..3 {
-        let input = FrameInput {
-            width: W,
-            height: H,
-            camera: camera(&path, frame),
-            lights: &lights,
-        };
+        let input = input(&path, frame);
         let a = gpu.frame(&input)?;
         let b = cpu.frame(&input)?;
         assert_eq!(a.psr(), b.psr());
@@ -163,18 +181,13 @@ fn set_options_equals_a_fresh_pipeline() -> Result<()> {
     let lights = lights(&scene, &path);
     let a = options(CullingSpec::Chc, StencilBackend::Bf);
     let b = options(CullingSpec::Chcpp, StencilBackend::H);
-    let mut switched = Pipeline::new(scene.clone(), a)?;
-    let input = |frame| FrameInput {
-        width: W,
-        height: H,
-        camera: camera(&path, frame),
-        lights: &lights,
-    };
+    let (mut switched, _) = pipeline(&scene, a, &lights)?;
+    let input = |frame| input(&path, frame);
     switched.frame(&input(0))?;
     switched.frame(&input(1))?;
     switched.set_options(b)?;
     assert_eq!(switched.options(), &b);
-    let mut fresh = Pipeline::new(scene, b)?;
+    let (mut fresh, _) = pipeline(&scene, b, &lights)?;
     for frame in 2..5 {
         let x = switched.frame(&input(frame))?;
         let (psr, xs): (Vec<_>, Vec<_>) = (
@@ -203,7 +216,7 @@ fn set_options_equals_a_fresh_pipeline() -> Result<()> {
             (l.psc().len(), l.mask().cloned())
         })
         .collect();
-    let mut fresh = Pipeline::new(switched.scene().clone(), none)?;
+    let (mut fresh, _) = pipeline(&Arc::new(switched.scene().clone()), none, &lights)?;
     let y = fresh.frame(&input(5))?;
     let ys: Vec<_> = y
         .lights()
@@ -213,8 +226,8 @@ fn set_options_equals_a_fresh_pipeline() -> Result<()> {
     Ok(())
 }
 
-/// Bad options and inputs are errors naming their field; nothing panics and
-/// the pipeline keeps working afterwards.
+/// Bad options, inputs, lights and ids are errors naming their field;
+/// nothing panics and the pipeline keeps working afterwards.
 #[test]
 fn bad_options_and_inputs_name_their_field() -> Result<()> {
     let (scene, path) = city();
@@ -238,95 +251,233 @@ fn bad_options_and_inputs_name_their_field() -> Result<()> {
         field(Pipeline::new(scene.clone(), bad_res).map(|_| ())),
         "light_resolution"
     );
-    let mut p = Pipeline::new(
-        scene.clone(),
-        options(CullingSpec::Chcpp, StencilBackend::H),
-    )?;
-    assert_eq!(field(p.reference_mask(0).map(|_| ())), "reference_mask");
-    assert_eq!(field(p.set_options(bad_tile)), "tile");
-    let cam = camera(&path, 0);
     let good = lights(&scene, &path);
-    for (w, h) in [(0, 10), (10, 0), (raster::MAX_TARGET_SIZE + 1, 8)] {
-        let input = FrameInput {
-            width: w,
-            height: h,
-            camera: cam,
-            lights: &good,
-        };
-        assert_eq!(field(p.frame(&input).map(|_| ())), "viewport");
-    }
-    let broken = [
-        good[0],
-        Light::Spot {
-            position: DVec3::ZERO,
-            direction: DVec3::ZERO,
-            apex_angle: 1.0,
-            range: None,
-        },
-    ];
-    let input = FrameInput {
-        width: W,
-        height: H,
-        camera: cam,
-        lights: &broken,
-    };
-    assert_eq!(field(p.frame(&input).map(|_| ())), "lights[1]");
-    let input = FrameInput {
-        width: W,
-        height: H,
-        camera: cam,
-        lights: &good,
-    };
-    assert_eq!(p.frame(&input)?.light_count(), good.len());
+    let (mut p, ids) = pipeline(
+        &scene,
+        options(CullingSpec::Chcpp, StencilBackend::H),
+        &good,
+    )?;
     assert_eq!(
-        field(p.reference_mask(good.len()).map(|_| ())),
+        field(p.reference_mask(ids[0]).map(|_| ())),
         "reference_mask"
     );
-    assert!(p.reference_mask(0).is_ok());
-    // No lights: an eye pass and PSR only.
-    let input = FrameInput {
-        width: W,
-        height: H,
-        camera: cam,
-        lights: &[],
+    assert_eq!(field(p.set_options(bad_tile)), "tile");
+    let cam = camera(&path, 0);
+    for (w, h) in [(0, 10), (10, 0), (raster::MAX_TARGET_SIZE + 1, 8)] {
+        assert_eq!(
+            field(p.frame(&FrameInput::new(w, h, cam)).map(|_| ())),
+            "viewport"
+        );
+    }
+    let broken = Light::Spot {
+        position: DVec3::ZERO,
+        direction: DVec3::ZERO,
+        apex_angle: 1.0,
+        range: None,
     };
-    let out = p.frame(&input)?;
+    assert_eq!(field(p.add_light(broken).map(|_| ())), "light");
+    assert_eq!(field(p.set_light(ids[1], broken)), "light");
+    assert_eq!(
+        p.frame(&FrameInput::new(W, H, cam))?.light_count(),
+        good.len()
+    );
+    assert!(p.reference_mask(ids[0]).is_ok());
+    // A removed light's id is stale everywhere; its slot comes back as a new id.
+    p.remove_light(ids[1])?;
+    assert_eq!(field(p.remove_light(ids[1])), "light");
+    assert_eq!(field(p.set_light(ids[1], good[1])), "light");
+    assert_eq!(
+        field(p.reference_mask(ids[1]).map(|_| ())),
+        "reference_mask"
+    );
+    let again = p.add_light(good[1])?;
+    assert_ne!(again, ids[1]);
+    assert!(p.light(ids[1]).is_err() && p.light(again)? == good[1]);
+    // Unknown object and mesh ids are scene errors.
+    let ghost = ObjectId::new(scene.objects().len() as u32 + 5, 0);
+    assert!(matches!(p.remove_object(ghost), Err(Error::Scene(_))));
+    assert!(matches!(
+        p.set_transform(ObjectId::new(0, 3), glam::DMat4::IDENTITY),
+        Err(Error::Scene(_))
+    ));
+    assert!(matches!(
+        p.set_transform(ObjectId(0), glam::DMat4::from_cols_array(&[f64::NAN; 16])),
+        Err(Error::Scene(_))
+    ));
+    assert!(matches!(
+        p.add_object(scene::MeshId(1 << 20), glam::DMat4::IDENTITY),
+        Err(Error::Scene(_))
+    ));
+    // No lights: an eye pass and PSR only.
+    for id in p.light_ids().collect::<Vec<_>>() {
+        p.remove_light(id)?;
+    }
+    let out = p.frame(&FrameInput::new(W, H, cam))?;
     assert_eq!(out.light_count(), 0);
-    assert!(out.light(0).is_none() && !out.psr().is_empty());
+    assert!(out.light(again).is_none() && !out.psr().is_empty());
     Ok(())
 }
 
-/// Per-light state follows the light's slot: fewer lights drop state, more
-/// lights add cold state, and results stay those of a fresh pipeline.
+/// Per-light state follows the light's id: removing a light leaves the
+/// others' state alone, adding one starts cold, and masks stay exact.
 #[test]
-fn changing_the_number_of_lights_keeps_results_exact() -> Result<()> {
+fn lights_by_id_keep_results_exact() -> Result<()> {
     let (scene, path) = city();
     let all = lights(&scene, &path);
-    let mut p = Pipeline::new(
-        scene.clone(),
-        options(CullingSpec::Chcpp, StencilBackend::H),
-    )?;
-    let mut unculled = Pipeline::new(scene, options(CullingSpec::None, StencilBackend::H))?;
-    for (frame, k) in [(0u32, 3usize), (1, 1), (2, 2), (3, 3)] {
-        let input = FrameInput {
-            width: W,
-            height: H,
-            camera: camera(&path, frame),
-            lights: &all[..k],
-        };
-        let masks: Vec<_> = p
-            .frame(&input)?
+    let (mut p, ids) = pipeline(&scene, options(CullingSpec::Chcpp, StencilBackend::H), &all)?;
+    let (mut unculled, plain_ids) =
+        pipeline(&scene, options(CullingSpec::None, StencilBackend::H), &all)?;
+    let masks = |p: &mut Pipeline, ids: &[LightId], frame| -> Result<Vec<_>> {
+        let out = p.frame(&input(&path, frame))?;
+        Ok(ids
+            .iter()
+            .map(|&id| out.light(id).map(|l| l.mask().unwrap().clone()))
+            .collect())
+    };
+    assert_eq!(
+        masks(&mut p, &ids, 0)?,
+        masks(&mut unculled, &plain_ids, 0)?
+    );
+    // The sun goes; the others keep their state (cached silhouettes hit).
+    p.remove_light(ids[1])?;
+    unculled.remove_light(plain_ids[1])?;
+    let a = masks(&mut p, &ids, 1)?;
+    assert!(a[1].is_none());
+    assert_eq!(a, masks(&mut unculled, &plain_ids, 1)?);
+    let out = p.last_output().unwrap();
+    let spot = out.light(ids[2]).unwrap();
+    assert!(
+        spot.volume_stats().cache_hits > 0,
+        "kept state: {:?}",
+        spot.volume_stats()
+    );
+    // A new sun in the freed slot starts cold, and is exact.
+    let sun = p.add_light(all[1])?;
+    let plain_sun = unculled.add_light(all[1])?;
+    let b = masks(&mut p, &[ids[0], sun, ids[2]], 2)?;
+    assert_eq!(
+        b,
+        masks(&mut unculled, &[plain_ids[0], plain_sun, plain_ids[2]], 2)?
+    );
+    assert_eq!(
+        p.last_output()
+            .unwrap()
+            .light(sun)
+            .unwrap()
+            .volume_stats()
+            .cache_hits,
+        0,
+        "a new light starts cold"
+    );
+    // Moving a light is a change of its parameters, not of its id.
+    let moved = Light::Directional {
+        direction: DVec3::new(-0.3, -1.0, 0.5),
+    };
+    p.set_light(sun, moved)?;
+    unculled.set_light(plain_sun, moved)?;
+    let c = masks(&mut p, &[ids[0], sun, ids[2]], 3)?;
+    assert_eq!(
+        c,
+        masks(&mut unculled, &[plain_ids[0], plain_sun, plain_ids[2]], 3)?
+    );
+    assert_ne!(c[1], b[1], "the moved sun's shadows moved");
+    Ok(())
+}
+
+/// A living scene: a moving caster's shadow follows it, static casters keep
+/// their cached silhouettes, added and removed objects appear in and vanish
+/// from PSR, PSC and the mask — culled = unculled = the reference throughout.
+#[test]
+fn scene_edits_keep_masks_exact() -> Result<()> {
+    let (scene, path) = city();
+    let all = lights(&scene, &path);
+    let (mut culled, ids) = pipeline(&scene, options(CullingSpec::Chcpp, StencilBackend::H), &all)?;
+    let (mut plain, _) = pipeline(&scene, options(CullingSpec::None, StencilBackend::H), &all)?;
+    // A tall slab in front of the camera of frame 0, casting onto the street.
+    let pose = path.at(0).unwrap();
+    let ahead = pose.eye + (pose.target - pose.eye).normalize() * 12.0;
+    let slab = scene::procedural::analytic::box_mesh(
+        "slab",
+        glam::Vec3::new(-0.5, 0.0, -2.0),
+        glam::Vec3::new(0.5, 8.0, 2.0),
+    )
+    .unwrap();
+    let at = |dx: f64| glam::DMat4::from_translation(DVec3::new(ahead.x + dx, 0.0, ahead.z));
+    let mesh = culled.add_mesh(slab.clone());
+    assert_eq!(plain.add_mesh(slab), mesh);
+    let check = |culled: &mut Pipeline, plain: &mut Pipeline, what: &str| -> Result<Vec<_>> {
+        let c: Vec<_> = culled
+            .frame(&input(&path, 0))?
             .lights()
-            .map(|l| l.mask().cloned())
+            .map(|l| l.mask().unwrap().clone())
             .collect();
-        let plain: Vec<_> = unculled
-            .frame(&input)?
+        let u: Vec<_> = plain
+            .frame(&input(&path, 0))?
             .lights()
-            .map(|l| l.mask().cloned())
+            .map(|l| l.mask().unwrap().clone())
             .collect();
-        assert_eq!(masks.len(), k);
-        assert_eq!(masks, plain, "frame {frame} with {k} lights");
+        assert_eq!(c, u, "{what}: culled = unculled");
+        for (k, m) in c.iter().enumerate() {
+            let r = culled.reference_mask(ids[k])?;
+            let cmp = compare(&r.mask, &r.ambiguous, m);
+            assert_eq!(cmp.mismatches, 0, "{what}, light {k}: {cmp:?}");
+        }
+        Ok(c)
+    };
+    let before = check(&mut culled, &mut plain, "no slab")?;
+    let n = scene.objects().len();
+    let id = culled.add_object(mesh, at(0.0))?;
+    assert_eq!(plain.add_object(mesh, at(0.0))?, id);
+    assert_eq!(id, ObjectId::new(n as u32, 0), "a new slot");
+    let with = check(&mut culled, &mut plain, "slab added")?;
+    assert_ne!(with, before, "the slab casts");
+    {
+        let out = culled.last_output().unwrap();
+        assert!(out.psr().contains(&id), "the slab is visible");
+        assert!(
+            out.lights().any(|l| l.psc().contains(&id)),
+            "the slab casts"
+        );
+        assert!(out
+            .lights()
+            .any(|l| l.volumes().ranges.iter().any(|r| r.object == id.0)));
     }
+    // Move it: its shadow follows; every other caster keeps its silhouette.
+    culled.set_transform(id, at(3.0))?;
+    plain.set_transform(id, at(3.0))?;
+    let moved = check(&mut culled, &mut plain, "slab moved")?;
+    assert_ne!(moved, with, "the shadow follows the slab");
+    {
+        let out = plain.last_output().unwrap();
+        for l in out.lights() {
+            let v = l.volume_stats();
+            assert_eq!(v.cache_misses, 1, "only the slab recomputed: {v:?}");
+            assert_eq!(v.cache_hits, n, "static casters cached: {v:?}");
+        }
+    }
+    // Remove it: the masks are those without it, its id is stale.
+    culled.remove_object(id)?;
+    plain.remove_object(id)?;
+    let gone = check(&mut culled, &mut plain, "slab removed")?;
+    assert_eq!(gone, before);
+    let out = culled.last_output().unwrap();
+    assert!(!out.psr().contains(&id));
+    assert!(out.lights().all(|l| !l.psc().contains(&id)));
+    assert!(culled.set_transform(id, at(0.0)).is_err(), "stale id");
+    // Its slot comes back with the next generation; the mesh stays in use.
+    let again = culled.add_object(mesh, at(-2.0))?;
+    plain.add_object(mesh, at(-2.0))?;
+    assert_eq!((again.slot(), again.generation()), (id.slot(), 1));
+    let back = check(&mut culled, &mut plain, "slab re-added")?;
+    assert_ne!(back, before);
+    assert!(culled.last_output().unwrap().psr().contains(&again));
+    assert!(culled.remove_mesh(mesh).is_err(), "the mesh is instanced");
+    culled.remove_object(again)?;
+    culled.remove_mesh(mesh)?;
+    assert!(
+        culled.add_object(mesh, at(0.0)).is_err(),
+        "the mesh is gone"
+    );
     Ok(())
 }
 
@@ -339,12 +490,13 @@ fn results_are_identical_for_any_thread_count() -> Result<()> {
     let (scene, path) = city();
     let lights = lights(&scene, &path);
     let run = |threads: u32, host_pool: Option<usize>| -> Result<(Vec<_>, _)> {
-        let mut p = Pipeline::new(
-            scene.clone(),
+        let (mut p, ids) = pipeline(
+            &scene,
             PipelineOptions {
                 threads,
                 ..options(CullingSpec::Chcpp, StencilBackend::H)
             },
+            &lights,
         )?;
         if let Some(n) = host_pool {
             let pool = rayon::ThreadPoolBuilder::new()
@@ -355,19 +507,14 @@ fn results_are_identical_for_any_thread_count() -> Result<()> {
         }
         let mut frames = Vec::new();
         for frame in 0..3 {
-            let out = p.frame(&FrameInput {
-                width: W,
-                height: H,
-                camera: camera(&path, frame),
-                lights: &lights,
-            })?;
+            let out = p.frame(&input(&path, frame))?;
             let lights: Vec<_> = out
                 .lights()
                 .map(|l| (l.psc().to_vec(), l.volumes().clone(), l.mask().cloned()))
                 .collect();
             frames.push((out.psr().to_vec(), lights));
         }
-        let reference = p.reference_mask(0)?.mask;
+        let reference = p.reference_mask(ids[0])?.mask;
         Ok((frames, reference))
     };
     let one = run(1, None)?;
@@ -396,11 +543,16 @@ fn host_matrices_give_exact_masks() -> Result<()> {
         DVec4::new(s.z, u.z, -f.z, 0.0),
         DVec4::new(-s.dot(e), -u.dot(e), f.dot(e), 1.0),
     );
-    let mut culled = Pipeline::new(
-        scene.clone(),
+    let (mut culled, culled_ids) = pipeline(
+        &scene,
         options(CullingSpec::Chcpp, StencilBackend::H),
+        &lights,
     )?;
-    let mut plain = Pipeline::new(scene, options(CullingSpec::None, StencilBackend::H))?;
+    let (mut plain, _) = pipeline(
+        &scene,
+        options(CullingSpec::None, StencilBackend::H),
+        &lights,
+    )?;
     for (k, jitter) in [(0.0, 0.0), (0.37, -0.21), (-0.5, 0.5)]
         .into_iter()
         .enumerate()
@@ -421,12 +573,7 @@ fn host_matrices_give_exact_masks() -> Result<()> {
         let camera = Camera::from_view_projection(view, projection, ClipDepth::NegativeOneToOne)
             .expect("a perspective host camera");
         assert!(camera.shift.length() > 0.1, "off-centre");
-        let input = FrameInput {
-            width: W,
-            height: H,
-            camera,
-            lights: &lights,
-        };
+        let input = FrameInput::new(W, H, camera);
         let masks: Vec<_> = culled
             .frame(&input)?
             .lights()
@@ -439,7 +586,7 @@ fn host_matrices_give_exact_masks() -> Result<()> {
                 p.mask().unwrap(),
                 "view {k} light {li}: culled = unculled"
             );
-            let r = culled.reference_mask(li)?;
+            let r = culled.reference_mask(culled_ids[li])?;
             let c = compare(&r.mask, &r.ambiguous, m);
             assert!(c.compared > 500, "view {k} light {li}: {c:?}");
             assert_eq!(c.mismatches, 0, "view {k} light {li}: {c:?}");

@@ -20,13 +20,26 @@ pub struct MeshCache {
 impl MeshCache {
     /// Converts every mesh of `scene`.
     pub fn new(scene: &Scene) -> Self {
-        MeshCache {
-            positions: scene
-                .graph()
-                .meshes()
-                .iter()
-                .map(|m| m.positions().iter().map(|p| p.extend(1.0)).collect())
-                .collect(),
+        let mut cache = MeshCache {
+            positions: Vec::new(),
+        };
+        cache.sync(scene);
+        cache
+    }
+
+    /// Catches up with meshes added to `scene` since, and with meshes
+    /// replaced (removed meshes keep their slot with no vertices).
+    pub(crate) fn sync(&mut self, scene: &Scene) {
+        let meshes = scene.graph().meshes();
+        self.positions.truncate(meshes.len());
+        for (i, m) in meshes.iter().enumerate() {
+            match self.positions.get_mut(i) {
+                Some(p) if p.len() == m.positions().len() => {}
+                Some(p) => *p = m.positions().iter().map(|p| p.extend(1.0)).collect(),
+                None => self
+                    .positions
+                    .push(m.positions().iter().map(|p| p.extend(1.0)).collect()),
+            }
         }
     }
 }
@@ -176,6 +189,32 @@ impl EyeCulling {
     /// Forgets the eye view's CHC history (the hierarchy stays).
     pub(crate) fn reset(&mut self) {
         self.culler.reset();
+    }
+
+    /// Rebuilds the hierarchy and the meshes from `scene` (after its BVH was
+    /// rebuilt or its meshes changed) and carries the eye view's CHC state
+    /// over ([`visibility::ViewCuller::remap`]); returns the old hierarchy
+    /// for the light views' remap.
+    pub(crate) fn rebuild(&mut self, scene: &Scene) -> visibility::Hierarchy {
+        let new = visibility::Hierarchy::from_scene(scene);
+        let old = std::mem::replace(&mut self.hierarchy, new);
+        self.culler.remap(&old, &self.hierarchy);
+        old
+    }
+
+    /// Catches up with added and removed meshes.
+    pub(crate) fn sync_meshes(&mut self, scene: &Scene) {
+        self.meshes.sync(scene);
+    }
+
+    /// Copies the refit bounds of `scene`'s BVH (same topology).
+    pub(crate) fn refit(&mut self, scene: &Scene) {
+        self.hierarchy.refit(scene);
+    }
+
+    /// The object hierarchy.
+    pub(crate) fn hierarchy(&self) -> &visibility::Hierarchy {
+        &self.hierarchy
     }
 
     /// The hierarchy and meshes the eye and light passes share.

@@ -5,7 +5,7 @@
 //! lights are independent (each owns its views' state) and run in parallel.
 
 use crate::Result;
-use scene::{Camera, Light, ObjectId, Scene};
+use scene::{Camera, ObjectId, Scene};
 use std::time::Instant;
 use visibility::{
     Hierarchy, LightPass, LightPassOptions, MeshData, ReceiverPoints, TraversalStats,
@@ -24,15 +24,14 @@ pub(crate) struct LightCulling {
     pub ms: f64,
 }
 
-/// Runs the light pass of every light, `states[i]` for `lights[i]`,
-/// concurrently; each state's `psc`, `stats` and `ms` are replaced.
+/// Runs the light pass of every light in `states` concurrently; each
+/// state's `culling.psc`, `stats` and `ms` are replaced.
 ///
 /// # Errors
-/// The first light's error (an invalid light names its field).
+/// The first light's error.
 #[allow(clippy::too_many_arguments)]
-pub(crate) fn light_passes<'s>(
-    states: impl rayon::iter::IndexedParallelIterator<Item = &'s mut LightCulling>,
-    lights: &[Light],
+pub(crate) fn light_passes(
+    states: &mut [&mut super::LightState],
     hierarchy: &Hierarchy,
     scene: &Scene,
     meshes: &MeshData,
@@ -42,15 +41,17 @@ pub(crate) fn light_passes<'s>(
 ) -> Result<()> {
     use rayon::prelude::*;
     states
-        .zip(lights)
-        .map(|(state, light)| {
+        .par_iter_mut()
+        .map(|state| {
             let t = Instant::now();
-            let r = state
+            let light = state.light;
+            let c = &mut state.culling;
+            let r = c
                 .pass
-                .run(hierarchy, scene, meshes, camera, light, receivers, options)?;
-            state.psc = r.psc;
-            state.stats = r.stats;
-            state.ms = t.elapsed().as_secs_f64() * 1e3;
+                .run(hierarchy, scene, meshes, camera, &light, receivers, options)?;
+            c.psc = r.psc;
+            c.stats = r.stats;
+            c.ms = t.elapsed().as_secs_f64() * 1e3;
             Ok(())
         })
         .collect::<std::result::Result<(), visibility::Error>>()?;

@@ -17,6 +17,7 @@
 //! 4. `stencil` — the brute-force, hierarchical \[Aila04\] or hybrid
 //!    \[ChanDurand04\] stencil and the mask.
 
+mod edit;
 pub mod eye;
 mod light;
 mod options;
@@ -46,25 +47,59 @@ use std::sync::Arc;
 use std::time::Instant;
 use visibility::LightView;
 
-/// What one frame is computed for.
+/// What one frame is computed for: the viewport and the camera. The lights
+/// are the pipeline's own ([`Pipeline::add_light`]).
 #[derive(Clone, Copy, Debug)]
-pub struct FrameInput<'a> {
+pub struct FrameInput {
     /// Viewport width in pixels, `1..=`[`raster::MAX_TARGET_SIZE`].
     pub width: u32,
     /// Viewport height in pixels, `1..=`[`raster::MAX_TARGET_SIZE`].
     pub height: u32,
-    /// The eye (reversed Z, infinite far plane; see [`Camera`]).
+    /// The eye (reversed Z, infinite far plane; see [`Camera`], and
+    /// [`Camera::from_view_projection`] for a host's own matrices).
     pub camera: Camera,
-    /// The lights of this frame. Per-light state (silhouette cache, light
-    /// views, culling history) is kept by position in this slice.
-    pub lights: &'a [Light],
+}
+
+impl FrameInput {
+    /// The input for a `width × height` viewport seen by `camera`.
+    pub fn new(width: u32, height: u32, camera: Camera) -> Self {
+        FrameInput {
+            width,
+            height,
+            camera,
+        }
+    }
+}
+
+/// Identifies a light of a [`Pipeline`]: the low 24 bits are its slot, the
+/// high 8 bits a generation bumped when a removed light's slot is reused, so a
+/// stale id is an error, never another light. Per-light state (silhouette
+/// cache, light views, culling history) follows the id.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize)]
+pub struct LightId(pub u32);
+
+impl LightId {
+    fn new(slot: usize, generation: u8) -> LightId {
+        LightId(slot as u32 | (u32::from(generation) << 24))
+    }
+
+    fn slot(self) -> usize {
+        (self.0 & 0x00ff_ffff) as usize
+    }
+
+    fn generation(self) -> u8 {
+        (self.0 >> 24) as u8
+    }
 }
 
 /// One light's persistent state and last result.
 #[derive(Debug)]
 struct LightState {
     light: Light,
+    id: LightId,
     culling: LightCulling,
+    /// The last PSC as public ids (slot and generation), ascending.
+    psc: Vec<ObjectId>,
     scratch: ShadowScratch,
     volume_stats: VolumeStats,
     stats: ShadowStats,
@@ -72,16 +107,25 @@ struct LightState {
 }
 
 impl LightState {
-    fn new(light: Light) -> Self {
+    fn new(light: Light, id: LightId) -> Self {
         LightState {
             light,
+            id,
             culling: LightCulling::default(),
+            psc: Vec::new(),
             scratch: ShadowScratch::default(),
             volume_stats: VolumeStats::default(),
             stats: ShadowStats::default(),
             shadow: None,
         }
     }
+}
+
+/// A light slot: its generation and, while the light exists, its state.
+#[derive(Debug, Default)]
+struct LightSlot {
+    generation: u8,
+    state: Option<LightState>,
 }
 
 /// The shadow-volume culling pipeline: owns the scene and everything a frame
@@ -106,11 +150,11 @@ impl LightState {
 /// // Culled PSR and PSC, volumes only: a GPU host draws them itself.
 /// let options = PipelineOptions { culling: CullingSpec::Chcpp, stencil: StencilBackend::None, ..Default::default() };
 /// let mut pipeline = Pipeline::new(Scene::new(graph)?, options)?;
+/// let lamp = pipeline.add_light(Light::Point { position: DVec3::new(2.0, 8.0, 1.0), range: None })?;
 /// let camera = Camera::look_at(DVec3::new(6.0, 5.0, 8.0), DVec3::ZERO, DVec3::Y, 1.0, 4.0 / 3.0, 0.1)?;
-/// let lights = [Light::Point { position: DVec3::new(2.0, 8.0, 1.0), range: None }];
-/// let out = pipeline.frame(&FrameInput { width: 320, height: 240, camera, lights: &lights })?;
+/// let out = pipeline.frame(&FrameInput::new(320, 240, camera))?;
 /// assert_eq!(out.psr(), &[ObjectId(0), ObjectId(1)]);
-/// let light = out.light(0).unwrap();
+/// let light = out.light(lamp).unwrap();
 /// assert!(light.psc().contains(&ObjectId(1)));
 /// let volumes = light.volumes(); // one range per caster: draw its indices with its method
 /// let cube_volume = volumes.ranges.iter().find(|r| r.object == 1).unwrap();
@@ -127,12 +171,15 @@ pub struct Pipeline {
     eye: Option<EyePass>,
     camera: Option<Camera>,
     receivers: visibility::ReceiverPoints,
-    /// Every object id, ascending: the PSR and casters without culling.
+    /// Every live object's slot id, ascending: the casters without culling.
     all: Vec<ObjectId>,
+    /// The last PSR as public ids, ascending.
     psr: Vec<ObjectId>,
-    lights: Vec<LightState>,
-    active: usize,
+    lights: Vec<LightSlot>,
     stats: FrameStats,
+    /// Scene-derived data (mesh copies, hierarchy, reference BVH) must catch
+    /// up with staged scene edits before the next frame.
+    meshes_changed: bool,
     bvh: Option<TriangleBvh>,
     bvh_ms: f64,
     /// The pool frames run in: the host's, or one of `options.threads`
@@ -147,7 +194,7 @@ impl std::fmt::Debug for Pipeline {
         f.debug_struct("Pipeline")
             .field("objects", &self.counts.objects)
             .field("options", &self.options)
-            .field("lights", &self.active)
+            .field("lights", &self.live_lights().count())
             .finish_non_exhaustive()
     }
 }
@@ -162,8 +209,10 @@ impl Pipeline {
     /// [`Error::Options`] naming the bad field of `options`.
     pub fn new(scene: impl Into<Arc<Scene>>, options: PipelineOptions) -> Result<Pipeline> {
         check_options(&options)?;
-        let scene = scene.into();
-        let n = scene.objects().len() as u32;
+        let mut scene: Arc<Scene> = scene.into();
+        if scene.has_staged_edits() {
+            Arc::make_mut(&mut scene).commit_edits();
+        }
         Ok(Pipeline {
             counts: scene.counts(),
             meshes: MeshCache::new(&scene),
@@ -171,11 +220,11 @@ impl Pipeline {
             eye: None,
             camera: None,
             receivers: Default::default(),
-            all: (0..n).map(ObjectId).collect(),
+            all: live_slots(&scene),
             psr: Vec::new(),
             lights: Vec::new(),
-            active: 0,
             stats: FrameStats::default(),
+            meshes_changed: false,
             bvh: None,
             bvh_ms: 0.0,
             pool: own_pool(options.threads)?,
@@ -224,20 +273,23 @@ impl Pipeline {
             if let Some(c) = &mut self.culling {
                 c.reset();
             }
-            self.lights.clear();
-            self.active = 0;
+            for s in self.lights.iter_mut().filter_map(|s| s.state.as_mut()) {
+                *s = LightState::new(s.light, s.id);
+            }
+            self.eye = None;
         }
         Ok(())
     }
 
-    /// Runs one frame: the eye pass, then for every light the light pass,
-    /// the volumes and (unless `stencil` is [`StencilBackend::None`]) the
-    /// stencil and mask. Its wall time is [`FrameStats::frame_ms`].
+    /// Runs one frame: the scene edits since the last frame are applied
+    /// (hierarchy refit or rebuilt, culling state remapped), then the eye
+    /// pass, and for every light the light pass, the volumes and (unless
+    /// `stencil` is [`StencilBackend::None`]) the stencil and mask. Its wall
+    /// time, edits included, is [`FrameStats::frame_ms`].
     ///
     /// # Errors
-    /// [`Error::Options`] for a viewport out of range or an invalid light
-    /// (naming `lights[i]`); rasterizer errors.
-    pub fn frame(&mut self, input: &FrameInput<'_>) -> Result<FrameOutput<'_>> {
+    /// [`Error::Options`] for a viewport out of range; rasterizer errors.
+    pub fn frame(&mut self, input: &FrameInput) -> Result<FrameOutput<'_>> {
         match self.pool.clone() {
             Some(pool) => pool.install(|| self.run_frame(input))?,
             None => self.run_frame(input)?,
@@ -245,7 +297,7 @@ impl Pipeline {
         Ok(FrameOutput { pipeline: self })
     }
 
-    fn run_frame(&mut self, input: &FrameInput<'_>) -> Result<()> {
+    fn run_frame(&mut self, input: &FrameInput) -> Result<()> {
         let (w, h) = (input.width, input.height);
         if !(1..=raster::MAX_TARGET_SIZE).contains(&w)
             || !(1..=raster::MAX_TARGET_SIZE).contains(&h)
@@ -258,13 +310,8 @@ impl Pipeline {
                 ),
             });
         }
-        for (i, l) in input.lights.iter().enumerate() {
-            l.validate().map_err(|e| Error::Options {
-                field: format!("lights[{i}]"),
-                message: e.to_string(),
-            })?;
-        }
         let start = Instant::now();
+        self.apply_edits();
         let camera = &input.camera;
         let scene: &Scene = &self.scene;
         let o = self.options;
@@ -286,34 +333,29 @@ impl Pipeline {
                 previous,
             )?;
             self.psr.clear();
-            self.psr.extend_from_slice(&r.rendered);
+            self.psr
+                .extend(r.rendered.iter().map(|id| scene.id_of(id.0)));
             self.psr.sort_unstable();
             visible_points_into(scene, camera, &eye, &mut self.receivers);
             (eye, r.stats.queries, r.stats.waits)
         } else {
             let eye = eye_pass_reusing(scene, &self.meshes, camera, w, h, previous)?;
-            self.psr.clone_from(&self.all);
+            self.psr.clear();
+            self.psr.extend(self.all.iter().map(|id| scene.id_of(id.0)));
             (eye, 0, 0)
         };
         let eye_ms = ms(start);
 
-        // Per-light state follows the light's position in the slice.
-        let n = input.lights.len();
-        self.lights.truncate(n);
-        for (i, l) in input.lights.iter().enumerate() {
-            match self.lights.get_mut(i) {
-                Some(s) => s.light = *l,
-                None => self.lights.push(LightState::new(*l)),
-            }
-        }
-
         // 2. Light passes (PSC) of all lights, concurrently.
         if let (true, Some(state)) = (culled, &self.culling) {
-            use rayon::prelude::*;
             let (hierarchy, meshes) = state.parts();
+            let mut live: Vec<&mut LightState> = self
+                .lights
+                .iter_mut()
+                .filter_map(|s| s.state.as_mut())
+                .collect();
             light::light_passes(
-                self.lights.par_iter_mut().map(|s| &mut s.culling),
-                input.lights,
+                &mut live,
                 hierarchy,
                 scene,
                 meshes,
@@ -326,7 +368,9 @@ impl Pipeline {
         // 3.–4. Per light: volumes, then the stencil and mask.
         let shadow_options = o.shadow_options();
         let psr = self.psr.len() as u64;
-        for s in &mut self.lights {
+        let mut n = 0;
+        for s in self.lights.iter_mut().filter_map(|s| s.state.as_mut()) {
+            n += 1;
             let casters: &[ObjectId] = if culled { &s.culling.psc } else { &self.all };
             let volumes = volume::build_for(
                 scene,
@@ -339,6 +383,12 @@ impl Pipeline {
                 &mut s.scratch.cache,
             )?;
             s.volume_stats = volumes;
+            // Public ids (slot and generation) in the outputs.
+            s.psc.clear();
+            s.psc.extend(casters.iter().map(|id| scene.id_of(id.0)));
+            for r in &mut s.scratch.volumes.ranges {
+                r.object = scene.id_of(r.object).0;
+            }
             s.shadow = match o.stencil {
                 StencilBackend::None => None,
                 _ => Some(stencil::stencil_volumes(
@@ -370,7 +420,6 @@ impl Pipeline {
         }
         self.eye = Some(eye);
         self.camera = Some(*camera);
-        self.active = n;
         self.stats = FrameStats {
             frame_ms: ms(start),
             eye_ms,
@@ -391,27 +440,36 @@ impl Pipeline {
     }
 
     /// The exact ray-cast shadow mask [`crate::reference`] of light `light`
-    /// (its index in the last frame's lights) on the last frame's visible
-    /// surface, with the options' reference settings: the check every
+    /// on the last frame's visible surface, with the options' reference settings: the check every
     /// culling and stencil option is measured against. The triangle BVH is
     /// built on first use.
     ///
     /// # Errors
-    /// [`Error::Options`] before the first frame or for a light index out of
-    /// range.
-    pub fn reference_mask(&mut self, light: usize) -> Result<ReferenceMask> {
+    /// [`Error::Options`] before the first frame, after scene edits not yet
+    /// framed, or for an unknown light.
+    pub fn reference_mask(&mut self, light: LightId) -> Result<ReferenceMask> {
         let (Some(eye), Some(camera)) = (&self.eye, &self.camera) else {
             return Err(Error::Options {
                 field: "reference_mask".into(),
                 message: "no frame has run yet".into(),
             });
         };
-        let Some(state) = self.lights[..self.active].get(light) else {
+        if self.meshes_changed || self.scene.has_staged_edits() {
             return Err(Error::Options {
                 field: "reference_mask".into(),
-                message: format!("light {light} of {} lights", self.active),
+                message: "the scene was edited after the last frame: run a frame first".into(),
             });
-        };
+        }
+        let light = self
+            .light_state(light)
+            .map_err(|e| match e {
+                Error::Options { message, .. } => Error::Options {
+                    field: "reference_mask".into(),
+                    message,
+                },
+                e => e,
+            })?
+            .light;
         let scene = &self.scene;
         let bvh_ms = &mut self.bvh_ms;
         let options = self.options.reference_options();
@@ -427,7 +485,7 @@ impl Pipeline {
             reference_mask(
                 bvh,
                 camera,
-                &state.light,
+                &light,
                 eye.target.width(),
                 eye.target.height(),
                 &options,
@@ -457,7 +515,7 @@ impl std::fmt::Debug for FrameOutput<'_> {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("FrameOutput")
             .field("psr", &self.psr().len())
-            .field("lights", &self.pipeline.active)
+            .field("lights", &self.light_count())
             .finish_non_exhaustive()
     }
 }
@@ -476,33 +534,22 @@ impl<'a> FrameOutput<'a> {
 
     /// The number of lights of the frame.
     pub fn light_count(&self) -> usize {
-        self.pipeline.active
+        self.pipeline.live_lights().count()
     }
 
-    /// Light `i`'s results (`i` its index in [`FrameInput::lights`]).
-    pub fn light(&self, i: usize) -> Option<LightOutput<'a>> {
-        self.pipeline.lights[..self.pipeline.active]
-            .get(i)
-            .map(|state| self.light_output(state))
+    /// The results of light `id` (`None` for an unknown or stale id).
+    pub fn light(&self, id: LightId) -> Option<LightOutput<'a>> {
+        self.pipeline
+            .light_state(id)
+            .ok()
+            .map(|state| LightOutput { state })
     }
 
-    /// Every light's results, in [`FrameInput::lights`] order.
-    pub fn lights(self) -> impl ExactSizeIterator<Item = LightOutput<'a>> + 'a {
-        self.pipeline.lights[..self.pipeline.active]
-            .iter()
-            .map(move |state| self.light_output(state))
-    }
-
-    fn light_output(self, state: &'a LightState) -> LightOutput<'a> {
-        let culled = self.pipeline.options.culling != CullingSpec::None;
-        LightOutput {
-            state,
-            casters: if culled {
-                &state.culling.psc
-            } else {
-                &self.pipeline.all
-            },
-        }
+    /// Every light's results, in the order of their ids' slots.
+    pub fn lights(self) -> impl Iterator<Item = LightOutput<'a>> + 'a {
+        self.pipeline
+            .live_lights()
+            .map(|state| LightOutput { state })
     }
 
     /// The eye pass: reversed-Z depth and the visible `(object, triangle)`
@@ -519,7 +566,6 @@ impl<'a> FrameOutput<'a> {
 #[derive(Clone, Copy)]
 pub struct LightOutput<'a> {
     state: &'a LightState,
-    casters: &'a [ObjectId],
 }
 
 impl std::fmt::Debug for LightOutput<'_> {
@@ -533,6 +579,11 @@ impl std::fmt::Debug for LightOutput<'_> {
 }
 
 impl<'a> LightOutput<'a> {
+    /// The light's id.
+    pub fn id(&self) -> LightId {
+        self.state.id
+    }
+
     /// The light.
     pub fn light(&self) -> &'a Light {
         &self.state.light
@@ -541,7 +592,7 @@ impl<'a> LightOutput<'a> {
     /// The potential shadow casters: the objects whose volumes were built,
     /// ascending (every object without culling).
     pub fn psc(&self) -> &'a [ObjectId] {
-        self.casters
+        &self.state.psc
     }
 
     /// The shadow volumes to draw: positions in each caster's local space
@@ -643,6 +694,17 @@ fn own_pool(threads: u32) -> Result<Option<Arc<rayon::ThreadPool>>> {
             field: "threads".into(),
             message: e.to_string(),
         })
+}
+
+/// The slot ids of `scene`'s live objects, ascending.
+fn live_slots(scene: &Scene) -> Vec<ObjectId> {
+    scene
+        .objects()
+        .iter()
+        .enumerate()
+        .filter(|(_, o)| o.alive)
+        .map(|(i, _)| ObjectId(i as u32))
+        .collect()
 }
 
 fn check_options(options: &PipelineOptions) -> Result<()> {

@@ -31,6 +31,25 @@ pub enum Error {
         /// What is wrong.
         message: String,
     },
+    /// An object id names no live object: out of range, removed, or stale
+    /// (its slot was reused by a newer object). Fix: use the id the latest
+    /// `add_object` returned, and stop using it after removing the object.
+    #[error("object {id}: {message}")]
+    UnknownObject {
+        /// The id as given (slot and generation bits).
+        id: u32,
+        /// Why it is not a live object.
+        message: String,
+    },
+    /// A mesh id names no live mesh, or a mesh cannot be removed because
+    /// objects still instance it. Fix: remove those objects first.
+    #[error("mesh {mesh}: {message}")]
+    UnknownMesh {
+        /// The mesh id.
+        mesh: u32,
+        /// What is wrong.
+        message: String,
+    },
     /// A light's parameters are invalid (NaN position, zero or NaN direction,
     /// cone of 180° or more, non-positive range).
     #[error("invalid light: field `{field}`: {message}")]

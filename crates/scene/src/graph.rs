@@ -90,6 +90,11 @@ impl SceneGraph {
         MeshId(self.meshes.len() as u32 - 1)
     }
 
+    /// Replaces mesh `id` (the scene's mesh removal).
+    pub(crate) fn replace_mesh(&mut self, id: MeshId, mesh: Mesh) {
+        self.meshes[id.0 as usize] = mesh;
+    }
+
     /// Adds a node that is not yet attached to anything.
     pub fn add_node(&mut self, node: Node) -> NodeId {
         self.nodes.push(node);

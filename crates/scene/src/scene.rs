@@ -3,7 +3,7 @@
 //! objects move.
 
 use crate::{Aabb, Error, Mesh, MeshId, NodeId, Result, SceneGraph, Topology, Transform};
-use glam::{DMat4, DVec3, Vec3A};
+use glam::{DMat4, DVec3, Vec3, Vec3A};
 use obvhs::bvh2::Bvh2;
 
 /// Deepest node nesting accepted when flattening (deeper is an error, not a stack overflow).
@@ -13,10 +13,38 @@ pub const MAX_NODE_DEPTH: usize = 4096;
 pub const MAX_OBJECTS: usize = 1 << 24;
 
 /// Identifies a scene object; every output names objects by it.
+///
+/// The low 24 bits are the object's slot, which indexes dense per-object
+/// arrays ([`Scene::objects`]); the high 8 bits a generation, which a host
+/// edit API (the facade's `Pipeline`) bumps each time a removed object's
+/// slot is reused, so that a stale id is an error, never another object. A
+/// scene flattened from a graph has generation 0 everywhere: its ids are its
+/// slots.
 #[derive(
     Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize, serde::Deserialize,
 )]
 pub struct ObjectId(pub u32);
+
+impl ObjectId {
+    /// Bits of the slot.
+    pub const SLOT_BITS: u32 = 24;
+
+    /// The id of `slot` (below [`MAX_OBJECTS`]) at `generation`.
+    pub fn new(slot: u32, generation: u8) -> ObjectId {
+        debug_assert!((slot as usize) < MAX_OBJECTS);
+        ObjectId(slot | (u32::from(generation) << Self::SLOT_BITS))
+    }
+
+    /// The slot: the index into dense per-object arrays.
+    pub fn slot(self) -> u32 {
+        self.0 & ((1 << Self::SLOT_BITS) - 1)
+    }
+
+    /// The generation.
+    pub fn generation(self) -> u8 {
+        (self.0 >> Self::SLOT_BITS) as u8
+    }
+}
 
 impl From<ObjectId> for u32 {
     fn from(id: ObjectId) -> u32 {
@@ -36,8 +64,12 @@ pub struct Object {
     /// True when `world_from_local` has a negative determinant; triangles are
     /// then reported with flipped winding so world-space facing stays right.
     pub mirrored: bool,
-    /// World-space bounds (outward-rounded f32).
+    /// World-space bounds (outward-rounded f32); [`Aabb::EMPTY`] for a removed object.
     pub world_bounds: Aabb,
+    /// False once removed ([`Scene::stage_remove_object`]): a removed object
+    /// draws the scene's empty mesh, has empty bounds, and no traversal,
+    /// pass or reference sees it; its slot may be reused.
+    pub alive: bool,
 }
 
 /// A scene ready for culling: the graph, its objects, bounds and object BVH.
@@ -47,6 +79,36 @@ pub struct Scene {
     objects: Vec<Object>,
     bounds: Aabb,
     bvh: Bvh2,
+    /// Staged edits not yet committed: the BVH needs a rebuild (slots were
+    /// added) or a refit (bounds changed).
+    pending: Pending,
+    /// The mesh removed objects draw (no triangles), added on first removal.
+    empty_mesh: Option<MeshId>,
+    /// Meshes removed by [`Scene::stage_remove_mesh`] (their slot now holds an empty mesh).
+    removed_meshes: Vec<bool>,
+    /// Bumped whenever the BVH is rebuilt (its topology changed).
+    bvh_version: u64,
+    /// Generation per slot (missing entries are 0).
+    generations: Vec<u8>,
+    /// Freed slots, lowest last.
+    free_slots: Vec<u32>,
+}
+
+/// Staged edits of a [`Scene`].
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+struct Pending {
+    rebuild: bool,
+    refit: bool,
+}
+
+/// What [`Scene::commit_edits`] did.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Committed {
+    /// The object BVH was rebuilt: objects were added in new slots, so its
+    /// topology (and [`Scene::bvh_version`]) changed.
+    pub rebuilt: bool,
+    /// The object BVH was refit: bounds changed, the topology did not.
+    pub refit: bool,
 }
 
 impl std::fmt::Debug for Scene {
@@ -86,11 +148,18 @@ impl Scene {
     /// than [`MAX_OBJECTS`] objects.
     pub fn new(graph: SceneGraph) -> Result<Scene> {
         let objects = flatten(&graph)?;
+        let meshes = graph.meshes().len();
         let mut scene = Scene {
             graph,
             objects,
             bounds: Aabb::EMPTY,
             bvh: Bvh2::default(),
+            pending: Pending::default(),
+            empty_mesh: None,
+            removed_meshes: vec![false; meshes],
+            bvh_version: 0,
+            generations: Vec::new(),
+            free_slots: Vec::new(),
         };
         scene.bounds = scene.compute_bounds();
         scene.bvh = scene.build_bvh();
@@ -107,10 +176,27 @@ impl Scene {
         if self.objects.is_empty() {
             return Bvh2::default();
         }
+        // Removed objects enter the build as a point at the scene's centre
+        // (the builder wants finite boxes); the refit after a rebuild gives
+        // their leaves empty bounds.
+        let centre = if self.bounds.is_empty() {
+            Vec3::ZERO
+        } else {
+            self.bounds.center().as_vec3()
+        };
         let boxes: Vec<obvhs::aabb::Aabb> = self
             .objects
             .iter()
-            .map(|o| to_obvhs(&o.world_bounds))
+            .map(|o| {
+                if o.world_bounds.is_empty() {
+                    to_obvhs(&Aabb {
+                        min: centre,
+                        max: centre,
+                    })
+                } else {
+                    to_obvhs(&o.world_bounds)
+                }
+            })
             .collect();
         let mut params = obvhs::BvhBuildParams::medium_build();
         // One object per leaf: visibility traverses objects, and refit needs it.
@@ -135,7 +221,7 @@ impl Scene {
     /// # Panics
     /// If `id` is out of range (ids come from this scene).
     pub fn object(&self, id: ObjectId) -> &Object {
-        &self.objects[id.0 as usize]
+        &self.objects[id.slot() as usize]
     }
 
     /// The mesh an object draws.
@@ -176,17 +262,22 @@ impl Scene {
     /// Counts over the scene.
     pub fn counts(&self) -> SceneCounts {
         let mut c = SceneCounts {
-            objects: self.objects.len(),
-            meshes: self.graph.meshes().len(),
+            objects: self.objects.iter().filter(|o| o.alive).count(),
+            meshes: self.removed_meshes.iter().filter(|&&r| !r).count()
+                - usize::from(self.empty_mesh.is_some()),
             ..Default::default()
         };
-        for o in &self.objects {
+        for o in self.objects.iter().filter(|o| o.alive) {
             let m = &self.graph.meshes()[o.mesh.0 as usize];
             c.triangles += m.triangles().len() + m.topology().degenerate_triangles;
             c.drawn_triangles += m.triangles().len();
             c.vertices += m.positions().len();
         }
-        for m in self.graph.meshes() {
+        for (_, m) in
+            self.graph.meshes().iter().enumerate().filter(|&(i, _)| {
+                !self.removed_meshes[i] && Some(MeshId(i as u32)) != self.empty_mesh
+            })
+        {
             let t = m.topology();
             c.topology.boundary_edges += t.boundary_edges;
             c.topology.non_manifold_edges += t.non_manifold_edges;
@@ -203,6 +294,16 @@ impl Scene {
     /// [`Error::Graph`] when the node does not exist or the transform is not finite.
     pub fn set_node_transform(&mut self, node: NodeId, transform: Transform) -> Result<()> {
         check_transform(node, &transform)?;
+        if self
+            .objects
+            .iter()
+            .any(|o| o.node.0 == u32::MAX || !o.alive)
+        {
+            return Err(Error::Graph {
+                node: node.0,
+                message: "the scene has objects added or removed by id: move them by id".into(),
+            });
+        }
         self.graph.node_mut(node)?.transform = transform;
         let objects = flatten(&self.graph)?;
         debug_assert_eq!(objects.len(), self.objects.len());
@@ -229,6 +330,211 @@ impl Scene {
         o.world_bounds = mesh_bounds.transformed(&world_from_local);
         self.refit();
         Ok(())
+    }
+
+    /// Bumped whenever the object BVH is rebuilt (its topology changed):
+    /// per-node state kept outside the scene must then be remapped.
+    pub fn bvh_version(&self) -> u64 {
+        self.bvh_version
+    }
+
+    /// The slot of `id` when it names a live object of this scene (slot in
+    /// range, same generation, not removed).
+    ///
+    /// # Errors
+    /// [`Error::UnknownObject`] for an id out of range, of an older
+    /// generation, or of a removed object.
+    pub fn live_slot(&self, id: ObjectId) -> Result<u32> {
+        let slot = id.slot();
+        match self.objects.get(slot as usize) {
+            Some(o) if o.alive && self.generation(slot) == id.generation() => Ok(slot),
+            Some(_) => Err(Error::UnknownObject {
+                id: id.0,
+                message: "removed (a stale id: its slot was freed or reused)".into(),
+            }),
+            None => Err(Error::UnknownObject {
+                id: id.0,
+                message: format!(
+                    "slot {slot} is out of range ({} objects)",
+                    self.objects.len()
+                ),
+            }),
+        }
+    }
+
+    /// The generation of `slot` (0 for a never-reused slot).
+    pub fn generation(&self, slot: u32) -> u8 {
+        self.generations.get(slot as usize).copied().unwrap_or(0)
+    }
+
+    /// The public id of the object in `slot`: slot and generation.
+    pub fn id_of(&self, slot: u32) -> ObjectId {
+        ObjectId::new(slot, self.generation(slot))
+    }
+
+    /// Adds `mesh` and returns its id; objects may then instance it.
+    pub fn add_mesh(&mut self, mesh: Mesh) -> MeshId {
+        self.removed_meshes.push(false);
+        self.graph.add_mesh(mesh)
+    }
+
+    /// The live mesh `mesh`.
+    ///
+    /// # Errors
+    /// [`Error::UnknownMesh`] when out of range or removed.
+    pub fn live_mesh(&self, mesh: MeshId) -> Result<&Mesh> {
+        let i = mesh.0 as usize;
+        match self.graph.meshes().get(i) {
+            Some(m) if !self.removed_meshes[i] && Some(mesh) != self.empty_mesh => Ok(m),
+            _ => Err(Error::UnknownMesh {
+                mesh: mesh.0,
+                message: "out of range or removed".into(),
+            }),
+        }
+    }
+
+    /// Removes `mesh` (its slot keeps an empty mesh and is never reused).
+    ///
+    /// # Errors
+    /// [`Error::UnknownMesh`] when out of range, removed, or instanced by a
+    /// live object (naming the object).
+    pub fn stage_remove_mesh(&mut self, mesh: MeshId) -> Result<()> {
+        self.live_mesh(mesh)?;
+        if let Some((slot, _)) = self
+            .objects
+            .iter()
+            .enumerate()
+            .find(|(_, o)| o.alive && o.mesh == mesh)
+        {
+            return Err(Error::UnknownMesh {
+                mesh: mesh.0,
+                message: format!("still instanced by object {}", self.id_of(slot as u32).0),
+            });
+        }
+        let empty = Mesh::new(
+            self.graph.meshes()[mesh.0 as usize].name().to_string(),
+            &[],
+            &[],
+        )?;
+        self.graph.replace_mesh(mesh, empty);
+        self.removed_meshes[mesh.0 as usize] = true;
+        Ok(())
+    }
+
+    /// Adds an object drawing `mesh` at `world_from_local`, in the lowest free
+    /// slot (whose generation is bumped; a slot whose generation would wrap is
+    /// retired instead) or a new one. Takes effect at [`Scene::commit_edits`].
+    ///
+    /// # Errors
+    /// [`Error::UnknownMesh`]; [`Error::Graph`] for a non-finite matrix or past
+    /// [`MAX_OBJECTS`] slots.
+    pub fn stage_add_object(&mut self, mesh: MeshId, world_from_local: DMat4) -> Result<ObjectId> {
+        let bounds = self.live_mesh(mesh)?.bounds();
+        // Host objects belong to no graph node.
+        let node = NodeId(u32::MAX);
+        check_transform(node, &Transform::Matrix(world_from_local))?;
+        let object = Object {
+            node,
+            mesh,
+            world_from_local,
+            mirrored: world_from_local.determinant() < 0.0,
+            world_bounds: bounds.transformed(&world_from_local),
+            alive: true,
+        };
+        let slot = match self.free_slots.pop() {
+            Some(slot) => {
+                self.objects[slot as usize] = object;
+                self.pending.refit = true;
+                slot
+            }
+            None => {
+                if self.objects.len() >= MAX_OBJECTS {
+                    return Err(Error::Graph {
+                        node: node.0,
+                        message: format!("more than {MAX_OBJECTS} objects"),
+                    });
+                }
+                self.objects.push(object);
+                self.pending.rebuild = true;
+                (self.objects.len() - 1) as u32
+            }
+        };
+        Ok(self.id_of(slot))
+    }
+
+    /// Moves object `id` to `world_from_local`. Takes effect at [`Scene::commit_edits`].
+    ///
+    /// # Errors
+    /// As [`Scene::live_slot`]; [`Error::Graph`] for a non-finite matrix.
+    pub fn stage_set_transform(&mut self, id: ObjectId, world_from_local: DMat4) -> Result<()> {
+        let slot = self.live_slot(id)? as usize;
+        let o = &self.objects[slot];
+        check_transform(o.node, &Transform::Matrix(world_from_local))?;
+        let bounds = self.graph.meshes()[o.mesh.0 as usize].bounds();
+        let o = &mut self.objects[slot];
+        o.world_from_local = world_from_local;
+        o.mirrored = world_from_local.determinant() < 0.0;
+        o.world_bounds = bounds.transformed(&world_from_local);
+        self.pending.refit = true;
+        Ok(())
+    }
+
+    /// Removes object `id`: it draws the empty mesh and has empty bounds; its
+    /// slot is freed for reuse with the next generation (or retired when the
+    /// generation would wrap). Takes effect at [`Scene::commit_edits`].
+    ///
+    /// # Errors
+    /// As [`Scene::live_slot`].
+    pub fn stage_remove_object(&mut self, id: ObjectId) -> Result<()> {
+        let slot = self.live_slot(id)?;
+        let empty = match self.empty_mesh {
+            Some(m) => m,
+            None => {
+                let m = self.add_mesh(Mesh::new("<removed>", &[], &[])?);
+                self.empty_mesh = Some(m);
+                m
+            }
+        };
+        let o = &mut self.objects[slot as usize];
+        o.alive = false;
+        o.mesh = empty;
+        o.world_bounds = Aabb::EMPTY;
+        let generations = &mut self.generations;
+        if generations.len() <= slot as usize {
+            generations.resize(slot as usize + 1, 0);
+        }
+        if generations[slot as usize] < u8::MAX {
+            generations[slot as usize] += 1;
+            self.free_slots.push(slot);
+            // Lowest slot first: `pop` takes from the end.
+            self.free_slots.sort_unstable_by(|a, b| b.cmp(a));
+        }
+        self.pending.refit = true;
+        Ok(())
+    }
+
+    /// Applies the staged edits: rebuilds the object BVH when objects were
+    /// added in new slots (bumping [`Scene::bvh_version`]), else refits it
+    /// when bounds changed; recomputes the scene bounds.
+    pub fn commit_edits(&mut self) -> Committed {
+        let p = std::mem::take(&mut self.pending);
+        if p.rebuild {
+            self.bounds = self.compute_bounds();
+            self.bvh = self.build_bvh();
+            self.bvh_version += 1;
+            self.refit();
+        } else if p.refit {
+            self.refit();
+        }
+        Committed {
+            rebuilt: p.rebuild,
+            refit: p.refit && !p.rebuild,
+        }
+    }
+
+    /// True while staged edits wait for [`Scene::commit_edits`].
+    pub fn has_staged_edits(&self) -> bool {
+        self.pending != Pending::default()
     }
 
     fn refit(&mut self) {
@@ -324,6 +630,7 @@ fn flatten(graph: &SceneGraph) -> Result<Vec<Object>> {
                 world_from_local: world,
                 mirrored: world.determinant() < 0.0,
                 world_bounds: mesh.bounds().transformed(&world),
+                alive: true,
             });
         }
         for &c in node.children.iter().rev() {
@@ -434,6 +741,78 @@ mod tests {
         assert_eq!(s.object_bvh().nodes[0].aabb().min.y, -7.0);
         assert!(s
             .set_node_transform(n0, Transform::translation(DVec3::NAN))
+            .is_err());
+    }
+
+    /// Host edits by id: stale ids are errors, slots are reused with the next
+    /// generation (and retired before it wraps), the BVH is rebuilt only when
+    /// slots are added, and removed objects vanish from counts and bounds.
+    #[test]
+    fn object_edits_by_id() {
+        let cube = crate::procedural::analytic::box_mesh("cube", Vec3::ZERO, Vec3::ONE).unwrap();
+        let mut s = Scene::new(SceneGraph::new()).unwrap();
+        let m = s.add_mesh(cube);
+        let at = |x: f64| DMat4::from_translation(DVec3::new(x, 0.0, 0.0));
+        let a = s.stage_add_object(m, at(0.0)).unwrap();
+        let b = s.stage_add_object(m, at(5.0)).unwrap();
+        assert_eq!((a, b), (ObjectId::new(0, 0), ObjectId::new(1, 0)));
+        assert!(s.has_staged_edits());
+        let v = s.bvh_version();
+        assert!(s.commit_edits().rebuilt);
+        assert!(s.bvh_version() > v && !s.has_staged_edits());
+        assert_eq!(s.counts().objects, 2);
+        assert_eq!(s.bounds().max.x, 6.0);
+        // Moving refits; removing empties the bounds and frees the slot.
+        s.stage_set_transform(b, at(9.0)).unwrap();
+        assert_eq!(
+            s.commit_edits(),
+            Committed {
+                rebuilt: false,
+                refit: true
+            }
+        );
+        assert_eq!(s.bounds().max.x, 10.0);
+        s.stage_remove_object(b).unwrap();
+        s.commit_edits();
+        assert_eq!(s.bounds().max.x, 1.0);
+        assert_eq!(s.counts().objects, 1);
+        assert!(s.object(b).world_bounds.is_empty() && s.object_mesh(b).triangles().is_empty());
+        assert!(matches!(s.live_slot(b), Err(Error::UnknownObject { .. })));
+        assert!(s.stage_set_transform(b, at(1.0)).is_err());
+        assert!(s.stage_remove_object(b).is_err(), "double remove");
+        // The freed slot comes back with the next generation; the old id stays stale.
+        let c = s.stage_add_object(m, at(2.0)).unwrap();
+        assert_eq!((c.slot(), c.generation()), (1, 1));
+        assert!(!s.commit_edits().rebuilt, "a reused slot refits");
+        assert!(s.live_slot(b).is_err() && s.live_slot(c).is_ok());
+        assert!(s.live_slot(ObjectId::new(7, 0)).is_err(), "out of range");
+        // A slot whose generation would wrap is retired, never reused.
+        let mut id = c;
+        for _ in 0..300 {
+            s.stage_remove_object(id).unwrap();
+            id = s.stage_add_object(m, at(2.0)).unwrap();
+        }
+        assert!(id.slot() >= 2, "slot 1 retired after generation 255");
+        s.commit_edits();
+        assert_eq!(s.counts().objects, 2);
+        // A mesh cannot go while instanced; afterwards its id is dead.
+        assert!(matches!(
+            s.stage_remove_mesh(m),
+            Err(Error::UnknownMesh { .. })
+        ));
+        s.stage_remove_object(a).unwrap();
+        s.stage_remove_object(id).unwrap();
+        s.stage_remove_mesh(m).unwrap();
+        assert!(s.stage_add_object(m, at(0.0)).is_err());
+        assert!(s.stage_remove_mesh(m).is_err());
+        s.commit_edits();
+        assert_eq!(s.counts().objects, 0);
+        assert!(s.bounds().is_empty());
+        // Non-finite matrices are refused.
+        let m2 =
+            s.add_mesh(crate::procedural::analytic::box_mesh("c2", Vec3::ZERO, Vec3::ONE).unwrap());
+        assert!(s
+            .stage_add_object(m2, DMat4::from_cols_array(&[f64::NAN; 16]))
             .is_err());
     }
 }

@@ -189,6 +189,16 @@ impl SilhouetteCache {
         (self.hits, self.misses)
     }
 
+    /// Drops every light's entry of object `id` (its mesh changed, or its
+    /// slot now holds another object): the next update recomputes it.
+    pub fn invalidate(&mut self, id: ObjectId) {
+        for l in &mut self.lights {
+            if let Some(e) = l.objects.get_mut(id.0 as usize) {
+                *e = None;
+            }
+        }
+    }
+
     /// Makes sure the silhouettes of `ids` for `light` are current, computing
     /// the missing or stale ones (in parallel with the `parallel` feature).
     ///

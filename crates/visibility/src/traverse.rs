@@ -82,13 +82,35 @@ pub struct MeshData {
 impl MeshData {
     /// Converts every mesh of `scene`.
     pub fn from_scene(scene: &Scene) -> Self {
+        let mut data = MeshData {
+            positions: Vec::new(),
+            triangles: Vec::new(),
+        };
+        data.sync(scene);
+        data
+    }
+
+    /// Catches up with meshes added to `scene` since, and with meshes whose
+    /// vertex or triangle count changed (a removed mesh keeps its slot, empty).
+    pub fn sync(&mut self, scene: &Scene) {
         let meshes = scene.graph().meshes();
-        MeshData {
-            positions: meshes
-                .iter()
-                .map(|m| m.positions().iter().map(|p| p.extend(1.0)).collect())
-                .collect(),
-            triangles: meshes.iter().map(|m| m.triangles().into()).collect(),
+        self.positions.truncate(meshes.len());
+        self.triangles.truncate(meshes.len());
+        for (i, m) in meshes.iter().enumerate() {
+            let current = self.positions.get(i).map(|p| p.len()) == Some(m.positions().len())
+                && self.triangles.get(i).map(|t| t.len()) == Some(m.triangles().len());
+            if current {
+                continue;
+            }
+            let p: Arc<[Vec4]> = m.positions().iter().map(|p| p.extend(1.0)).collect();
+            let t: Arc<[[u32; 3]]> = m.triangles().into();
+            if i < self.positions.len() {
+                self.positions[i] = p;
+                self.triangles[i] = t;
+            } else {
+                self.positions.push(p);
+                self.triangles.push(t);
+            }
         }
     }
 }

@@ -1,0 +1,207 @@
+//! The living scene: meshes, objects and lights added, moved and removed by
+//! id between frames, and what the pipeline does so that nothing it keeps
+//! goes stale — the hierarchy refit or rebuilt (per-node CHC state remapped
+//! [`visibility::ViewCuller::remap`]), the silhouette caches invalidated for
+//! exactly the objects that changed, the mesh copies and the reference's BVH
+//! brought up to date. Edits are staged on the scene and applied once at the
+//! start of the next [`Pipeline::frame`].
+
+use super::{live_slots, LightId, LightSlot, LightState, Pipeline};
+use crate::{Error, Result};
+use glam::DMat4;
+use scene::{Light, Mesh, MeshId, ObjectId, Scene};
+use std::sync::Arc;
+
+impl Pipeline {
+    /// The scene for editing: shared scenes are copied on first edit.
+    fn scene_mut(&mut self) -> &mut Scene {
+        Arc::make_mut(&mut self.scene)
+    }
+
+    /// Adds a mesh that objects can then instance ([`Pipeline::add_object`]).
+    pub fn add_mesh(&mut self, mesh: Mesh) -> MeshId {
+        self.meshes_changed = true;
+        self.scene_mut().add_mesh(mesh)
+    }
+
+    /// Removes a mesh no object instances any more; its id is dead afterwards.
+    ///
+    /// # Errors
+    /// [`Error::Scene`] naming the mesh when it is unknown, removed, or still
+    /// instanced (naming an object that uses it).
+    pub fn remove_mesh(&mut self, mesh: MeshId) -> Result<()> {
+        self.scene_mut().stage_remove_mesh(mesh)?;
+        self.meshes_changed = true;
+        Ok(())
+    }
+
+    /// Adds an object drawing `mesh` with `world_from_local` (f64, column
+    /// vectors, finite). It takes part from the next frame on; its id stays
+    /// valid until [`Pipeline::remove_object`].
+    ///
+    /// # Errors
+    /// [`Error::Scene`] for an unknown mesh, a non-finite matrix, or past
+    /// [`scene::MAX_OBJECTS`] objects.
+    pub fn add_object(&mut self, mesh: MeshId, world_from_local: DMat4) -> Result<ObjectId> {
+        let id = self.scene_mut().stage_add_object(mesh, world_from_local)?;
+        // A reused slot must not keep the old object's silhouettes.
+        self.invalidate_silhouettes(id);
+        Ok(id)
+    }
+
+    /// Moves object `id` to `world_from_local` from the next frame on (its
+    /// cached silhouettes are recomputed: the cache compares transforms).
+    ///
+    /// # Errors
+    /// [`Error::Scene`] for an unknown, removed or stale id, or a non-finite
+    /// matrix.
+    pub fn set_transform(&mut self, id: ObjectId, world_from_local: DMat4) -> Result<()> {
+        self.scene_mut().stage_set_transform(id, world_from_local)?;
+        Ok(())
+    }
+
+    /// Removes object `id` from the next frame on; the id is stale afterwards
+    /// (an error everywhere, never another object).
+    ///
+    /// # Errors
+    /// [`Error::Scene`] for an unknown, removed or stale id.
+    pub fn remove_object(&mut self, id: ObjectId) -> Result<()> {
+        self.scene_mut().stage_remove_object(id)?;
+        // The first removal adds the scene's empty mesh.
+        self.meshes_changed = true;
+        self.invalidate_silhouettes(id);
+        Ok(())
+    }
+
+    /// Adds a light; every frame computes its PSC, volumes and mask.
+    ///
+    /// # Errors
+    /// [`Error::Options`] naming `light` and its bad field.
+    pub fn add_light(&mut self, light: Light) -> Result<LightId> {
+        check_light(&light)?;
+        let slot = match self
+            .lights
+            .iter()
+            .position(|s| s.state.is_none() && s.generation < u8::MAX)
+        {
+            Some(i) => {
+                self.lights[i].generation += 1;
+                i
+            }
+            None => {
+                self.lights.push(LightSlot::default());
+                self.lights.len() - 1
+            }
+        };
+        let id = LightId::new(slot, self.lights[slot].generation);
+        self.lights[slot].state = Some(LightState::new(light, id));
+        Ok(id)
+    }
+
+    /// Changes light `id` (position, direction, cone, range). Its state —
+    /// light views, culling history, silhouette cache — stays with the id.
+    ///
+    /// # Errors
+    /// [`Error::Options`] for an unknown or stale id, or an invalid light.
+    pub fn set_light(&mut self, id: LightId, light: Light) -> Result<()> {
+        check_light(&light)?;
+        self.light_state_mut(id)?.light = light;
+        Ok(())
+    }
+
+    /// Removes light `id` and its state; the id is stale afterwards.
+    ///
+    /// # Errors
+    /// [`Error::Options`] for an unknown or stale id.
+    pub fn remove_light(&mut self, id: LightId) -> Result<()> {
+        self.light_state_mut(id)?;
+        self.lights[id.slot()].state = None;
+        Ok(())
+    }
+
+    /// Light `id`.
+    ///
+    /// # Errors
+    /// [`Error::Options`] for an unknown or stale id.
+    pub fn light(&self, id: LightId) -> Result<Light> {
+        Ok(self.light_state(id)?.light)
+    }
+
+    /// The ids of the pipeline's lights, in slot order.
+    pub fn light_ids(&self) -> impl Iterator<Item = LightId> + '_ {
+        self.live_lights().map(|s| s.id)
+    }
+
+    pub(super) fn live_lights(&self) -> impl Iterator<Item = &LightState> + '_ {
+        self.lights.iter().filter_map(|s| s.state.as_ref())
+    }
+
+    pub(super) fn light_state(&self, id: LightId) -> Result<&LightState> {
+        match self.lights.get(id.slot()) {
+            Some(LightSlot {
+                generation,
+                state: Some(s),
+            }) if *generation == id.generation() => Ok(s),
+            _ => Err(unknown_light(id)),
+        }
+    }
+
+    fn light_state_mut(&mut self, id: LightId) -> Result<&mut LightState> {
+        match self.lights.get_mut(id.slot()) {
+            Some(LightSlot {
+                generation,
+                state: Some(s),
+            }) if *generation == id.generation() => Ok(s),
+            _ => Err(unknown_light(id)),
+        }
+    }
+
+    /// Drops every light's cached silhouette of the object in `id`'s slot.
+    fn invalidate_silhouettes(&mut self, id: ObjectId) {
+        for s in self.lights.iter_mut().filter_map(|s| s.state.as_mut()) {
+            s.scratch.cache.invalidate(ObjectId(id.slot()));
+        }
+    }
+
+    /// Applies the staged scene edits (called at the start of a frame):
+    /// commits them on the scene, then brings the mesh copies, the hierarchy
+    /// (refit, or rebuilt with every view's CHC state remapped), the live
+    /// object list, the counts and the reference's BVH up to date.
+    pub(super) fn apply_edits(&mut self) {
+        if !self.scene.has_staged_edits() && !self.meshes_changed {
+            return;
+        }
+        let committed = self.scene_mut().commit_edits();
+        let scene = &self.scene;
+        self.meshes.sync(scene);
+        if let Some(culling) = &mut self.culling {
+            culling.sync_meshes(scene);
+            if committed.rebuilt {
+                let old = culling.rebuild(scene);
+                for s in self.lights.iter_mut().filter_map(|s| s.state.as_mut()) {
+                    s.culling.pass.remap(&old, culling.hierarchy());
+                }
+            } else if committed.refit {
+                culling.refit(scene);
+            }
+        }
+        self.meshes_changed = false;
+        self.all = live_slots(scene);
+        self.counts = scene.counts();
+        self.bvh = None;
+    }
+}
+
+fn check_light(light: &Light) -> Result<()> {
+    light.validate().map_err(|e| Error::Options {
+        field: "light".into(),
+        message: e.to_string(),
+    })
+}
+
+fn unknown_light(id: LightId) -> Error {
+    Error::Options {
+        field: "light".into(),
+        message: format!("light {} is unknown, removed or stale", id.0),
+    }
+}
