@@ -23,6 +23,15 @@
 //! All are on by default; a renderer that links the library alone uses
 //! `default-features = false`.
 //!
+//! # Stability
+//! The crate follows semantic versioning. Before 1.0 a minor version
+//! (0.x → 0.x+1) may break the API; a patch version never does. Output
+//! structs grow without breaking hosts: the statistics structs
+//! ([`stats::FrameStats`], [`stats::ShadowStats`]) are `#[non_exhaustive]`,
+//! and [`raster::VolumeRange`] only gains fields. The CSV columns, the JSON
+//! keys of `summary.json` and of the examples, and the RON job schema
+//! (`version: 1`) only gain entries within a major version.
+//!
 //! # Conventions
 //! See `DESIGN.md` of the project: right-handed world, +y up, reversed Z with
 //! an infinite far plane, pixel centres at +0.5, row 0 at the top; masks use

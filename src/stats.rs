@@ -35,7 +35,11 @@ pub struct ReferenceStats {
 }
 
 /// The shadow pipeline's counters of a frame and light.
+///
+/// Growth rule: fields are only added (new counters), never renamed or
+/// removed within a major version; construct it with `..Default::default()`.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+#[non_exhaustive]
 pub struct ShadowStats {
     /// Eye pass: depth and primitive ids (ms) — with culling, the culled eye
     /// pass and the visible surface points the light pass marks. Measured

@@ -35,6 +35,10 @@ pub enum VolumeMethod {
 }
 
 /// One caster's (and segment's) volume inside a [`VolumeBuffer`].
+///
+/// Growth rule: fields are only added (the clamping fields to come), never
+/// renamed or removed within a major version; hosts read it, only shadowgen
+/// builds it.
 #[derive(Clone, Debug, PartialEq)]
 pub struct VolumeRange {
     /// The caster's object id (scene's `ObjectId` as a plain `u32`).
