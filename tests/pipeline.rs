@@ -471,6 +471,24 @@ fn scene_edits_keep_masks_exact() -> Result<()> {
     let back = check(&mut culled, &mut plain, "slab re-added")?;
     assert_ne!(back, before);
     assert!(culled.last_output().unwrap().psr().contains(&again));
+    // Deform the slab (twice as tall): its shadow changes, nothing else recomputes.
+    let tall = scene::procedural::analytic::box_corners(
+        glam::Vec3::new(-0.5, 0.0, -2.0),
+        glam::Vec3::new(0.5, 16.0, 2.0),
+    );
+    let tris = scene::procedural::analytic::box_triangles();
+    culled.update_mesh_positions(mesh, &tall, &tris)?;
+    plain.update_mesh_positions(mesh, &tall, &tris)?;
+    let deformed = check(&mut culled, &mut plain, "slab deformed")?;
+    assert_ne!(deformed, back, "the taller slab casts a longer shadow");
+    for l in plain.last_output().unwrap().lights() {
+        assert_eq!(l.volume_stats().cache_misses, 1, "only the slab recomputed");
+    }
+    let flat = [[0, 1, 2]];
+    assert!(
+        culled.update_mesh_positions(mesh, &tall, &flat).is_err(),
+        "a topology change is refused"
+    );
     assert!(culled.remove_mesh(mesh).is_err(), "the mesh is instanced");
     culled.remove_object(again)?;
     culled.remove_mesh(mesh)?;

@@ -35,6 +35,30 @@ impl Pipeline {
         Ok(())
     }
 
+    /// Deforms `mesh`: `positions` are its new vertices, `triangles` the index
+    /// buffer it was built from (same topology; the mesh is rebuilt and
+    /// welded as [`Mesh::new`] does). Every object drawing it takes the new
+    /// shape from the next frame on; only their silhouettes are recomputed.
+    ///
+    /// # Errors
+    /// [`Error::Scene`] for an unknown or removed mesh, an index out of range,
+    /// a non-finite vertex, or a change of topology (naming the mesh).
+    pub fn update_mesh_positions(
+        &mut self,
+        mesh: MeshId,
+        positions: &[glam::Vec3],
+        triangles: &[[u32; 3]],
+    ) -> Result<()> {
+        let name = self.scene.live_mesh(mesh)?.name().to_string();
+        let new = Mesh::new(name, positions, triangles)?;
+        let slots = self.scene_mut().stage_replace_mesh(mesh, new)?;
+        for slot in slots {
+            self.invalidate_silhouettes(ObjectId(slot));
+        }
+        self.meshes_changed = true;
+        Ok(())
+    }
+
     /// Adds an object drawing `mesh` with `world_from_local` (f64, column
     /// vectors, finite). It takes part from the next frame on; its id stays
     /// valid until [`Pipeline::remove_object`].

@@ -15,6 +15,8 @@ use scene::{Camera, ObjectId, Scene};
 #[derive(Debug)]
 pub struct MeshCache {
     positions: Vec<Vec<Vec4>>,
+    /// The scene's mesh version each copy was made from.
+    versions: Vec<u64>,
 }
 
 impl MeshCache {
@@ -22,6 +24,7 @@ impl MeshCache {
     pub fn new(scene: &Scene) -> Self {
         let mut cache = MeshCache {
             positions: Vec::new(),
+            versions: Vec::new(),
         };
         cache.sync(scene);
         cache
@@ -32,13 +35,20 @@ impl MeshCache {
     pub(crate) fn sync(&mut self, scene: &Scene) {
         let meshes = scene.graph().meshes();
         self.positions.truncate(meshes.len());
+        self.versions.truncate(meshes.len());
         for (i, m) in meshes.iter().enumerate() {
-            match self.positions.get_mut(i) {
-                Some(p) if p.len() == m.positions().len() => {}
-                Some(p) => *p = m.positions().iter().map(|p| p.extend(1.0)).collect(),
-                None => self
-                    .positions
-                    .push(m.positions().iter().map(|p| p.extend(1.0)).collect()),
+            let version = scene.mesh_version(scene::MeshId(i as u32));
+            if self.versions.get(i) == Some(&version) {
+                continue;
+            }
+            let p = m.positions().iter().map(|p| p.extend(1.0));
+            if i < self.positions.len() {
+                self.positions[i].clear();
+                self.positions[i].extend(p);
+                self.versions[i] = version;
+            } else {
+                self.positions.push(p.collect());
+                self.versions.push(version);
             }
         }
     }

@@ -90,6 +90,8 @@ pub struct Scene {
     bvh_version: u64,
     /// Generation per slot (missing entries are 0).
     generations: Vec<u8>,
+    /// Per mesh, bumped whenever its vertices change ([`Scene::stage_replace_mesh`]).
+    mesh_versions: Vec<u64>,
     /// Freed slots, lowest last.
     free_slots: Vec<u32>,
 }
@@ -160,6 +162,7 @@ impl Scene {
             bvh_version: 0,
             generations: Vec::new(),
             free_slots: Vec::new(),
+            mesh_versions: vec![0; meshes],
         };
         scene.bounds = scene.compute_bounds();
         scene.bvh = scene.build_bvh();
@@ -375,7 +378,57 @@ impl Scene {
     /// Adds `mesh` and returns its id; objects may then instance it.
     pub fn add_mesh(&mut self, mesh: Mesh) -> MeshId {
         self.removed_meshes.push(false);
+        self.mesh_versions.push(0);
         self.graph.add_mesh(mesh)
+    }
+
+    /// The version of `mesh`'s vertex data: bumped by every replacement
+    /// (deformation, removal), so copies kept outside the scene know when to
+    /// refresh. 0 for an unknown mesh.
+    pub fn mesh_version(&self, mesh: MeshId) -> u64 {
+        self.mesh_versions
+            .get(mesh.0 as usize)
+            .copied()
+            .unwrap_or(0)
+    }
+
+    /// Replaces live `mesh` by `new` (a deformation: the same triangles with
+    /// moved vertices) and updates the bounds of every live object drawing
+    /// it; returns their slots. Takes effect at [`Scene::commit_edits`].
+    ///
+    /// # Errors
+    /// [`Error::UnknownMesh`] when `mesh` is unknown or removed, or `new` has
+    /// another number of triangles or vertices (a topology change: add a new
+    /// mesh instead).
+    pub fn stage_replace_mesh(&mut self, mesh: MeshId, new: Mesh) -> Result<Vec<u32>> {
+        let old = self.live_mesh(mesh)?;
+        if old.triangles().len() != new.triangles().len()
+            || old.positions().len() != new.positions().len()
+        {
+            return Err(Error::UnknownMesh {
+                mesh: mesh.0,
+                message: format!(
+                    "the new vertices change the topology ({} triangles and {} welded vertices, \
+                     were {} and {}): add a new mesh instead",
+                    new.triangles().len(),
+                    new.positions().len(),
+                    old.triangles().len(),
+                    old.positions().len()
+                ),
+            });
+        }
+        let bounds = new.bounds();
+        self.graph.replace_mesh(mesh, new);
+        self.mesh_versions[mesh.0 as usize] += 1;
+        let mut slots = Vec::new();
+        for (i, o) in self.objects.iter_mut().enumerate() {
+            if o.alive && o.mesh == mesh {
+                o.world_bounds = bounds.transformed(&o.world_from_local);
+                slots.push(i as u32);
+            }
+        }
+        self.pending.refit = true;
+        Ok(slots)
     }
 
     /// The live mesh `mesh`.
@@ -418,6 +471,7 @@ impl Scene {
         )?;
         self.graph.replace_mesh(mesh, empty);
         self.removed_meshes[mesh.0 as usize] = true;
+        self.mesh_versions[mesh.0 as usize] += 1;
         Ok(())
     }
 

@@ -77,6 +77,8 @@ pub enum Sampling {
 pub struct MeshData {
     positions: Vec<Arc<[Vec4]>>,
     triangles: Vec<Arc<[[u32; 3]]>>,
+    /// The scene's mesh version each copy was made from.
+    versions: Vec<u64>,
 }
 
 impl MeshData {
@@ -85,21 +87,23 @@ impl MeshData {
         let mut data = MeshData {
             positions: Vec::new(),
             triangles: Vec::new(),
+            versions: Vec::new(),
         };
         data.sync(scene);
         data
     }
 
     /// Catches up with meshes added to `scene` since, and with meshes whose
-    /// vertex or triangle count changed (a removed mesh keeps its slot, empty).
+    /// vertices changed ([`Scene::mesh_version`]; a removed mesh keeps its
+    /// slot, empty).
     pub fn sync(&mut self, scene: &Scene) {
         let meshes = scene.graph().meshes();
         self.positions.truncate(meshes.len());
         self.triangles.truncate(meshes.len());
+        self.versions.truncate(meshes.len());
         for (i, m) in meshes.iter().enumerate() {
-            let current = self.positions.get(i).map(|p| p.len()) == Some(m.positions().len())
-                && self.triangles.get(i).map(|t| t.len()) == Some(m.triangles().len());
-            if current {
+            let version = scene.mesh_version(scene::MeshId(i as u32));
+            if self.versions.get(i) == Some(&version) {
                 continue;
             }
             let p: Arc<[Vec4]> = m.positions().iter().map(|p| p.extend(1.0)).collect();
@@ -107,9 +111,11 @@ impl MeshData {
             if i < self.positions.len() {
                 self.positions[i] = p;
                 self.triangles[i] = t;
+                self.versions[i] = version;
             } else {
                 self.positions.push(p);
                 self.triangles.push(t);
+                self.versions.push(version);
             }
         }
     }
