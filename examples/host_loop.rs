@@ -32,10 +32,12 @@ struct HostMesh {
     indices: Vec<u32>,
 }
 
-/// An object as a host keeps it: which mesh, and its world matrix.
+/// An object as a host keeps it: which mesh, its world matrix, and what it
+/// takes part in.
 struct HostObject {
     mesh: usize,
     world: DMat4,
+    flags: ObjectFlags,
 }
 
 /// Everything the host owns: meshes, objects and lights.
@@ -70,7 +72,7 @@ enum HostEdit {
     /// Object `i` is removed.
     Remove(usize),
     /// A new object of mesh `m` appears.
-    Add(usize, DMat4),
+    Add(usize, DMat4, ObjectFlags),
 }
 
 /// What the host took from one frame.
@@ -94,7 +96,7 @@ impl Drawn {
 }
 
 // glue:begin
-use shadowcull::scene::{ClipDepth, Mesh, MeshId, ObjectId, Scene, SceneGraph};
+use shadowcull::scene::{ClipDepth, Mesh, MeshId, ObjectFlags, ObjectId, Scene, SceneGraph};
 use shadowcull::{CullingSpec, FrameInput, Pipeline, PipelineOptions, StencilBackend};
 
 /// A pipeline holding the host's meshes, objects and lights, with their ids.
@@ -115,7 +117,7 @@ fn upload(world: &HostWorld, culling: CullingSpec) -> shadowcull::Result<Uploade
     }
     for o in &world.objects {
         u.objects
-            .push(u.pipeline.add_object(u.meshes[o.mesh], o.world)?);
+            .push(u.pipeline.add_object(u.meshes[o.mesh], o.world, o.flags)?);
     }
     for l in &world.lights {
         u.pipeline.add_light(*l)?;
@@ -128,7 +130,7 @@ fn edit(u: &mut Uploaded, e: &HostEdit) -> shadowcull::Result<()> {
     match *e {
         HostEdit::Move(i, m) => u.pipeline.set_transform(u.objects[i], m)?,
         HostEdit::Remove(i) => u.pipeline.remove_object(u.objects[i])?,
-        HostEdit::Add(mesh, m) => u.objects.push(u.pipeline.add_object(u.meshes[mesh], m)?),
+        HostEdit::Add(mesh, m, f) => u.objects.push(u.pipeline.add_object(u.meshes[mesh], m, f)?),
     }
     Ok(())
 }
@@ -220,6 +222,7 @@ fn world() -> HostWorld {
     let mut objects = vec![HostObject {
         mesh: 0,
         world: DMat4::IDENTITY,
+        flags: ObjectFlags::ALL,
     }];
     let mut seed = 0x2545_f491_u32;
     let mut rnd = move || {
@@ -239,6 +242,11 @@ fn world() -> HostWorld {
                     DQuat::from_rotation_y(rnd() * 0.8),
                     DVec3::new(x, 0.0, z),
                 ),
+                // Every 25th object shows no shadows on itself.
+                flags: ObjectFlags {
+                    receives: objects.len() % 25 != 0,
+                    ..ObjectFlags::ALL
+                },
             });
         }
     }
@@ -259,7 +267,8 @@ fn world() -> HostWorld {
 }
 
 /// Frame `f`'s edits: object 1 circles its lot; a third of the way along the
-/// path the object beside the street is removed, half way a tower appears.
+/// path the object beside the street is removed, half way an invisible tower
+/// (a shadow proxy) appears.
 fn edits(f: u32, n: u32, world: &HostWorld) -> Vec<HostEdit> {
     let a = f64::from(f) * 0.2;
     let base = world.objects[1].world;
@@ -276,7 +285,12 @@ fn edits(f: u32, n: u32, world: &HostWorld) -> Vec<HostEdit> {
             DQuat::IDENTITY,
             DVec3::new(-10.0, 0.0, 8.5),
         );
-        e.push(HostEdit::Add(2, m));
+        // An invisible shadow proxy: it casts, nobody sees it.
+        let proxy = ObjectFlags {
+            visible: false,
+            ..ObjectFlags::ALL
+        };
+        e.push(HostEdit::Add(2, m, proxy));
     }
     e
 }

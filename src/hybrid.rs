@@ -458,6 +458,9 @@ pub fn classify(
         .map(|i| {
             let id = ObjectId(i as u32);
             let tris = scene.object_mesh(id).triangles();
+            if !scene.objects()[i].flags.casts {
+                return Vec::new();
+            }
             if two_sided {
                 return tris.to_vec();
             }

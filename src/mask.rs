@@ -89,7 +89,8 @@ fn unlit_by_facing(tri: &[DVec3; 3], eye: DVec3, light: &Light, two_sided: bool)
 /// where [`is_unlit`] says so for the visible triangle (world space, from
 /// [`Scene::world_triangle`]) at the pixel's surface point (the pixel-centre
 /// eye ray meeting that triangle's plane, in f64); otherwise shadow where
-/// `shadowed(pixel)` (stencil ≠ 0), else lit.
+/// `shadowed(pixel)` (stencil ≠ 0) and the object receives shadows
+/// ([`scene::ObjectFlags::receives`]), else lit.
 ///
 /// # Panics
 /// If `primitive` is not `width × height` long or names an object or
@@ -121,17 +122,20 @@ pub fn assemble(
     let row = |y: usize, out: &mut [PixelClass]| {
         // Neighbouring pixels mostly show the same triangle: its facing is
         // computed once per run.
-        let mut last: Option<((ObjectId, u32), [DVec3; 3], bool)> = None;
+        // (primitive, its world triangle, unlit by facing, receives).
+        type Run = ((ObjectId, u32), [DVec3; 3], bool, bool);
+        let mut last: Option<Run> = None;
         for (x, px) in out.iter_mut().enumerate() {
             let i = y * width as usize + x;
             let Some(id) = primitive[i] else { continue };
-            let (tri, facing_unlit) = match last {
-                Some((l, tri, f)) if l == id => (tri, f),
+            let (tri, facing_unlit, receives) = match last {
+                Some((l, tri, f, r)) if l == id => (tri, f, r),
                 _ => {
                     let tri = scene.world_triangle(id.0, id.1 as usize);
                     let f = unlit_by_facing(&tri, e, light, two_sided);
-                    last = Some((id, tri, f));
-                    (tri, f)
+                    let r = scene.object(id.0).flags.receives;
+                    last = Some((id, tri, f, r));
+                    (tri, f, r)
                 }
             };
             let unlit = facing_unlit
@@ -141,7 +145,7 @@ pub fn assemble(
                 });
             *px = if unlit {
                 PixelClass::Unlit
-            } else if shadowed(i) {
+            } else if receives && shadowed(i) {
                 PixelClass::Shadow
             } else {
                 PixelClass::Lit

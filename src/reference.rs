@@ -107,6 +107,8 @@ pub struct TriangleBvh {
     /// World-space f64 vertices (from [`Scene::world_triangle`]), indexed by primitive.
     tris: Vec<[DVec3; 3]>,
     ids: Vec<PrimitiveId>,
+    /// Per primitive, its object's flags.
+    flags: Vec<scene::ObjectFlags>,
     center: DVec3,
     pad: f32,
 }
@@ -131,12 +133,14 @@ impl TriangleBvh {
         let pad = extent * (1.0 / 65536.0);
         let mut tris = Vec::new();
         let mut ids = Vec::new();
-        for (oi, _) in scene.objects().iter().enumerate() {
+        let mut flags = Vec::new();
+        for (oi, o) in scene.objects().iter().enumerate() {
             let id = ObjectId(oi as u32);
             let n = scene.object_mesh(id).triangles().len();
             for t in 0..n {
                 tris.push(scene.world_triangle(id, t));
                 ids.push((id, t as u32));
+                flags.push(o.flags);
             }
         }
         let boxes: Vec<obvhs::aabb::Aabb> = tris
@@ -156,6 +160,7 @@ impl TriangleBvh {
             bvh,
             tris,
             ids,
+            flags,
             center,
             pad,
         }
@@ -168,10 +173,11 @@ impl TriangleBvh {
     /// If the scene's triangle count changed since [`TriangleBvh::new`].
     pub fn refit(&mut self, scene: &Scene) {
         let mut k = 0;
-        for (oi, _) in scene.objects().iter().enumerate() {
+        for (oi, o) in scene.objects().iter().enumerate() {
             let id = ObjectId(oi as u32);
             for t in 0..scene.object_mesh(id).triangles().len() {
                 self.tris[k] = scene.world_triangle(id, t);
+                self.flags[k] = o.flags;
                 k += 1;
             }
         }
@@ -231,6 +237,9 @@ impl TriangleBvh {
         self.bvh
             .ray_traverse(self.ray(origin, dir, f64::INFINITY), &mut hit, |_, i| {
                 let prim = self.bvh.primitive_indices[i] as usize;
+                if !self.flags[prim].visible {
+                    return f32::INFINITY;
+                }
                 match intersect(&self.rel(prim), origin, dir) {
                     Some(t) if t > 0.0 => {
                         let better = match best {
@@ -262,7 +271,7 @@ impl TriangleBvh {
             .bvh
             .ray_traverse_miss(self.ray(origin, dir, tmax), |_, i| {
                 let prim = self.bvh.primitive_indices[i] as usize;
-                if prim == skip {
+                if prim == skip || !self.flags[prim].casts {
                     return f32::INFINITY;
                 }
                 // Only casters count: light-facing triangles, or all when two-sided.
@@ -558,6 +567,9 @@ fn classify(
     let c = bvh.center;
     if is_unlit(&bvh.tris[k], eye + c, light, q + c, two_sided) {
         return PixelClass::Unlit;
+    }
+    if !bvh.flags[k].receives {
+        return PixelClass::Lit;
     }
     let tri = bvh.rel(k);
     let (dir, tmax) = match light_rel.position() {

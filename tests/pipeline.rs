@@ -5,7 +5,7 @@
 mod common;
 
 use glam::DVec3;
-use scene::{Camera, CameraPath, Light, ObjectId, Scene};
+use scene::{Camera, CameraPath, Light, ObjectFlags, ObjectId, Scene};
 use shadowcull::mask::compare;
 use shadowcull::{
     CullingSpec, Error, FrameInput, LightId, Pipeline, PipelineOptions, Result, StencilBackend,
@@ -305,7 +305,11 @@ fn bad_options_and_inputs_name_their_field() -> Result<()> {
         Err(Error::Scene(_))
     ));
     assert!(matches!(
-        p.add_object(scene::MeshId(1 << 20), glam::DMat4::IDENTITY),
+        p.add_object(
+            scene::MeshId(1 << 20),
+            glam::DMat4::IDENTITY,
+            ObjectFlags::ALL
+        ),
         Err(Error::Scene(_))
     ));
     // No lights: an eye pass and PSR only.
@@ -426,8 +430,8 @@ fn scene_edits_keep_masks_exact() -> Result<()> {
     };
     let before = check(&mut culled, &mut plain, "no slab")?;
     let n = scene.objects().len();
-    let id = culled.add_object(mesh, at(0.0))?;
-    assert_eq!(plain.add_object(mesh, at(0.0))?, id);
+    let id = culled.add_object(mesh, at(0.0), ObjectFlags::ALL)?;
+    assert_eq!(plain.add_object(mesh, at(0.0), ObjectFlags::ALL)?, id);
     assert_eq!(id, ObjectId::new(n as u32, 0), "a new slot");
     let with = check(&mut culled, &mut plain, "slab added")?;
     assert_ne!(with, before, "the slab casts");
@@ -465,8 +469,8 @@ fn scene_edits_keep_masks_exact() -> Result<()> {
     assert!(out.lights().all(|l| !l.psc().contains(&id)));
     assert!(culled.set_transform(id, at(0.0)).is_err(), "stale id");
     // Its slot comes back with the next generation; the mesh stays in use.
-    let again = culled.add_object(mesh, at(-2.0))?;
-    plain.add_object(mesh, at(-2.0))?;
+    let again = culled.add_object(mesh, at(-2.0), ObjectFlags::ALL)?;
+    plain.add_object(mesh, at(-2.0), ObjectFlags::ALL)?;
     assert_eq!((again.slot(), again.generation()), (id.slot(), 1));
     let back = check(&mut culled, &mut plain, "slab re-added")?;
     assert_ne!(back, before);
@@ -493,7 +497,7 @@ fn scene_edits_keep_masks_exact() -> Result<()> {
     culled.remove_object(again)?;
     culled.remove_mesh(mesh)?;
     assert!(
-        culled.add_object(mesh, at(0.0)).is_err(),
+        culled.add_object(mesh, at(0.0), ObjectFlags::ALL).is_err(),
         "the mesh is gone"
     );
     Ok(())
@@ -610,5 +614,224 @@ fn host_matrices_give_exact_masks() -> Result<()> {
             assert_eq!(c.mismatches, 0, "view {k} light {li}: {c:?}");
         }
     }
+    Ok(())
+}
+
+/// The host seam: a backend factory whose backends forward every call to
+/// the bundled rasterizer, as a GPU host's would to its queries. PSR, PSC,
+/// volumes, masks and query counts equal the built-in path's, and the
+/// factory is asked for the eye and every light view.
+#[test]
+fn host_backends_give_identical_results() -> Result<()> {
+    use raster::{
+        BackendStats, DepthTarget, DrawCommand, OcclusionBackend, QueryCommand, QueryId,
+        ReceiverTarget, SyncBackend, TileSize,
+    };
+    use std::sync::atomic::{AtomicU32, Ordering};
+    use std::sync::Mutex;
+    use visibility::ViewRole;
+
+    /// Forwards to a bundled backend of the role's size, counting its calls.
+    struct Forward(SyncBackend, Arc<AtomicU32>);
+    impl OcclusionBackend for Forward {
+        fn clear(&mut self) {
+            self.0.clear()
+        }
+        fn set_receivers(&mut self, r: Option<Arc<ReceiverTarget>>) -> raster::Result<()> {
+            self.0.set_receivers(r)
+        }
+        fn draw(&mut self, cmd: DrawCommand) -> raster::Result<()> {
+            self.1.fetch_add(1, Ordering::Relaxed);
+            self.0.draw(cmd)
+        }
+        fn issue_query(&mut self, q: QueryCommand) -> raster::Result<QueryId> {
+            self.1.fetch_add(1, Ordering::Relaxed);
+            self.0.issue_query(q)
+        }
+        fn poll(&mut self, id: QueryId) -> Option<u32> {
+            self.0.poll(id)
+        }
+        fn wait(&mut self, id: QueryId) -> u32 {
+            self.0.wait(id)
+        }
+        fn finish(&mut self) {
+            self.0.finish()
+        }
+        fn stats(&self) -> BackendStats {
+            self.0.stats()
+        }
+    }
+
+    let (scene, path) = city();
+    let lights = lights(&scene, &path);
+    let o = options(CullingSpec::Chcpp, StencilBackend::H);
+    let (mut builtin, ids) = pipeline(&scene, o, &lights)?;
+    let (mut hosted, hosted_ids) = pipeline(&scene, o, &lights)?;
+    let calls = Arc::new(AtomicU32::new(0));
+    let roles = Arc::new(Mutex::new(Vec::new()));
+    let (c, r) = (calls.clone(), roles.clone());
+    hosted.set_backend_factory(Some(Arc::new(move |role: ViewRole| {
+        r.lock().unwrap().push(role);
+        let (w, h, ids) = match role {
+            ViewRole::Eye { width, height } => (width, height, true),
+            ViewRole::LightView { size, .. } => (size, size, false),
+        };
+        let target = DepthTarget::new(w, h, TileSize::T8, ids).unwrap();
+        Box::new(Forward(SyncBackend::new(target), c.clone())) as Box<dyn OcclusionBackend + Send>
+    })));
+    for frame in 0..4 {
+        roles.lock().unwrap().clear();
+        let take = |p: &mut Pipeline, ids: &[LightId]| -> Result<_> {
+            let out = p.frame(&input(&path, frame))?;
+            let lights: Vec<_> = ids
+                .iter()
+                .map(|&id| {
+                    let l = out.light(id).unwrap();
+                    let s = l.stats();
+                    (
+                        l.psc().to_vec(),
+                        l.volumes().clone(),
+                        l.mask().cloned(),
+                        (s.queries, s.waits, s.psr),
+                    )
+                })
+                .collect();
+            Ok((out.psr().to_vec(), lights, out.eye().depth.clone()))
+        };
+        let a = take(&mut builtin, &ids)?;
+        let b = take(&mut hosted, &hosted_ids)?;
+        assert_eq!(a, b, "frame {frame}");
+        let roles = roles.lock().unwrap();
+        assert_eq!(
+            roles
+                .iter()
+                .filter(|r| matches!(r, ViewRole::Eye { .. }))
+                .count(),
+            1
+        );
+        let views: usize = hosted
+            .last_output()
+            .unwrap()
+            .lights()
+            .map(|l| l.views().len())
+            .sum();
+        assert!(roles.len() <= 1 + views && roles.len() > 1, "{roles:?}");
+    }
+    assert!(calls.load(Ordering::Relaxed) > 100, "the host answered");
+    Ok(())
+}
+
+/// Object flags, against the reference (which honours them too): an
+/// invisible shadow proxy casts but has no pixels, a non-caster has pixels
+/// and no shadow, a non-receiver shows no shadow on itself, a non-occluder
+/// hides nothing from the culling queries — culled = unculled throughout.
+#[test]
+fn object_flags_keep_masks_exact() -> Result<()> {
+    let (scene, path) = city();
+    let all = lights(&scene, &path);
+    let (mut culled, ids) = pipeline(&scene, options(CullingSpec::Chcpp, StencilBackend::H), &all)?;
+    let (mut plain, _) = pipeline(&scene, options(CullingSpec::None, StencilBackend::H), &all)?;
+    let pose = path.at(0).unwrap();
+    let ahead = pose.eye + (pose.target - pose.eye).normalize() * 12.0;
+    let slab = scene::procedural::analytic::box_mesh(
+        "slab",
+        glam::Vec3::new(-0.5, 0.0, -2.0),
+        glam::Vec3::new(0.5, 8.0, 2.0),
+    )
+    .unwrap();
+    let mesh = culled.add_mesh(slab.clone());
+    plain.add_mesh(slab);
+    let at = glam::DMat4::from_translation(DVec3::new(ahead.x, 0.0, ahead.z));
+    let id = culled.add_object(mesh, at, ObjectFlags::ALL)?;
+    plain.add_object(mesh, at, ObjectFlags::ALL)?;
+    type Frame = (
+        Vec<ObjectId>,
+        Vec<Vec<ObjectId>>,
+        Vec<scene::ObjectId>,
+        Vec<shadowcull::mask::Mask>,
+    );
+    let mut run = |flags: ObjectFlags, what: &str| -> Result<Frame> {
+        culled.set_flags(id, flags)?;
+        plain.set_flags(id, flags)?;
+        let out = culled.frame(&input(&path, 0))?;
+        let psr = out.psr().to_vec();
+        let psc: Vec<_> = out.lights().map(|l| l.psc().to_vec()).collect();
+        let named: Vec<_> = out
+            .lights()
+            .flat_map(|l| l.volumes().ranges.iter().map(|r| ObjectId(r.object)))
+            .collect();
+        let masks: Vec<_> = out.lights().map(|l| l.mask().unwrap().clone()).collect();
+        let eye_ids = out.eye().primitive.clone();
+        let unculled: Vec<_> = plain
+            .frame(&input(&path, 0))?
+            .lights()
+            .map(|l| l.mask().unwrap().clone())
+            .collect();
+        assert_eq!(masks, unculled, "{what}: culled = unculled");
+        for (k, m) in masks.iter().enumerate() {
+            let r = culled.reference_mask(ids[k])?;
+            let c = compare(&r.mask, &r.ambiguous, m);
+            assert_eq!(c.mismatches, 0, "{what}, light {k}: {c:?}");
+        }
+        let seen = eye_ids.iter().flatten().any(|(o, _)| *o == id);
+        assert_eq!(seen, flags.visible, "{what}: pixels");
+        Ok((psr, psc, named, masks))
+    };
+    let base = run(ObjectFlags::ALL, "all")?;
+    assert!(base.0.contains(&id) && base.1.iter().any(|p| p.contains(&id)));
+    let proxy = run(
+        ObjectFlags {
+            visible: false,
+            ..ObjectFlags::ALL
+        },
+        "invisible proxy",
+    )?;
+    assert!(!proxy.0.contains(&id), "an invisible object is no receiver");
+    assert!(proxy.2.contains(&id), "an invisible proxy still casts");
+    let no_cast = run(
+        ObjectFlags {
+            casts: false,
+            ..ObjectFlags::ALL
+        },
+        "no cast",
+    )?;
+    assert!(no_cast.0.contains(&id));
+    assert!(no_cast.1.iter().all(|p| !p.contains(&id)) && !no_cast.2.contains(&id));
+    assert_ne!(no_cast.3, base.3, "its shadow is gone");
+    let no_receive = run(
+        ObjectFlags {
+            receives: false,
+            ..ObjectFlags::ALL
+        },
+        "no receive",
+    )?;
+    assert!(no_receive.2.contains(&id));
+    let no_occlude = run(
+        ObjectFlags {
+            occludes: false,
+            ..ObjectFlags::ALL
+        },
+        "no occlude",
+    )?;
+    assert_eq!(no_occlude.3, base.3, "occluding is a hint: the masks stay");
+    // Without temporal coherence (stop-and-wait), what the slab hid is found.
+    let psr = |flags: ObjectFlags| -> Result<Vec<ObjectId>> {
+        let (mut p, _) = pipeline(
+            &Arc::new(culled.scene().clone()),
+            options(CullingSpec::Exact, StencilBackend::None),
+            &all,
+        )?;
+        p.set_flags(id, flags)?;
+        Ok(p.frame(&input(&path, 0))?.psr().to_vec())
+    };
+    let (hiding, open) = (
+        psr(ObjectFlags::ALL)?,
+        psr(ObjectFlags {
+            occludes: false,
+            ..ObjectFlags::ALL
+        })?,
+    );
+    assert!(hiding.iter().all(|o| open.contains(o)), "PSR only grows");
+    assert!(open.len() > hiding.len(), "the slab hid something");
     Ok(())
 }

@@ -9,7 +9,7 @@
 use super::{live_slots, LightId, LightSlot, LightState, Pipeline};
 use crate::{Error, Result};
 use glam::DMat4;
-use scene::{Light, Mesh, MeshId, ObjectId, Scene};
+use scene::{Light, Mesh, MeshId, ObjectFlags, ObjectId, Scene};
 use std::sync::Arc;
 
 impl Pipeline {
@@ -20,7 +20,7 @@ impl Pipeline {
 
     /// Adds a mesh that objects can then instance ([`Pipeline::add_object`]).
     pub fn add_mesh(&mut self, mesh: Mesh) -> MeshId {
-        self.meshes_changed = true;
+        self.edited = true;
         self.scene_mut().add_mesh(mesh)
     }
 
@@ -31,7 +31,7 @@ impl Pipeline {
     /// instanced (naming an object that uses it).
     pub fn remove_mesh(&mut self, mesh: MeshId) -> Result<()> {
         self.scene_mut().stage_remove_mesh(mesh)?;
-        self.meshes_changed = true;
+        self.edited = true;
         Ok(())
     }
 
@@ -55,22 +55,42 @@ impl Pipeline {
         for slot in slots {
             self.invalidate_silhouettes(ObjectId(slot));
         }
-        self.meshes_changed = true;
+        self.edited = true;
         Ok(())
     }
 
     /// Adds an object drawing `mesh` with `world_from_local` (f64, column
-    /// vectors, finite). It takes part from the next frame on; its id stays
+    /// vectors, finite) and `flags` ([`ObjectFlags::ALL`] for an ordinary
+    /// object). It takes part from the next frame on; its id stays
     /// valid until [`Pipeline::remove_object`].
     ///
     /// # Errors
     /// [`Error::Scene`] for an unknown mesh, a non-finite matrix, or past
     /// [`scene::MAX_OBJECTS`] objects.
-    pub fn add_object(&mut self, mesh: MeshId, world_from_local: DMat4) -> Result<ObjectId> {
-        let id = self.scene_mut().stage_add_object(mesh, world_from_local)?;
+    pub fn add_object(
+        &mut self,
+        mesh: MeshId,
+        world_from_local: DMat4,
+        flags: ObjectFlags,
+    ) -> Result<ObjectId> {
+        let id = self
+            .scene_mut()
+            .stage_add_object(mesh, world_from_local, flags)?;
+        self.edited = true;
         // A reused slot must not keep the old object's silhouettes.
         self.invalidate_silhouettes(id);
         Ok(id)
+    }
+
+    /// Sets what object `id` takes part in ([`ObjectFlags`]: casts, receives,
+    /// occludes, visible) from the next frame on.
+    ///
+    /// # Errors
+    /// [`Error::Scene`] for an unknown, removed or stale id.
+    pub fn set_flags(&mut self, id: ObjectId, flags: ObjectFlags) -> Result<()> {
+        self.scene_mut().set_flags(id, flags)?;
+        self.edited = true;
+        Ok(())
     }
 
     /// Moves object `id` to `world_from_local` from the next frame on (its
@@ -92,7 +112,7 @@ impl Pipeline {
     pub fn remove_object(&mut self, id: ObjectId) -> Result<()> {
         self.scene_mut().stage_remove_object(id)?;
         // The first removal adds the scene's empty mesh.
-        self.meshes_changed = true;
+        self.edited = true;
         self.invalidate_silhouettes(id);
         Ok(())
     }
@@ -192,7 +212,7 @@ impl Pipeline {
     /// (refit, or rebuilt with every view's CHC state remapped), the live
     /// object list, the counts and the reference's BVH up to date.
     pub(super) fn apply_edits(&mut self) {
-        if !self.scene.has_staged_edits() && !self.meshes_changed {
+        if !self.scene.has_staged_edits() && !self.edited {
             return;
         }
         let committed = self.scene_mut().commit_edits();
@@ -209,8 +229,9 @@ impl Pipeline {
                 culling.refit(scene);
             }
         }
-        self.meshes_changed = false;
-        self.all = live_slots(scene);
+        self.edited = false;
+        self.all_visible = live_slots(scene, |f| f.visible);
+        self.all_casters = live_slots(scene, |f| f.casts);
         self.counts = scene.counts();
         self.bvh = None;
     }

@@ -54,6 +54,46 @@ impl MeshCache {
     }
 }
 
+/// Draws the visible objects among `ids` into `target` (both faces,
+/// standard coverage), front to back by the distance from the eye to each
+/// object's bounds centre, so hierarchical z rejects most hidden triangles;
+/// the depth and ids do not depend on the order (nearest depth, then smallest
+/// id, wins). One batch: bands of tile rows in parallel.
+fn draw_objects(
+    scene: &Scene,
+    meshes: &MeshCache,
+    camera: &Camera,
+    target: &mut DepthTarget,
+    ids: impl Iterator<Item = ObjectId>,
+) -> Result<()> {
+    target.set_threads(rayon::current_num_threads());
+    let objects = scene.objects();
+    let mut order: Vec<(f64, usize)> = ids
+        .map(|id| id.slot() as usize)
+        .filter(|&i| objects[i].flags.visible)
+        .map(|i| {
+            let d = objects[i].world_bounds.center();
+            (d.distance_squared(camera.position), i)
+        })
+        .collect();
+    if order.is_empty() {
+        return Ok(());
+    }
+    order.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let items: Vec<DrawItem> = order
+        .iter()
+        .map(|&(_, i)| (i, &objects[i]))
+        .map(|(i, o)| DrawItem {
+            clip_from_local: scene::transform::clip_from_local(camera, &o.world_from_local),
+            positions: &meshes.positions[o.mesh.0 as usize],
+            triangles: scene.graph().meshes()[o.mesh.0 as usize].triangles(),
+            object: i as u32,
+        })
+        .collect();
+    target.draw_batch(&items, Coverage::Standard)?;
+    Ok(())
+}
+
 /// The eye pass's result: depth with hierarchical z, and per pixel (row 0 at the
 /// top) the visible primitive.
 #[derive(Debug)]
@@ -105,6 +145,20 @@ pub fn eye_pass_reusing(
     height: u32,
     previous: Option<EyePass>,
 ) -> Result<EyePass> {
+    eye_pass_of(scene, meshes, camera, (width, height), previous, None)
+}
+
+/// [`eye_pass_reusing`] drawing only `subset` when given (the objects a host
+/// backend's culled traversal rendered: the same depth and ids, since the
+/// culled objects have no visible pixel).
+pub(crate) fn eye_pass_of(
+    scene: &Scene,
+    meshes: &MeshCache,
+    camera: &Camera,
+    (width, height): (u32, u32),
+    previous: Option<EyePass>,
+    subset: Option<&[ObjectId]>,
+) -> Result<EyePass> {
     let (mut target, primitive, depth) = match previous {
         Some(p) if (p.target.width(), p.target.height()) == (width, height) => {
             let mut t = p.target;
@@ -117,30 +171,16 @@ pub fn eye_pass_reusing(
             Vec::new(),
         ),
     };
-    target.set_threads(rayon::current_num_threads());
-    // Front to back (by the distance from the eye to each object's bounds centre), so
-    // hierarchical z rejects most hidden triangles; the depth and ids do not
-    // depend on the order (nearest depth, then smallest id, wins).
-    let mut order: Vec<(f64, usize)> = scene
-        .objects()
-        .iter()
-        .enumerate()
-        .map(|(i, o)| (o.world_bounds.center().distance_squared(camera.position), i))
-        .collect();
-    order.sort_by(|a, b| a.0.total_cmp(&b.0));
-    let objects = scene.objects();
-    let items: Vec<DrawItem> = order
-        .iter()
-        .map(|&(_, i)| (i, &objects[i]))
-        .map(|(i, o)| DrawItem {
-            clip_from_local: scene::transform::clip_from_local(camera, &o.world_from_local),
-            positions: &meshes.positions[o.mesh.0 as usize],
-            triangles: scene.graph().meshes()[o.mesh.0 as usize].triangles(),
-            object: i as u32,
-        })
-        .collect();
-    // One batch: bands of tile rows in parallel; equal to drawing one by one.
-    target.draw_batch(&items, Coverage::Standard)?;
+    match subset {
+        Some(ids) => draw_objects(scene, meshes, camera, &mut target, ids.iter().copied())?,
+        None => draw_objects(
+            scene,
+            meshes,
+            camera,
+            &mut target,
+            (0..scene.objects().len() as u32).map(ObjectId),
+        )?,
+    }
     Ok(EyePass::from_target(target, primitive, depth))
 }
 
@@ -266,25 +306,30 @@ pub fn visible_points_into(
         .enumerate()
         .for_each(|(y, ((row, joined), prims))| {
             // The plane of the row's last triangle: runs of pixels share one.
-            let mut last: Option<((ObjectId, u32), RayPlane)> = None;
+            let mut last: Option<((ObjectId, u32), Option<RayPlane>)> = None;
             let mut prev: Option<(ObjectId, u32)> = None;
             let (base, step) = rays.row(y as f64 + 0.5);
             for (x, ((p, j), prim)) in row.iter_mut().zip(joined.iter_mut()).zip(prims).enumerate()
             {
-                let Some(prim) = *prim else {
+                let plane = match *prim {
+                    None => None,
+                    Some(prim) => match last {
+                        Some((q, plane)) if q == prim => plane,
+                        _ => {
+                            // Surfaces that cannot be shadowed are no receivers.
+                            let plane = scene.object(prim.0).flags.receives.then(|| {
+                                RayPlane::new(&scene.world_triangle(prim.0, prim.1 as usize), e)
+                            });
+                            last = Some((prim, plane));
+                            plane
+                        }
+                    },
+                };
+                let (Some(prim), Some(plane)) = (*prim, plane) else {
                     *p = glam::DVec3::NAN;
                     *j = false;
                     prev = None;
                     continue;
-                };
-                let plane = match last {
-                    Some((q, plane)) if q == prim => plane,
-                    _ => {
-                        let plane =
-                            RayPlane::new(&scene.world_triangle(prim.0, prim.1 as usize), e);
-                        last = Some((prim, plane));
-                        plane
-                    }
                 };
                 let dir = base + step * (x as f64 + 0.5);
                 let t_hit = plane.hit(dir);
@@ -308,6 +353,7 @@ pub fn visible_points_into(
 #[allow(clippy::too_many_arguments)]
 pub fn eye_pass_culled(
     scene: &Scene,
+    meshes: &MeshCache,
     state: &mut EyeCulling,
     camera: &Camera,
     width: u32,
@@ -338,8 +384,42 @@ pub fn eye_pass_culled(
         culling,
         &mut backend,
     )?;
-    Ok((
-        EyePass::from_target(backend.into_target(), primitive, depth),
-        result,
-    ))
+    let mut target = backend.into_target();
+    // Visible objects that may not occlude were left out of the traversal's
+    // draws: they join the visible surface now, hiding nothing they did not.
+    let deferred = result.rendered.iter().copied().filter(|id| {
+        let f = scene.object(*id).flags;
+        f.visible && !f.occludes
+    });
+    draw_objects(scene, meshes, camera, &mut target, deferred)?;
+    Ok((EyePass::from_target(target, primitive, depth), result))
+}
+
+/// The culled eye traversal through a host's `backend`: the same view and
+/// culling as [`eye_pass_culled`], without the bundled target.
+///
+/// # Errors
+/// Backend errors.
+pub(crate) fn cull_with(
+    scene: &Scene,
+    state: &mut EyeCulling,
+    camera: &Camera,
+    options: &super::PipelineOptions,
+    backend: &mut dyn raster::OcclusionBackend,
+) -> Result<visibility::CullResult> {
+    let clip = |w: &glam::DMat4| scene::transform::clip_from_local(camera, w);
+    let view = visibility::ViewSetup::eye_sampled(
+        camera,
+        &clip,
+        options.query_threshold,
+        options.coverage.sampling(),
+    );
+    Ok(state.culler.cull(
+        &state.hierarchy,
+        scene,
+        &state.meshes,
+        &view,
+        options.culling(),
+        backend,
+    )?)
 }

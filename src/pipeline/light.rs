@@ -32,6 +32,7 @@ pub(crate) struct LightCulling {
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn light_passes(
     states: &mut [&mut super::LightState],
+    backends: Option<&visibility::BackendFactory>,
     hierarchy: &Hierarchy,
     scene: &Scene,
     meshes: &MeshData,
@@ -44,11 +45,18 @@ pub(crate) fn light_passes(
         .par_iter_mut()
         .map(|state| {
             let t = Instant::now();
-            let light = state.light;
+            let (light, key) = (state.light, state.id.0);
             let c = &mut state.culling;
-            let r = c
-                .pass
-                .run(hierarchy, scene, meshes, camera, &light, receivers, options)?;
+            let r = c.pass.run_with(
+                hierarchy,
+                scene,
+                meshes,
+                camera,
+                &light,
+                receivers,
+                options,
+                backends.map(|f| (f, key)),
+            )?;
             c.psc = r.psc;
             c.stats = r.stats;
             c.ms = t.elapsed().as_secs_f64() * 1e3;

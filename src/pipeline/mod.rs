@@ -171,17 +171,23 @@ pub struct Pipeline {
     eye: Option<EyePass>,
     camera: Option<Camera>,
     receivers: visibility::ReceiverPoints,
-    /// Every live object's slot id, ascending: the casters without culling.
-    all: Vec<ObjectId>,
+    /// Every live visible object's slot id, ascending: the PSR without culling.
+    all_visible: Vec<ObjectId>,
+    /// Every live casting object's slot id, ascending: the casters without culling.
+    all_casters: Vec<ObjectId>,
+    /// The casters of one light this frame (the PSC less non-casters), reused.
+    casters: Vec<ObjectId>,
     /// The last PSR as public ids, ascending.
     psr: Vec<ObjectId>,
     lights: Vec<LightSlot>,
     stats: FrameStats,
     /// Scene-derived data (mesh copies, hierarchy, reference BVH) must catch
     /// up with staged scene edits before the next frame.
-    meshes_changed: bool,
+    edited: bool,
     bvh: Option<TriangleBvh>,
     bvh_ms: f64,
+    /// The host's occlusion backends for the culling passes, if any.
+    backends: Option<Arc<visibility::BackendFactory>>,
     /// The pool frames run in: the host's, or one of `options.threads`
     /// threads; `None` runs on rayon's global pool.
     pool: Option<Arc<rayon::ThreadPool>>,
@@ -220,15 +226,18 @@ impl Pipeline {
             eye: None,
             camera: None,
             receivers: Default::default(),
-            all: live_slots(&scene),
+            all_visible: live_slots(&scene, |f| f.visible),
+            all_casters: live_slots(&scene, |f| f.casts),
+            casters: Vec::new(),
             psr: Vec::new(),
             lights: Vec::new(),
             stats: FrameStats::default(),
-            meshes_changed: false,
+            edited: false,
             bvh: None,
             bvh_ms: 0.0,
             pool: own_pool(options.threads)?,
             host_pool: false,
+            backends: None,
             options,
             scene,
         })
@@ -255,6 +264,16 @@ impl Pipeline {
     /// The options in force.
     pub fn options(&self) -> &PipelineOptions {
         &self.options
+    }
+
+    /// Sends the culling passes' draws and queries — the eye pass and every
+    /// light view — to backends made by `factory` (a host renderer's GPU
+    /// queries) instead of the bundled rasterizer; `None` returns to it.
+    /// The eye's visible surface is still rasterized here, from the objects
+    /// the host's traversal rendered. See `docs/host.md` for what a host
+    /// backend must honour.
+    pub fn set_backend_factory(&mut self, factory: Option<Arc<visibility::BackendFactory>>) {
+        self.backends = factory;
     }
 
     /// Replaces the options. When they differ from the current ones, every
@@ -321,27 +340,50 @@ impl Pipeline {
         let previous = self.eye.take();
         let (eye, eye_queries, eye_waits) = if culled {
             let state = self.culling.get_or_insert_with(|| EyeCulling::new(scene));
-            let (eye, r) = eye_pass_culled(
-                scene,
-                state,
-                camera,
-                w,
-                h,
-                o.culling(),
-                o.query_threshold,
-                o.coverage.sampling(),
-                previous,
-            )?;
+            let (eye, r) = match &self.backends {
+                None => eye_pass_culled(
+                    scene,
+                    &self.meshes,
+                    state,
+                    camera,
+                    w,
+                    h,
+                    o.culling(),
+                    o.query_threshold,
+                    o.coverage.sampling(),
+                    previous,
+                )?,
+                Some(f) => {
+                    let mut backend = f(visibility::ViewRole::Eye {
+                        width: w,
+                        height: h,
+                    });
+                    let r = eye::cull_with(scene, state, camera, &o, backend.as_mut())?;
+                    let eye = eye::eye_pass_of(
+                        scene,
+                        &self.meshes,
+                        camera,
+                        (w, h),
+                        previous,
+                        Some(&r.rendered),
+                    )?;
+                    (eye, r)
+                }
+            };
             self.psr.clear();
-            self.psr
-                .extend(r.rendered.iter().map(|id| scene.id_of(id.0)));
+            let visible = r
+                .rendered
+                .iter()
+                .filter(|id| scene.object(**id).flags.visible);
+            self.psr.extend(visible.map(|id| scene.id_of(id.0)));
             self.psr.sort_unstable();
             visible_points_into(scene, camera, &eye, &mut self.receivers);
             (eye, r.stats.queries, r.stats.waits)
         } else {
             let eye = eye_pass_reusing(scene, &self.meshes, camera, w, h, previous)?;
             self.psr.clear();
-            self.psr.extend(self.all.iter().map(|id| scene.id_of(id.0)));
+            self.psr
+                .extend(self.all_visible.iter().map(|id| scene.id_of(id.0)));
             (eye, 0, 0)
         };
         let eye_ms = ms(start);
@@ -356,6 +398,7 @@ impl Pipeline {
                 .collect();
             light::light_passes(
                 &mut live,
+                self.backends.as_deref(),
                 hierarchy,
                 scene,
                 meshes,
@@ -371,7 +414,18 @@ impl Pipeline {
         let mut n = 0;
         for s in self.lights.iter_mut().filter_map(|s| s.state.as_mut()) {
             n += 1;
-            let casters: &[ObjectId] = if culled { &s.culling.psc } else { &self.all };
+            let casters: &[ObjectId] = if culled {
+                self.casters.clear();
+                let casting = s
+                    .culling
+                    .psc
+                    .iter()
+                    .filter(|id| scene.object(**id).flags.casts);
+                self.casters.extend(casting);
+                &self.casters
+            } else {
+                &self.all_casters
+            };
             let volumes = volume::build_for(
                 scene,
                 camera,
@@ -454,7 +508,7 @@ impl Pipeline {
                 message: "no frame has run yet".into(),
             });
         };
-        if self.meshes_changed || self.scene.has_staged_edits() {
+        if self.edited || self.scene.has_staged_edits() {
             return Err(Error::Options {
                 field: "reference_mask".into(),
                 message: "the scene was edited after the last frame: run a frame first".into(),
@@ -696,13 +750,13 @@ fn own_pool(threads: u32) -> Result<Option<Arc<rayon::ThreadPool>>> {
         })
 }
 
-/// The slot ids of `scene`'s live objects, ascending.
-fn live_slots(scene: &Scene) -> Vec<ObjectId> {
+/// The slot ids of `scene`'s live objects whose flags pass `keep`, ascending.
+fn live_slots(scene: &Scene, keep: fn(&scene::ObjectFlags) -> bool) -> Vec<ObjectId> {
     scene
         .objects()
         .iter()
         .enumerate()
-        .filter(|(_, o)| o.alive)
+        .filter(|(_, o)| o.alive && keep(&o.flags))
         .map(|(i, _)| ObjectId(i as u32))
         .collect()
 }

@@ -131,10 +131,15 @@ pub trait OcclusionBackend {
     fn wait(&mut self, id: QueryId) -> u32;
     /// Blocks until every submitted command has executed.
     fn finish(&mut self);
-    /// Calls `f` with the depth target after [`OcclusionBackend::finish`].
-    fn read_target(&mut self, f: &mut dyn FnMut(&DepthTarget));
     /// Counters so far.
     fn stats(&self) -> BackendStats;
+}
+
+/// A backend whose depth target can be read: the bundled ones. A host's
+/// GPU backend implements [`OcclusionBackend`] alone.
+pub trait ReadTarget {
+    /// Calls `f` with the depth target after [`OcclusionBackend::finish`].
+    fn read_target(&mut self, f: &mut dyn FnMut(&DepthTarget));
 }
 
 /// Checks a query's mesh indices (box queries need no check).
@@ -330,12 +335,14 @@ impl OcclusionBackend for SimulatedBackend {
 
     fn finish(&mut self) {}
 
-    fn read_target(&mut self, f: &mut dyn FnMut(&DepthTarget)) {
-        f(&self.target)
-    }
-
     fn stats(&self) -> BackendStats {
         self.stats
+    }
+}
+
+impl ReadTarget for SimulatedBackend {
+    fn read_target(&mut self, f: &mut dyn FnMut(&DepthTarget)) {
+        f(&self.target)
     }
 }
 
@@ -380,11 +387,14 @@ impl OcclusionBackend for SyncBackend {
         self.0.wait(id)
     }
     fn finish(&mut self) {}
-    fn read_target(&mut self, f: &mut dyn FnMut(&DepthTarget)) {
-        self.0.read_target(f)
-    }
     fn stats(&self) -> BackendStats {
         self.0.stats()
+    }
+}
+
+impl ReadTarget for SyncBackend {
+    fn read_target(&mut self, f: &mut dyn FnMut(&DepthTarget)) {
+        self.0.read_target(f)
     }
 }
 
@@ -572,13 +582,15 @@ impl OcclusionBackend for ThreadedBackend {
         self.block_until(|p| p.done >= n);
     }
 
+    fn stats(&self) -> BackendStats {
+        self.stats
+    }
+}
+
+impl ReadTarget for ThreadedBackend {
     fn read_target(&mut self, f: &mut dyn FnMut(&DepthTarget)) {
         self.finish();
         f(&self.shared.target.lock().expect("target lock"))
-    }
-
-    fn stats(&self) -> BackendStats {
-        self.stats
     }
 }
 

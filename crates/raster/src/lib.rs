@@ -73,7 +73,7 @@ mod traverse;
 mod volume_buffer;
 
 pub use backend::{
-    BackendStats, DrawCommand, Gate, Latency, OcclusionBackend, QueryCommand, QueryId,
+    BackendStats, DrawCommand, Gate, Latency, OcclusionBackend, QueryCommand, QueryId, ReadTarget,
     SimulatedBackend, SyncBackend, ThreadedBackend,
 };
 pub use clip::MAX_CLIPPED_VERTICES;

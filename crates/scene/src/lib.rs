@@ -48,6 +48,8 @@ pub use host_camera::{ClipDepth, HostBasis};
 pub use light::Light;
 pub use mesh::{Edge, EdgeRef, Mesh, Topology};
 pub use plane::Plane;
-pub use scene::{Object, ObjectId, Scene, SceneCounts, MAX_NODE_DEPTH, MAX_OBJECTS};
+pub use scene::{
+    Committed, Object, ObjectFlags, ObjectId, Scene, SceneCounts, MAX_NODE_DEPTH, MAX_OBJECTS,
+};
 
 mod light;

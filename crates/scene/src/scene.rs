@@ -52,6 +52,41 @@ impl From<ObjectId> for u32 {
     }
 }
 
+/// What an object takes part in; every flag on by default.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
+pub struct ObjectFlags {
+    /// It has shadow volumes and blocks light: it can be a potential shadow
+    /// caster, light views draw it as an occluder, the reference's shadow
+    /// rays stop at it. Off: light passes through it (no shadow of its own).
+    pub casts: bool,
+    /// Its surface can be in shadow. Off: its lit side is lit whatever
+    /// stands between it and the light.
+    pub receives: bool,
+    /// The culling passes may use it as an occluder. Off: it is still drawn
+    /// (when visible) and still casts, but never hides another object from
+    /// a query (a hint for thin or see-through geometry; never changes a mask).
+    pub occludes: bool,
+    /// The eye sees it: it has pixels. Off: an invisible shadow proxy (with
+    /// `casts`) or a disabled object.
+    pub visible: bool,
+}
+
+impl ObjectFlags {
+    /// Every flag on.
+    pub const ALL: ObjectFlags = ObjectFlags {
+        casts: true,
+        receives: true,
+        occludes: true,
+        visible: true,
+    };
+}
+
+impl Default for ObjectFlags {
+    fn default() -> Self {
+        ObjectFlags::ALL
+    }
+}
+
 /// One drawable instance: a mesh at a node.
 #[derive(Clone, Debug)]
 pub struct Object {
@@ -70,6 +105,8 @@ pub struct Object {
     /// draws the scene's empty mesh, has empty bounds, and no traversal,
     /// pass or reference sees it; its slot may be reused.
     pub alive: bool,
+    /// What it takes part in.
+    pub flags: ObjectFlags,
 }
 
 /// A scene ready for culling: the graph, its objects, bounds and object BVH.
@@ -482,7 +519,12 @@ impl Scene {
     /// # Errors
     /// [`Error::UnknownMesh`]; [`Error::Graph`] for a non-finite matrix or past
     /// [`MAX_OBJECTS`] slots.
-    pub fn stage_add_object(&mut self, mesh: MeshId, world_from_local: DMat4) -> Result<ObjectId> {
+    pub fn stage_add_object(
+        &mut self,
+        mesh: MeshId,
+        world_from_local: DMat4,
+        flags: ObjectFlags,
+    ) -> Result<ObjectId> {
         let bounds = self.live_mesh(mesh)?.bounds();
         // Host objects belong to no graph node.
         let node = NodeId(u32::MAX);
@@ -494,6 +536,7 @@ impl Scene {
             mirrored: world_from_local.determinant() < 0.0,
             world_bounds: bounds.transformed(&world_from_local),
             alive: true,
+            flags,
         };
         let slot = match self.free_slots.pop() {
             Some(slot) => {
@@ -530,6 +573,16 @@ impl Scene {
         o.mirrored = world_from_local.determinant() < 0.0;
         o.world_bounds = bounds.transformed(&world_from_local);
         self.pending.refit = true;
+        Ok(())
+    }
+
+    /// Sets object `id`'s flags (immediately: they change no bounds).
+    ///
+    /// # Errors
+    /// As [`Scene::live_slot`].
+    pub fn set_flags(&mut self, id: ObjectId, flags: ObjectFlags) -> Result<()> {
+        let slot = self.live_slot(id)?;
+        self.objects[slot as usize].flags = flags;
         Ok(())
     }
 
@@ -685,6 +738,7 @@ fn flatten(graph: &SceneGraph) -> Result<Vec<Object>> {
                 mirrored: world.determinant() < 0.0,
                 world_bounds: mesh.bounds().transformed(&world),
                 alive: true,
+                flags: ObjectFlags::ALL,
             });
         }
         for &c in node.children.iter().rev() {
@@ -807,8 +861,8 @@ mod tests {
         let mut s = Scene::new(SceneGraph::new()).unwrap();
         let m = s.add_mesh(cube);
         let at = |x: f64| DMat4::from_translation(DVec3::new(x, 0.0, 0.0));
-        let a = s.stage_add_object(m, at(0.0)).unwrap();
-        let b = s.stage_add_object(m, at(5.0)).unwrap();
+        let a = s.stage_add_object(m, at(0.0), ObjectFlags::ALL).unwrap();
+        let b = s.stage_add_object(m, at(5.0), ObjectFlags::ALL).unwrap();
         assert_eq!((a, b), (ObjectId::new(0, 0), ObjectId::new(1, 0)));
         assert!(s.has_staged_edits());
         let v = s.bvh_version();
@@ -835,7 +889,7 @@ mod tests {
         assert!(s.stage_set_transform(b, at(1.0)).is_err());
         assert!(s.stage_remove_object(b).is_err(), "double remove");
         // The freed slot comes back with the next generation; the old id stays stale.
-        let c = s.stage_add_object(m, at(2.0)).unwrap();
+        let c = s.stage_add_object(m, at(2.0), ObjectFlags::ALL).unwrap();
         assert_eq!((c.slot(), c.generation()), (1, 1));
         assert!(!s.commit_edits().rebuilt, "a reused slot refits");
         assert!(s.live_slot(b).is_err() && s.live_slot(c).is_ok());
@@ -844,7 +898,7 @@ mod tests {
         let mut id = c;
         for _ in 0..300 {
             s.stage_remove_object(id).unwrap();
-            id = s.stage_add_object(m, at(2.0)).unwrap();
+            id = s.stage_add_object(m, at(2.0), ObjectFlags::ALL).unwrap();
         }
         assert!(id.slot() >= 2, "slot 1 retired after generation 255");
         s.commit_edits();
@@ -857,7 +911,7 @@ mod tests {
         s.stage_remove_object(a).unwrap();
         s.stage_remove_object(id).unwrap();
         s.stage_remove_mesh(m).unwrap();
-        assert!(s.stage_add_object(m, at(0.0)).is_err());
+        assert!(s.stage_add_object(m, at(0.0), ObjectFlags::ALL).is_err());
         assert!(s.stage_remove_mesh(m).is_err());
         s.commit_edits();
         assert_eq!(s.counts().objects, 0);
@@ -866,7 +920,11 @@ mod tests {
         let m2 =
             s.add_mesh(crate::procedural::analytic::box_mesh("c2", Vec3::ZERO, Vec3::ONE).unwrap());
         assert!(s
-            .stage_add_object(m2, DMat4::from_cols_array(&[f64::NAN; 16]))
+            .stage_add_object(
+                m2,
+                DMat4::from_cols_array(&[f64::NAN; 16]),
+                ObjectFlags::ALL
+            )
             .is_err());
     }
 }

@@ -135,7 +135,17 @@ fn append_all(
         if need_v > u32::MAX as usize || need_i > u32::MAX as usize {
             return Err(Error::BufferOverflow);
         }
-        let method = hull.choose(options.method, &object.world_bounds);
+        let mut method = hull.choose(options.method, &object.world_bounds);
+        // zpass leaves the light cap out: right only while the eye sees the
+        // caster's own light-facing surface wherever that cap lies. The eye
+        // sees through an invisible caster (a shadow proxy): zfail, whose
+        // closed volume needs no such help.
+        if method == VolumeMethod::ZPass
+            && options.method == MethodChoice::Auto
+            && !object.flags.visible
+        {
+            method = VolumeMethod::ZFail;
+        }
         match method {
             VolumeMethod::ZPass => stats.zpass += 1,
             VolumeMethod::ZFail => stats.zfail += 1,

@@ -22,7 +22,7 @@ pub use chcpp::ChcppOptions;
 pub use error::{Error, Result};
 pub use hierarchy::{Hierarchy, NodeId};
 pub use intersection_body::{intersection_body, Face, Polyhedron};
-pub use light_pass::{LightPass, LightPassOptions, LightPassResult};
+pub use light_pass::{BackendFactory, LightPass, LightPassOptions, LightPassResult, ViewRole};
 pub use light_view::{
     fit_light_views, wasted_area, LightView, LightViewKind, DEFAULT_LIGHT_VIEW_RESOLUTION,
 };

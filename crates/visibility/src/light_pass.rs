@@ -46,6 +46,37 @@ use rayon::prelude::*;
 use scene::{faces_light, Camera, Light, ObjectId, Plane, Scene};
 use std::sync::{Arc, OnceLock};
 
+/// Which view a host's occlusion backend serves ([`BackendFactory`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ViewRole {
+    /// The eye pass: a `width × height` view; occluders with standard
+    /// coverage; queries as the eye's [`ViewSetup`] says.
+    Eye {
+        /// Viewport width in pixels.
+        width: u32,
+        /// Viewport height in pixels.
+        height: u32,
+    },
+    /// View `view` of light `light`'s pass: a `size × size` view; with
+    /// conservative sampling, occluders inner-conservative at farthest depth
+    /// and queries outer-conservative at nearest depth; queries restricted to
+    /// the receiver target set by [`OcclusionBackend::set_receivers`].
+    LightView {
+        /// The caller's key of the light (the pipeline's light id).
+        light: u32,
+        /// The view's index among the light's views.
+        view: u32,
+        /// Side of the view in pixels.
+        size: u32,
+    },
+}
+
+/// Makes the occlusion backend of one view for one frame: the seam through
+/// which a host renderer answers the passes' draws and queries with its own
+/// (GPU) queries. Called from the pipeline's pool threads, one call per view
+/// and frame; each backend is used by one thread and dropped after its view.
+pub type BackendFactory = dyn Fn(ViewRole) -> Box<dyn OcclusionBackend + Send> + Send + Sync;
+
 /// Options of a light pass.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct LightPassOptions {
@@ -79,6 +110,8 @@ struct ViewSlot {
     culler: ViewCuller,
     target: Option<DepthTarget>,
     marks: Option<Arc<ReceiverTarget>>,
+    /// The bundled backend while a traversal runs (holds the target).
+    backend: Option<SyncBackend>,
 }
 
 /// One light's persistent light-pass state: a slot per light view, and the
@@ -146,11 +179,38 @@ impl LightPass {
         receivers: &ReceiverPoints,
         options: &LightPassOptions,
     ) -> Result<LightPassResult> {
+        self.run_with(h, scene, meshes, camera, light, receivers, options, None)
+    }
+
+    /// [`LightPass::run`] with the views' draws and queries going to
+    /// backends from `backends` (a factory and the light's key for
+    /// [`ViewRole::LightView`]) instead of the bundled rasterizer.
+    ///
+    /// # Errors
+    /// Backend errors.
+    #[allow(clippy::too_many_arguments)]
+    pub fn run_with(
+        &mut self,
+        h: &Hierarchy,
+        scene: &Scene,
+        meshes: &MeshData,
+        camera: &Camera,
+        light: &Light,
+        receivers: &ReceiverPoints,
+        options: &LightPassOptions,
+        backends: Option<(&BackendFactory, u32)>,
+    ) -> Result<LightPassResult> {
         let bounds = scene.bounds();
         let body = intersection_body(&camera.frustum(), light, &bounds);
         let views = fit_light_views(&body, light, options.resolution.max(1));
-        if self.slots.len() != views.len() {
-            self.slots.clear();
+        // A new set of views starts its culling history cold, but keeps the
+        // slots' targets (their buffers are reused, not reallocated).
+        if self.views.len() != views.len() {
+            for s in &mut self.slots {
+                s.culler.reset();
+            }
+        }
+        if self.slots.len() < views.len() {
             self.slots.resize_with(views.len(), ViewSlot::default);
         }
         let diameter = f64::from(bounds.size().length());
@@ -191,10 +251,19 @@ impl LightPass {
             .slots
             .par_iter_mut()
             .zip(&views)
-            .map(|(slot, view)| {
+            .enumerate()
+            .map(|(k, (slot, view))| {
                 let receivers = prepared.for_view(view);
+                let backend = backends.map(|(f, light)| {
+                    f(ViewRole::LightView {
+                        light,
+                        view: k as u32,
+                        size: view.resolution,
+                    })
+                });
                 slot.run(
                     h, scene, meshes, light, view, origin, diameter, receivers, &casting, options,
+                    backend,
                 )
             })
             .collect();
@@ -227,19 +296,27 @@ impl ViewSlot {
         receivers: Marks<'_>,
         casting: &(dyn Fn(ObjectId) -> Arc<[[u32; 3]]> + Sync),
         options: &LightPassOptions,
+        host: Option<Box<dyn OcclusionBackend + Send>>,
     ) -> Result<CullResult> {
         let m = view.clip_from_world;
         let clip_from_origin = (m * DMat4::from_translation(origin)).as_mat4();
         let size = (view.resolution, view.resolution);
-        let mut target = match self.target.take() {
+        let target = match self.target.take() {
             Some(t) if (t.width(), t.height()) == size => t,
             _ => DepthTarget::new(size.0, size.1, TileSize::T8, false)?,
         };
+        // Reused unless the size changed or a host backend kept a reference.
         let mut marks = match self.marks.take() {
-            Some(r) if r.size() == size => r,
+            Some(r)
+                if r.size() == size && Arc::strong_count(&r) == 1 && Arc::weak_count(&r) == 0 =>
+            {
+                r
+            }
             _ => Arc::new(ReceiverTarget::for_target(&target)),
         };
-        let marks_mut = Arc::get_mut(&mut marks).expect("the backend gave its reference back");
+        let Some(marks_mut) = Arc::get_mut(&mut marks) else {
+            unreachable!("a fresh or unshared receiver target")
+        };
         marks_mut.clear();
         let (eps, draw_coverage) = match options.sampling {
             Sampling::Conservative => (
@@ -260,9 +337,18 @@ impl ViewSlot {
             self.target = Some(target);
             return Ok(CullResult::default());
         };
-        // Depth matters only where queries can pass: receiver rows.
-        target.set_draw_rows(Some(rows));
-        let mut backend = SyncBackend::new(target);
+        let mut target = Some(target);
+        let mut host = host;
+        let backend: &mut dyn OcclusionBackend = match &mut host {
+            Some(b) => b.as_mut(),
+            None => {
+                // Depth matters only where queries can pass: receiver rows.
+                let mut t = target.take().expect("the view's target");
+                t.set_draw_rows(Some(rows));
+                self.backend = Some(SyncBackend::new(t));
+                self.backend.as_mut().expect("just set")
+            }
+        };
         backend.set_receivers(Some(marks.clone()))?;
         let clip = |w: &DMat4| (m * *w).as_mat4();
         let apex = match light.position() {
@@ -288,12 +374,16 @@ impl ViewSlot {
             },
             threshold: options.threshold,
             triangles: Some(casting),
+            occluder: ViewSetup::light_occluder,
         };
         let r = self
             .culler
-            .cull(h, scene, meshes, &setup, options.culling, &mut backend);
+            .cull(h, scene, meshes, &setup, options.culling, backend);
         backend.set_receivers(None)?;
-        self.target = Some(backend.into_target());
+        self.target = match (self.backend.take(), target) {
+            (Some(b), _) => Some(b.into_target()),
+            (None, t) => t,
+        };
         self.marks = Some(marks);
         r
     }

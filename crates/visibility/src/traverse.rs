@@ -144,6 +144,10 @@ pub struct ViewSetup<'a> {
     /// The triangles an object draws as an occluder, when not all of its
     /// mesh's (a light view draws only the triangles that cast).
     pub triangles: Option<&'a dyn Fn(ObjectId) -> Arc<[[u32; 3]]>>,
+    /// Which objects the view draws as occluders when it renders them (the
+    /// others are reported rendered but draw nothing): the eye draws visible
+    /// occluders ([`ViewSetup::eye_occluder`]), a light view casting ones.
+    pub occluder: fn(&scene::ObjectFlags) -> bool,
 }
 
 impl<'a> ViewSetup<'a> {
@@ -188,7 +192,18 @@ impl<'a> ViewSetup<'a> {
             },
             threshold,
             triangles: None,
+            occluder: Self::eye_occluder,
         }
+    }
+
+    /// The eye's occluders: visible objects that may occlude.
+    pub fn eye_occluder(f: &scene::ObjectFlags) -> bool {
+        f.visible && f.occludes
+    }
+
+    /// A light view's occluders: casting objects that may occlude.
+    pub fn light_occluder(f: &scene::ObjectFlags) -> bool {
+        f.casts && f.occludes
     }
 }
 
@@ -337,6 +352,11 @@ impl Run<'_, '_> {
     pub fn render(&mut self, node: &Node) -> Result<()> {
         let id = ObjectId(node.object);
         let o = self.scene.object(id);
+        if !(self.view.occluder)(&o.flags) {
+            self.out.rendered.push(id);
+            self.out.stats.objects_rendered += 1;
+            return Ok(());
+        }
         let mesh = o.mesh.0 as usize;
         let triangles = match self.view.triangles {
             Some(f) => f(id),
@@ -475,7 +495,9 @@ impl ViewCuller {
         backend: &mut dyn OcclusionBackend,
     ) -> Result<CullResult> {
         if self.state.len() != h.len() {
-            self.state = vec![NodeState::default(); h.len()];
+            // Keeps the allocation across resets.
+            self.state.clear();
+            self.state.resize(h.len(), NodeState::default());
         }
         self.frame += 1;
         backend.clear();

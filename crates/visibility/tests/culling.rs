@@ -5,7 +5,9 @@
 //! simulated query latency.
 
 use glam::DMat4;
-use raster::{DepthTarget, Latency, OcclusionBackend, SimulatedBackend, SyncBackend, TileSize};
+use raster::{
+    DepthTarget, Latency, OcclusionBackend, ReadTarget, SimulatedBackend, SyncBackend, TileSize,
+};
 use scene::procedural::city::{city, CityParams};
 use scene::{Camera, Scene};
 use visibility::{ChcppOptions, CullResult, Culling, Hierarchy, MeshData, ViewCuller, ViewSetup};
@@ -20,8 +22,12 @@ fn target() -> DepthTarget {
 /// One pixel's depth and primitive id.
 type Pixel = (Option<f32>, Option<(u32, u32)>);
 
+/// A bundled backend: queries, and a target to read back.
+trait Backend: OcclusionBackend + ReadTarget {}
+impl<T: OcclusionBackend + ReadTarget> Backend for T {}
+
 /// Depth and ids of a backend's target, row-major.
-fn image(b: &mut dyn OcclusionBackend) -> Vec<Pixel> {
+fn image(b: &mut dyn ReadTarget) -> Vec<Pixel> {
     let mut out = Vec::new();
     b.read_target(&mut |t: &DepthTarget| {
         for y in 0..H {
@@ -87,9 +93,9 @@ fn culled_eye_pass_equals_unculled_and_chc_saves_queries() {
     ];
     const N: usize = 7;
     let mut cullers: Vec<ViewCuller> = (0..N).map(|_| ViewCuller::new()).collect();
-    let mut backends: Vec<Box<dyn OcclusionBackend>> = kinds
+    let mut backends: Vec<Box<dyn Backend>> = kinds
         .iter()
-        .map(|&(_, lat)| -> Box<dyn OcclusionBackend> {
+        .map(|&(_, lat)| -> Box<dyn Backend> {
             match lat {
                 None => Box::new(SyncBackend::new(target())),
                 Some(k) => Box::new(SimulatedBackend::new(target(), Latency::Commands(k))),
