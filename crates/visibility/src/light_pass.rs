@@ -114,13 +114,90 @@ struct ViewSlot {
     backend: Option<SyncBackend>,
 }
 
-/// One light's persistent light-pass state: a slot per light view, and the
-/// receiver buffers (reused, not reallocated, from frame to frame).
+/// One light's persistent light-pass state: a slot per light view, the
+/// receiver buffers (reused, not reallocated, from frame to frame) and the
+/// casting triangles of the objects drawn as occluders.
 #[derive(Debug, Default)]
 pub struct LightPass {
     slots: Vec<ViewSlot>,
     receivers: Prepared,
     views: Vec<LightView>,
+    casting: CastingCache,
+}
+
+/// Per object, the triangles it casts with (light-facing, or all when
+/// two-sided), found on first use and kept while the object (transform,
+/// mesh and its version) and the light stay as they were: a static scene
+/// finds them once, not every frame.
+#[derive(Debug, Default)]
+struct CastingCache {
+    /// The light's homogeneous position bits and the two-sided rule.
+    key: Option<([u64; 4], bool)>,
+    entries: Vec<OnceLock<Casting>>,
+}
+
+/// One object's casting triangles and what they were found for.
+#[derive(Debug)]
+struct Casting {
+    world_from_local: DMat4,
+    mesh: scene::MeshId,
+    version: u64,
+    triangles: Arc<[[u32; 3]]>,
+}
+
+impl CastingCache {
+    /// Drops every entry that no longer matches `scene` and `light`.
+    fn update(&mut self, scene: &Scene, light: &Light, two_sided: bool) {
+        let key = (
+            light.homogeneous().to_array().map(|v| (v + 0.0).to_bits()),
+            two_sided,
+        );
+        if self.key != Some(key) {
+            self.entries.clear();
+            self.key = Some(key);
+        }
+        let n = scene.objects().len();
+        self.entries.truncate(n);
+        self.entries.resize_with(n, OnceLock::new);
+        for (e, o) in self.entries.iter_mut().zip(scene.objects()) {
+            let stale = e.get().is_some_and(|c| {
+                c.mesh != o.mesh
+                    || c.version != scene.mesh_version(o.mesh)
+                    || c.world_from_local.to_cols_array().map(f64::to_bits)
+                        != o.world_from_local.to_cols_array().map(f64::to_bits)
+            });
+            if stale {
+                e.take();
+            }
+        }
+    }
+
+    /// The casting triangles of `id` (found now when missing).
+    fn get(&self, scene: &Scene, light: &Light, two_sided: bool, id: ObjectId) -> Arc<[[u32; 3]]> {
+        self.entries[id.0 as usize]
+            .get_or_init(|| {
+                let o = scene.object(id);
+                let mesh = scene.object_mesh(id);
+                let triangles = if two_sided {
+                    mesh.triangles().into()
+                } else {
+                    mesh.triangles()
+                        .iter()
+                        .enumerate()
+                        .filter(|&(k, _)| faces_light(&scene.world_triangle(id, k), light))
+                        .map(|(_, t)| *t)
+                        .collect()
+                };
+                Casting {
+                    world_from_local: o.world_from_local,
+                    mesh: o.mesh,
+                    version: scene.mesh_version(o.mesh),
+                    triangles,
+                }
+            })
+            .triangles
+            .clone()
+    }
 }
 
 /// The view's culling planes (inside positive) from its clip matrix: the
@@ -217,28 +294,12 @@ impl LightPass {
         let origin = light.position().unwrap_or_else(|| bounds.center());
         self.receivers
             .prepare(receivers, light, origin, diameter, options.sampling, &views);
-        // The casting triangles of every object drawn as an occluder, found
-        // once per pass (views share them).
-        let cache: Vec<OnceLock<Arc<[[u32; 3]]>>> = (0..scene.objects().len())
-            .map(|_| OnceLock::new())
-            .collect();
-        let casting = |id: ObjectId| -> Arc<[[u32; 3]]> {
-            cache[id.0 as usize]
-                .get_or_init(|| {
-                    let mesh = scene.object_mesh(id);
-                    if options.two_sided {
-                        mesh.triangles().into()
-                    } else {
-                        mesh.triangles()
-                            .iter()
-                            .enumerate()
-                            .filter(|&(k, _)| faces_light(&scene.world_triangle(id, k), light))
-                            .map(|(_, t)| *t)
-                            .collect()
-                    }
-                })
-                .clone()
-        };
+        // The casting triangles of every object drawn as an occluder: kept
+        // across frames, shared by the views.
+        self.casting.update(scene, light, options.two_sided);
+        let cache = &self.casting;
+        let casting =
+            |id: ObjectId| -> Arc<[[u32; 3]]> { cache.get(scene, light, options.two_sided, id) };
         let mut out = LightPassResult {
             views: views.len(),
             ..Default::default()
