@@ -388,16 +388,32 @@ fn lights_by_id_keep_results_exact() -> Result<()> {
     Ok(())
 }
 
-/// A living scene: a moving caster's shadow follows it, static casters keep
-/// their cached silhouettes, added and removed objects appear in and vanish
-/// from PSR, PSC and the mask — culled = unculled = the reference throughout.
-#[test]
-fn scene_edits_keep_masks_exact() -> Result<()> {
+/// The city with a culled and an unculled pipeline (the same lights) and a
+/// tall slab mesh added to both; `ahead` is a street point in front of the
+/// camera of frame 0, where the tests put the slab.
+struct Slab {
+    path: CameraPath,
+    lights: Vec<Light>,
+    culled: Pipeline,
+    ids: Vec<LightId>,
+    plain: Pipeline,
+    mesh: scene::MeshId,
+    ahead: DVec3,
+}
+
+fn slab_scene() -> Result<Slab> {
     let (scene, path) = city();
-    let all = lights(&scene, &path);
-    let (mut culled, ids) = pipeline(&scene, options(CullingSpec::Chcpp, StencilBackend::H), &all)?;
-    let (mut plain, _) = pipeline(&scene, options(CullingSpec::None, StencilBackend::H), &all)?;
-    // A tall slab in front of the camera of frame 0, casting onto the street.
+    let lights = lights(&scene, &path);
+    let (mut culled, ids) = pipeline(
+        &scene,
+        options(CullingSpec::Chcpp, StencilBackend::H),
+        &lights,
+    )?;
+    let (mut plain, _) = pipeline(
+        &scene,
+        options(CullingSpec::None, StencilBackend::H),
+        &lights,
+    )?;
     let pose = path.at(0).unwrap();
     let ahead = pose.eye + (pose.target - pose.eye).normalize() * 12.0;
     let slab = scene::procedural::analytic::box_mesh(
@@ -406,9 +422,35 @@ fn scene_edits_keep_masks_exact() -> Result<()> {
         glam::Vec3::new(0.5, 8.0, 2.0),
     )
     .unwrap();
-    let at = |dx: f64| glam::DMat4::from_translation(DVec3::new(ahead.x + dx, 0.0, ahead.z));
     let mesh = culled.add_mesh(slab.clone());
     assert_eq!(plain.add_mesh(slab), mesh);
+    Ok(Slab {
+        path,
+        lights,
+        culled,
+        ids,
+        plain,
+        mesh,
+        ahead,
+    })
+}
+
+/// A living scene: a moving caster's shadow follows it, static casters keep
+/// their cached silhouettes, added and removed objects appear in and vanish
+/// from PSR, PSC and the mask — culled = unculled = the reference throughout.
+#[test]
+fn scene_edits_keep_masks_exact() -> Result<()> {
+    let Slab {
+        path,
+        mut culled,
+        ids,
+        mut plain,
+        mesh,
+        ahead,
+        ..
+    } = slab_scene()?;
+    let scene = culled.scene().clone();
+    let at = |dx: f64| glam::DMat4::from_translation(DVec3::new(ahead.x + dx, 0.0, ahead.z));
     let check = |culled: &mut Pipeline, plain: &mut Pipeline, what: &str| -> Result<Vec<_>> {
         let c: Vec<_> = culled
             .frame(&input(&path, 0))?
@@ -727,20 +769,15 @@ fn host_backends_give_identical_results() -> Result<()> {
 /// hides nothing from the culling queries — culled = unculled throughout.
 #[test]
 fn object_flags_keep_masks_exact() -> Result<()> {
-    let (scene, path) = city();
-    let all = lights(&scene, &path);
-    let (mut culled, ids) = pipeline(&scene, options(CullingSpec::Chcpp, StencilBackend::H), &all)?;
-    let (mut plain, _) = pipeline(&scene, options(CullingSpec::None, StencilBackend::H), &all)?;
-    let pose = path.at(0).unwrap();
-    let ahead = pose.eye + (pose.target - pose.eye).normalize() * 12.0;
-    let slab = scene::procedural::analytic::box_mesh(
-        "slab",
-        glam::Vec3::new(-0.5, 0.0, -2.0),
-        glam::Vec3::new(0.5, 8.0, 2.0),
-    )
-    .unwrap();
-    let mesh = culled.add_mesh(slab.clone());
-    plain.add_mesh(slab);
+    let Slab {
+        path,
+        lights: all,
+        mut culled,
+        ids,
+        mut plain,
+        mesh,
+        ahead,
+    } = slab_scene()?;
     let at = glam::DMat4::from_translation(DVec3::new(ahead.x, 0.0, ahead.z));
     let id = culled.add_object(mesh, at, ObjectFlags::ALL)?;
     plain.add_object(mesh, at, ObjectFlags::ALL)?;
