@@ -55,7 +55,6 @@ impl Pipeline {
         for slot in slots {
             self.invalidate_silhouettes(ObjectId(slot));
         }
-        self.edited = true;
         Ok(())
     }
 
@@ -76,7 +75,6 @@ impl Pipeline {
         let id = self
             .scene_mut()
             .stage_add_object(mesh, world_from_local, flags)?;
-        self.edited = true;
         // A reused slot must not keep the old object's silhouettes.
         self.invalidate_silhouettes(id);
         Ok(id)
@@ -111,8 +109,6 @@ impl Pipeline {
     /// [`Error::Scene`] for an unknown, removed or stale id.
     pub fn remove_object(&mut self, id: ObjectId) -> Result<()> {
         self.scene_mut().stage_remove_object(id)?;
-        // The first removal adds the scene's empty mesh.
-        self.edited = true;
         self.invalidate_silhouettes(id);
         Ok(())
     }

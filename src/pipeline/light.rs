@@ -24,14 +24,14 @@ pub(crate) struct LightCulling {
     pub ms: f64,
 }
 
-/// Runs the light pass of every light in `states` concurrently; each
-/// state's `culling.psc`, `stats` and `ms` are replaced.
+/// Runs the light pass of every live light of `slots` concurrently; each
+/// light's `culling.psc`, `stats` and `ms` are replaced.
 ///
 /// # Errors
 /// The first light's error.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn light_passes(
-    states: &mut [&mut super::LightState],
+    slots: &mut [super::LightSlot],
     backends: Option<&visibility::BackendFactory>,
     hierarchy: &Hierarchy,
     scene: &Scene,
@@ -41,8 +41,9 @@ pub(crate) fn light_passes(
     options: &LightPassOptions,
 ) -> Result<()> {
     use rayon::prelude::*;
-    states
+    slots
         .par_iter_mut()
+        .filter_map(|slot| slot.state.as_mut())
         .map(|state| {
             let t = Instant::now();
             let (light, key) = (state.light, state.id.0);

@@ -181,8 +181,9 @@ pub struct Pipeline {
     psr: Vec<ObjectId>,
     lights: Vec<LightSlot>,
     stats: FrameStats,
-    /// Scene-derived data (mesh copies, hierarchy, reference BVH) must catch
-    /// up with staged scene edits before the next frame.
+    /// Edits the scene does not stage (meshes added or removed, flags set)
+    /// since the last frame: with its staged edits, what makes the next frame
+    /// bring the derived data (mesh copies, hierarchy, reference BVH) up to date.
     edited: bool,
     bvh: Option<TriangleBvh>,
     bvh_ms: f64,
@@ -391,13 +392,8 @@ impl Pipeline {
         // 2. Light passes (PSC) of all lights, concurrently.
         if let (true, Some(state)) = (culled, &self.culling) {
             let (hierarchy, meshes) = state.parts();
-            let mut live: Vec<&mut LightState> = self
-                .lights
-                .iter_mut()
-                .filter_map(|s| s.state.as_mut())
-                .collect();
             light::light_passes(
-                &mut live,
+                &mut self.lights,
                 self.backends.as_deref(),
                 hierarchy,
                 scene,
