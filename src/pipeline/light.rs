@@ -5,10 +5,10 @@
 //! lights are independent (each owns its views' state) and run in parallel.
 
 use crate::Result;
-use scene::{Camera, ObjectId, Scene};
+use scene::{Camera, Scene};
 use std::time::Instant;
 use visibility::{
-    Hierarchy, LightPass, LightPassOptions, MeshData, ReceiverPoints, TraversalStats,
+    Hierarchy, LightPass, LightPassOptions, LightPassResult, MeshData, ReceiverPoints,
 };
 
 /// One light's light-pass state and its last result.
@@ -16,16 +16,14 @@ use visibility::{
 pub(crate) struct LightCulling {
     /// Per-view CHC state, targets and the last views.
     pub pass: LightPass,
-    /// The last PSC, ascending.
-    pub psc: Vec<ObjectId>,
-    /// The last pass's traversal counters.
-    pub stats: TraversalStats,
+    /// The last PSC (ascending) and traversal counters; its list is reused.
+    pub result: LightPassResult,
     /// The last pass's wall time (ms).
     pub ms: f64,
 }
 
 /// Runs the light pass of every live light of `slots` concurrently; each
-/// light's `culling.psc`, `stats` and `ms` are replaced.
+/// light's `culling.result` and `ms` are replaced.
 ///
 /// # Errors
 /// The first light's error.
@@ -48,7 +46,7 @@ pub(crate) fn light_passes(
             let t = Instant::now();
             let (light, key) = (state.light, state.id.0);
             let c = &mut state.culling;
-            let r = c.pass.run_with(
+            c.pass.run_into(
                 hierarchy,
                 scene,
                 meshes,
@@ -57,9 +55,8 @@ pub(crate) fn light_passes(
                 receivers,
                 options,
                 backends.map(|f| (f, key)),
+                &mut c.result,
             )?;
-            c.psc = r.psc;
-            c.stats = r.stats;
             c.ms = t.elapsed().as_secs_f64() * 1e3;
             Ok(())
         })

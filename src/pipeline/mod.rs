@@ -414,6 +414,7 @@ impl Pipeline {
                 self.casters.clear();
                 let casting = s
                     .culling
+                    .result
                     .psc
                     .iter()
                     .filter(|id| scene.object(**id).flags.casts);
@@ -452,7 +453,8 @@ impl Pipeline {
                 )?),
             };
             let (light_queries, light_waits, light_ms) = if culled {
-                (s.culling.stats.queries, s.culling.stats.waits, s.culling.ms)
+                let r = &s.culling.result;
+                (r.stats.queries, r.stats.waits, s.culling.ms)
             } else {
                 (0, 0, 0.0)
             };

@@ -122,6 +122,25 @@ pub trait OcclusionBackend {
     /// # Errors
     /// [`Error::IndexOutOfRange`] for a bad triangle index (checked at submission).
     fn issue_query(&mut self, q: QueryCommand) -> Result<QueryId>;
+    /// Submits a query over the union of the local-space boxes `boxes`
+    /// (as [`QueryCommand::Aabbs`]). The default copies them into one; the
+    /// bundled backends run it from the borrowed slice, so CHC++'s
+    /// multiqueries allocate nothing.
+    ///
+    /// # Errors
+    /// As [`OcclusionBackend::issue_query`].
+    fn issue_box_union(
+        &mut self,
+        clip_from_local: Mat4,
+        boxes: &[(Vec3, Vec3)],
+        options: QueryOptions,
+    ) -> Result<QueryId> {
+        self.issue_query(QueryCommand::Aabbs {
+            clip_from_local,
+            boxes: boxes.into(),
+            options,
+        })
+    }
     /// The result if it has arrived.
     fn poll(&mut self, id: QueryId) -> Option<u32>;
     /// The result, blocking until it arrives.
@@ -247,6 +266,12 @@ fn execute(
     None
 }
 
+/// The query-result list of a bundled backend, kept between frames
+/// ([`SyncBackend::into_parts`], [`SyncBackend::reusing`]) so that a steady
+/// frame allocates nothing.
+#[derive(Debug, Default)]
+pub struct QueryBuffers(Vec<(u32, u64)>);
+
 /// Deterministic backend: executes at once, reveals a result `k` commands later.
 #[derive(Debug)]
 pub struct SimulatedBackend {
@@ -262,14 +287,7 @@ pub struct SimulatedBackend {
 impl SimulatedBackend {
     /// A backend drawing into `target` with the given latency.
     pub fn new(target: DepthTarget, latency: Latency) -> Self {
-        SimulatedBackend {
-            target,
-            receivers: None,
-            latency,
-            results: Vec::new(),
-            commands: 0,
-            stats: BackendStats::default(),
-        }
+        SimulatedBackend::new_empty(target, latency)
     }
 
     /// The depth target.
@@ -282,12 +300,44 @@ impl SimulatedBackend {
         self.target
     }
 
+    /// A backend drawing into `target`, with the result list of an earlier
+    /// one (emptied): as [`SimulatedBackend::new`], without its allocations.
+    pub fn reusing(target: DepthTarget, latency: Latency, buffers: QueryBuffers) -> Self {
+        let mut results = buffers.0;
+        results.clear();
+        SimulatedBackend {
+            results,
+            ..SimulatedBackend::new_empty(target, latency)
+        }
+    }
+
+    fn new_empty(target: DepthTarget, latency: Latency) -> Self {
+        SimulatedBackend {
+            target,
+            receivers: None,
+            latency,
+            results: Vec::new(),
+            commands: 0,
+            stats: BackendStats::default(),
+        }
+    }
+
+    /// The depth target and the result list, giving up the backend.
+    pub fn into_parts(self) -> (DepthTarget, QueryBuffers) {
+        (self.target, QueryBuffers(self.results))
+    }
+
+    /// Records a query result `n` as [`SimulatedBackend::run`] does.
+    fn push_result(&mut self, id: QueryId, n: u32) {
+        let Latency::Commands(k) = self.latency;
+        debug_assert_eq!(id.0 as usize, self.results.len());
+        self.results.push((n, self.commands + u64::from(k)));
+    }
+
     fn run(&mut self, cmd: Command) {
         self.commands += 1;
         if let Some((id, n)) = execute(&mut self.target, &mut self.receivers, cmd) {
-            let Latency::Commands(k) = self.latency;
-            debug_assert_eq!(id.0 as usize, self.results.len());
-            self.results.push((n, self.commands + u64::from(k)));
+            self.push_result(id, n);
         }
     }
 }
@@ -315,6 +365,26 @@ impl OcclusionBackend for SimulatedBackend {
         self.stats.queries += 1;
         let id = QueryId(self.results.len() as u32);
         self.run(Command::Query(id, q));
+        Ok(id)
+    }
+
+    fn issue_box_union(
+        &mut self,
+        clip_from_local: Mat4,
+        boxes: &[(Vec3, Vec3)],
+        options: QueryOptions,
+    ) -> Result<QueryId> {
+        // As `issue_query(QueryCommand::Aabbs { .. })`, from the borrowed boxes.
+        self.stats.queries += 1;
+        let id = QueryId(self.results.len() as u32);
+        self.commands += 1;
+        let n = self.target.query_aabb_union(
+            clip_from_local,
+            boxes,
+            &options,
+            self.receivers.as_deref(),
+        )?;
+        self.push_result(id, n);
         Ok(id)
     }
 
@@ -365,6 +435,22 @@ impl SyncBackend {
     pub fn into_target(self) -> DepthTarget {
         self.0.into_target()
     }
+
+    /// A backend drawing into `target` with the result list of an earlier one
+    /// ([`SyncBackend::into_parts`]): [`SyncBackend::new`] without its
+    /// allocations.
+    pub fn reusing(target: DepthTarget, buffers: QueryBuffers) -> Self {
+        SyncBackend(SimulatedBackend::reusing(
+            target,
+            Latency::Commands(0),
+            buffers,
+        ))
+    }
+
+    /// The depth target and the result list, giving up the backend.
+    pub fn into_parts(self) -> (DepthTarget, QueryBuffers) {
+        self.0.into_parts()
+    }
 }
 
 impl OcclusionBackend for SyncBackend {
@@ -379,6 +465,14 @@ impl OcclusionBackend for SyncBackend {
     }
     fn issue_query(&mut self, q: QueryCommand) -> Result<QueryId> {
         self.0.issue_query(q)
+    }
+    fn issue_box_union(
+        &mut self,
+        clip_from_local: Mat4,
+        boxes: &[(Vec3, Vec3)],
+        options: QueryOptions,
+    ) -> Result<QueryId> {
+        self.0.issue_box_union(clip_from_local, boxes, options)
     }
     fn poll(&mut self, id: QueryId) -> Option<u32> {
         self.0.poll(id)

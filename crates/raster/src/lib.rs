@@ -73,8 +73,8 @@ mod traverse;
 mod volume_buffer;
 
 pub use backend::{
-    BackendStats, DrawCommand, Gate, Latency, OcclusionBackend, QueryCommand, QueryId, ReadTarget,
-    SimulatedBackend, SyncBackend, ThreadedBackend,
+    BackendStats, DrawCommand, Gate, Latency, OcclusionBackend, QueryBuffers, QueryCommand,
+    QueryId, ReadTarget, SimulatedBackend, SyncBackend, ThreadedBackend,
 };
 pub use clip::MAX_CLIPPED_VERTICES;
 pub use coverage::{Coverage, DepthPick};

@@ -28,11 +28,9 @@
 //! may be a superset of CHC's; the depth buffer is the unculled one.
 
 use crate::hierarchy::{Hierarchy, Node};
-use crate::traverse::{in_planes, Queued, Run, ViewCuller};
+use crate::traverse::{in_planes, Queued, Run, Scratch, ViewCuller};
 use crate::Result;
-use raster::QueryId;
 use scene::ObjectId;
-use std::collections::{BinaryHeap, VecDeque};
 
 /// CHC++ parameters.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -85,12 +83,17 @@ fn keep_invisible(t: u32) -> f64 {
 }
 
 /// A query in flight.
-enum Pending {
-    /// One node (its box or its tighter volume).
-    Node { node: u32, was_visible: bool },
-    /// A multiquery over several previously invisible nodes.
-    Group(Vec<u32>),
-    /// A rendered, previously visible leaf's revisit.
+#[derive(Clone, Copy, Debug)]
+pub(crate) enum Pending {
+    Node {
+        node: u32,
+        was_visible: bool,
+    },
+    /// A multiquery: `len` nodes from `start` in the frame's group list.
+    Group {
+        start: u32,
+        len: u32,
+    },
     Revisit(u32),
 }
 
@@ -127,24 +130,24 @@ fn query_volume(h: &Hierarchy, node: u32, out: &mut Vec<u32>) {
 
 impl ViewCuller {
     /// CHC++ (see the module doc).
-    pub(crate) fn chcpp(&mut self, run: &mut Run<'_, '_>, o: &ChcppOptions) -> Result<()> {
+    pub(crate) fn chcpp(
+        &mut self,
+        run: &mut Run<'_, '_>,
+        o: &ChcppOptions,
+        s: &mut Scratch,
+    ) -> Result<()> {
         let frame = self.frame;
-        let mut distance = BinaryHeap::new();
-        let mut queries: VecDeque<(QueryId, Pending)> = VecDeque::new();
-        let mut batch: Vec<u32> = Vec::new();
-        // Rendered visible leaves due for their revisit query.
-        let mut revisit: VecDeque<u32> = VecDeque::new();
-        distance.push(Queued { dist: 0.0, node: 0 });
+        s.distance.push(Queued { dist: 0.0, node: 0 });
         loop {
             // Results that have arrived.
-            while let Some(&(id, _)) = queries.front() {
+            while let Some(&(id, _)) = s.pending.front() {
                 let Some(samples) = run.backend.poll(id) else {
                     break;
                 };
-                let (_, p) = queries.pop_front().expect("front exists");
-                self.chcpp_result(run, &mut distance, &mut queries, p, samples)?;
+                let (_, p) = s.pending.pop_front().expect("front exists");
+                self.chcpp_result(run, s, p, samples)?;
             }
-            if let Some(Queued { node, .. }) = distance.pop() {
+            if let Some(Queued { node, .. }) = s.distance.pop() {
                 let n = run.h.nodes[node as usize];
                 run.out.stats.nodes_visited += 1;
                 let inside = in_planes(&run.view.planes, &n);
@@ -153,66 +156,58 @@ impl ViewCuller {
                     continue;
                 }
                 if !was_visible {
-                    batch.push(node);
-                    if batch.len() >= o.batch.max(1) as usize {
-                        self.issue_batch(run, &mut queries, &mut batch)?;
+                    s.batch.push(node);
+                    if s.batch.len() >= o.batch.max(1) as usize {
+                        self.issue_batch(run, s)?;
                     }
                 } else if !n.is_leaf() {
                     // Previously visible inner nodes are opened without a query.
-                    run.push_children(&mut distance, &n);
+                    run.push_children(&mut s.distance, &n);
                 } else {
                     run.render(&n)?;
                     // Assumed visible; queried (later) only when due.
                     self.pull_up(run.h, node);
                     run.out.visible.push(ObjectId(n.object));
                     if o.revisit_due(n.object, frame) {
-                        revisit.push_back(node);
+                        s.revisit.push_back(node);
                     }
                 }
                 continue;
             }
-            if !batch.is_empty() {
-                self.issue_batch(run, &mut queries, &mut batch)?;
+            if !s.batch.is_empty() {
+                self.issue_batch(run, s)?;
                 continue;
             }
             // Idle until the oldest result arrives: fill the time with a
             // revisit query, whose result only the next frame needs.
-            if let Some(node) = revisit.pop_front() {
+            if let Some(node) = s.revisit.pop_front() {
                 let n = run.h.nodes[node as usize];
                 let id = run.query(&n)?;
-                queries.push_back((id, Pending::Revisit(node)));
+                s.pending.push_back((id, Pending::Revisit(node)));
                 continue;
             }
-            let Some(&(id, _)) = queries.front() else {
+            let Some(&(id, _)) = s.pending.front() else {
                 return Ok(());
             };
             let samples = run.wait(id);
-            let (_, p) = queries.pop_front().expect("front exists");
-            self.chcpp_result(run, &mut distance, &mut queries, p, samples)?;
+            let (_, p) = s.pending.pop_front().expect("front exists");
+            self.chcpp_result(run, s, p, samples)?;
         }
     }
 
-    /// Issues the queued previously invisible nodes as single queries and
-    /// multiqueries.
-    fn issue_batch(
-        &mut self,
-        run: &mut Run<'_, '_>,
-        queries: &mut VecDeque<(QueryId, Pending)>,
-        batch: &mut Vec<u32>,
-    ) -> Result<()> {
+    /// Queries the nodes of `s.batch` (emptied) in multiquery groups.
+    fn issue_batch(&mut self, run: &mut Run<'_, '_>, s: &mut Scratch) -> Result<()> {
         let frame = self.frame;
-        let mut cand: Vec<(f64, u32)> = batch
-            .drain(..)
-            .map(|node| {
-                let s = &self.state[node as usize];
-                (
-                    keep_invisible(frame.saturating_sub(s.last_visible + 1)),
-                    node,
-                )
-            })
-            .collect();
+        s.cand.clear();
+        s.cand.extend(s.batch.drain(..).map(|node| {
+            let st = &self.state[node as usize];
+            (
+                keep_invisible(frame.saturating_sub(st.last_visible + 1)),
+                node,
+            )
+        }));
+        let cand = &mut s.cand;
         cand.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
-        let mut volume = Vec::new();
         let mut k = 0;
         while k < cand.len() {
             // Grow a group while nodes settled per expected query grows.
@@ -226,31 +221,34 @@ impl ViewCuller {
                 }
                 (prod, value, end) = (p, v, end + 1);
             }
-            volume.clear();
+            s.volume.clear();
             for &(_, node) in &cand[k..end] {
-                query_volume(run.h, node, &mut volume);
+                query_volume(run.h, node, &mut s.volume);
             }
-            let id = run.query_union(&volume)?;
+            let id = run.query_union(&s.volume)?;
             let pending = if end - k == 1 {
                 Pending::Node {
                     node: cand[k].1,
                     was_visible: false,
                 }
             } else {
-                Pending::Group(cand[k..end].iter().map(|c| c.1).collect())
+                let start = s.groups.len() as u32;
+                s.groups.extend(cand[k..end].iter().map(|c| c.1));
+                Pending::Group {
+                    start,
+                    len: (end - k) as u32,
+                }
             };
-            queries.push_back((id, pending));
+            s.pending.push_back((id, pending));
             k = end;
         }
         Ok(())
     }
 
-    /// Handles one query result.
     fn chcpp_result(
         &mut self,
         run: &mut Run<'_, '_>,
-        distance: &mut BinaryHeap<Queued>,
-        queries: &mut VecDeque<(QueryId, Pending)>,
+        s: &mut Scratch,
         p: Pending,
         samples: u32,
     ) -> Result<()> {
@@ -273,17 +271,17 @@ impl ViewCuller {
                     run.out.visible.push(ObjectId(n.object));
                 }
                 if !was_visible {
-                    self.traverse(run, distance, &n)?;
+                    self.traverse(run, &mut s.distance, &n)?;
                 }
             }
-            Pending::Group(nodes) => {
+            Pending::Group { start, len } => {
                 // Split: every node of a visible group gets its own query.
-                let mut volume = Vec::new();
-                for node in nodes {
-                    volume.clear();
-                    query_volume(run.h, node, &mut volume);
-                    let id = run.query_union(&volume)?;
-                    queries.push_back((
+                for k in start..start + len {
+                    let node = s.groups[k as usize];
+                    s.volume.clear();
+                    query_volume(run.h, node, &mut s.volume);
+                    let id = run.query_union(&s.volume)?;
+                    s.pending.push_back((
                         id,
                         Pending::Node {
                             node,

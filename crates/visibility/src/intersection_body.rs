@@ -41,8 +41,8 @@
 //! face is kept, and B = P. A light on a frustum plane is robust the same way:
 //! whether the face is kept or not, the edge planes of that face reproduce it.
 
+use crate::polyhedron::{ClipScratch, COORD_EPS, REL_EPS};
 pub use crate::polyhedron::{Face, Polyhedron};
-use crate::polyhedron::{COORD_EPS, REL_EPS};
 use glam::DVec3;
 use scene::{Aabb, Frustum, Light, Plane};
 
@@ -76,35 +76,70 @@ enum Source {
 /// direction), or when the frustum has non-finite planes — callers that must
 /// tell these apart validate the light first.
 pub fn intersection_body(frustum: &Frustum, light: &Light, scene_bounds: &Aabb) -> Polyhedron {
+    let mut out = Polyhedron::default();
+    intersection_body_into(
+        frustum,
+        light,
+        scene_bounds,
+        &mut out,
+        &mut BodyScratch::default(),
+    );
+    out
+}
+
+/// Buffers [`intersection_body_into`] reuses from frame to frame.
+#[derive(Debug, Default)]
+pub(crate) struct BodyScratch {
+    /// V ∩ S.
+    p: Polyhedron,
+    pub(crate) clip: ClipScratch,
+    planes: Vec<Plane>,
+    lines: Vec<(DVec3, DVec3)>,
+    edges: Vec<(usize, usize)>,
+    normals: Vec<DVec3>,
+}
+
+/// [`intersection_body`] into `out`, with buffers reused from `s`: no
+/// allocation once they have grown.
+pub(crate) fn intersection_body_into(
+    frustum: &Frustum,
+    light: &Light,
+    scene_bounds: &Aabb,
+    out: &mut Polyhedron,
+    s: &mut BodyScratch,
+) {
+    out.clear();
     if light.validate().is_err()
         || frustum
             .planes
             .iter()
             .any(|p| !p.normal.is_finite() || !p.d.is_finite())
     {
-        return Polyhedron::default();
+        return;
     }
-    let p = Polyhedron::from_frustum(frustum, scene_bounds);
-    if p.is_empty() {
-        return p;
+    s.p.set_frustum(frustum, scene_bounds, &mut s.clip);
+    if s.p.is_empty() {
+        return;
     }
     let source = match *light {
         Light::Point { position, .. } | Light::Spot { position, .. } => Source::Point(position),
         Light::Directional { direction } => Source::Direction(direction.normalize()),
     };
-    let mut b = Polyhedron::from_aabb(scene_bounds);
-    for pl in hull_planes(&p, source) {
-        b = b.clip(&pl);
-        if b.is_empty() {
+    let p = std::mem::take(&mut s.p);
+    hull_planes(&p, source, s);
+    s.p = p;
+    out.set_aabb(scene_bounds);
+    for pl in &s.planes {
+        out.clip_with(pl, &mut s.clip);
+        if out.is_empty() {
             break;
         }
     }
-    b
 }
 
 /// Half-spaces whose intersection is conv(P ∪ l) (each shifted to contain P
-/// and l exactly; see the module docs).
-fn hull_planes(p: &Polyhedron, source: Source) -> Vec<Plane> {
+/// and l exactly; see the module docs), into `s.planes`.
+fn hull_planes(p: &Polyhedron, source: Source, s: &mut BodyScratch) {
     let verts = p.vertices();
     let extra = match source {
         Source::Point(l) => Some(l),
@@ -122,7 +157,8 @@ fn hull_planes(p: &Polyhedron, source: Source) -> Vec<Plane> {
         .fold(coord, f64::max);
     let tol = REL_EPS * (p.diameter() + far) + COORD_EPS * coord;
 
-    let mut out = Vec::new();
+    let out = &mut s.planes;
+    out.clear();
     // Planes of P not facing the light (every plane of P, not only those of
     // its faces: a flat or degenerate P keeps its cutting planes there).
     for pl in p.planes() {
@@ -153,23 +189,22 @@ fn hull_planes(p: &Polyhedron, source: Source) -> Vec<Plane> {
     // rather than edges — every vertex with a face normal as second
     // direction. Each is kept (both orientations if P and l are flat in it)
     // when it supports P.
-    let mut lines: Vec<(DVec3, DVec3)> = Vec::new();
-    let mut edges: Vec<(usize, usize)> = p
-        .faces()
-        .iter()
-        .flat_map(|f| {
-            let n = f.vertices.len();
-            (0..n).map(move |k| {
-                let (a, b) = (f.vertices[k], f.vertices[(k + 1) % n]);
-                (a.min(b), a.max(b))
-            })
+    let (lines, edges) = (&mut s.lines, &mut s.edges);
+    lines.clear();
+    edges.clear();
+    edges.extend(p.faces().flat_map(|f| {
+        let n = f.vertices.len();
+        (0..n).map(move |k| {
+            let (a, b) = (f.vertices[k], f.vertices[(k + 1) % n]);
+            (a.min(b), a.max(b))
         })
-        .collect();
+    }));
     edges.sort_unstable();
     edges.dedup();
     lines.extend(edges.iter().map(|&(i, j)| (verts[i], verts[j] - verts[i])));
     if p.volume() <= tol * p.diameter() * p.diameter() {
-        let mut normals: Vec<DVec3> = Vec::new();
+        let normals = &mut s.normals;
+        normals.clear();
         for f in p.faces() {
             let n = f.plane.normal;
             if !normals.iter().any(|m| m.cross(n).length() <= 1e-12) {
@@ -180,7 +215,7 @@ fn hull_planes(p: &Polyhedron, source: Source) -> Vec<Plane> {
             lines.extend(normals.iter().map(|&n| (v, n)));
         }
     }
-    for (a, e) in lines {
+    for &(a, e) in lines.iter() {
         let normal = match source {
             Source::Point(l) => {
                 let n = e.cross(l - a);
@@ -218,7 +253,6 @@ fn hull_planes(p: &Polyhedron, source: Source) -> Vec<Plane> {
             out.push(enclose(flipped, verts, extra));
         }
     }
-    out
 }
 
 /// `plane` moved outward until every point of `pts` (and `extra`) is on its

@@ -30,8 +30,8 @@
 //! the segments of `receivers.rs`, which mark a superset.
 
 use crate::hierarchy::Hierarchy;
-use crate::intersection_body::intersection_body;
-use crate::light_view::{fit_light_views, LightView};
+use crate::intersection_body::{intersection_body_into, BodyScratch, Polyhedron};
+use crate::light_view::{fit_light_views_into, FitScratch, LightView};
 use crate::receivers::{Marks, Prepared, ReceiverPoints};
 use crate::traverse::{
     CullResult, Culling, MeshData, Sampling, TraversalStats, ViewCuller, ViewSetup,
@@ -39,8 +39,8 @@ use crate::traverse::{
 use crate::Result;
 use glam::{DMat4, DVec3, DVec4};
 use raster::{
-    Coverage, DepthPick, DepthTarget, OcclusionBackend, QueryMode, QueryOptions, ReceiverTarget,
-    SyncBackend, TileSize,
+    Coverage, DepthPick, DepthTarget, OcclusionBackend, QueryBuffers, QueryMode, QueryOptions,
+    ReceiverTarget, SyncBackend, TileSize,
 };
 use rayon::prelude::*;
 use scene::{faces_light, Camera, Light, ObjectId, Plane, Scene};
@@ -110,8 +110,10 @@ struct ViewSlot {
     culler: ViewCuller,
     target: Option<DepthTarget>,
     marks: Option<Arc<ReceiverTarget>>,
-    /// The bundled backend while a traversal runs (holds the target).
-    backend: Option<SyncBackend>,
+    /// The bundled backend's query results, kept between frames.
+    queries: QueryBuffers,
+    /// The last traversal's result (its lists reused).
+    result: CullResult,
 }
 
 /// One light's persistent light-pass state: a slot per light view, the
@@ -123,6 +125,14 @@ pub struct LightPass {
     receivers: Prepared,
     views: Vec<LightView>,
     casting: CastingCache,
+    /// The intersection body, the views just fitted, and the buffers of
+    /// their construction: kept so a steady frame allocates nothing.
+    body: Polyhedron,
+    fitted: Vec<LightView>,
+    body_scratch: BodyScratch,
+    fit_scratch: FitScratch,
+    /// Per object: already in the PSC being collected.
+    in_psc: Vec<bool>,
 }
 
 /// Per object, the triangles it casts with (light-facing, or all when
@@ -204,13 +214,13 @@ impl CastingCache {
 /// sides `|x| ≤ w`, `|y| ≤ w` and the far side `z ≥ 0` — not the near plane:
 /// a caster between the light and the near plane still casts (its box meets
 /// the apex region and its query says visible).
-fn clip_planes(m: &DMat4) -> Vec<Plane> {
+fn clip_planes(m: &DMat4) -> [Plane; 5] {
     let r = [m.row(0), m.row(1), m.row(2), m.row(3)];
     let plane = |v: DVec4| Plane {
         normal: v.truncate(),
         d: v.w,
     };
-    vec![
+    [
         plane(r[3] + r[0]),
         plane(r[3] - r[0]),
         plane(r[3] + r[1]),
@@ -277,43 +287,76 @@ impl LightPass {
         options: &LightPassOptions,
         backends: Option<(&BackendFactory, u32)>,
     ) -> Result<LightPassResult> {
+        let mut out = LightPassResult::default();
+        self.run_into(
+            h, scene, meshes, camera, light, receivers, options, backends, &mut out,
+        )?;
+        Ok(out)
+    }
+
+    /// [`LightPass::run_with`] into `out`, whose PSC list is reused: a steady
+    /// frame (same views, no new object) allocates nothing.
+    ///
+    /// # Errors
+    /// Backend errors.
+    #[allow(clippy::too_many_arguments)]
+    pub fn run_into(
+        &mut self,
+        h: &Hierarchy,
+        scene: &Scene,
+        meshes: &MeshData,
+        camera: &Camera,
+        light: &Light,
+        receivers: &ReceiverPoints,
+        options: &LightPassOptions,
+        backends: Option<(&BackendFactory, u32)>,
+        out: &mut LightPassResult,
+    ) -> Result<()> {
         let bounds = scene.bounds();
-        let body = intersection_body(&camera.frustum(), light, &bounds);
-        let views = fit_light_views(&body, light, options.resolution.max(1));
+        intersection_body_into(
+            &camera.frustum(),
+            light,
+            &bounds,
+            &mut self.body,
+            &mut self.body_scratch,
+        );
+        fit_light_views_into(
+            &self.body,
+            light,
+            options.resolution.max(1),
+            &mut self.fitted,
+            &mut self.fit_scratch,
+            &mut self.body_scratch.clip,
+        );
         // A new set of views starts its culling history cold, but keeps the
         // slots' targets (their buffers are reused, not reallocated).
-        if self.views.len() != views.len() {
+        if self.views.len() != self.fitted.len() {
             for s in &mut self.slots {
                 s.culler.reset();
             }
         }
+        std::mem::swap(&mut self.views, &mut self.fitted);
+        let views = &self.views;
         if self.slots.len() < views.len() {
             self.slots.resize_with(views.len(), ViewSlot::default);
         }
         let diameter = f64::from(bounds.size().length());
         let origin = light.position().unwrap_or_else(|| bounds.center());
         self.receivers
-            .prepare(receivers, light, origin, diameter, options.sampling, &views);
+            .prepare(receivers, light, origin, diameter, options.sampling, views);
         // The casting triangles of every object drawn as an occluder: kept
         // across frames, shared by the views.
         self.casting.update(scene, light, options.two_sided);
         let cache = &self.casting;
         let casting =
             |id: ObjectId| -> Arc<[[u32; 3]]> { cache.get(scene, light, options.two_sided, id) };
-        let mut out = LightPassResult {
-            views: views.len(),
-            ..Default::default()
-        };
-        let mut in_psc = vec![false; scene.objects().len()];
-        self.views.clone_from(&views);
         let prepared = &self.receivers;
         // The views are independent: each has its own culler and targets.
-        let results: Vec<Result<CullResult>> = self
-            .slots
+        self.slots
             .par_iter_mut()
-            .zip(&views)
+            .zip(views)
             .enumerate()
-            .map(|(k, (slot, view))| {
+            .try_for_each(|(k, (slot, view))| {
                 let receivers = prepared.for_view(view);
                 let backend = backends.map(|(f, light)| {
                     f(ViewRole::LightView {
@@ -326,20 +369,24 @@ impl LightPass {
                     h, scene, meshes, light, view, origin, diameter, receivers, &casting, options,
                     backend,
                 )
-            })
-            .collect();
-        for r in results {
-            let r = r?;
+            })?;
+        out.psc.clear();
+        out.views = views.len();
+        out.stats = TraversalStats::default();
+        self.in_psc.clear();
+        self.in_psc.resize(scene.objects().len(), false);
+        for slot in &self.slots[..views.len()] {
+            let r = &slot.result;
             add_stats(&mut out.stats, &r.stats);
-            for id in r.visible {
-                if !in_psc[id.0 as usize] {
-                    in_psc[id.0 as usize] = true;
-                    out.psc.push(id);
+            for id in &r.visible {
+                if !self.in_psc[id.0 as usize] {
+                    self.in_psc[id.0 as usize] = true;
+                    out.psc.push(*id);
                 }
             }
         }
         out.psc.sort_unstable();
-        Ok(out)
+        Ok(())
     }
 }
 
@@ -358,7 +405,7 @@ impl ViewSlot {
         casting: &(dyn Fn(ObjectId) -> Arc<[[u32; 3]]> + Sync),
         options: &LightPassOptions,
         host: Option<Box<dyn OcclusionBackend + Send>>,
-    ) -> Result<CullResult> {
+    ) -> Result<()> {
         let m = view.clip_from_world;
         let clip_from_origin = (m * DMat4::from_translation(origin)).as_mat4();
         let size = (view.resolution, view.resolution);
@@ -396,18 +443,21 @@ impl ViewSlot {
         // to B, which holds the segment) — r's own view finds it.
         let Some(rows) = marks_mut.marked_rows() else {
             self.target = Some(target);
-            return Ok(CullResult::default());
+            self.marks = Some(marks);
+            self.result.clear();
+            return Ok(());
         };
         let mut target = Some(target);
         let mut host = host;
+        let mut bundled = None;
         let backend: &mut dyn OcclusionBackend = match &mut host {
             Some(b) => b.as_mut(),
             None => {
                 // Depth matters only where queries can pass: receiver rows.
                 let mut t = target.take().expect("the view's target");
                 t.set_draw_rows(Some(rows));
-                self.backend = Some(SyncBackend::new(t));
-                self.backend.as_mut().expect("just set")
+                let queries = std::mem::take(&mut self.queries);
+                bundled.insert(SyncBackend::reusing(t, queries))
             }
         };
         backend.set_receivers(Some(marks.clone()))?;
@@ -437,12 +487,22 @@ impl ViewSlot {
             triangles: Some(casting),
             occluder: ViewSetup::light_occluder,
         };
-        let r = self
-            .culler
-            .cull(h, scene, meshes, &setup, options.culling, backend);
+        let r = self.culler.cull_into(
+            h,
+            scene,
+            meshes,
+            &setup,
+            options.culling,
+            backend,
+            &mut self.result,
+        );
         backend.set_receivers(None)?;
-        self.target = match (self.backend.take(), target) {
-            (Some(b), _) => Some(b.into_target()),
+        self.target = match (bundled, target) {
+            (Some(b), _) => {
+                let (t, queries) = b.into_parts();
+                self.queries = queries;
+                Some(t)
+            }
             (None, t) => t,
         };
         self.marks = Some(marks);

@@ -43,7 +43,7 @@
 //! Windows are widened by a relative 1e-9 and near planes moved toward the
 //! light by a relative 1e-9 against rounding.
 
-use crate::polyhedron::{hull_2d, Polyhedron};
+use crate::polyhedron::{hull_2d, ClipScratch, Polyhedron};
 use glam::{DMat4, DVec2, DVec3, DVec4};
 use scene::{Light, Plane};
 
@@ -104,13 +104,52 @@ impl LightView {
 /// Returns no views when B is empty, when a spot light's cone misses B, or
 /// when `light` fails [`Light::validate`] (e.g. a zero direction).
 pub fn fit_light_views(body: &Polyhedron, light: &Light, resolution: u32) -> Vec<LightView> {
+    let mut out = Vec::new();
+    fit_light_views_into(
+        body,
+        light,
+        resolution,
+        &mut out,
+        &mut FitScratch::default(),
+        &mut ClipScratch::default(),
+    );
+    out
+}
+
+/// Buffers the view fitting reuses from frame to frame.
+#[derive(Debug, Default)]
+pub(crate) struct FitScratch {
+    /// B clipped to a spot cone or a cube face.
+    part: Polyhedron,
+    /// The cone-clipped body of a spot light.
+    cone: Polyhedron,
+    /// Projected points.
+    pts: Vec<DVec2>,
+    /// Hull input and output of the minimum-area rectangle.
+    tagged: Vec<(DVec2, ())>,
+    hull: Vec<(DVec2, ())>,
+}
+
+/// [`fit_light_views`] into `out` (cleared first), with buffers reused from
+/// `s` and `clip`: no allocation once they have grown.
+pub(crate) fn fit_light_views_into(
+    body: &Polyhedron,
+    light: &Light,
+    resolution: u32,
+    out: &mut Vec<LightView>,
+    s: &mut FitScratch,
+    clip: &mut ClipScratch,
+) {
+    out.clear();
     if body.is_empty() || light.validate().is_err() {
-        return Vec::new();
+        return;
     }
     let res = resolution.max(1);
     match *light {
-        Light::Directional { direction } => vec![ortho_view(body, direction.normalize(), res)],
-        Light::Point { position, .. } => positional_views(body, position, None, res),
+        Light::Directional { direction } => {
+            out.push(ortho_view(body, direction.normalize(), res, s))
+        }
+        Light::Point { position, .. } => positional_views(body, position, None, res, out, s, clip),
         Light::Spot {
             position,
             direction,
@@ -120,19 +159,23 @@ pub fn fit_light_views(body: &Polyhedron, light: &Light, resolution: u32) -> Vec
             let axis = direction.normalize();
             let tan = (0.5 * apex_angle).tan();
             let (r, u) = axis.any_orthonormal_pair();
-            let mut part = body.clone();
+            let mut part = std::mem::take(&mut s.cone);
+            part.clone_from(body);
             for n in [
                 axis * tan - r,
                 axis * tan + r,
                 axis * tan - u,
                 axis * tan + u,
             ] {
-                part = part.clip(&widened(position, n, body.epsilon()));
+                part.clip_with(&widened(position, n, body.epsilon()), clip);
                 if part.is_empty() {
-                    return Vec::new();
+                    break;
                 }
             }
-            positional_views(&part, position, Some((axis, tan)), res)
+            if !part.is_empty() {
+                positional_views(&part, position, Some((axis, tan)), res, out, s, clip);
+            }
+            s.cone = part;
         }
     }
 }
@@ -201,7 +244,11 @@ fn line_meets(body: &Polyhedron, o: DVec3, d: DVec3, t0: f64) -> bool {
 
 /// The frame (cos, sin) and bounds of the minimum-area rectangle around `pts`;
 /// rotated coordinates are `(c·x + s·y, −s·x + c·y)`.
-fn min_area_rect(pts: &[DVec2]) -> (DVec2, DVec2, DVec2) {
+fn min_area_rect(
+    pts: &[DVec2],
+    tagged: &mut Vec<(DVec2, ())>,
+    hull: &mut Vec<(DVec2, ())>,
+) -> (DVec2, DVec2, DVec2) {
     let bounds = |cs: DVec2| {
         pts.iter().fold(
             (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY)),
@@ -211,8 +258,9 @@ fn min_area_rect(pts: &[DVec2]) -> (DVec2, DVec2, DVec2) {
             },
         )
     };
-    let mut tagged: Vec<(DVec2, ())> = pts.iter().map(|&p| (p, ())).collect();
-    let hull = hull_2d(&mut tagged);
+    tagged.clear();
+    tagged.extend(pts.iter().map(|&p| (p, ())));
+    hull_2d(tagged, hull);
     let mut best = (DVec2::X, bounds(DVec2::X));
     let area = |b: &(DVec2, DVec2)| (b.1 - b.0).x * (b.1 - b.0).y;
     for k in 0..hull.len() {
@@ -245,7 +293,7 @@ fn view_from_world(r: DVec3, u: DVec3, f: DVec3, eye: DVec3) -> DMat4 {
 }
 
 /// Orthographic view along unit `d` (the light's travel direction).
-fn ortho_view(body: &Polyhedron, d: DVec3, res: u32) -> LightView {
+fn ortho_view(body: &Polyhedron, d: DVec3, res: u32, s: &mut FitScratch) -> LightView {
     let (r0, u0) = d.any_orthonormal_pair();
     // Right-handed with view axis d: r × u = −d.
     let (r0, u0) = if r0.cross(u0).dot(d) > 0.0 {
@@ -253,12 +301,13 @@ fn ortho_view(body: &Polyhedron, d: DVec3, res: u32) -> LightView {
     } else {
         (r0, u0)
     };
-    let pts: Vec<DVec2> = body
-        .vertices()
-        .iter()
-        .map(|v| DVec2::new(r0.dot(*v), u0.dot(*v)))
-        .collect();
-    let (cs, lo, hi) = min_area_rect(&pts);
+    s.pts.clear();
+    s.pts.extend(
+        body.vertices()
+            .iter()
+            .map(|v| DVec2::new(r0.dot(*v), u0.dot(*v))),
+    );
+    let (cs, lo, hi) = min_area_rect(&s.pts, &mut s.tagged, &mut s.hull);
     let r = r0 * cs.x + u0 * cs.y;
     let u = -r0 * cs.y + u0 * cs.x;
     let (s0, s1) = body
@@ -306,11 +355,19 @@ fn perspective(
     proj * view_from_world(r, u, f, l)
 }
 
-/// Window (tangent-plane bounds) and near distance of `pts` seen from `l` in
-/// frame `(r, u, f)`; `None` when some point is not in front of the light.
-fn fit_window(pts: &[DVec3], l: DVec3, r: DVec3, u: DVec3, f: DVec3) -> Option<(Vec<DVec2>, f64)> {
+/// Window (tangent-plane coordinates of `pts` seen from `l` in frame `(r, u,
+/// f)`, into `proj`) and near distance; `None` when some point is not in
+/// front of the light.
+fn fit_window(
+    pts: &[DVec3],
+    l: DVec3,
+    r: DVec3,
+    u: DVec3,
+    f: DVec3,
+    proj: &mut Vec<DVec2>,
+) -> Option<f64> {
     let mut near = f64::INFINITY;
-    let mut proj = Vec::with_capacity(pts.len());
+    proj.clear();
     for &v in pts {
         let q = v - l;
         let w = f.dot(q);
@@ -320,7 +377,7 @@ fn fit_window(pts: &[DVec3], l: DVec3, r: DVec3, u: DVec3, f: DVec3) -> Option<(
         near = near.min(w);
         proj.push(DVec2::new(r.dot(q), u.dot(q)) / w);
     }
-    Some((proj, near * (1.0 - PAD)))
+    Some(near * (1.0 - PAD))
 }
 
 /// Views for a point light at `l` (or a spot light, with its unit axis and
@@ -330,17 +387,20 @@ fn positional_views(
     l: DVec3,
     cone: Option<(DVec3, f64)>,
     res: u32,
-) -> Vec<LightView> {
+    out: &mut Vec<LightView>,
+    s: &mut FitScratch,
+    clip: &mut ClipScratch,
+) {
     let scale = body.diameter();
     let default_near = (NEAR_REL * scale).max(1e-300);
     let inside = body.contains(l, NEAR_REL * scale);
     let verts = body.vertices();
-    let one = |m| {
-        vec![LightView {
+    let one = |out: &mut Vec<LightView>, m| {
+        out.push(LightView {
             clip_from_world: m,
             kind: LightViewKind::Perspective,
             resolution: res,
-        }]
+        })
     };
     let max_half = (0.5 * MAX_PERSPECTIVE_SPAN_DEG).to_radians();
 
@@ -348,14 +408,14 @@ fn positional_views(
     if let Some((axis, tan)) = cone.filter(|&(_, tan)| tan <= max_half.tan() * (1.0 + 1e-12)) {
         let (r, u) = frame(axis);
         if !inside {
-            if let Some((proj, near)) = fit_window(verts, l, r, u, axis) {
-                let (cs, lo, hi) = min_area_rect(&proj);
+            if let Some(near) = fit_window(verts, l, r, u, axis, &mut s.pts) {
+                let (cs, lo, hi) = min_area_rect(&s.pts, &mut s.tagged, &mut s.hull);
                 let (r2, u2) = (r * cs.x + u * cs.y, -r * cs.y + u * cs.x);
                 let (x, y) = (pad(lo.x, hi.x, 1.0), pad(lo.y, hi.y, 1.0));
                 // The fit lies inside the cone's square up to rounding; keep
                 // whichever window is smaller.
                 if (x.1 - x.0) * (y.1 - y.0) < 4.0 * tan * tan {
-                    return one(perspective(r2, u2, axis, l, x, y, near));
+                    return one(out, perspective(r2, u2, axis, l, x, y, near));
                 }
             }
         }
@@ -370,7 +430,7 @@ fn positional_views(
                 * (1.0 - PAD)
         };
         let near = if near > 0.0 { near } else { default_near };
-        return one(perspective(r, u, axis, l, (-t, t), (-t, t), near));
+        return one(out, perspective(r, u, axis, l, (-t, t), (-t, t), near));
     }
 
     if !inside {
@@ -385,11 +445,11 @@ fn positional_views(
                 .all(|v| (*v - l).normalize_or_zero().dot(axis) >= max_half.cos());
         if spans {
             let (r, u) = frame(axis);
-            if let Some((proj, near)) = fit_window(verts, l, r, u, axis) {
-                let (cs, lo, hi) = min_area_rect(&proj);
+            if let Some(near) = fit_window(verts, l, r, u, axis, &mut s.pts) {
+                let (cs, lo, hi) = min_area_rect(&s.pts, &mut s.tagged, &mut s.hull);
                 let (r2, u2) = (r * cs.x + u * cs.y, -r * cs.y + u * cs.x);
                 let (x, y) = (pad(lo.x, hi.x, 1.0), pad(lo.y, hi.y, 1.0));
-                return one(perspective(r2, u2, axis, l, x, y, near));
+                return one(out, perspective(r2, u2, axis, l, x, y, near));
             }
         }
     }
@@ -403,11 +463,11 @@ fn positional_views(
         (DVec3::Z, DVec3::X, DVec3::NEG_Y),
         (DVec3::NEG_Z, DVec3::NEG_X, DVec3::NEG_Y),
     ];
-    let mut out = Vec::new();
+    let part = &mut s.part;
     for (k, &(f, r, u)) in FACES.iter().enumerate() {
-        let mut part = body.clone();
+        part.clone_from(body);
         for n in [f - r, f + r, f - u, f + u] {
-            part = part.clip(&widened(l, n, body.epsilon()));
+            part.clip_with(&widened(l, n, body.epsilon()), clip);
             if part.is_empty() {
                 break;
             }
@@ -416,9 +476,9 @@ fn positional_views(
             continue;
         }
         let full = |near| perspective(r, u, f, l, (-1.0, 1.0), (-1.0, 1.0), near);
-        let m = match (inside, fit_window(part.vertices(), l, r, u, f)) {
-            (false, Some((proj, near))) => {
-                let (lo, hi) = proj.iter().fold(
+        let m = match (inside, fit_window(part.vertices(), l, r, u, f, &mut s.pts)) {
+            (false, Some(near)) => {
+                let (lo, hi) = s.pts.iter().fold(
                     (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY)),
                     |(lo, hi), p| (lo.min(*p), hi.max(*p)),
                 );
@@ -439,7 +499,6 @@ fn positional_views(
             resolution: res,
         });
     }
-    out
 }
 
 /// The plane through `apex` with inside normal `n`, moved outward by `eps`

@@ -18,7 +18,6 @@
 
 use glam::{DVec2, DVec3};
 use scene::{Aabb, Frustum, Plane};
-use std::collections::HashMap;
 
 /// Relative clipping tolerance, per unit of the polyhedron's diameter.
 pub const REL_EPS: f64 = 1e-9;
@@ -27,13 +26,21 @@ pub const REL_EPS: f64 = 1e-9;
 pub const COORD_EPS: f64 = 1e-13;
 
 /// One boundary polygon of a [`Polyhedron`].
-#[derive(Clone, Debug, PartialEq)]
-pub struct Face {
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Face<'a> {
     /// The face's supporting plane, unit normal, inside = positive side.
     pub plane: Plane,
     /// Indices into [`Polyhedron::vertices`], in cyclic order around the face
     /// (orientation unspecified), at least 3.
-    pub vertices: Vec<usize>,
+    pub vertices: &'a [usize],
+}
+
+/// A face as stored: its plane and its run of [`Polyhedron::corners`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct FaceRun {
+    plane: Plane,
+    start: usize,
+    end: usize,
 }
 
 /// A bounded convex polyhedron in world space (f64), possibly empty or flat.
@@ -41,11 +48,47 @@ pub struct Face {
 /// Inside is the positive side of every plane (as [`scene::Plane`]). The
 /// planes are those of the original box plus every plane that actually cut;
 /// `vertices` are the corners of the clipped body (within [`Self::epsilon`]).
-#[derive(Clone, Debug, Default, PartialEq)]
+/// The faces' vertex lists are stored in one flat list, so clipping into a
+/// reused polyhedron ([`Polyhedron::clip_with`]) allocates nothing once its
+/// buffers have grown.
+#[derive(Debug, Default, PartialEq)]
 pub struct Polyhedron {
     planes: Vec<Plane>,
     vertices: Vec<DVec3>,
-    faces: Vec<Face>,
+    faces: Vec<FaceRun>,
+    /// Every face's vertex indices, face after face.
+    corners: Vec<usize>,
+}
+
+impl Clone for Polyhedron {
+    fn clone(&self) -> Self {
+        let mut p = Polyhedron::default();
+        p.clone_from(self);
+        p
+    }
+
+    /// Copies into the existing buffers (no allocation once they are big enough).
+    fn clone_from(&mut self, o: &Self) {
+        self.planes.clone_from(&o.planes);
+        self.vertices.clone_from(&o.vertices);
+        self.faces.clone_from(&o.faces);
+        self.corners.clone_from(&o.corners);
+    }
+}
+
+/// Buffers [`Polyhedron::clip_with`] reuses from call to call.
+#[derive(Debug, Default)]
+pub(crate) struct ClipScratch {
+    dist: Vec<f64>,
+    verts: Vec<DVec3>,
+    /// Cut edges `(i, j)` (i < j) and their new vertex.
+    on_edge: Vec<(usize, usize, usize)>,
+    on_plane: Vec<usize>,
+    hull_in: Vec<(DVec2, usize)>,
+    hull_out: Vec<(DVec2, usize)>,
+    remap: Vec<usize>,
+    /// The clipped body, swapped with the input.
+    out: Polyhedron,
 }
 
 /// Corner indices of each box face (bit 0 = x max, bit 1 = y max, bit 2 = z
@@ -63,46 +106,67 @@ impl Polyhedron {
     /// The box `b` (f32 corners widened exactly to f64); empty for an empty or
     /// non-finite box. A box of zero thickness gives a flat polyhedron.
     pub fn from_aabb(b: &Aabb) -> Self {
+        let mut p = Polyhedron::default();
+        p.set_aabb(b);
+        p
+    }
+
+    /// Makes this polyhedron the box `b` ([`Polyhedron::from_aabb`]), in the
+    /// existing buffers.
+    pub(crate) fn set_aabb(&mut self, b: &Aabb) {
+        self.clear();
         if b.is_empty() || !b.min.is_finite() || !b.max.is_finite() {
-            return Polyhedron::default();
+            return;
         }
         let (lo, hi) = (b.min.as_dvec3(), b.max.as_dvec3());
-        let planes = vec![
+        self.planes.extend([
             Plane::from_point_normal(lo, DVec3::X),
             Plane::from_point_normal(hi, DVec3::NEG_X),
             Plane::from_point_normal(lo, DVec3::Y),
             Plane::from_point_normal(hi, DVec3::NEG_Y),
             Plane::from_point_normal(lo, DVec3::Z),
             Plane::from_point_normal(hi, DVec3::NEG_Z),
-        ];
-        let vertices = b.corners().iter().map(|c| c.as_dvec3()).collect();
-        let faces = BOX_FACES
-            .iter()
-            .zip(&planes)
-            .map(|(f, pl)| Face {
+        ]);
+        self.vertices
+            .extend(b.corners().iter().map(|c| c.as_dvec3()));
+        for (f, pl) in BOX_FACES.iter().zip(&self.planes) {
+            let start = self.corners.len();
+            self.corners.extend_from_slice(f);
+            self.faces.push(FaceRun {
                 plane: *pl,
-                vertices: f.to_vec(),
-            })
-            .collect();
-        Polyhedron {
-            planes,
-            vertices,
-            faces,
+                start,
+                end: self.corners.len(),
+            });
         }
+    }
+
+    /// Empties the polyhedron, keeping its buffers.
+    pub(crate) fn clear(&mut self) {
+        self.planes.clear();
+        self.vertices.clear();
+        self.faces.clear();
+        self.corners.clear();
     }
 
     /// The view frustum `V` (far end at infinity) clipped to the box `S`:
     /// `S` clipped by the frustum's five planes [Steiner §4.3.3]. Empty when
     /// they do not meet (or meet in zero area).
     pub fn from_frustum(frustum: &Frustum, bounds: &Aabb) -> Self {
-        let mut p = Polyhedron::from_aabb(bounds);
+        let mut p = Polyhedron::default();
+        p.set_frustum(frustum, bounds, &mut ClipScratch::default());
+        p
+    }
+
+    /// Makes this polyhedron [`Polyhedron::from_frustum`]`(frustum, bounds)`,
+    /// in the existing buffers.
+    pub(crate) fn set_frustum(&mut self, frustum: &Frustum, bounds: &Aabb, s: &mut ClipScratch) {
+        self.set_aabb(bounds);
         for pl in &frustum.planes {
-            if p.is_empty() {
+            if self.is_empty() {
                 break;
             }
-            p = p.clip(pl);
+            self.clip_with(pl, s);
         }
-        p
     }
 
     /// True when the polyhedron holds no point (or was clipped to zero area).
@@ -126,8 +190,11 @@ impl Polyhedron {
     }
 
     /// The boundary polygons.
-    pub fn faces(&self) -> &[Face] {
-        &self.faces
+    pub fn faces(&self) -> impl ExactSizeIterator<Item = Face<'_>> + '_ {
+        self.faces.iter().map(|f| Face {
+            plane: f.plane,
+            vertices: &self.corners[f.start..f.end],
+        })
     }
 
     /// Length of the diagonal of the vertices' bounding box (0 when empty).
@@ -179,13 +246,12 @@ impl Polyhedron {
             return 0.0;
         }
         let c = self.centroid();
-        self.faces
-            .iter()
+        self.faces()
             .map(|f| {
-                let p: Vec<DVec3> = f.vertices.iter().map(|&i| self.vertices[i]).collect();
+                let p = |k: usize| self.vertices[f.vertices[k]];
                 let mut area = DVec3::ZERO;
-                for k in 1..p.len() - 1 {
-                    area += (p[k] - p[0]).cross(p[k + 1] - p[0]);
+                for k in 1..f.vertices.len() - 1 {
+                    area += (p(k) - p(0)).cross(p(k + 1) - p(0));
                 }
                 0.5 * area.length() * f.plane.signed_distance(c).abs() / 3.0
             })
@@ -202,125 +268,154 @@ impl Polyhedron {
     /// the empty polyhedron (one leaving a face gives a flat one). A plane with a zero or non-finite normal or offset is
     /// ignored (the polyhedron is returned unchanged).
     pub fn clip(&self, plane: &Plane) -> Polyhedron {
+        let mut p = self.clone();
+        p.clip_with(plane, &mut ClipScratch::default());
+        p
+    }
+
+    /// [`Polyhedron::clip`] in place, with buffers reused from `s`.
+    pub(crate) fn clip_with(&mut self, plane: &Plane, s: &mut ClipScratch) {
         if self.is_empty() {
-            return Polyhedron::default();
+            return;
         }
         let pl = plane.normalized();
         if !pl.normal.is_finite() || !pl.d.is_finite() || pl.normal.length_squared() < 0.25 {
-            return self.clone();
+            return;
         }
         let eps = self.epsilon();
-        let dist: Vec<f64> = self
-            .vertices
-            .iter()
-            .map(|&v| {
-                let s = pl.signed_distance(v);
-                if s.abs() <= eps {
-                    0.0
-                } else {
-                    s
-                }
-            })
-            .collect();
-        if dist.iter().all(|&s| s >= 0.0) {
-            return self.clone();
+        s.dist.clear();
+        s.dist.extend(self.vertices.iter().map(|&v| {
+            let d = pl.signed_distance(v);
+            if d.abs() <= eps {
+                0.0
+            } else {
+                d
+            }
+        }));
+        if s.dist.iter().all(|&d| d >= 0.0) {
+            return;
         }
-        if dist.iter().all(|&s| s < 0.0) {
-            return Polyhedron::default();
+        if s.dist.iter().all(|&d| d < 0.0) {
+            self.clear();
+            return;
         }
         let n0 = self.vertices.len();
-        let mut verts = self.vertices.clone();
-        let mut on_edge: HashMap<(usize, usize), usize> = HashMap::new();
-        let mut faces = Vec::with_capacity(self.faces.len() + 1);
+        let (dist, verts, out) = (&s.dist, &mut s.verts, &mut s.out);
+        verts.clone_from(&self.vertices);
+        s.on_edge.clear();
+        out.clear();
         for f in &self.faces {
-            let n = f.vertices.len();
-            let mut out = Vec::with_capacity(n + 1);
+            let face = &self.corners[f.start..f.end];
+            let n = face.len();
+            let start = out.corners.len();
             for k in 0..n {
-                let (a, b) = (f.vertices[k], f.vertices[(k + 1) % n]);
+                let (a, b) = (face[k], face[(k + 1) % n]);
                 let (da, db) = (dist[a], dist[b]);
                 if da >= 0.0 {
-                    out.push(a);
+                    out.corners.push(a);
                 }
                 if (da > 0.0 && db < 0.0) || (da < 0.0 && db > 0.0) {
                     // Computed once per edge, from the canonical order, so
                     // both faces share the bit-identical vertex.
                     let (i, j) = (a.min(b), a.max(b));
-                    let idx = *on_edge.entry((i, j)).or_insert_with(|| {
-                        let (p, q) = (self.vertices[i], self.vertices[j]);
-                        let t = dist[i] / (dist[i] - dist[j]);
-                        verts.push(p + (q - p) * t);
-                        verts.len() - 1
-                    });
-                    out.push(idx);
+                    let idx = match s.on_edge.iter().find(|e| (e.0, e.1) == (i, j)) {
+                        Some(e) => e.2,
+                        None => {
+                            let (p, q) = (self.vertices[i], self.vertices[j]);
+                            let t = dist[i] / (dist[i] - dist[j]);
+                            verts.push(p + (q - p) * t);
+                            s.on_edge.push((i, j, verts.len() - 1));
+                            verts.len() - 1
+                        }
+                    };
+                    out.corners.push(idx);
                 }
             }
-            if out.len() >= 3 {
-                faces.push(Face {
+            if out.corners.len() - start >= 3 {
+                out.faces.push(FaceRun {
                     plane: f.plane,
-                    vertices: out,
+                    start,
+                    end: out.corners.len(),
                 });
+            } else {
+                out.corners.truncate(start);
             }
         }
         // Cap: every kept vertex on the plane.
-        let on_plane: Vec<usize> = (0..verts.len())
-            .filter(|&i| i >= n0 || dist[i] == 0.0)
-            .collect();
-        if let Some(cap) = convex_polygon_in_plane(&verts, &on_plane, pl.normal) {
-            faces.push(Face {
+        s.on_plane.clear();
+        s.on_plane
+            .extend((0..verts.len()).filter(|&i| i >= n0 || dist[i] == 0.0));
+        let start = out.corners.len();
+        if convex_polygon_in_plane(
+            verts,
+            &s.on_plane,
+            pl.normal,
+            (&mut s.hull_in, &mut s.hull_out),
+            &mut out.corners,
+        ) {
+            out.faces.push(FaceRun {
                 plane: pl,
-                vertices: cap,
+                start,
+                end: out.corners.len(),
             });
         }
-        if faces.is_empty() {
-            return Polyhedron::default();
+        if out.faces.is_empty() {
+            self.clear();
+            return;
         }
         // Compact: keep only referenced vertices.
-        let mut remap = vec![usize::MAX; verts.len()];
-        let mut vertices = Vec::new();
-        for f in &mut faces {
-            for i in &mut f.vertices {
-                if remap[*i] == usize::MAX {
-                    remap[*i] = vertices.len();
-                    vertices.push(verts[*i]);
-                }
-                *i = remap[*i];
+        s.remap.clear();
+        s.remap.resize(verts.len(), usize::MAX);
+        for i in &mut out.corners {
+            if s.remap[*i] == usize::MAX {
+                s.remap[*i] = out.vertices.len();
+                out.vertices.push(verts[*i]);
             }
+            *i = s.remap[*i];
         }
-        let mut planes = self.planes.clone();
-        planes.push(pl);
-        Polyhedron {
-            planes,
-            vertices,
-            faces,
-        }
+        out.planes.clone_from(&self.planes);
+        out.planes.push(pl);
+        std::mem::swap(self, &mut s.out);
     }
 }
 
-/// The indices of `ids` that are corners of the convex hull of `verts[ids]`
-/// projected into the plane with the given normal, in cyclic order; `None`
-/// when the hull has zero area.
-fn convex_polygon_in_plane(verts: &[DVec3], ids: &[usize], normal: DVec3) -> Option<Vec<usize>> {
+/// Appends to `out` the indices of `ids` that are corners of the convex hull
+/// of `verts[ids]` projected into the plane with the given normal, in cyclic
+/// order; false (nothing appended) when the hull has zero area.
+fn convex_polygon_in_plane(
+    verts: &[DVec3],
+    ids: &[usize],
+    normal: DVec3,
+    (pts, hull): (&mut Vec<(DVec2, usize)>, &mut Vec<(DVec2, usize)>),
+    out: &mut Vec<usize>,
+) -> bool {
     if ids.len() < 3 {
-        return None;
+        return false;
     }
     let (u, v) = normal.any_orthonormal_pair();
-    let mut pts: Vec<(DVec2, usize)> = ids
-        .iter()
-        .map(|&i| (DVec2::new(u.dot(verts[i]), v.dot(verts[i])), i))
-        .collect();
-    let hull = hull_2d(&mut pts);
-    (hull.len() >= 3).then(|| hull.into_iter().map(|(_, i)| i).collect())
+    pts.clear();
+    pts.extend(
+        ids.iter()
+            .map(|&i| (DVec2::new(u.dot(verts[i]), v.dot(verts[i])), i)),
+    );
+    hull_2d(pts, hull);
+    if hull.len() < 3 {
+        return false;
+    }
+    out.extend(hull.iter().map(|&(_, i)| i));
+    true
 }
 
-/// Andrew's monotone chain: the counter-clockwise hull corners (collinear
-/// points dropped). Sorts `pts`.
-pub(crate) fn hull_2d<T: Copy>(pts: &mut [(DVec2, T)]) -> Vec<(DVec2, T)> {
+/// Andrew's monotone chain: the counter-clockwise hull corners of `pts`
+/// (collinear points dropped) into `hull`. Sorts `pts`.
+pub(crate) fn hull_2d<T: Copy>(pts: &mut [(DVec2, T)], hull: &mut Vec<(DVec2, T)>) {
     pts.sort_by(|a, b| a.0.x.total_cmp(&b.0.x).then(a.0.y.total_cmp(&b.0.y)));
+    hull.clear();
     if pts.len() < 3 {
-        return pts.to_vec();
+        hull.extend_from_slice(pts);
+        return;
     }
     let cross = |o: DVec2, a: DVec2, b: DVec2| (a - o).perp_dot(b - o);
-    let mut hull: Vec<(DVec2, T)> = Vec::with_capacity(2 * pts.len());
     for &p in pts.iter() {
         while hull.len() >= 2 && cross(hull[hull.len() - 2].0, hull[hull.len() - 1].0, p.0) <= 0.0 {
             hull.pop();
@@ -337,7 +432,6 @@ pub(crate) fn hull_2d<T: Copy>(pts: &mut [(DVec2, T)]) -> Vec<(DVec2, T)> {
         hull.push(p);
     }
     hull.pop();
-    hull
 }
 
 #[cfg(test)]

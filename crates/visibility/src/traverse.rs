@@ -132,7 +132,7 @@ pub struct ViewSetup<'a> {
     /// `clip_from_local` of the translation to `origin`.
     pub clip_from_origin: Mat4,
     /// The view's planes (inside positive), for frustum culling.
-    pub planes: Vec<Plane>,
+    pub planes: [Plane; 5],
     /// Where front-to-back distances are measured from (the centre of projection).
     pub apex: DVec3,
     /// Coverage of occluder draws.
@@ -178,7 +178,7 @@ impl<'a> ViewSetup<'a> {
                 camera,
                 &DMat4::from_translation(camera.position),
             ),
-            planes: camera.frustum().planes.to_vec(),
+            planes: camera.frustum().planes,
             apex: camera.position,
             draw_coverage: Coverage::Standard,
             query: QueryOptions {
@@ -248,6 +248,15 @@ pub struct CullResult {
     pub stats: TraversalStats,
 }
 
+impl CullResult {
+    /// Empties the lists (keeping their buffers) and zeroes the counters.
+    pub fn clear(&mut self) {
+        self.rendered.clear();
+        self.visible.clear();
+        self.stats = TraversalStats::default();
+    }
+}
+
 /// Per-node state a view keeps across frames.
 #[derive(Clone, Copy, Debug, Default)]
 pub(crate) struct NodeState {
@@ -264,6 +273,45 @@ pub(crate) struct NodeState {
 pub struct ViewCuller {
     pub(crate) state: Vec<NodeState>,
     pub(crate) frame: u32,
+    /// The traversals' queues and lists, kept between frames.
+    scratch: Scratch,
+    /// Box lists of union queries.
+    boxes: Vec<(Vec3, Vec3)>,
+}
+
+/// The queues and lists of a traversal, reused from frame to frame (cleared,
+/// not reallocated): a steady frame allocates nothing.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct Scratch {
+    /// Front-to-back queue.
+    pub distance: BinaryHeap<Queued>,
+    /// CHC: (node, query, was visible), handled in issue order.
+    pub chc: VecDeque<(u32, QueryId, bool)>,
+    /// CHC++: queries in issue order.
+    pub pending: VecDeque<(QueryId, crate::chcpp::Pending)>,
+    /// CHC++: previously invisible nodes waiting for a batch.
+    pub batch: Vec<u32>,
+    /// CHC++: rendered visible leaves due for their revisit query.
+    pub revisit: VecDeque<u32>,
+    /// CHC++: a batch's nodes with their keep-invisible probability.
+    pub cand: Vec<(f64, u32)>,
+    /// CHC++: the node list of one query volume.
+    pub volume: Vec<u32>,
+    /// CHC++: the nodes of every multiquery group issued this frame.
+    pub groups: Vec<u32>,
+}
+
+impl Scratch {
+    fn clear(&mut self) {
+        self.distance.clear();
+        self.chc.clear();
+        self.pending.clear();
+        self.batch.clear();
+        self.revisit.clear();
+        self.cand.clear();
+        self.volume.clear();
+        self.groups.clear();
+    }
 }
 
 /// A node in the front-to-back queue: nearer first, then lower index.
@@ -345,7 +393,9 @@ pub(crate) struct Run<'a, 'b> {
     pub meshes: &'a MeshData,
     pub view: &'a ViewSetup<'b>,
     pub backend: &'a mut dyn OcclusionBackend,
-    pub out: CullResult,
+    pub out: &'a mut CullResult,
+    /// The boxes of a union query.
+    pub boxes: &'a mut Vec<(Vec3, Vec3)>,
 }
 
 impl Run<'_, '_> {
@@ -393,16 +443,16 @@ impl Run<'_, '_> {
             return self.query(&n);
         }
         let o = self.view.origin;
-        let boxes: Arc<[(Vec3, Vec3)]> = nodes
-            .iter()
-            .map(|&k| local_box(&self.h.nodes[k as usize], o))
-            .collect();
+        self.boxes.clear();
+        self.boxes.extend(
+            nodes
+                .iter()
+                .map(|&k| local_box(&self.h.nodes[k as usize], o)),
+        );
         self.out.stats.queries += 1;
-        Ok(self.backend.issue_query(QueryCommand::Aabbs {
-            clip_from_local: self.view.clip_from_origin,
-            boxes,
-            options: self.view.query,
-        })?)
+        Ok(self
+            .backend
+            .issue_box_union(self.view.clip_from_origin, self.boxes, self.view.query)?)
     }
 
     pub fn wait(&mut self, id: QueryId) -> u32 {
@@ -494,6 +544,28 @@ impl ViewCuller {
         culling: Culling,
         backend: &mut dyn OcclusionBackend,
     ) -> Result<CullResult> {
+        let mut out = CullResult::default();
+        self.cull_into(h, scene, meshes, view, culling, backend, &mut out)?;
+        Ok(out)
+    }
+
+    /// [`ViewCuller::cull`] into `out` (cleared first), whose lists are
+    /// reused: with the culler's own queues kept too, a steady frame
+    /// allocates nothing.
+    ///
+    /// # Errors
+    /// As [`ViewCuller::cull`].
+    #[allow(clippy::too_many_arguments)]
+    pub fn cull_into(
+        &mut self,
+        h: &Hierarchy,
+        scene: &Scene,
+        meshes: &MeshData,
+        view: &ViewSetup<'_>,
+        culling: Culling,
+        backend: &mut dyn OcclusionBackend,
+        out: &mut CullResult,
+    ) -> Result<()> {
         if self.state.len() != h.len() {
             // Keeps the allocation across resets.
             self.state.clear();
@@ -501,36 +573,47 @@ impl ViewCuller {
         }
         self.frame += 1;
         backend.clear();
+        out.clear();
+        let mut s = std::mem::take(&mut self.scratch);
+        let mut boxes = std::mem::take(&mut self.boxes);
+        s.clear();
         let mut run = Run {
             h,
             scene,
             meshes,
             view,
             backend,
-            out: CullResult::default(),
+            out,
+            boxes: &mut boxes,
         };
-        if !h.is_empty() {
+        let r = if h.is_empty() {
+            Ok(())
+        } else {
             match culling {
                 Culling::None | Culling::Frustum => {
-                    self.plain(&mut run, culling == Culling::Frustum)?
+                    self.plain(&mut run, culling == Culling::Frustum, &mut s)
                 }
-                Culling::Exact => self.stop_and_wait(&mut run)?,
-                Culling::Chc => self.chc(&mut run)?,
-                Culling::ChcPlusPlus(o) => self.chcpp(&mut run, &o)?,
+                Culling::Exact => self.stop_and_wait(&mut run, &mut s),
+                Culling::Chc => self.chc(&mut run, &mut s),
+                Culling::ChcPlusPlus(o) => self.chcpp(&mut run, &o, &mut s),
             }
+        };
+        let Run { backend, out, .. } = run;
+        self.scratch = s;
+        if r.is_ok() {
+            backend.finish();
+            if !culling.coherent() {
+                out.visible.clone_from(&out.rendered);
+            }
+            out.stats.objects_visible = out.visible.len() as u64;
         }
-        run.backend.finish();
-        let mut out = run.out;
-        if !culling.coherent() {
-            out.visible = out.rendered.clone();
-        }
-        out.stats.objects_visible = out.visible.len() as u64;
-        Ok(out)
+        self.boxes = boxes;
+        r
     }
 
     /// No occlusion queries: every leaf (inside the planes with `frustum`).
-    fn plain(&mut self, run: &mut Run<'_, '_>, frustum: bool) -> Result<()> {
-        let mut q = BinaryHeap::new();
+    fn plain(&mut self, run: &mut Run<'_, '_>, frustum: bool, s: &mut Scratch) -> Result<()> {
+        let q = &mut s.distance;
         q.push(Queued { dist: 0.0, node: 0 });
         while let Some(Queued { node, .. }) = q.pop() {
             let n = run.h.nodes[node as usize];
@@ -546,15 +629,15 @@ impl ViewCuller {
             if n.is_leaf() {
                 run.render(&n)?;
             } else {
-                run.push_children(&mut q, &n);
+                run.push_children(q, &n);
             }
         }
         Ok(())
     }
 
     /// Query, wait, descend: the exact hierarchical occlusion traversal.
-    fn stop_and_wait(&mut self, run: &mut Run<'_, '_>) -> Result<()> {
-        let mut q = BinaryHeap::new();
+    fn stop_and_wait(&mut self, run: &mut Run<'_, '_>, s: &mut Scratch) -> Result<()> {
+        let q = &mut s.distance;
         q.push(Queued { dist: 0.0, node: 0 });
         while let Some(Queued { node, .. }) = q.pop() {
             let n = run.h.nodes[node as usize];
@@ -575,7 +658,7 @@ impl ViewCuller {
                 if n.is_leaf() {
                     run.render(&n)?;
                 } else {
-                    run.push_children(&mut q, &n);
+                    run.push_children(q, &n);
                 }
             }
         }
@@ -583,10 +666,10 @@ impl ViewCuller {
     }
 
     /// Coherent hierarchical culling [Steiner Listing 2.1].
-    fn chc(&mut self, run: &mut Run<'_, '_>) -> Result<()> {
-        let mut distance = BinaryHeap::new();
+    fn chc(&mut self, run: &mut Run<'_, '_>, s: &mut Scratch) -> Result<()> {
+        let distance = &mut s.distance;
         // (node, query, was visible): results handled in issue order.
-        let mut queries: VecDeque<(u32, QueryId, bool)> = VecDeque::new();
+        let queries = &mut s.chc;
         distance.push(Queued { dist: 0.0, node: 0 });
         while !distance.is_empty() || !queries.is_empty() {
             // Results that have arrived (or all of them once there is nothing
@@ -609,7 +692,7 @@ impl ViewCuller {
                     }
                     if !was_visible {
                         let n = run.h.nodes[node as usize];
-                        self.traverse(run, &mut distance, &n)?;
+                        self.traverse(run, distance, &n)?;
                     }
                 }
             }
@@ -631,7 +714,7 @@ impl ViewCuller {
                 queries.push_back((node, id, was_visible));
             }
             if was_visible {
-                self.traverse(run, &mut distance, &n)?;
+                self.traverse(run, distance, &n)?;
             }
         }
         Ok(())
