@@ -25,6 +25,10 @@ use shadowcull::raster::VolumeMethod;
 use shadowcull::scene::{Camera, Light};
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::Arc;
+
+/// The host's thread pool, shared with its pipelines.
+type Pool = Arc<rayon::ThreadPool>;
 
 /// A mesh as a host keeps it: flat positions and a triangle index list.
 struct HostMesh {
@@ -99,16 +103,15 @@ impl Drawn {
 use shadowcull::scene::{ClipDepth, Mesh, MeshId, ObjectFlags, ObjectId, Scene, SceneGraph};
 use shadowcull::{CullingSpec, FrameInput, Pipeline, PipelineOptions, StencilBackend};
 
-/// A pipeline holding the host's meshes, objects and lights, with their ids.
-fn upload(world: &HostWorld, culling: CullingSpec) -> shadowcull::Result<Uploaded> {
-    let stencil = StencilBackend::H; // a GPU host: None (here: to check the masks)
+/// A pipeline on the host's thread pool holding its meshes, objects and lights, with their ids.
+fn upload(world: &HostWorld, culling: CullingSpec, pool: &Pool) -> shadowcull::Result<Uploaded> {
     let options = PipelineOptions {
         culling,
-        stencil,
+        stencil: StencilBackend::H, // a GPU host: None (here: to check the masks)
         ..Default::default()
     };
-    let pipeline = Pipeline::new(Scene::new(SceneGraph::new())?, options)?;
-    let mut u = Uploaded::new(pipeline);
+    let mut u = Uploaded::new(Pipeline::new(Scene::new(SceneGraph::new())?, options)?);
+    u.pipeline.set_thread_pool(Some(pool.clone()))?;
     for m in &world.meshes {
         let positions: Vec<glam::Vec3> = m.positions.iter().map(|&q| q.into()).collect();
         let tris: Vec<[u32; 3]> = m.indices.chunks(3).map(|t| [t[0], t[1], t[2]]).collect();
@@ -269,17 +272,19 @@ fn world() -> HostWorld {
 /// Frame `f`'s edits: object 1 circles its lot; a third of the way along the
 /// path the object beside the street is removed, half way an invisible tower
 /// (a shadow proxy) appears.
-fn edits(f: u32, n: u32, world: &HostWorld) -> Vec<HostEdit> {
+fn edits(f: u32, world: &HostWorld) -> Vec<HostEdit> {
     let a = f64::from(f) * 0.2;
     let base = world.objects[1].world;
     let mut e = vec![HostEdit::Move(
         1,
         DMat4::from_translation(DVec3::new(3.0 * a.cos(), 0.0, 3.0 * a.sin())) * base,
     )];
-    if f == n / 3 {
+    // Early, so that the path back (which replays moves only) sees the
+    // scene the path forward saw.
+    if f == 1 {
         e.push(HostEdit::Remove(12));
     }
-    if f == n / 2 {
+    if f == 2 {
         let m = DMat4::from_scale_rotation_translation(
             DVec3::new(3.0, 12.0, 3.0),
             DQuat::IDENTITY,
@@ -413,8 +418,24 @@ fn main() -> anyhow::Result<()> {
         }
     }
     let world = world();
-    let mut culled = upload(&world, CullingSpec::Chcpp)?;
-    let mut unculled = upload(&world, CullingSpec::None)?;
+    // The host's job system: frames run on its threads (rayon allocates a
+    // queue block every 63 jobs injected from outside a pool).
+    let pool = Pool::new(rayon::ThreadPoolBuilder::new().build()?);
+    pool.clone()
+        .install(|| run(&world, &pool, frames, every, size, there_and_back))
+}
+
+/// The loop: uploads, then frames along the path with the checks.
+fn run(
+    world: &HostWorld,
+    pool: &Pool,
+    frames: u32,
+    every: u32,
+    size: (u32, u32),
+    there_and_back: bool,
+) -> anyhow::Result<()> {
+    let mut culled = upload(world, CullingSpec::Chcpp, pool)?;
+    let mut unculled = upload(world, CullingSpec::None, pool)?;
     let (mut psr, mut psc, mut ms) = (Vec::new(), Vec::new(), Vec::new());
     let (mut mismatch, mut off_boundary, mut ambiguous, mut compared, mut differing) =
         (0u64, 0u64, 0u64, 0u64, 0u64);
@@ -425,7 +446,7 @@ fn main() -> anyhow::Result<()> {
     for k in 0..steps {
         let backward = k >= frames;
         let f = if backward { 2 * frames - 1 - k } else { k };
-        for e in edits(f, frames, &world) {
+        for e in edits(f, world) {
             if backward && !matches!(e, HostEdit::Move(..)) {
                 continue;
             }

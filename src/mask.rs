@@ -106,12 +106,38 @@ pub fn assemble(
     shadowed: impl Fn(usize) -> bool + Sync,
     two_sided: bool,
 ) -> Mask {
+    let mut mask = Mask::filled(0, 0, PixelClass::Background);
+    assemble_into(
+        scene, camera, light, width, height, primitive, shadowed, two_sided, &mut mask,
+    );
+    mask
+}
+
+/// [`assemble`] into `mask`, whose pixel buffer is reused.
+///
+/// # Panics
+/// As [`assemble`].
+#[allow(clippy::too_many_arguments)]
+pub fn assemble_into(
+    scene: &Scene,
+    camera: &Camera,
+    light: &Light,
+    width: u32,
+    height: u32,
+    primitive: &[Option<(ObjectId, u32)>],
+    shadowed: impl Fn(usize) -> bool + Sync,
+    two_sided: bool,
+    mask: &mut Mask,
+) {
     assert_eq!(
         primitive.len(),
         width as usize * height as usize,
         "primitive ids size"
     );
-    let mut mask = Mask::filled(width, height, PixelClass::Background);
+    (mask.width, mask.height) = (width, height);
+    mask.pixels.clear();
+    mask.pixels
+        .resize(width as usize * height as usize, PixelClass::Background);
     let rays = camera.rays(width, height);
     // Only spot lights and ranged point lights depend on the surface point.
     let everywhere = matches!(
@@ -157,7 +183,6 @@ pub fn assemble(
         .par_chunks_mut(width as usize)
         .enumerate()
         .for_each(|(y, out)| row(y, out));
-    mask
 }
 
 /// A per-pixel classification, row 0 at the top.

@@ -226,8 +226,8 @@ impl Pipeline {
             }
         }
         self.edited = false;
-        self.all_visible = live_slots(scene, |f| f.visible);
-        self.all_casters = live_slots(scene, |f| f.casts);
+        live_slots(scene, |f| f.visible, &mut self.all_visible);
+        live_slots(scene, |f| f.casts, &mut self.all_casters);
         self.counts = scene.counts();
         self.bvh = None;
     }

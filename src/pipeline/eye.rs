@@ -222,6 +222,10 @@ pub struct EyeCulling {
     hierarchy: visibility::Hierarchy,
     meshes: visibility::MeshData,
     culler: visibility::ViewCuller,
+    /// The last traversal's result (its lists reused).
+    pub(crate) result: visibility::CullResult,
+    /// The bundled backend's query results, kept between frames.
+    queries: raster::QueryBuffers,
 }
 
 impl EyeCulling {
@@ -231,6 +235,8 @@ impl EyeCulling {
             hierarchy: visibility::Hierarchy::from_scene(scene),
             meshes: visibility::MeshData::from_scene(scene),
             culler: visibility::ViewCuller::new(),
+            result: visibility::CullResult::default(),
+            queries: raster::QueryBuffers::default(),
         }
     }
 }
@@ -363,6 +369,30 @@ pub fn eye_pass_culled(
     sampling: visibility::Sampling,
     previous: Option<EyePass>,
 ) -> Result<(EyePass, visibility::CullResult)> {
+    let eye = eye_pass_culled_into(
+        scene, meshes, state, camera, width, height, culling, threshold, sampling, previous,
+    )?;
+    Ok((eye, state.result.clone()))
+}
+
+/// [`eye_pass_culled`] with the traversal's result left in `state.result`
+/// (its lists, and the backend's, reused from frame to frame).
+///
+/// # Errors
+/// As [`eye_pass`].
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn eye_pass_culled_into(
+    scene: &Scene,
+    meshes: &MeshCache,
+    state: &mut EyeCulling,
+    camera: &Camera,
+    width: u32,
+    height: u32,
+    culling: visibility::Culling,
+    threshold: u32,
+    sampling: visibility::Sampling,
+    previous: Option<EyePass>,
+) -> Result<EyePass> {
     let (target, primitive, depth) = match previous {
         Some(p) if (p.target.width(), p.target.height()) == (width, height) => {
             (p.target, p.primitive, p.depth)
@@ -373,30 +403,34 @@ pub fn eye_pass_culled(
             Vec::new(),
         ),
     };
-    let mut backend = raster::SyncBackend::new(target);
+    let queries = std::mem::take(&mut state.queries);
+    let mut backend = raster::SyncBackend::reusing(target, queries);
     let clip = |w: &glam::DMat4| scene::transform::clip_from_local(camera, w);
     let view = visibility::ViewSetup::eye_sampled(camera, &clip, threshold, sampling);
-    let result = state.culler.cull(
+    state.culler.cull_into(
         &state.hierarchy,
         scene,
         &state.meshes,
         &view,
         culling,
         &mut backend,
+        &mut state.result,
     )?;
-    let mut target = backend.into_target();
+    let (mut target, queries) = backend.into_parts();
+    state.queries = queries;
     // Visible objects that may not occlude were left out of the traversal's
     // draws: they join the visible surface now, hiding nothing they did not.
-    let deferred = result.rendered.iter().copied().filter(|id| {
+    let deferred = state.result.rendered.iter().copied().filter(|id| {
         let f = scene.object(*id).flags;
         f.visible && !f.occludes
     });
     draw_objects(scene, meshes, camera, &mut target, deferred)?;
-    Ok((EyePass::from_target(target, primitive, depth), result))
+    Ok(EyePass::from_target(target, primitive, depth))
 }
 
 /// The culled eye traversal through a host's `backend`: the same view and
-/// culling as [`eye_pass_culled`], without the bundled target.
+/// culling as [`eye_pass_culled`], without the bundled target; the result is
+/// left in `state.result`.
 ///
 /// # Errors
 /// Backend errors.
@@ -406,7 +440,7 @@ pub(crate) fn cull_with(
     camera: &Camera,
     options: &super::PipelineOptions,
     backend: &mut dyn raster::OcclusionBackend,
-) -> Result<visibility::CullResult> {
+) -> Result<()> {
     let clip = |w: &glam::DMat4| scene::transform::clip_from_local(camera, w);
     let view = visibility::ViewSetup::eye_sampled(
         camera,
@@ -414,12 +448,13 @@ pub(crate) fn cull_with(
         options.query_threshold,
         options.coverage.sampling(),
     );
-    Ok(state.culler.cull(
+    Ok(state.culler.cull_into(
         &state.hierarchy,
         scene,
         &state.meshes,
         &view,
         options.culling(),
         backend,
+        &mut state.result,
     )?)
 }

@@ -227,8 +227,8 @@ impl Pipeline {
             eye: None,
             camera: None,
             receivers: Default::default(),
-            all_visible: live_slots(&scene, |f| f.visible),
-            all_casters: live_slots(&scene, |f| f.casts),
+            all_visible: live_slots_of(&scene, |f| f.visible),
+            all_casters: live_slots_of(&scene, |f| f.casts),
             casters: Vec::new(),
             psr: Vec::new(),
             lights: Vec::new(),
@@ -341,8 +341,8 @@ impl Pipeline {
         let previous = self.eye.take();
         let (eye, eye_queries, eye_waits) = if culled {
             let state = self.culling.get_or_insert_with(|| EyeCulling::new(scene));
-            let (eye, r) = match &self.backends {
-                None => eye_pass_culled(
+            let eye = match &self.backends {
+                None => eye::eye_pass_culled_into(
                     scene,
                     &self.meshes,
                     state,
@@ -359,19 +359,20 @@ impl Pipeline {
                         width: w,
                         height: h,
                     });
-                    let r = eye::cull_with(scene, state, camera, &o, backend.as_mut())?;
-                    let eye = eye::eye_pass_of(
+                    eye::cull_with(scene, state, camera, &o, backend.as_mut())?;
+                    eye::eye_pass_of(
                         scene,
                         &self.meshes,
                         camera,
                         (w, h),
                         previous,
-                        Some(&r.rendered),
-                    )?;
-                    (eye, r)
+                        Some(&state.result.rendered),
+                    )?
                 }
             };
+            let r = &state.result;
             self.psr.clear();
+            self.psr.reserve(scene.objects().len());
             let visible = r
                 .rendered
                 .iter()
@@ -412,6 +413,7 @@ impl Pipeline {
             n += 1;
             let casters: &[ObjectId] = if culled {
                 self.casters.clear();
+                self.casters.reserve(scene.objects().len());
                 let casting = s
                     .culling
                     .result
@@ -436,6 +438,7 @@ impl Pipeline {
             s.volume_stats = volumes;
             // Public ids (slot and generation) in the outputs.
             s.psc.clear();
+            s.psc.reserve(scene.objects().len());
             s.psc.extend(casters.iter().map(|id| scene.id_of(id.0)));
             for r in &mut s.scratch.volumes.ranges {
                 r.object = scene.id_of(r.object).0;
@@ -450,6 +453,7 @@ impl Pipeline {
                     &shadow_options,
                     &mut s.scratch,
                     volumes,
+                    s.shadow.take(),
                 )?),
             };
             let (light_queries, light_waits, light_ms) = if culled {
@@ -748,15 +752,24 @@ fn own_pool(threads: u32) -> Result<Option<Arc<rayon::ThreadPool>>> {
         })
 }
 
-/// The slot ids of `scene`'s live objects whose flags pass `keep`, ascending.
-fn live_slots(scene: &Scene, keep: fn(&scene::ObjectFlags) -> bool) -> Vec<ObjectId> {
-    scene
-        .objects()
-        .iter()
-        .enumerate()
-        .filter(|(_, o)| o.alive && keep(&o.flags))
-        .map(|(i, _)| ObjectId(i as u32))
-        .collect()
+/// The slot ids of `scene`'s live objects whose flags pass `keep`, ascending,
+/// into `out` (cleared first).
+fn live_slots(scene: &Scene, keep: fn(&scene::ObjectFlags) -> bool, out: &mut Vec<ObjectId>) {
+    out.clear();
+    out.extend(
+        scene
+            .objects()
+            .iter()
+            .enumerate()
+            .filter(|(_, o)| o.alive && keep(&o.flags))
+            .map(|(i, _)| ObjectId(i as u32)),
+    );
+}
+
+fn live_slots_of(scene: &Scene, keep: fn(&scene::ObjectFlags) -> bool) -> Vec<ObjectId> {
+    let mut out = Vec::new();
+    live_slots(scene, keep, &mut out);
+    out
 }
 
 fn check_options(options: &PipelineOptions) -> Result<()> {

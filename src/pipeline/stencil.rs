@@ -5,7 +5,7 @@
 
 use super::eye::EyePass;
 use super::volume::build_for;
-use crate::mask::{assemble, Mask};
+use crate::mask::{assemble_into, Mask, PixelClass};
 use crate::Result;
 use raster::{
     HierarchicalOptions, HierarchicalStencil, StencilBits, StencilStats, StencilTarget, TileClass,
@@ -135,6 +135,10 @@ pub struct ShadowScratch {
     pub(crate) volumes: VolumeBuffer,
     stencil: Option<StencilTarget>,
     hierarchical: Option<HierarchicalStencil>,
+    /// Per volume range its clip matrix, and the (matrix, range) list the
+    /// stencil draws (kept empty between frames).
+    clip: Vec<glam::Mat4>,
+    ranges: Vec<(glam::Mat4, &'static raster::VolumeRange)>,
 }
 
 impl std::fmt::Debug for ShadowScratch {
@@ -187,15 +191,17 @@ pub fn shadow_mask_for(
         &mut scratch.volumes,
         &mut scratch.cache,
     )?;
-    stencil_volumes(scene, camera, light, eye, options, scratch, volumes)
+    stencil_volumes(scene, camera, light, eye, options, scratch, volumes, None)
 }
 
 /// The stencil stage alone: draws the volumes already in `scratch` (built by
 /// [`super::volume::build_for`], whose counters `volumes` are) with
-/// `options.backend` and assembles the mask.
+/// `options.backend` and assembles the mask; `previous` (the last frame's
+/// output) lends its buffers.
 ///
 /// # Errors
 /// Rasterizer errors; for the hybrid, an invalid light.
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn stencil_volumes(
     scene: &Scene,
     camera: &Camera,
@@ -204,6 +210,7 @@ pub(crate) fn stencil_volumes(
     options: &ShadowOptions,
     scratch: &mut ShadowScratch,
     volumes: VolumeStats,
+    previous: Option<ShadowFrame>,
 ) -> Result<ShadowFrame> {
     let (w, h) = (eye.target.width(), eye.target.height());
     let t = std::time::Instant::now();
@@ -212,18 +219,29 @@ pub(crate) fn stencil_volumes(
         scissor: options.scissor,
         depth_bounds: options.depth_bounds,
     };
-    let clip: Vec<glam::Mat4> = scratch
-        .volumes
-        .ranges
-        .iter()
-        .map(|r| scene::transform::clip_from_local(camera, &r.world_from_local))
-        .collect();
-    let ranges: Vec<_> = clip.iter().copied().zip(&scratch.volumes.ranges).collect();
-    let mut raw_nonzero = Vec::new();
-    let mut tiles = None;
+    // As long as the volume buffer's range list (no growth of their own).
+    let n = scratch.volumes.ranges.capacity();
+    scratch.clip.clear();
+    scratch.clip.reserve(n);
+    scratch.clip.extend(
+        scratch
+            .volumes
+            .ranges
+            .iter()
+            .map(|r| scene::transform::clip_from_local(camera, &r.world_from_local)),
+    );
+    let mut ranges: Vec<(glam::Mat4, &raster::VolumeRange)> =
+        recycle(std::mem::take(&mut scratch.ranges));
+    ranges.reserve(n);
+    ranges.extend(scratch.clip.iter().copied().zip(&scratch.volumes.ranges));
+    let (mut mask, mut raw_nonzero, mut tiles) = match previous {
+        Some(p) => (p.mask, p.raw_nonzero, p.tiles),
+        None => (Mask::filled(0, 0, PixelClass::Background), Vec::new(), None),
+    };
     let (mut silhouette_pixels, mut map_ms) = (0, 0.0);
     match options.backend {
         Backend::Brute => {
+            tiles = None;
             let mut stencil = match scratch.stencil.take() {
                 Some(mut s) if (s.width(), s.height(), s.bits()) == (w, h, options.bits) => {
                     s.clear();
@@ -251,15 +269,18 @@ pub(crate) fn stencil_volumes(
             stencil.draw_volumes(&eye.target, &ranges, &scratch.volumes, tests, &mut stats)?;
             stencil.resolve(&eye.target, &mut raw_nonzero, &mut stats)?;
             let (tiles_x, tiles_y) = stencil.tile_counts();
+            let mut classes = tiles.take().map(|t| t.classes).unwrap_or_default();
+            stencil.tile_classes_into(&mut classes);
             tiles = Some(TileImage {
                 tile: tile.pixels(),
                 tiles_x,
                 tiles_y,
-                classes: stencil.tile_classes(),
+                classes,
             });
             scratch.hierarchical = Some(stencil);
         }
         Backend::Hybrid { map_size } => {
+            tiles = None;
             let class = crate::hybrid::classify(
                 scene,
                 camera,
@@ -298,9 +319,10 @@ pub(crate) fn stencil_volumes(
             map_ms = class.map_ms;
         }
     }
+    scratch.ranges = recycle(ranges);
     let volume_triangles = stats.triangles;
     let shadowed = |i: usize| raw_nonzero[i];
-    let mask = assemble(
+    assemble_into(
         scene,
         camera,
         light,
@@ -309,6 +331,7 @@ pub(crate) fn stencil_volumes(
         &eye.primitive,
         shadowed,
         options.two_sided,
+        &mut mask,
     );
     Ok(ShadowFrame {
         mask,
@@ -321,4 +344,13 @@ pub(crate) fn stencil_volumes(
         silhouette_pixels,
         map_ms,
     })
+}
+
+/// An empty vector of `U` in `v`'s allocation: for element types of one
+/// layout (references differing only in lifetime) the standard library's
+/// in-place collection keeps the buffer, so a list of references into one
+/// frame's data keeps its capacity for the next.
+fn recycle<T, U>(mut v: Vec<T>) -> Vec<U> {
+    v.clear();
+    v.into_iter().map(|_| unreachable!("empty")).collect()
 }

@@ -35,7 +35,7 @@ pub(crate) fn build_for(
         viewport: (options.scissor || options.depth_bounds).then_some(viewport),
         finite_extrusion: options.finite_extrusion,
     };
-    Ok(build_volumes(
-        out, scene, camera, light, casters, build, cache,
-    )?)
+    let stats = build_volumes(out, scene, camera, light, casters, build, cache)?;
+    out.reserve_headroom();
+    Ok(stats)
 }

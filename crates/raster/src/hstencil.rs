@@ -66,7 +66,7 @@ use crate::stencil::{
     Window, BAND_TILE_ROWS,
 };
 use crate::tile_class::{PiecePlane, Side};
-use crate::volume_buffer::{VolumeBuffer, VolumeMethod, VolumeRange};
+use crate::volume_buffer::{headroom, VolumeBuffer, VolumeMethod, VolumeRange};
 use crate::MAX_CLIPPED_VERTICES;
 use crate::{Error, Result, StencilBits, StencilStats, StencilTarget, StencilTests};
 use glam::Mat4;
@@ -166,6 +166,47 @@ pub struct HierarchicalStencil {
     tiles_x: u32,
     tiles_y: u32,
     shift: u32,
+    /// The volume pass's lists, kept between draws (empty in between).
+    work: Work,
+}
+
+/// The lists one [`HierarchicalStencil::draw_volumes`] call fills, kept so
+/// that a steady frame allocates nothing. Lists of references are kept empty
+/// between calls ([`recycle`]).
+#[derive(Default)]
+struct Work {
+    jobs: Vec<(Mat4, &'static VolumeRange, Window)>,
+    /// One per set-up chunk.
+    setups: Vec<SetUp>,
+    vols: Vec<VolumeJob>,
+    pieces: Vec<&'static Piece>,
+    open: Vec<&'static Segment>,
+    piece_bins: Bins,
+    open_bins: Bins,
+    /// Per band: its scratch and its counters.
+    bands: Vec<(Scratch, StencilStats)>,
+}
+
+impl Clone for Work {
+    /// Scratch only: a clone starts with empty lists.
+    fn clone(&self) -> Self {
+        Work::default()
+    }
+}
+
+impl std::fmt::Debug for Work {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Work").finish_non_exhaustive()
+    }
+}
+
+/// An empty vector of `U` in `v`'s allocation. For element types of one
+/// layout (references differing only in lifetime) the standard library's
+/// in-place collection keeps the buffer, so lists of references into
+/// per-call data keep their capacity from call to call.
+fn recycle<T, U>(mut v: Vec<T>) -> Vec<U> {
+    v.clear();
+    v.into_iter().map(|_| unreachable!("empty")).collect()
 }
 
 /// Per-volume pieces and open edges inside one batch.
@@ -207,6 +248,7 @@ impl HierarchicalStencil {
             tiles_x,
             tiles_y,
             shift,
+            work: Work::default(),
         })
     }
 
@@ -275,20 +317,25 @@ impl HierarchicalStencil {
     /// Per tile (row-major) its class over everything drawn since the last clear
     /// (the written pixels are those of the eye target of the last draw).
     pub fn tile_classes(&self) -> Vec<TileClass> {
-        self.cold
-            .iter()
-            .map(|t| {
-                if t.written == 0 {
-                    TileClass::Background
-                } else if t.ever_boundary {
-                    TileClass::Boundary
-                } else if t.fs || self.wrap(t.base.wrapping_add(t.smin)) != 0 {
-                    TileClass::Shadow
-                } else {
-                    TileClass::Lit
-                }
-            })
-            .collect()
+        let mut out = Vec::new();
+        self.tile_classes_into(&mut out);
+        out
+    }
+
+    /// [`HierarchicalStencil::tile_classes`] into `out` (cleared first).
+    pub fn tile_classes_into(&self, out: &mut Vec<TileClass>) {
+        out.clear();
+        out.extend(self.cold.iter().map(|t| {
+            if t.written == 0 {
+                TileClass::Background
+            } else if t.ever_boundary {
+                TileClass::Boundary
+            } else if t.fs || self.wrap(t.base.wrapping_add(t.smin)) != 0 {
+                TileClass::Shadow
+            } else {
+                TileClass::Lit
+            }
+        }));
     }
 
     /// The mask resolve [Aila04 §4.1.2]: per pixel (row-major, row 0 at the top)
@@ -360,7 +407,12 @@ impl HierarchicalStencil {
         stats: &mut StencilStats,
     ) -> Result<()> {
         let (width, height) = (self.width(), self.height());
-        let (jobs, mut st) = self.pixels.prepare(eye, volumes, buf, tests)?;
+        let mut work = std::mem::take(&mut self.work);
+        let mut jobs = recycle(std::mem::take(&mut work.jobs));
+        let mut st = self
+            .pixels
+            .prepare_into(eye, volumes, buf, tests, &mut jobs)?;
+        headroom(&mut jobs);
         self.tile_bounds(eye);
         let geo = Geometry {
             width,
@@ -370,6 +422,17 @@ impl HierarchicalStencil {
             options: self.options,
         };
         let vp = eye.vp;
+        let Work {
+            setups,
+            vols,
+            pieces: piece_list,
+            open: open_list,
+            piece_bins,
+            open_bins,
+            bands,
+            ..
+        } = &mut work;
+        setups.resize_with(SETUP_CHUNKS, SetUp::default);
         // Batches of whole volumes of about `H_PIECE_BATCH` triangles; each batch
         // is set up in parallel chunks (in volume order), then both stages run.
         let mut next = 0;
@@ -380,22 +443,34 @@ impl HierarchicalStencil {
                 end += 1;
             }
             next = end;
-            let chunk = (end - first).div_ceil(SETUP_CHUNKS).max(1);
-            let ranges: Vec<std::ops::Range<usize>> = (first..end)
-                .step_by(chunk)
-                .map(|a| a..(a + chunk).min(end))
-                .collect();
-            let setup = |r: std::ops::Range<usize>| set_up(&jobs, r, buf, &vp);
-            #[cfg(feature = "parallel")]
-            let parts: Vec<SetUp> = {
-                use rayon::prelude::*;
-                ranges.into_par_iter().map(setup).collect()
+            // Chunks of about equal triangle counts: even work, and lists of
+            // about equal length.
+            let mut bounds = [end; SETUP_CHUNKS + 1];
+            bounds[0] = first;
+            let (mut acc, mut k) = (0usize, 1usize);
+            for (j, job) in jobs.iter().enumerate().take(end).skip(first) {
+                while k < SETUP_CHUNKS && acc >= k * est / SETUP_CHUNKS {
+                    bounds[k] = j;
+                    k += 1;
+                }
+                acc += job.1.index_count as usize / 3;
+            }
+            let setup = |(k, out): (usize, &mut SetUp)| {
+                set_up(&jobs, bounds[k]..bounds[k + 1], buf, &vp, out)
             };
+            #[cfg(feature = "parallel")]
+            {
+                use rayon::prelude::*;
+                setups.par_iter_mut().enumerate().for_each(setup);
+            }
             #[cfg(not(feature = "parallel"))]
-            let parts: Vec<SetUp> = ranges.into_iter().map(setup).collect();
+            setups.iter_mut().enumerate().for_each(setup);
+            share_capacity(setups);
             // One index space over the chunks' pieces and open edges.
-            let (mut vols, mut pieces, mut open) = (Vec::new(), Vec::new(), Vec::new());
-            for p in &parts {
+            vols.clear();
+            let mut pieces: Vec<&Piece> = recycle(std::mem::take(piece_list));
+            let mut open: Vec<&Segment> = recycle(std::mem::take(open_list));
+            for p in setups.iter() {
                 let (dp, dopen) = (pieces.len(), open.len());
                 vols.extend(p.vols.iter().map(|v| VolumeJob {
                     pieces: v.pieces.start + dp..v.pieces.end + dp,
@@ -405,8 +480,22 @@ impl HierarchicalStencil {
                 pieces.extend(p.pieces.iter());
                 open.extend(p.open.iter());
             }
-            self.flush(eye, &geo, &jobs, &vols, &pieces, &open, &mut st);
+            headroom(vols);
+            headroom(&mut pieces);
+            headroom(&mut open);
+            let lists = (&vols[..], &pieces[..], &open[..]);
+            self.flush(
+                eye,
+                &geo,
+                &jobs,
+                lists,
+                (piece_bins, open_bins, bands),
+                &mut st,
+            );
+            (*piece_list, *open_list) = (recycle(pieces), recycle(open));
         }
+        work.jobs = recycle(jobs);
+        self.work = work;
         self.pixels.touched_count += st.pixels_touched;
         stats.add(&st);
         Ok(())
@@ -464,21 +553,24 @@ impl HierarchicalStencil {
                     });
             }
         };
-        let it = self
+        #[cfg(feature = "parallel")]
+        {
+            use rayon::prelude::*;
+            self.hot
+                .par_chunks_mut(tx_n)
+                .zip(self.cold.par_chunks_mut(tx_n))
+                .zip(self.blocks.par_chunks_mut(nb))
+                .enumerate()
+                .for_each(|(ty, ((hot, cold), blocks))| row(ty as u32, hot, cold, blocks));
+        }
+        #[cfg(not(feature = "parallel"))]
+        for (ty, ((hot, cold), blocks)) in self
             .hot
             .chunks_mut(tx_n)
             .zip(self.cold.chunks_mut(tx_n))
             .zip(self.blocks.chunks_mut(nb))
-            .enumerate();
-        #[cfg(feature = "parallel")]
+            .enumerate()
         {
-            use rayon::prelude::*;
-            it.collect::<Vec<_>>()
-                .into_par_iter()
-                .for_each(|(ty, ((hot, cold), blocks))| row(ty as u32, hot, cold, blocks));
-        }
-        #[cfg(not(feature = "parallel"))]
-        for (ty, ((hot, cold), blocks)) in it {
             row(ty as u32, hot, cold, blocks);
         }
         let rows_per_band = BAND_ROWS >> shift;
@@ -496,15 +588,18 @@ impl HierarchicalStencil {
     }
 
     /// Runs both stages for the batch's volumes, bands of 64 rows in parallel.
-    #[allow(clippy::too_many_arguments)]
+    #[allow(clippy::type_complexity)]
     fn flush(
         &mut self,
         eye: &DepthTarget,
         geo: &Geometry,
         jobs: &[(Mat4, &VolumeRange, Window)],
-        vols: &[VolumeJob],
-        pieces: &[&Piece],
-        open: &[&Segment],
+        (vols, pieces, open): (&[VolumeJob], &[&Piece], &[&Segment]),
+        (piece_bins, open_bins, band_work): (
+            &mut Bins,
+            &mut Bins,
+            &mut Vec<(Scratch, StencilStats)>,
+        ),
         st: &mut StencilStats,
     ) {
         let band_rows = BAND_ROWS;
@@ -514,9 +609,14 @@ impl HierarchicalStencil {
         let px_chunk = BAND_TILE_ROWS * (self.width().div_ceil(8) as usize) * 64;
         let self_bands = &self.bands;
         let nbands = self.height().div_ceil(band_rows as u32) as usize;
-        let piece_bins = Bins::new(nbands, pieces.iter().map(|p| (p.y0, p.y1)));
-        let open_bins = Bins::new(nbands, open.iter().map(|e| (e.y0, e.y1)));
-        let run = |k: usize, counters: CountersMut<'_>, parts: BandParts<'_>| {
+        piece_bins.fill(nbands, pieces.iter().map(|p| (p.y0, p.y1)));
+        open_bins.fill(nbands, open.iter().map(|e| (e.y0, e.y1)));
+        let (piece_bins, open_bins) = (&*piece_bins, &*open_bins);
+        band_work.resize_with(nbands, Default::default);
+        let run = |k: usize,
+                   counters: CountersMut<'_>,
+                   parts: BandParts<'_>,
+                   (scratch, bst): &mut (Scratch, StencilStats)| {
             let y0 = (k * band_rows) as i64;
             let mut band = HBand {
                 px: Band {
@@ -543,8 +643,7 @@ impl HierarchicalStencil {
                 ty0: (k * rows_per_band) as i64,
                 geo,
             };
-            let mut bst = StencilStats::default();
-            let mut scratch = Scratch::default();
+            *bst = StencilStats::default();
             let (mut bp, mut bo) = (piece_bins.band(k), open_bins.band(k));
             for v in vols {
                 let win = &jobs[v.job as usize].2;
@@ -552,10 +651,9 @@ impl HierarchicalStencil {
                 let np = bp.partition_point(|&i| (i as usize) < v.pieces.end);
                 let no = bo.partition_point(|&i| (i as usize) < v.open.end);
                 let (vp, vo) = ((&bp[..np], pieces), (&bo[..no], open));
-                band.volume(eye, v, win, vp, vo, &mut scratch, &mut bst);
+                band.volume(eye, v, win, vp, vo, scratch, bst);
                 (bp, bo) = (&bp[np..], &bo[no..]);
             }
-            bst
         };
         let chunks = Chunks {
             px: px_chunk,
@@ -568,15 +666,30 @@ impl HierarchicalStencil {
             &mut self.cold,
             &mut self.blocks,
         );
-        let parts = match &mut self.pixels.counters {
-            Counters::Eight(c) => run_h_bands(c, touched, hot, cold, blocks, chunks, |k, c, p| {
-                run(k, CountersMut::Eight(c), p)
-            }),
-            Counters::Wide(c) => run_h_bands(c, touched, hot, cold, blocks, chunks, |k, c, p| {
-                run(k, CountersMut::Wide(c), p)
-            }),
+        let bands = &mut band_work[..];
+        match &mut self.pixels.counters {
+            Counters::Eight(c) => run_h_bands(
+                c,
+                touched,
+                hot,
+                cold,
+                blocks,
+                chunks,
+                bands,
+                |k, c, p, w| run(k, CountersMut::Eight(c), p, w),
+            ),
+            Counters::Wide(c) => run_h_bands(
+                c,
+                touched,
+                hot,
+                cold,
+                blocks,
+                chunks,
+                bands,
+                |k, c, p, w| run(k, CountersMut::Wide(c), p, w),
+            ),
         };
-        for p in &parts {
+        for (_, p) in band_work.iter() {
             st.add(p);
         }
     }
@@ -584,16 +697,21 @@ impl HierarchicalStencil {
 
 /// Indices of items (pieces, open edges) per band of [`BAND_ROWS`] rows, in
 /// ascending order: a band walks only what reaches its rows.
+#[derive(Default)]
 struct Bins {
     start: Vec<usize>,
     ids: Vec<u32>,
+    fill: Vec<usize>,
 }
 
 impl Bins {
-    /// Bins items with inclusive pixel rows `(y0, y1)` into `n` bands.
-    fn new(n: usize, rows: impl Iterator<Item = (i64, i64)> + Clone) -> Self {
+    /// Bins items with inclusive pixel rows `(y0, y1)` into `n` bands (in the
+    /// existing buffers).
+    fn fill(&mut self, n: usize, rows: impl Iterator<Item = (i64, i64)> + Clone) {
         let band = |y: i64| (y.max(0) as usize / BAND_ROWS).min(n.saturating_sub(1));
-        let mut count = vec![0usize; n + 1];
+        let count = &mut self.start;
+        count.clear();
+        count.resize(n + 1, 0);
         for (y0, y1) in rows.clone() {
             if y1 >= 0 && y0 <= y1 {
                 for k in band(y0)..=band(y1) {
@@ -604,8 +722,12 @@ impl Bins {
         for k in 0..n {
             count[k + 1] += count[k];
         }
-        let mut fill = count.clone();
-        let mut ids = vec![0u32; count[n]];
+        let fill = &mut self.fill;
+        fill.clone_from(count);
+        let ids = &mut self.ids;
+        ids.clear();
+        ids.resize(count[n], 0);
+        headroom(ids);
         for (i, (y0, y1)) in rows.enumerate() {
             if y1 >= 0 && y0 <= y1 {
                 for k in band(y0)..=band(y1) {
@@ -614,7 +736,6 @@ impl Bins {
                 }
             }
         }
-        Bins { start: count, ids }
     }
 
     fn band(&self, k: usize) -> &[u32] {
@@ -631,18 +752,49 @@ struct SetUp {
     pieces: Vec<Piece>,
     open: Vec<Segment>,
     vols: Vec<VolumeJob>,
+    /// Directed edges of one volume's pieces (scratch).
+    edges: Vec<EdgeRec>,
 }
 
-/// Sets up the volumes `jobs[range]`: their fan pieces (as the brute-force
-/// pass), zp+ near-cap fans, and open edges.
+/// Keeps headroom in every chunk's lists ([`headroom`]), then gives them all
+/// the largest capacity any chunk's has: a chunk then grows only past the
+/// longest list any chunk has held (chunks take turns being the longest from
+/// frame to frame). Nothing is allocated unless a chunk came near its capacity.
+fn share_capacity(setups: &mut [SetUp]) {
+    for p in setups.iter_mut() {
+        headroom(&mut p.pieces);
+        headroom(&mut p.open);
+        headroom(&mut p.vols);
+    }
+    let most = setups.iter().fold([0; 4], |m, p| {
+        [
+            m[0].max(p.pieces.capacity()),
+            m[1].max(p.open.capacity()),
+            m[2].max(p.vols.capacity()),
+            m[3].max(p.edges.capacity()),
+        ]
+    });
+    for p in setups {
+        p.pieces.reserve(most[0] - p.pieces.len());
+        p.open.reserve(most[1] - p.open.len());
+        p.vols.reserve(most[2] - p.vols.len());
+        p.edges.reserve(most[3] - p.edges.len());
+    }
+}
+
+/// Sets up the volumes `jobs[range]` into `out` (cleared first): their fan
+/// pieces (as the brute-force pass), zp+ near-cap fans, and open edges.
 fn set_up(
     jobs: &[(Mat4, &VolumeRange, Window)],
     range: std::ops::Range<usize>,
     buf: &VolumeBuffer,
     vp: &crate::setup::Viewport,
-) -> SetUp {
-    let mut out = SetUp::default();
-    let mut edges: Vec<EdgeRec> = Vec::new();
+    out: &mut SetUp,
+) {
+    out.pieces.clear();
+    out.open.clear();
+    out.vols.clear();
+    let mut edges = std::mem::take(&mut out.edges);
     let mut s = Setup {
         facing: None,
         clipped: false,
@@ -686,7 +838,7 @@ fn set_up(
                 + 1,
         });
     }
-    out
+    out.edges = edges;
 }
 
 /// Blocks of [`BLOCK`] tiles per tile row.
@@ -1211,49 +1363,49 @@ fn push_h_pieces(
     }
 }
 
-/// Runs `f(k, counters, parts)` on the bands' chunks of every array, in parallel
-/// with the `parallel` feature; each band's result in order.
-fn run_h_bands<C: Send, R: Send>(
+/// Runs `f(k, counters, parts, work)` on the bands' chunks of every array and
+/// each band's entry of `work`, in parallel with the `parallel` feature.
+#[allow(clippy::too_many_arguments)]
+fn run_h_bands<C: Send, W: Send>(
     counters: &mut [C],
     touched: &mut [u8],
     hot: &mut [Hot],
     cold: &mut [Cold],
     blocks: &mut [[f32; 2]],
     n: Chunks,
-    f: impl Fn(usize, &mut [C], BandParts<'_>) -> R + Sync,
-) -> Vec<R> {
-    let bands: Vec<(&mut [C], BandParts<'_>)> = counters
+    work: &mut [W],
+    f: impl Fn(usize, &mut [C], BandParts<'_>, &mut W) + Sync,
+) {
+    let g = |(k, (((((c, touched), hot), cold), blocks), w)): (usize, _)| {
+        let parts = BandParts {
+            touched,
+            hot,
+            cold,
+            blocks,
+        };
+        f(k, c, parts, w)
+    };
+    #[cfg(feature = "parallel")]
+    {
+        use rayon::prelude::*;
+        counters
+            .par_chunks_mut(n.px)
+            .zip(touched.par_chunks_mut(n.px))
+            .zip(hot.par_chunks_mut(n.tiles))
+            .zip(cold.par_chunks_mut(n.tiles))
+            .zip(blocks.par_chunks_mut(n.blocks))
+            .zip(work.par_iter_mut())
+            .enumerate()
+            .for_each(g);
+    }
+    #[cfg(not(feature = "parallel"))]
+    counters
         .chunks_mut(n.px)
         .zip(touched.chunks_mut(n.px))
         .zip(hot.chunks_mut(n.tiles))
         .zip(cold.chunks_mut(n.tiles))
         .zip(blocks.chunks_mut(n.blocks))
-        .map(|((((c, touched), hot), cold), blocks)| {
-            (
-                c,
-                BandParts {
-                    touched,
-                    hot,
-                    cold,
-                    blocks,
-                },
-            )
-        })
-        .collect();
-    #[cfg(feature = "parallel")]
-    {
-        use rayon::prelude::*;
-        if bands.len() > 1 {
-            return bands
-                .into_par_iter()
-                .enumerate()
-                .map(|(k, (c, p))| f(k, c, p))
-                .collect();
-        }
-    }
-    bands
-        .into_iter()
+        .zip(work.iter_mut())
         .enumerate()
-        .map(|(k, (c, p))| f(k, c, p))
-        .collect()
+        .for_each(g);
 }

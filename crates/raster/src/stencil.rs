@@ -453,6 +453,22 @@ impl StencilTarget {
         buf: &VolumeBuffer,
         tests: StencilTests,
     ) -> Result<(Vec<(Mat4, &'v VolumeRange, Window)>, StencilStats)> {
+        let mut jobs = Vec::new();
+        let st = self.prepare_into(eye, volumes, buf, tests, &mut jobs)?;
+        Ok((jobs, st))
+    }
+
+    /// [`StencilTarget::prepare`] with the volumes and windows into `jobs`
+    /// (cleared first).
+    pub(crate) fn prepare_into<'v>(
+        &self,
+        eye: &DepthTarget,
+        volumes: &[(Mat4, &'v VolumeRange)],
+        buf: &VolumeBuffer,
+        tests: StencilTests,
+        jobs: &mut Vec<(Mat4, &'v VolumeRange, Window)>,
+    ) -> Result<StencilStats> {
+        jobs.clear();
         if (eye.width(), eye.height()) != (self.width, self.height) {
             return Err(Error::SizeMismatch {
                 expected: (eye.width(), eye.height()),
@@ -462,15 +478,15 @@ impl StencilTarget {
         for (_, range) in volumes {
             check_range(buf, range)?;
         }
-        let jobs = volumes
-            .iter()
-            .filter_map(|&(m, r)| self.window(r, tests).map(|w| (m, r, w)))
-            .collect();
-        let st = StencilStats {
+        jobs.extend(
+            volumes
+                .iter()
+                .filter_map(|&(m, r)| self.window(r, tests).map(|w| (m, r, w))),
+        );
+        Ok(StencilStats {
             triangles: volumes.iter().map(|(_, r)| r.index_count as u64 / 3).sum(),
             ..StencilStats::default()
-        };
-        Ok((jobs, st))
+        })
     }
 
     /// The pixel rectangle and depth range `tests` allow for `range`; `None` when empty.

@@ -111,6 +111,14 @@ pub struct VolumeBuffer {
     pub ranges: Vec<VolumeRange>,
 }
 
+/// Reserves `v` at twice its length when less than a quarter of its capacity
+/// is free (see [`VolumeBuffer::reserve_headroom`]).
+pub(crate) fn headroom<T>(v: &mut Vec<T>) {
+    if 4 * v.len() > 3 * v.capacity() {
+        v.reserve(v.len());
+    }
+}
+
 impl VolumeBuffer {
     /// An empty buffer.
     pub fn new() -> Self {
@@ -122,6 +130,16 @@ impl VolumeBuffer {
         self.positions.clear();
         self.indices.clear();
         self.ranges.clear();
+    }
+
+    /// Keeps a quarter of every list's capacity free, reserving twice its
+    /// length when less is: called after each frame's build, the next frames
+    /// (which draw about as many volumes) fill the buffer without allocating
+    /// until one needs a third more than any frame before.
+    pub fn reserve_headroom(&mut self) {
+        headroom(&mut self.positions);
+        headroom(&mut self.indices);
+        headroom(&mut self.ranges);
     }
 
     /// Total number of volume triangles.

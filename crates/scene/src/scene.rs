@@ -116,6 +116,9 @@ pub struct Scene {
     objects: Vec<Object>,
     bounds: Aabb,
     bvh: Bvh2,
+    /// The BVH's inner nodes, children before parents: the refit's order
+    /// (found once per build, so a refit allocates nothing).
+    refit_order: Vec<u32>,
     /// Staged edits not yet committed: the BVH needs a rebuild (slots were
     /// added) or a refit (bounds changed).
     pending: Pending,
@@ -193,6 +196,7 @@ impl Scene {
             objects,
             bounds: Aabb::EMPTY,
             bvh: Bvh2::default(),
+            refit_order: Vec::new(),
             pending: Pending::default(),
             empty_mesh: None,
             removed_meshes: vec![false; meshes],
@@ -202,7 +206,7 @@ impl Scene {
             mesh_versions: vec![0; meshes],
         };
         scene.bounds = scene.compute_bounds();
-        scene.bvh = scene.build_bvh();
+        scene.set_bvh(scene.build_bvh());
         Ok(scene)
     }
 
@@ -627,7 +631,7 @@ impl Scene {
         let p = std::mem::take(&mut self.pending);
         if p.rebuild {
             self.bounds = self.compute_bounds();
-            self.bvh = self.build_bvh();
+            self.set_bvh(self.build_bvh());
             self.bvh_version += 1;
             self.refit();
         } else if p.refit {
@@ -653,7 +657,31 @@ impl Scene {
             let node = self.bvh.primitives_to_nodes[prim] as usize;
             self.bvh.nodes[node].set_aabb(to_obvhs(&o.world_bounds));
         }
-        self.bvh.refit_all();
+        let nodes = &mut self.bvh.nodes;
+        for &i in &self.refit_order {
+            let first = nodes[i as usize].first_index as usize;
+            let b = nodes[first].aabb().union(nodes[first + 1].aabb());
+            nodes[i as usize].set_aabb(b);
+        }
+    }
+
+    /// Takes `bvh` as the object BVH and finds its refit order.
+    fn set_bvh(&mut self, bvh: Bvh2) {
+        self.bvh = bvh;
+        self.refit_order.clear();
+        if self.bvh.nodes.is_empty() {
+            return;
+        }
+        // Pre-order from the root, reversed: every inner node after its children.
+        let mut stack = vec![0u32];
+        while let Some(i) = stack.pop() {
+            let n = &self.bvh.nodes[i as usize];
+            if !n.is_leaf() {
+                self.refit_order.push(i);
+                stack.extend([n.first_index, n.first_index + 1]);
+            }
+        }
+        self.refit_order.reverse();
     }
 }
 

@@ -58,12 +58,43 @@ pub fn silhouette(
     two_sided: bool,
     out: &mut Silhouette,
 ) {
+    let mirrored = scene.object(id).mirrored;
+    silhouette_with(scene, id, light, two_sided, mirrored, out, &mut Vec::new());
+}
+
+/// [`silhouette`] (into `out`, cleared first) with the per-edge counters in
+/// `counters` (reused): with `out`'s lists reserved at their bounds (the
+/// mesh's triangle and edge counts), a recomputed entry allocates nothing.
+fn silhouette_with(
+    scene: &Scene,
+    id: ObjectId,
+    light: &Light,
+    two_sided: bool,
+    mirrored: bool,
+    out: &mut Silhouette,
+    counters: &mut Vec<i32>,
+) {
     out.edges.clear();
     out.caps.clear();
-    let object = scene.object(id);
     let mesh = scene.object_mesh(id);
-    let mirrored = object.mirrored;
-    let mut counters = vec![0i32; mesh.edges().len()];
+    out.caps.reserve(mesh.triangles().len());
+    out.edges.reserve(mesh.edges().len());
+    counters.clear();
+    counters.resize(mesh.edges().len(), 0);
+    count(scene, id, light, two_sided, mirrored, counters, out);
+}
+
+/// The counting of [`silhouette`], with `counters` zeroed, one per mesh edge.
+fn count(
+    scene: &Scene,
+    id: ObjectId,
+    light: &Light,
+    two_sided: bool,
+    mirrored: bool,
+    counters: &mut [i32],
+    out: &mut Silhouette,
+) {
+    let mesh = scene.object_mesh(id);
     for (t, (tri, refs)) in mesh
         .triangles()
         .iter()
@@ -88,7 +119,7 @@ pub fn silhouette(
         out.caps
             .push(if flip { [tri[0], tri[2], tri[1]] } else { *tri });
     }
-    for (edge, &c) in mesh.edges().iter().zip(&counters) {
+    for (edge, &c) in mesh.edges().iter().zip(counters.iter()) {
         if c != 0 {
             let [a, b] = edge.v;
             let (from, to) = if c > 0 { (a, b) } else { (b, a) };
@@ -135,6 +166,8 @@ pub struct SilhouetteCache {
     hits: usize,
     misses: usize,
     stale: Vec<(ObjectId, Silhouette)>,
+    /// Per entry of `stale` its edge counters, kept between updates.
+    counters: Vec<Vec<i32>>,
     pub(crate) scratch: crate::VolumeScratch,
 }
 
@@ -245,16 +278,24 @@ impl SilhouetteCache {
             work.push((id, old.map(|o| o.silhouette).unwrap_or_default()));
         }
         self.misses += work.len();
-        let compute = |(id, s): &mut (ObjectId, Silhouette)| {
-            silhouette(scene, *id, light, two_sided, s);
+        if self.counters.len() < work.len() {
+            self.counters.resize_with(work.len(), Vec::new);
+        }
+        let compute = |((id, s), c): (&mut (ObjectId, Silhouette), &mut Vec<i32>)| {
+            let mirrored = scene.object(*id).mirrored;
+            silhouette_with(scene, *id, light, two_sided, mirrored, s, c);
         };
         #[cfg(feature = "parallel")]
         {
             use rayon::prelude::*;
-            work.par_iter_mut().for_each(compute);
+            work.par_iter_mut()
+                .zip(self.counters.par_iter_mut())
+                .for_each(compute);
         }
         #[cfg(not(feature = "parallel"))]
-        work.iter_mut().for_each(compute);
+        work.iter_mut()
+            .zip(self.counters.iter_mut())
+            .for_each(compute);
         for (id, s) in work.drain(..) {
             if let Some(e) = &mut table.objects[id.0 as usize] {
                 e.silhouette = s;

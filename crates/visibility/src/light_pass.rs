@@ -144,6 +144,44 @@ struct CastingCache {
     /// The light's homogeneous position bits and the two-sided rule.
     key: Option<([u64; 4], bool)>,
     entries: Vec<OnceLock<Casting>>,
+    /// A moved object's casting triangles, found by the update to compare
+    /// with its old list: an unchanged set keeps its list (no allocation).
+    found: Vec<[u32; 3]>,
+}
+
+/// `found` as a casting list: written into `list` when it is unshared and at
+/// least as long, else into a new list of `all` (the mesh's triangle count)
+/// entries, so that a moving object's later sets fit in place. The tail is
+/// padded with a degenerate triangle, which every draw rejects.
+fn refill(mut list: Arc<[[u32; 3]]>, found: &[[u32; 3]], all: usize) -> Arc<[[u32; 3]]> {
+    let pad = [found.first().map_or(0, |t| t[0]); 3];
+    match Arc::get_mut(&mut list).filter(|l| l.len() >= found.len()) {
+        Some(l) => {
+            l[..found.len()].copy_from_slice(found);
+            l[found.len()..].fill(pad);
+            list
+        }
+        None => found
+            .iter()
+            .copied()
+            .chain(std::iter::repeat(pad))
+            .take(all.max(found.len()))
+            .collect(),
+    }
+}
+
+/// The triangles of object `id` facing `light` (the shared facing rule).
+fn facing_triangles<'a>(
+    scene: &'a Scene,
+    light: &'a Light,
+    id: ObjectId,
+) -> impl Iterator<Item = [u32; 3]> + 'a {
+    let mesh = scene.object_mesh(id);
+    mesh.triangles()
+        .iter()
+        .enumerate()
+        .filter(move |&(k, _)| faces_light(&scene.world_triangle(id, k), light))
+        .map(|(_, t)| *t)
 }
 
 /// One object's casting triangles and what they were found for.
@@ -169,34 +207,52 @@ impl CastingCache {
         let n = scene.objects().len();
         self.entries.truncate(n);
         self.entries.resize_with(n, OnceLock::new);
-        for (e, o) in self.entries.iter_mut().zip(scene.objects()) {
-            let stale = e.get().is_some_and(|c| {
-                c.mesh != o.mesh
-                    || c.version != scene.mesh_version(o.mesh)
-                    || c.world_from_local.to_cols_array().map(f64::to_bits)
-                        != o.world_from_local.to_cols_array().map(f64::to_bits)
-            });
-            if stale {
+        for (k, (e, o)) in self.entries.iter_mut().zip(scene.objects()).enumerate() {
+            let Some(c) = e.get() else { continue };
+            if c.mesh != o.mesh || c.version != scene.mesh_version(o.mesh) {
                 e.take();
+            } else if c.world_from_local.to_cols_array().map(f64::to_bits)
+                != o.world_from_local.to_cols_array().map(f64::to_bits)
+            {
+                // Moved: its casting set is found again, into its old list
+                // when that is unshared and long enough (no allocation).
+                let mut list = e.take().expect("checked").triangles;
+                if !two_sided {
+                    let id = ObjectId(k as u32);
+                    let all = scene.object_mesh(id).triangles().len();
+                    self.found.clear();
+                    self.found.reserve(all);
+                    self.found.extend(facing_triangles(scene, light, id));
+                    if list[..] != self.found[..] {
+                        list = refill(list, &self.found, all);
+                    }
+                }
+                let _ = e.set(Casting {
+                    world_from_local: o.world_from_local,
+                    mesh: o.mesh,
+                    version: scene.mesh_version(o.mesh),
+                    triangles: list,
+                });
             }
         }
     }
 
     /// The casting triangles of `id` (found now when missing).
-    fn get(&self, scene: &Scene, light: &Light, two_sided: bool, id: ObjectId) -> Arc<[[u32; 3]]> {
+    fn get(
+        &self,
+        scene: &Scene,
+        meshes: &MeshData,
+        light: &Light,
+        two_sided: bool,
+        id: ObjectId,
+    ) -> Arc<[[u32; 3]]> {
         self.entries[id.0 as usize]
             .get_or_init(|| {
                 let o = scene.object(id);
-                let mesh = scene.object_mesh(id);
                 let triangles = if two_sided {
-                    mesh.triangles().into()
+                    meshes.triangles_of(o.mesh)
                 } else {
-                    mesh.triangles()
-                        .iter()
-                        .enumerate()
-                        .filter(|&(k, _)| faces_light(&scene.world_triangle(id, k), light))
-                        .map(|(_, t)| *t)
-                        .collect()
+                    facing_triangles(scene, light, id).collect()
                 };
                 Casting {
                     world_from_local: o.world_from_local,
@@ -348,8 +404,9 @@ impl LightPass {
         // across frames, shared by the views.
         self.casting.update(scene, light, options.two_sided);
         let cache = &self.casting;
-        let casting =
-            |id: ObjectId| -> Arc<[[u32; 3]]> { cache.get(scene, light, options.two_sided, id) };
+        let casting = |id: ObjectId| -> Arc<[[u32; 3]]> {
+            cache.get(scene, meshes, light, options.two_sided, id)
+        };
         let prepared = &self.receivers;
         // The views are independent: each has its own culler and targets.
         self.slots
@@ -371,6 +428,7 @@ impl LightPass {
                 )
             })?;
         out.psc.clear();
+        out.psc.reserve(scene.objects().len());
         out.views = views.len();
         out.stats = TraversalStats::default();
         self.in_psc.clear();

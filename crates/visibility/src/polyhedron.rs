@@ -76,6 +76,9 @@ impl Clone for Polyhedron {
     }
 }
 
+/// A point projected into a plane, with its vertex index.
+type Tagged = (DVec2, usize);
+
 /// Buffers [`Polyhedron::clip_with`] reuses from call to call.
 #[derive(Debug, Default)]
 pub(crate) struct ClipScratch {
@@ -84,8 +87,8 @@ pub(crate) struct ClipScratch {
     /// Cut edges `(i, j)` (i < j) and their new vertex.
     on_edge: Vec<(usize, usize, usize)>,
     on_plane: Vec<usize>,
-    hull_in: Vec<(DVec2, usize)>,
-    hull_out: Vec<(DVec2, usize)>,
+    hull_in: Vec<Tagged>,
+    hull_out: Vec<Tagged>,
     remap: Vec<usize>,
     /// The clipped body, swapped with the input.
     out: Polyhedron,
@@ -386,7 +389,7 @@ fn convex_polygon_in_plane(
     verts: &[DVec3],
     ids: &[usize],
     normal: DVec3,
-    (pts, hull): (&mut Vec<(DVec2, usize)>, &mut Vec<(DVec2, usize)>),
+    (pts, hull): (&mut Vec<Tagged>, &mut Vec<Tagged>),
     out: &mut Vec<usize>,
 ) -> bool {
     if ids.len() < 3 {

@@ -93,6 +93,11 @@ impl MeshData {
         data
     }
 
+    /// The triangles of mesh `mesh` (shared).
+    pub(crate) fn triangles_of(&self, mesh: scene::MeshId) -> Arc<[[u32; 3]]> {
+        self.triangles[mesh.0 as usize].clone()
+    }
+
     /// Catches up with meshes added to `scene` since, and with meshes whose
     /// vertices changed ([`Scene::mesh_version`]; a removed mesh keeps its
     /// slot, empty).
@@ -302,6 +307,20 @@ pub(crate) struct Scratch {
 }
 
 impl Scratch {
+    /// Reserves every list at its bound for a hierarchy of `nodes` nodes (a
+    /// node is queued, batched and grouped at most once per frame; queried
+    /// at most twice, plus a revisit), so no frame grows them.
+    fn reserve(&mut self, nodes: usize) {
+        self.distance.reserve(nodes);
+        self.chc.reserve(nodes);
+        self.pending.reserve(3 * nodes);
+        self.batch.reserve(nodes);
+        self.revisit.reserve(nodes);
+        self.cand.reserve(nodes);
+        self.volume.reserve(4 * nodes);
+        self.groups.reserve(nodes);
+    }
+
     fn clear(&mut self) {
         self.distance.clear();
         self.chc.clear();
@@ -577,6 +596,11 @@ impl ViewCuller {
         let mut s = std::mem::take(&mut self.scratch);
         let mut boxes = std::mem::take(&mut self.boxes);
         s.clear();
+        s.reserve(h.len());
+        // A union query holds at most four boxes per node of its group.
+        boxes.reserve(4 * h.len());
+        out.rendered.reserve(h.len());
+        out.visible.reserve(h.len());
         let mut run = Run {
             h,
             scene,
