@@ -1,0 +1,502 @@
+//! The C ABI of shadowcull: `libshadowcull_c.{so,a}` and
+//! `include/shadowcull.h` (generated from this crate by cbindgen; the header
+//! is the manual). It wraps `shadowcull::Pipeline` and adds no logic:
+//!
+//! - handles (`sc_pipeline`, `sc_mesh`, `sc_object`, `sc_light`) are
+//!   generation-checked ids, 0 the null handle; a stale or destroyed handle
+//!   is `SC_INVALID_ARGUMENT`, double destroy included;
+//! - every function returns an `sc_status`; `sc_last_error()` gives the
+//!   thread's last message; no panic crosses the boundary;
+//! - input structs start with `struct_size` (older and newer hosts work);
+//! - a frame's output stays valid until the next frame call or destroy, and
+//!   the host frees nothing.
+//!
+//! Threads: one pipeline is used by one thread at a time (a second caller
+//! waits for the first); different pipelines may run on different threads.
+//! The pipeline runs its work on its own pool (`threads` > 0, joined on
+//! destroy) or on rayon's global pool (`threads` = 0).
+
+// The entry points are called from C: a non-NULL pointer argument is valid
+// by the documented contract of the header, as in every C API (NULL is
+// checked and refused). Marking them `unsafe` would change nothing for C.
+#![allow(clippy::not_unsafe_ptr_arg_deref)]
+
+mod error;
+mod frame;
+mod handles;
+mod structs;
+
+pub use error::{sc_last_error, sc_status};
+pub use frame::{
+    sc_frame_output, sc_frame_stats, sc_light, sc_light_output, sc_light_stats, sc_object,
+    sc_volume_range, SC_ZFAIL, SC_ZPASS, SC_ZPPLUS,
+};
+pub use handles::sc_pipeline;
+pub use structs::*;
+
+use error::{guard, Failure, Result};
+use frame::object_handle;
+use glam::{DMat4, Vec3};
+use shadowcull::scene::{Camera, Mesh, MeshId, ObjectId, Scene, SceneGraph};
+use shadowcull::LightId;
+use shadowcull::{FrameInput, Pipeline};
+use std::ffi::{c_char, CStr};
+
+/// A mesh: 0 is the null handle.
+#[allow(non_camel_case_types)]
+pub type sc_mesh = u64;
+
+/// The ABI version: bumped when a struct or function changes incompatibly.
+pub const SC_ABI_VERSION: u32 = 1;
+
+/// The ABI version this library was built with (`SC_ABI_VERSION`).
+#[no_mangle]
+pub extern "C" fn sc_version() -> u32 {
+    SC_ABI_VERSION
+}
+
+/// Writes `value` to `out`, which must not be NULL.
+fn put<T>(out: *mut T, name: &str, value: T) -> Result<()> {
+    if out.is_null() {
+        return Err(Failure::invalid(format!("{name}: NULL")));
+    }
+    // SAFETY: non-NULL, and by the API's contract a writable `T`.
+    unsafe { out.write(value) };
+    Ok(())
+}
+
+/// The id inside a handle of kind `what` (`0` is the null handle).
+fn id_of(h: u64, what: &str) -> Result<u32> {
+    match h {
+        0 => Err(Failure::invalid(format!("{what}: the null handle"))),
+        h if h <= u64::from(u32::MAX) + 1 => Ok((h - 1) as u32),
+        h => Err(Failure::invalid(format!("{what} {h:#x}: not a handle"))),
+    }
+}
+
+/// A column-major 4×4 from 16 doubles at `m`.
+fn matrix(m: *const f64, name: &str) -> Result<DMat4> {
+    if m.is_null() {
+        return Err(Failure::invalid(format!("{name}: NULL")));
+    }
+    // SAFETY: non-NULL, and by the API's contract 16 readable doubles.
+    let a = unsafe { std::slice::from_raw_parts(m, 16) };
+    let mut cols = [0.0; 16];
+    cols.copy_from_slice(a);
+    let m = DMat4::from_cols_array(&cols);
+    if !m.is_finite() {
+        return Err(Failure::invalid(format!("{name}: a non-finite element")));
+    }
+    Ok(m)
+}
+
+/// A column-major 4×4 from 16 floats at `m`.
+fn matrix_f32(m: *const f32, name: &str) -> Result<DMat4> {
+    if m.is_null() {
+        return Err(Failure::invalid(format!("{name}: NULL")));
+    }
+    // SAFETY: non-NULL, and by the API's contract 16 readable floats.
+    let a = unsafe { std::slice::from_raw_parts(m, 16) };
+    let cols: [f64; 16] = std::array::from_fn(|i| f64::from(a[i]));
+    matrix(cols.as_ptr(), name)
+}
+
+/// The positions and triangles a mesh description points to.
+fn mesh_arrays(d: &sc_mesh_desc) -> Result<(Vec<Vec3>, Vec<[u32; 3]>)> {
+    let elem = match d.position_type {
+        SC_F32 => 4,
+        SC_F64 => 8,
+        t => {
+            return Err(Failure::invalid(format!(
+                "mesh.position_type: {t} is neither SC_F32 nor SC_F64"
+            )))
+        }
+    };
+    let stride = d.position_stride as usize;
+    if stride < 3 * elem {
+        return Err(Failure::invalid(format!(
+            "mesh.position_stride: {stride} bytes is less than one position ({} bytes)",
+            3 * elem
+        )));
+    }
+    let n = d.vertex_count as usize;
+    if n > 0 && d.positions.is_null() {
+        return Err(Failure::invalid("mesh.positions: NULL"));
+    }
+    let base = d.positions as *const u8;
+    let positions = (0..n)
+        .map(|i| {
+            // SAFETY: the host declared `vertex_count` positions `stride`
+            // bytes apart at `positions`; unaligned reads.
+            unsafe {
+                let p = base.add(i * stride);
+                if elem == 4 {
+                    let p = p as *const f32;
+                    Vec3::new(
+                        p.read_unaligned(),
+                        p.add(1).read_unaligned(),
+                        p.add(2).read_unaligned(),
+                    )
+                } else {
+                    let p = p as *const f64;
+                    Vec3::new(
+                        p.read_unaligned() as f32,
+                        p.add(1).read_unaligned() as f32,
+                        p.add(2).read_unaligned() as f32,
+                    )
+                }
+            }
+        })
+        .collect();
+    let count = d.index_count as usize;
+    if count % 3 != 0 {
+        return Err(Failure::invalid(format!(
+            "mesh.index_count: {count} is not a multiple of 3"
+        )));
+    }
+    if count > 0 && d.indices.is_null() {
+        return Err(Failure::invalid("mesh.indices: NULL"));
+    }
+    let indices: Vec<u32> = match d.index_type {
+        // SAFETY: the host declared `index_count` indices of this type.
+        SC_U16 => unsafe { std::slice::from_raw_parts(d.indices as *const u16, count) }
+            .iter()
+            .map(|&i| u32::from(i))
+            .collect(),
+        // SAFETY: as above.
+        SC_U32 => unsafe { std::slice::from_raw_parts(d.indices as *const u32, count) }.to_vec(),
+        t => {
+            return Err(Failure::invalid(format!(
+                "mesh.index_type: {t} is neither SC_U16 nor SC_U32"
+            )))
+        }
+    };
+    let triangles = indices
+        .chunks_exact(3)
+        .map(|t| [t[0], t[1], t[2]])
+        .collect();
+    Ok((positions, triangles))
+}
+
+/// Fills `options` with the defaults (its `struct_size` included): CHC++
+/// culling, conservative coverage, no CPU stencil, rayon's global pool.
+#[no_mangle]
+pub extern "C" fn sc_pipeline_options_default(options: *mut sc_pipeline_options) -> sc_status {
+    guard("sc_pipeline_options_default", || {
+        put(
+            options,
+            "options",
+            <sc_pipeline_options as Versioned>::default_value(),
+        )
+    })
+}
+
+fn create(options: *const sc_pipeline_options, scene: Scene, out: *mut sc_pipeline) -> Result<()> {
+    if out.is_null() {
+        return Err(Failure::invalid("out: NULL"));
+    }
+    let o = read(options, "options")?.to_rust()?;
+    let pipeline = Pipeline::new(scene, o)?;
+    let h = handles::insert(handles::Entry {
+        pipeline,
+        outputs: Default::default(),
+    });
+    put(out, "out", h)
+}
+
+/// Creates an empty pipeline (add meshes, objects and lights, then call
+/// `sc_pipeline_frame`). `options` NULL is not allowed: fill one with
+/// `sc_pipeline_options_default`.
+#[no_mangle]
+pub extern "C" fn sc_pipeline_create(
+    options: *const sc_pipeline_options,
+    out: *mut sc_pipeline,
+) -> sc_status {
+    guard("sc_pipeline_create", || {
+        create(options, Scene::new(SceneGraph::new())?, out)
+    })
+}
+
+/// Creates a pipeline holding the scene of a glTF (`.gltf`, `.glb`) or OBJ
+/// (`.obj`) file; `SC_IO` when it cannot be read or parsed.
+#[no_mangle]
+pub extern "C" fn sc_pipeline_create_from_file(
+    options: *const sc_pipeline_options,
+    path: *const c_char,
+    out: *mut sc_pipeline,
+) -> sc_status {
+    guard("sc_pipeline_create_from_file", || {
+        if path.is_null() {
+            return Err(Failure::invalid("path: NULL"));
+        }
+        // SAFETY: non-NULL, and by the API's contract a NUL-terminated string.
+        let path = unsafe { CStr::from_ptr(path) }
+            .to_str()
+            .map_err(|_| Failure::invalid("path: not UTF-8"))?;
+        let path = std::path::Path::new(path);
+        let ext = path
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(str::to_ascii_lowercase);
+        let graph = match ext.as_deref() {
+            Some("gltf" | "glb") => shadowcull::scene::load::gltf::load_gltf(path)?,
+            Some("obj") => shadowcull::scene::load::obj::load_obj(path)?,
+            _ => {
+                return Err(Failure::invalid(format!(
+                    "path {}: not a .gltf, .glb or .obj file",
+                    path.display()
+                )))
+            }
+        };
+        create(options, Scene::new(graph)?, out)
+    })
+}
+
+/// Destroys a pipeline and everything it holds (its meshes, objects, lights
+/// and outputs); joins its own pool. The null handle is a no-op; a destroyed
+/// or stale one is `SC_INVALID_ARGUMENT`.
+#[no_mangle]
+pub extern "C" fn sc_pipeline_destroy(pipeline: sc_pipeline) -> sc_status {
+    guard("sc_pipeline_destroy", || handles::remove(pipeline))
+}
+
+/// Adds a mesh (one copy into the library; vertices are welded). Objects
+/// instance it with `sc_object_create`.
+#[no_mangle]
+pub extern "C" fn sc_mesh_create(
+    pipeline: sc_pipeline,
+    desc: *const sc_mesh_desc,
+    out: *mut sc_mesh,
+) -> sc_status {
+    guard("sc_mesh_create", || {
+        if out.is_null() {
+            return Err(Failure::invalid("out: NULL"));
+        }
+        let d = read(desc, "mesh")?;
+        let (positions, triangles) = mesh_arrays(&d)?;
+        let mesh = Mesh::new("mesh", &positions, &triangles)?;
+        let id = handles::with(pipeline, |e| Ok(e.pipeline.add_mesh(mesh)))?;
+        put(out, "out", u64::from(id.0) + 1)
+    })
+}
+
+/// Replaces a mesh's vertex positions (a deforming mesh): `desc` holds the
+/// same triangles as before; a change of topology is `SC_INVALID_ARGUMENT`.
+#[no_mangle]
+pub extern "C" fn sc_mesh_update_positions(
+    pipeline: sc_pipeline,
+    mesh: sc_mesh,
+    desc: *const sc_mesh_desc,
+) -> sc_status {
+    guard("sc_mesh_update_positions", || {
+        let id = MeshId(id_of(mesh, "mesh")?);
+        let d = read(desc, "mesh")?;
+        let (positions, triangles) = mesh_arrays(&d)?;
+        handles::with(pipeline, |e| {
+            Ok(e.pipeline
+                .update_mesh_positions(id, &positions, &triangles)?)
+        })
+    })
+}
+
+/// Removes a mesh; `SC_INVALID_ARGUMENT` while an object instances it. The
+/// null handle is a no-op.
+#[no_mangle]
+pub extern "C" fn sc_mesh_destroy(pipeline: sc_pipeline, mesh: sc_mesh) -> sc_status {
+    guard("sc_mesh_destroy", || {
+        if mesh == 0 {
+            return handles::get(pipeline).map(|_| ());
+        }
+        let id = MeshId(id_of(mesh, "mesh")?);
+        handles::with(pipeline, |e| Ok(e.pipeline.remove_mesh(id)?))
+    })
+}
+
+/// Adds an object instancing `mesh` with the column-major world matrix
+/// `world_from_local` (16 doubles) and `SC_*` flags (`SC_FLAGS_ALL` for an
+/// ordinary object).
+#[no_mangle]
+pub extern "C" fn sc_object_create(
+    pipeline: sc_pipeline,
+    mesh: sc_mesh,
+    world_from_local: *const f64,
+    flags: u32,
+    out: *mut sc_object,
+) -> sc_status {
+    guard("sc_object_create", || {
+        if out.is_null() {
+            return Err(Failure::invalid("out: NULL"));
+        }
+        let id = MeshId(id_of(mesh, "mesh")?);
+        let m = matrix(world_from_local, "world_from_local")?;
+        let f = structs::flags(flags)?;
+        let o = handles::with(pipeline, |e| Ok(e.pipeline.add_object(id, m, f)?))?;
+        put(out, "out", object_handle(o))
+    })
+}
+
+/// `sc_object_create` with a matrix of 16 floats.
+#[no_mangle]
+pub extern "C" fn sc_object_create_f32(
+    pipeline: sc_pipeline,
+    mesh: sc_mesh,
+    world_from_local: *const f32,
+    flags: u32,
+    out: *mut sc_object,
+) -> sc_status {
+    guard("sc_object_create_f32", || {
+        let m = matrix_f32(world_from_local, "world_from_local")?.to_cols_array();
+        match sc_object_create(pipeline, mesh, m.as_ptr(), flags, out) {
+            sc_status::SC_OK => Ok(()),
+            status => Err(Failure {
+                status,
+                message: last_message(),
+            }),
+        }
+    })
+}
+
+/// The message `sc_last_error` holds now, without its function name.
+fn last_message() -> String {
+    // SAFETY: `sc_last_error` returns a valid NUL-terminated string.
+    let s = unsafe { CStr::from_ptr(sc_last_error()) }.to_string_lossy();
+    s.split_once(": ")
+        .map_or(s.to_string(), |(_, m)| m.to_string())
+}
+
+/// Moves an object: its new column-major world matrix (16 doubles).
+#[no_mangle]
+pub extern "C" fn sc_object_set_transform(
+    pipeline: sc_pipeline,
+    object: sc_object,
+    world_from_local: *const f64,
+) -> sc_status {
+    guard("sc_object_set_transform", || {
+        let id = ObjectId(id_of(object, "object")?);
+        let m = matrix(world_from_local, "world_from_local")?;
+        handles::with(pipeline, |e| Ok(e.pipeline.set_transform(id, m)?))
+    })
+}
+
+/// `sc_object_set_transform` with a matrix of 16 floats.
+#[no_mangle]
+pub extern "C" fn sc_object_set_transform_f32(
+    pipeline: sc_pipeline,
+    object: sc_object,
+    world_from_local: *const f32,
+) -> sc_status {
+    guard("sc_object_set_transform_f32", || {
+        let id = ObjectId(id_of(object, "object")?);
+        let m = matrix_f32(world_from_local, "world_from_local")?;
+        handles::with(pipeline, |e| Ok(e.pipeline.set_transform(id, m)?))
+    })
+}
+
+/// Sets an object's `SC_*` flags.
+#[no_mangle]
+pub extern "C" fn sc_object_set_flags(
+    pipeline: sc_pipeline,
+    object: sc_object,
+    flags: u32,
+) -> sc_status {
+    guard("sc_object_set_flags", || {
+        let id = ObjectId(id_of(object, "object")?);
+        let f = structs::flags(flags)?;
+        handles::with(pipeline, |e| Ok(e.pipeline.set_flags(id, f)?))
+    })
+}
+
+/// Removes an object. The null handle is a no-op; a removed or stale one
+/// (double destroy) is `SC_INVALID_ARGUMENT`.
+#[no_mangle]
+pub extern "C" fn sc_object_destroy(pipeline: sc_pipeline, object: sc_object) -> sc_status {
+    guard("sc_object_destroy", || {
+        if object == 0 {
+            return handles::get(pipeline).map(|_| ());
+        }
+        let id = ObjectId(id_of(object, "object")?);
+        handles::with(pipeline, |e| Ok(e.pipeline.remove_object(id)?))
+    })
+}
+
+/// Adds a light; each frame's output has one entry per light.
+#[no_mangle]
+pub extern "C" fn sc_light_create(
+    pipeline: sc_pipeline,
+    desc: *const sc_light_desc,
+    out: *mut sc_light,
+) -> sc_status {
+    guard("sc_light_create", || {
+        if out.is_null() {
+            return Err(Failure::invalid("out: NULL"));
+        }
+        let l = read(desc, "light")?.to_rust()?;
+        let id = handles::with(pipeline, |e| Ok(e.pipeline.add_light(l)?))?;
+        put(out, "out", u64::from(id.0) + 1)
+    })
+}
+
+/// Changes a light (its state, such as silhouettes, follows it).
+#[no_mangle]
+pub extern "C" fn sc_light_set(
+    pipeline: sc_pipeline,
+    light: sc_light,
+    desc: *const sc_light_desc,
+) -> sc_status {
+    guard("sc_light_set", || {
+        let id = LightId(id_of(light, "light")?);
+        let l = read(desc, "light")?.to_rust()?;
+        handles::with(pipeline, |e| Ok(e.pipeline.set_light(id, l)?))
+    })
+}
+
+/// Removes a light. The null handle is a no-op.
+#[no_mangle]
+pub extern "C" fn sc_light_destroy(pipeline: sc_pipeline, light: sc_light) -> sc_status {
+    guard("sc_light_destroy", || {
+        if light == 0 {
+            return handles::get(pipeline).map(|_| ());
+        }
+        let id = LightId(id_of(light, "light")?);
+        handles::with(pipeline, |e| Ok(e.pipeline.remove_light(id)?))
+    })
+}
+
+/// Runs one frame: the edits since the last frame, the eye pass (PSR), per
+/// light the light pass (PSC), the shadow volumes and, with a CPU stencil,
+/// the mask. `out` (its `struct_size` set) receives pointers that stay valid
+/// until the next frame call or destroy of this pipeline.
+#[no_mangle]
+pub extern "C" fn sc_pipeline_frame(
+    pipeline: sc_pipeline,
+    input: *const sc_frame_input,
+    out: *mut sc_frame_output,
+) -> sc_status {
+    guard("sc_pipeline_frame", || {
+        let i = read(input, "input")?;
+        if out.is_null() {
+            return Err(Failure::invalid("out: NULL"));
+        }
+        // SAFETY: non-NULL; by the API's contract a writable output whose
+        // first field is its `u32` size.
+        let size = unsafe { (out as *const u32).read_unaligned() } as usize;
+        if size < std::mem::size_of::<sc_frame_output>() {
+            return Err(Failure::invalid(format!(
+                "out.struct_size: {size}, want sizeof(sc_frame_output) = {}",
+                std::mem::size_of::<sc_frame_output>()
+            )));
+        }
+        let view = matrix(i.view.as_ptr(), "input.view")?;
+        let projection = matrix(i.projection.as_ptr(), "input.projection")?;
+        let camera = Camera::from_view_projection(view, projection, i.depth()?)?;
+        handles::with(pipeline, |e| {
+            let o = e
+                .pipeline
+                .frame(&FrameInput::new(i.width, i.height, camera))?;
+            // SAFETY: checked non-NULL and at least as large as the struct.
+            let c = unsafe { &mut *out };
+            e.outputs.fill(&o, c);
+            Ok(())
+        })
+    })
+}

@@ -1,0 +1,359 @@
+//! The input structs the host fills, and how they are read: every one starts
+//! with `struct_size`, so a host built against an older, smaller version
+//! keeps working (the missing fields take their defaults), and a newer,
+//! larger one is accepted when its extra bytes are zero.
+
+use crate::error::{Failure, Result};
+use shadowcull::scene::{ClipDepth, Light, ObjectFlags};
+use shadowcull::{CoverageSpec, CullingSpec, PipelineOptions, StencilBackend};
+use std::ffi::c_void;
+
+/// The object takes part in shadow casting (its volumes are built).
+pub const SC_CASTS: u32 = 1;
+/// The object's visible surface can be shadowed.
+pub const SC_RECEIVES: u32 = 2;
+/// The object hides what lies behind it in the culling passes.
+pub const SC_OCCLUDES: u32 = 4;
+/// The eye sees the object (it is drawn and can be in the PSR).
+pub const SC_VISIBLE: u32 = 8;
+/// Every flag: an ordinary object.
+pub const SC_FLAGS_ALL: u32 = 15;
+
+/// Culling of the eye and light passes (`sc_pipeline_options.culling`).
+pub const SC_CULLING_NONE: u32 = 0;
+/// View-frustum culling only.
+pub const SC_CULLING_FRUSTUM: u32 = 1;
+/// Stop-and-wait hierarchical occlusion culling.
+pub const SC_CULLING_EXACT: u32 = 2;
+/// Coherent hierarchical culling.
+pub const SC_CULLING_CHC: u32 = 3;
+/// CHC++ (the default).
+pub const SC_CULLING_CHCPP: u32 = 4;
+
+/// CPU stencil (`sc_pipeline_options.stencil`): none; no mask, for a host
+/// that draws the volumes itself (the default).
+pub const SC_STENCIL_NONE: u32 = 0;
+/// Brute-force stencil.
+pub const SC_STENCIL_BF: u32 = 1;
+/// Hierarchical stencil.
+pub const SC_STENCIL_H: u32 = 2;
+
+/// Conservative coverage: the culled mask equals the unculled one (default).
+pub const SC_COVERAGE_CONSERVATIVE: u32 = 0;
+/// Pixel-centre sampling: faster, aggressive (its mismatch is measured).
+pub const SC_COVERAGE_POINT: u32 = 1;
+
+/// `float` elements.
+pub const SC_F32: u32 = 0;
+/// `double` elements.
+pub const SC_F64: u32 = 1;
+/// `uint16_t` indices.
+pub const SC_U16: u32 = 2;
+/// `uint32_t` indices.
+pub const SC_U32: u32 = 3;
+
+/// Point light (`sc_light_desc.kind`).
+pub const SC_LIGHT_POINT: u32 = 0;
+/// Spot light.
+pub const SC_LIGHT_SPOT: u32 = 1;
+/// Directional light.
+pub const SC_LIGHT_DIRECTIONAL: u32 = 2;
+
+/// OpenGL clip depth, `[-w, w]` (`sc_frame_input.clip_depth`).
+pub const SC_CLIP_DEPTH_NEGATIVE_ONE_TO_ONE: u32 = 0;
+/// Direct3D, Vulkan, Metal, WebGPU clip depth, `[0, w]`.
+pub const SC_CLIP_DEPTH_ZERO_TO_ONE: u32 = 1;
+
+/// Pipeline options. Fill with `sc_pipeline_options_default`, then change
+/// fields.
+#[allow(non_camel_case_types)]
+#[repr(C)]
+#[derive(Clone, Copy, Debug)]
+pub struct sc_pipeline_options {
+    /// `sizeof(sc_pipeline_options)`.
+    pub struct_size: u32,
+    /// `SC_CULLING_*`.
+    pub culling: u32,
+    /// `SC_STENCIL_*`.
+    pub stencil: u32,
+    /// `SC_COVERAGE_*`.
+    pub coverage: u32,
+    /// A node counts as visible above this many samples (0: conservative).
+    pub query_threshold: u32,
+    /// Side of every light view or cube face, in pixels.
+    pub light_resolution: u32,
+    /// Worker threads of the pipeline's own pool, joined on destroy; 0 uses
+    /// rayon's global pool (its threads live until the process exits).
+    pub threads: u32,
+    /// Non-zero: every triangle casts, back faces flipped.
+    pub two_sided: u32,
+}
+
+/// A mesh in the host's memory: positions `vertex_count` times, `stride`
+/// bytes apart, as three `float`s or `double`s; triangles as
+/// `index_count` (a multiple of 3) `uint16_t` or `uint32_t` indices.
+#[allow(non_camel_case_types)]
+#[repr(C)]
+#[derive(Clone, Copy, Debug)]
+pub struct sc_mesh_desc {
+    /// `sizeof(sc_mesh_desc)`.
+    pub struct_size: u32,
+    /// `SC_F32` or `SC_F64`.
+    pub position_type: u32,
+    /// Bytes from one position to the next (at least 3 elements).
+    pub position_stride: u32,
+    /// Number of vertices.
+    pub vertex_count: u32,
+    /// The first position's first element.
+    pub positions: *const c_void,
+    /// `SC_U16` or `SC_U32`.
+    pub index_type: u32,
+    /// Number of indices, three per triangle.
+    pub index_count: u32,
+    /// The indices.
+    pub indices: *const c_void,
+}
+
+/// A light.
+#[allow(non_camel_case_types)]
+#[repr(C)]
+#[derive(Clone, Copy, Debug)]
+pub struct sc_light_desc {
+    /// `sizeof(sc_light_desc)`.
+    pub struct_size: u32,
+    /// `SC_LIGHT_*`.
+    pub kind: u32,
+    /// Position (point and spot lights), world space.
+    pub position: [f64; 3],
+    /// Direction the light travels (spot and directional lights).
+    pub direction: [f64; 3],
+    /// Full cone angle of a spot light, radians, in (0, π).
+    pub apex_angle: f64,
+    /// Range of a point or spot light; 0 for none.
+    pub range: f64,
+}
+
+/// One frame's input: the viewport and the host's view and projection
+/// matrices (column-major, perspective; any near plane, finite or infinite
+/// far plane, off-centre or jittered).
+#[allow(non_camel_case_types)]
+#[repr(C)]
+#[derive(Clone, Copy, Debug)]
+pub struct sc_frame_input {
+    /// `sizeof(sc_frame_input)`.
+    pub struct_size: u32,
+    /// Viewport width in pixels.
+    pub width: u32,
+    /// Viewport height in pixels.
+    pub height: u32,
+    /// `SC_CLIP_DEPTH_*` of `projection`.
+    pub clip_depth: u32,
+    /// World → view, column-major.
+    pub view: [f64; 16],
+    /// View → clip, column-major.
+    pub projection: [f64; 16],
+}
+
+/// Structs read by [`read`]: a default for the fields an older host leaves out.
+pub(crate) trait Versioned: Copy {
+    /// The struct with every field at its default (`struct_size` set).
+    fn default_value() -> Self;
+    /// Bytes up to and including the first field after `struct_size`: the
+    /// smallest size accepted.
+    const MIN_SIZE: usize = 8;
+}
+
+/// Reads the struct `p` points to, named `name` in messages, by its
+/// `struct_size`: fields beyond an older host's size take their defaults;
+/// a larger size is accepted when every extra byte is zero.
+pub(crate) fn read<T: Versioned>(p: *const T, name: &str) -> Result<T> {
+    if p.is_null() {
+        return Err(Failure::invalid(format!("{name}: NULL")));
+    }
+    // SAFETY: `p` is non-NULL and, by the API's contract, points to a
+    // readable struct whose first field is its `u32` size; read unaligned.
+    let size = unsafe { (p as *const u32).read_unaligned() } as usize;
+    let ours = std::mem::size_of::<T>();
+    if size < T::MIN_SIZE {
+        return Err(Failure::invalid(format!(
+            "{name}.struct_size: {size} is smaller than any version ({} bytes at least)",
+            T::MIN_SIZE
+        )));
+    }
+    if size > ours {
+        // SAFETY: the host declared `size` readable bytes at `p`.
+        let extra = unsafe { std::slice::from_raw_parts((p as *const u8).add(ours), size - ours) };
+        if extra.iter().any(|&b| b != 0) {
+            return Err(Failure::invalid(format!(
+                "{name}.struct_size: {size} bytes with non-zero fields past this library's {ours}"
+            )));
+        }
+    }
+    let mut out = T::default_value();
+    let n = size.min(ours);
+    // SAFETY: `n` bytes are readable at `p` (declared by the host) and
+    // writable in `out` (n ≤ its size); the structs are plain data, repr(C).
+    unsafe {
+        std::ptr::copy_nonoverlapping(p as *const u8, &mut out as *mut T as *mut u8, n);
+    }
+    Ok(out)
+}
+
+impl Versioned for sc_pipeline_options {
+    fn default_value() -> Self {
+        sc_pipeline_options {
+            struct_size: std::mem::size_of::<Self>() as u32,
+            culling: SC_CULLING_CHCPP,
+            stencil: SC_STENCIL_NONE,
+            coverage: SC_COVERAGE_CONSERVATIVE,
+            query_threshold: 0,
+            light_resolution: PipelineOptions::default().light_resolution,
+            threads: 0,
+            two_sided: 0,
+        }
+    }
+}
+
+impl Versioned for sc_mesh_desc {
+    fn default_value() -> Self {
+        sc_mesh_desc {
+            struct_size: std::mem::size_of::<Self>() as u32,
+            position_type: SC_F32,
+            position_stride: 12,
+            vertex_count: 0,
+            positions: std::ptr::null(),
+            index_type: SC_U32,
+            index_count: 0,
+            indices: std::ptr::null(),
+        }
+    }
+}
+
+impl Versioned for sc_light_desc {
+    fn default_value() -> Self {
+        sc_light_desc {
+            struct_size: std::mem::size_of::<Self>() as u32,
+            kind: SC_LIGHT_POINT,
+            position: [0.0; 3],
+            direction: [0.0, -1.0, 0.0],
+            apex_angle: 1.0,
+            range: 0.0,
+        }
+    }
+}
+
+impl Versioned for sc_frame_input {
+    fn default_value() -> Self {
+        sc_frame_input {
+            struct_size: std::mem::size_of::<Self>() as u32,
+            width: 0,
+            height: 0,
+            clip_depth: SC_CLIP_DEPTH_NEGATIVE_ONE_TO_ONE,
+            view: [0.0; 16],
+            projection: [0.0; 16],
+        }
+    }
+}
+
+impl sc_pipeline_options {
+    /// The facade's options.
+    pub(crate) fn to_rust(self) -> Result<PipelineOptions> {
+        let culling = match self.culling {
+            SC_CULLING_NONE => CullingSpec::None,
+            SC_CULLING_FRUSTUM => CullingSpec::Frustum,
+            SC_CULLING_EXACT => CullingSpec::Exact,
+            SC_CULLING_CHC => CullingSpec::Chc,
+            SC_CULLING_CHCPP => CullingSpec::Chcpp,
+            v => {
+                return Err(Failure::invalid(format!(
+                    "options.culling: {v} is no SC_CULLING_*"
+                )))
+            }
+        };
+        let stencil = match self.stencil {
+            SC_STENCIL_NONE => StencilBackend::None,
+            SC_STENCIL_BF => StencilBackend::Bf,
+            SC_STENCIL_H => StencilBackend::H,
+            v => {
+                return Err(Failure::invalid(format!(
+                    "options.stencil: {v} is no SC_STENCIL_*"
+                )))
+            }
+        };
+        let coverage = match self.coverage {
+            SC_COVERAGE_CONSERVATIVE => CoverageSpec::Conservative,
+            SC_COVERAGE_POINT => CoverageSpec::Point,
+            v => {
+                return Err(Failure::invalid(format!(
+                    "options.coverage: {v} is no SC_COVERAGE_*"
+                )))
+            }
+        };
+        Ok(PipelineOptions {
+            culling,
+            stencil,
+            coverage,
+            query_threshold: self.query_threshold,
+            light_resolution: self.light_resolution,
+            threads: self.threads,
+            two_sided: self.two_sided != 0,
+            ..PipelineOptions::default()
+        })
+    }
+}
+
+impl sc_light_desc {
+    /// The light (validated by the pipeline).
+    pub(crate) fn to_rust(self) -> Result<Light> {
+        let v = |a: [f64; 3]| glam::DVec3::from_array(a);
+        let range = (self.range != 0.0).then_some(self.range);
+        Ok(match self.kind {
+            SC_LIGHT_POINT => Light::Point {
+                position: v(self.position),
+                range,
+            },
+            SC_LIGHT_SPOT => Light::Spot {
+                position: v(self.position),
+                direction: v(self.direction),
+                apex_angle: self.apex_angle,
+                range,
+            },
+            SC_LIGHT_DIRECTIONAL => Light::Directional {
+                direction: v(self.direction),
+            },
+            k => {
+                return Err(Failure::invalid(format!(
+                    "light.kind: {k} is no SC_LIGHT_*"
+                )))
+            }
+        })
+    }
+}
+
+impl sc_frame_input {
+    /// The clip-depth convention.
+    pub(crate) fn depth(&self) -> Result<ClipDepth> {
+        match self.clip_depth {
+            SC_CLIP_DEPTH_NEGATIVE_ONE_TO_ONE => Ok(ClipDepth::NegativeOneToOne),
+            SC_CLIP_DEPTH_ZERO_TO_ONE => Ok(ClipDepth::ZeroToOne),
+            v => Err(Failure::invalid(format!(
+                "input.clip_depth: {v} is no SC_CLIP_DEPTH_*"
+            ))),
+        }
+    }
+}
+
+/// The flags of `SC_*` bits.
+pub(crate) fn flags(bits: u32) -> Result<ObjectFlags> {
+    if bits & !SC_FLAGS_ALL != 0 {
+        return Err(Failure::invalid(format!(
+            "flags: {bits:#x} has bits beyond SC_FLAGS_ALL"
+        )));
+    }
+    Ok(ObjectFlags {
+        casts: bits & SC_CASTS != 0,
+        receives: bits & SC_RECEIVES != 0,
+        occludes: bits & SC_OCCLUDES != 0,
+        visible: bits & SC_VISIBLE != 0,
+    })
+}

@@ -1,0 +1,499 @@
+//! The C ABI through its `extern "C"` functions: the output equals the Rust
+//! `Pipeline`'s bit for bit, misuse gives the right status and message and
+//! never a crash, versioned structs read as documented, and two pipelines
+//! run on two threads.
+
+use glam::{DMat4, DVec3};
+use shadowcull::scene::{Camera, ClipDepth, Light, Mesh, ObjectFlags, Scene, SceneGraph};
+use shadowcull::{CullingSpec, FrameInput, Pipeline, PipelineOptions, StencilBackend};
+use shadowcull_c::*;
+use std::ffi::CStr;
+
+const W: u32 = 160;
+const H: u32 = 120;
+
+fn last_error() -> String {
+    // SAFETY: the library returns a valid NUL-terminated string.
+    unsafe { CStr::from_ptr(sc_last_error()) }
+        .to_string_lossy()
+        .into_owned()
+}
+
+fn ok(s: sc_status) {
+    assert_eq!(s, sc_status::SC_OK, "{}", last_error());
+}
+
+/// A unit cube, corners at 0 and 1, as a host keeps it (f32, u16).
+fn cube() -> (Vec<[f32; 3]>, Vec<u16>) {
+    let p = (0..8)
+        .map(|i| [(i & 1) as f32, ((i >> 1) & 1) as f32, ((i >> 2) & 1) as f32])
+        .collect();
+    let quads = [
+        [0, 2, 3, 1],
+        [4, 5, 7, 6],
+        [0, 1, 5, 4],
+        [2, 6, 7, 3],
+        [0, 4, 6, 2],
+        [1, 3, 7, 5],
+    ];
+    let idx = quads
+        .iter()
+        .flat_map(|q| [q[0], q[1], q[2], q[0], q[2], q[3]])
+        .collect();
+    (p, idx)
+}
+
+/// Object `k` of the scene: boxes on a grid over a ground slab.
+fn placement(k: usize) -> DMat4 {
+    if k == 0 {
+        return DMat4::from_scale_rotation_translation(
+            DVec3::new(40.0, 0.5, 40.0),
+            glam::DQuat::IDENTITY,
+            DVec3::new(-20.0, -0.5, -20.0),
+        );
+    }
+    let (i, j) = ((k - 1) % 6, (k - 1) / 6);
+    DMat4::from_scale_rotation_translation(
+        DVec3::new(1.5, 1.0 + (k % 4) as f64, 1.5),
+        glam::DQuat::IDENTITY,
+        DVec3::new(-15.0 + 5.0 * i as f64, 0.0, -15.0 + 5.0 * j as f64),
+    )
+}
+
+const OBJECTS: usize = 37;
+
+fn lights() -> [Light; 2] {
+    [
+        Light::Point {
+            position: DVec3::new(2.0, 14.0, 3.0),
+            range: None,
+        },
+        Light::Directional {
+            direction: DVec3::new(0.4, -0.8, 0.3),
+        },
+    ]
+}
+
+fn light_desc(l: &Light) -> sc_light_desc {
+    let mut d = sc_light_desc {
+        struct_size: std::mem::size_of::<sc_light_desc>() as u32,
+        kind: SC_LIGHT_POINT,
+        position: [0.0; 3],
+        direction: [0.0; 3],
+        apex_angle: 1.0,
+        range: 0.0,
+    };
+    match *l {
+        Light::Point { position, .. } => d.position = position.to_array(),
+        Light::Directional { direction } => {
+            d.kind = SC_LIGHT_DIRECTIONAL;
+            d.direction = direction.to_array();
+        }
+        Light::Spot { .. } => unreachable!("not used"),
+    }
+    d
+}
+
+/// The view and projection (GL) of frame `f`: circling the grid.
+fn matrices(f: u32) -> (DMat4, DMat4) {
+    let a = f64::from(f) * 0.15;
+    let eye = DVec3::new(25.0 * a.cos(), 9.0, 25.0 * a.sin());
+    // Right-handed look-at: rows r, u, -f.
+    let f = (DVec3::new(0.0, 1.0, 0.0) - eye).normalize();
+    let r = f.cross(DVec3::Y).normalize();
+    let u = r.cross(f);
+    let view = DMat4::from_cols(
+        glam::DVec4::new(r.x, u.x, -f.x, 0.0),
+        glam::DVec4::new(r.y, u.y, -f.y, 0.0),
+        glam::DVec4::new(r.z, u.z, -f.z, 0.0),
+        glam::DVec4::new(-r.dot(eye), -u.dot(eye), f.dot(eye), 1.0),
+    );
+    // OpenGL perspective, 60° vertical, near 0.1, far 200.
+    let (near, far) = (0.1, 200.0);
+    let t = 1.0 / (30f64.to_radians()).tan();
+    let aspect = f64::from(W) / f64::from(H);
+    let proj = DMat4::from_cols(
+        glam::DVec4::new(t / aspect, 0.0, 0.0, 0.0),
+        glam::DVec4::new(0.0, t, 0.0, 0.0),
+        glam::DVec4::new(0.0, 0.0, -(far + near) / (far - near), -1.0),
+        glam::DVec4::new(0.0, 0.0, -2.0 * far * near / (far - near), 0.0),
+    );
+    (view, proj)
+}
+
+fn c_options() -> sc_pipeline_options {
+    let mut o = std::mem::MaybeUninit::<sc_pipeline_options>::uninit();
+    ok(sc_pipeline_options_default(o.as_mut_ptr()));
+    // SAFETY: filled by the call above.
+    let mut o = unsafe { o.assume_init() };
+    o.stencil = SC_STENCIL_H;
+    o.light_resolution = 256;
+    o
+}
+
+/// The scene through the C ABI: (pipeline, objects, lights).
+fn c_pipeline() -> (sc_pipeline, Vec<sc_object>, Vec<sc_light>) {
+    let mut p = 0;
+    ok(sc_pipeline_create(&c_options(), &mut p));
+    let (pos, idx) = cube();
+    let desc = sc_mesh_desc {
+        struct_size: std::mem::size_of::<sc_mesh_desc>() as u32,
+        position_type: SC_F32,
+        position_stride: 12,
+        vertex_count: pos.len() as u32,
+        positions: pos.as_ptr().cast(),
+        index_type: SC_U16,
+        index_count: idx.len() as u32,
+        indices: idx.as_ptr().cast(),
+    };
+    let mut mesh = 0;
+    ok(sc_mesh_create(p, &desc, &mut mesh));
+    let objects = (0..OBJECTS)
+        .map(|k| {
+            let mut o = 0;
+            let m = placement(k).to_cols_array();
+            ok(sc_object_create(p, mesh, m.as_ptr(), SC_FLAGS_ALL, &mut o));
+            o
+        })
+        .collect();
+    let lights = lights()
+        .iter()
+        .map(|l| {
+            let mut h = 0;
+            ok(sc_light_create(p, &light_desc(l), &mut h));
+            h
+        })
+        .collect();
+    (p, objects, lights)
+}
+
+fn rust_pipeline() -> Pipeline {
+    let options = PipelineOptions {
+        culling: CullingSpec::Chcpp,
+        stencil: StencilBackend::H,
+        light_resolution: 256,
+        ..Default::default()
+    };
+    let mut p = Pipeline::new(Scene::new(SceneGraph::new()).unwrap(), options).unwrap();
+    let (pos, idx) = cube();
+    let positions: Vec<glam::Vec3> = pos.iter().map(|&q| q.into()).collect();
+    let tris: Vec<[u32; 3]> = idx
+        .chunks(3)
+        .map(|t| [u32::from(t[0]), u32::from(t[1]), u32::from(t[2])])
+        .collect();
+    let mesh = p.add_mesh(Mesh::new("mesh", &positions, &tris).unwrap());
+    for k in 0..OBJECTS {
+        p.add_object(mesh, placement(k), ObjectFlags::ALL).unwrap();
+    }
+    for l in lights() {
+        p.add_light(l).unwrap();
+    }
+    p
+}
+
+fn input(f: u32) -> sc_frame_input {
+    let (view, proj) = matrices(f);
+    sc_frame_input {
+        struct_size: std::mem::size_of::<sc_frame_input>() as u32,
+        width: W,
+        height: H,
+        clip_depth: SC_CLIP_DEPTH_NEGATIVE_ONE_TO_ONE,
+        view: view.to_cols_array(),
+        projection: proj.to_cols_array(),
+    }
+}
+
+fn empty_output() -> sc_frame_output {
+    // SAFETY: plain data: zeroed pointers and counts are valid values.
+    let mut o: sc_frame_output = unsafe { std::mem::zeroed() };
+    o.struct_size = std::mem::size_of::<sc_frame_output>() as u32;
+    o
+}
+
+/// A slice from a pointer and count of the library's output.
+fn slice<'a, T>(p: *const T, n: usize) -> &'a [T] {
+    if n == 0 {
+        return &[];
+    }
+    // SAFETY: the library's output: `n` elements at `p`, valid until the
+    // next frame call.
+    unsafe { std::slice::from_raw_parts(p, n) }
+}
+
+/// Frames of the C pipeline equal the Rust pipeline's bit for bit: PSR, per
+/// light PSC, the volume buffer (positions, indices, ranges) and the mask,
+/// with an object moved, one removed and one added along the way.
+#[test]
+fn output_equals_the_rust_pipeline() {
+    let (p, objects, _) = c_pipeline();
+    let mut r = rust_pipeline();
+    let ids: Vec<_> = (0..OBJECTS as u32)
+        .map(shadowcull::scene::ObjectId)
+        .collect();
+    let mut out = empty_output();
+    let mut masks_with_shadow = 0;
+    for f in 0..8 {
+        let moved =
+            placement(5) * DMat4::from_translation(DVec3::new(0.3 * f64::from(f), 0.0, 0.0));
+        ok(sc_object_set_transform(
+            p,
+            objects[5],
+            moved.to_cols_array().as_ptr(),
+        ));
+        r.set_transform(ids[5], moved).unwrap();
+        if f == 3 {
+            ok(sc_object_destroy(p, objects[7]));
+            r.remove_object(ids[7]).unwrap();
+        }
+        ok(sc_pipeline_frame(p, &input(f), &mut out));
+        let (view, proj) = matrices(f);
+        let cam = Camera::from_view_projection(view, proj, ClipDepth::NegativeOneToOne).unwrap();
+        let o = r.frame(&FrameInput::new(W, H, cam)).unwrap();
+        let psr: Vec<u64> = o.psr().iter().map(|id| u64::from(id.0) + 1).collect();
+        assert_eq!(slice(out.psr, out.psr_count), &psr[..], "frame {f}: PSR");
+        let lights = slice(out.lights, out.light_count);
+        assert_eq!(lights.len(), o.light_count());
+        for (c, l) in lights.iter().zip(o.lights()) {
+            assert_eq!(c.light, u64::from(l.id().0) + 1);
+            let psc: Vec<u64> = l.psc().iter().map(|id| u64::from(id.0) + 1).collect();
+            assert_eq!(slice(c.psc, c.psc_count), &psc[..], "frame {f}: PSC");
+            let v = l.volumes();
+            assert_eq!(slice(c.positions, c.position_count), &v.positions[..]);
+            assert_eq!(slice(c.indices, c.index_count), &v.indices[..]);
+            let ranges = slice(c.ranges, c.range_count);
+            assert_eq!(ranges.len(), v.ranges.len());
+            for (a, b) in ranges.iter().zip(&v.ranges) {
+                assert_eq!(a.object, u64::from(b.object) + 1);
+                assert_eq!(
+                    (a.first_index, a.index_count),
+                    (b.first_index, b.index_count)
+                );
+                assert_eq!(a.world_from_local, b.world_from_local.to_cols_array());
+                assert_eq!(a.scissor, b.scissor);
+            }
+            let mask = l.mask().expect("h stencil draws a mask");
+            let bytes: Vec<u8> = mask.pixels.iter().map(|&p| p as u8).collect();
+            assert_eq!(
+                slice(c.mask, (W * H) as usize),
+                &bytes[..],
+                "frame {f}: mask"
+            );
+            masks_with_shadow += usize::from(bytes.contains(&1));
+        }
+    }
+    assert!(masks_with_shadow > 0, "the scene casts shadows");
+    ok(sc_pipeline_destroy(p));
+}
+
+#[test]
+fn misuse_gives_statuses_and_messages() {
+    use sc_status::*;
+    let mut h = 0;
+    // NULL arguments.
+    assert_eq!(
+        sc_pipeline_options_default(std::ptr::null_mut()),
+        SC_INVALID_ARGUMENT
+    );
+    assert!(last_error().contains("options"), "{}", last_error());
+    assert_eq!(
+        sc_pipeline_create(std::ptr::null(), &mut h),
+        SC_INVALID_ARGUMENT
+    );
+    assert!(last_error().contains("options: NULL"), "{}", last_error());
+    assert_eq!(
+        sc_pipeline_create(&c_options(), std::ptr::null_mut()),
+        SC_INVALID_ARGUMENT
+    );
+    // A wrong struct_size.
+    let mut o = c_options();
+    o.struct_size = 3;
+    assert_eq!(sc_pipeline_create(&o, &mut h), SC_INVALID_ARGUMENT);
+    assert!(last_error().contains("struct_size"), "{}", last_error());
+
+    let (p, objects, lights) = c_pipeline();
+    let (pos, idx) = cube();
+    let mut desc = sc_mesh_desc {
+        struct_size: std::mem::size_of::<sc_mesh_desc>() as u32,
+        position_type: SC_F32,
+        position_stride: 0,
+        vertex_count: pos.len() as u32,
+        positions: pos.as_ptr().cast(),
+        index_type: SC_U16,
+        index_count: idx.len() as u32,
+        indices: idx.as_ptr().cast(),
+    };
+    let mut mesh = 0;
+    // Stride 0.
+    assert_eq!(sc_mesh_create(p, &desc, &mut mesh), SC_INVALID_ARGUMENT);
+    assert!(last_error().contains("position_stride"), "{}", last_error());
+    // An index out of range.
+    desc.position_stride = 12;
+    let bad: Vec<u16> = idx.iter().map(|&i| if i == 7 { 8 } else { i }).collect();
+    desc.indices = bad.as_ptr().cast();
+    assert_eq!(sc_mesh_create(p, &desc, &mut mesh), SC_INVALID_ARGUMENT);
+    assert!(!last_error().is_empty());
+    // NULL positions, a bad index type.
+    desc.indices = idx.as_ptr().cast();
+    desc.positions = std::ptr::null();
+    assert_eq!(sc_mesh_create(p, &desc, &mut mesh), SC_INVALID_ARGUMENT);
+    desc.positions = pos.as_ptr().cast();
+    desc.index_type = 9;
+    assert_eq!(sc_mesh_create(p, &desc, &mut mesh), SC_INVALID_ARGUMENT);
+    // NaN matrices.
+    let mut nan = DMat4::IDENTITY.to_cols_array();
+    nan[5] = f64::NAN;
+    assert_eq!(
+        sc_object_set_transform(p, objects[1], nan.as_ptr()),
+        SC_INVALID_ARGUMENT
+    );
+    assert!(
+        last_error().contains("world_from_local"),
+        "{}",
+        last_error()
+    );
+    assert_eq!(
+        sc_object_set_transform(p, objects[1], std::ptr::null()),
+        SC_INVALID_ARGUMENT
+    );
+    let mut i = input(0);
+    i.view[0] = f64::NAN;
+    let mut out = empty_output();
+    assert_eq!(sc_pipeline_frame(p, &i, &mut out), SC_INVALID_ARGUMENT);
+    assert!(last_error().contains("input.view"), "{}", last_error());
+    // A 0×0 viewport.
+    let mut i = input(0);
+    (i.width, i.height) = (0, 0);
+    assert_eq!(sc_pipeline_frame(p, &i, &mut out), SC_INVALID_ARGUMENT);
+    assert!(last_error().contains("viewport"), "{}", last_error());
+    // An output without its size.
+    let mut small = empty_output();
+    small.struct_size = 8;
+    assert_eq!(
+        sc_pipeline_frame(p, &input(0), &mut small),
+        SC_INVALID_ARGUMENT
+    );
+    assert_eq!(
+        sc_pipeline_frame(p, &input(0), std::ptr::null_mut()),
+        SC_INVALID_ARGUMENT
+    );
+    // Stale handles after destroy; double destroy; the null handle.
+    ok(sc_object_destroy(p, objects[2]));
+    assert_eq!(sc_object_destroy(p, objects[2]), SC_INVALID_ARGUMENT);
+    assert_eq!(
+        sc_object_set_flags(p, objects[2], SC_FLAGS_ALL),
+        SC_INVALID_ARGUMENT
+    );
+    ok(sc_object_destroy(p, 0));
+    assert_eq!(sc_object_set_flags(p, objects[3], 99), SC_INVALID_ARGUMENT);
+    ok(sc_light_destroy(p, lights[0]));
+    assert_eq!(sc_light_destroy(p, lights[0]), SC_INVALID_ARGUMENT);
+    assert_eq!(
+        sc_light_set(p, lights[0], &light_desc(&lights_0())),
+        SC_INVALID_ARGUMENT
+    );
+    // A mesh in use cannot go; an unknown one is stale.
+    assert_eq!(sc_mesh_destroy(p, 1), SC_INVALID_ARGUMENT);
+    assert_eq!(sc_mesh_destroy(p, 77), SC_INVALID_ARGUMENT);
+    ok(sc_pipeline_frame(p, &input(0), &mut out));
+    ok(sc_pipeline_destroy(p));
+    assert_eq!(sc_pipeline_destroy(p), SC_INVALID_ARGUMENT);
+    assert!(last_error().contains("stale"), "{}", last_error());
+    assert_eq!(
+        sc_pipeline_frame(p, &input(0), &mut out),
+        SC_INVALID_ARGUMENT
+    );
+    assert_eq!(sc_object_destroy(p, objects[1]), SC_INVALID_ARGUMENT);
+    ok(sc_pipeline_destroy(0));
+    // A frame before any object exists.
+    let mut q = 0;
+    ok(sc_pipeline_create(&c_options(), &mut q));
+    ok(sc_pipeline_frame(q, &input(0), &mut out));
+    assert_eq!((out.psr_count, out.light_count), (0, 0));
+    ok(sc_pipeline_destroy(q));
+    // A file that is not there, and one that is no scene.
+    let path = c"/nonexistent/scene.gltf";
+    assert_eq!(
+        sc_pipeline_create_from_file(&c_options(), path.as_ptr(), &mut q),
+        SC_IO
+    );
+    assert!(last_error().contains("scene.gltf"), "{}", last_error());
+    assert_eq!(
+        sc_pipeline_create_from_file(&c_options(), c"x.txt".as_ptr(), &mut q),
+        SC_INVALID_ARGUMENT
+    );
+}
+
+fn lights_0() -> Light {
+    lights()[0]
+}
+
+/// `struct_size` smaller than ours takes defaults for the rest; larger is
+/// accepted when the extra bytes are zero and refused otherwise.
+#[test]
+fn versioned_structs() {
+    use sc_status::*;
+    #[repr(C)]
+    struct Bigger {
+        options: sc_pipeline_options,
+        extra: u64,
+    }
+    let mut big = Bigger {
+        options: c_options(),
+        extra: 0,
+    };
+    big.options.struct_size = std::mem::size_of::<Bigger>() as u32;
+    let mut h = 0;
+    ok(sc_pipeline_create(&big.options, &mut h));
+    ok(sc_pipeline_destroy(h));
+    big.extra = 1;
+    assert_eq!(
+        sc_pipeline_create(&big.options, &mut h),
+        SC_INVALID_ARGUMENT
+    );
+    assert!(last_error().contains("non-zero"), "{}", last_error());
+    // An older host knew only `struct_size` and `culling`: the rest defaults.
+    let mut old = c_options();
+    old.struct_size = 8;
+    old.culling = SC_CULLING_NONE;
+    old.stencil = 77; // past the old size: ignored
+    ok(sc_pipeline_create(&old, &mut h));
+    ok(sc_pipeline_destroy(h));
+    assert_eq!(sc_version(), SC_ABI_VERSION);
+}
+
+/// Two pipelines on two threads at once give what each gives alone.
+#[test]
+fn two_pipelines_on_two_threads() {
+    let run = || {
+        let (p, _, _) = c_pipeline();
+        let mut out = empty_output();
+        let mut sums = Vec::new();
+        for f in 0..4 {
+            ok(sc_pipeline_frame(p, &input(f), &mut out));
+            let lights = slice(out.lights, out.light_count);
+            sums.push((
+                out.psr_count,
+                lights.iter().map(|l| l.index_count).sum::<usize>(),
+                lights
+                    .iter()
+                    .map(|l| {
+                        slice(l.mask, (W * H) as usize)
+                            .iter()
+                            .map(|&b| u64::from(b))
+                            .sum::<u64>()
+                    })
+                    .sum::<u64>(),
+            ));
+        }
+        ok(sc_pipeline_destroy(p));
+        sums
+    };
+    let alone = run();
+    let (a, b) = std::thread::scope(|s| {
+        let a = s.spawn(run);
+        let b = s.spawn(run);
+        (a.join().unwrap(), b.join().unwrap())
+    });
+    assert_eq!(a, alone);
+    assert_eq!(b, alone);
+}
