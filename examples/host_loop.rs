@@ -12,7 +12,7 @@
 //! change a pixel).
 //!
 //! ```sh
-//! cargo run --release --example host_loop -- [--frames N] [--reference-every K] [--size WxH]
+//! cargo run --release --example host_loop -- [--frames N] [--reference-every K] [--size WxH] [--there-and-back on|off] [--write-masks DIR]
 //! ```
 //! prints one JSON line last: `frames`, `objects`, `psr_median`,
 //! `psc_median` (summed over lights), `frame_ms_median` (wall time of
@@ -403,6 +403,7 @@ fn counted<T>(f: impl FnOnce() -> T) -> (T, [u64; 3]) {
 fn main() -> anyhow::Result<()> {
     let (mut frames, mut every, mut size) = (60u32, 10u32, (320u32, 240u32));
     let mut there_and_back = true;
+    let mut write_masks = None;
     let args: Vec<String> = std::env::args().skip(1).collect();
     for pair in args.chunks(2) {
         let value = pair.get(1).map(String::as_str).unwrap_or("");
@@ -410,30 +411,55 @@ fn main() -> anyhow::Result<()> {
             "--frames" => frames = value.parse()?,
             "--reference-every" => every = value.parse()?,
             "--there-and-back" => there_and_back = value == "on",
+            "--write-masks" => write_masks = Some(std::path::PathBuf::from(value)),
             "--size" => {
                 let (w, h) = value.split_once('x').ok_or_else(|| anyhow::anyhow!("--size WxH"))?;
                 size = (w.parse()?, h.parse()?);
             }
-            other => anyhow::bail!("unknown flag {other}; usage: host_loop [--frames N] [--reference-every K] [--size WxH] [--there-and-back on|off]"),
+            other => anyhow::bail!("unknown flag {other}; usage: host_loop [--frames N] [--reference-every K] [--size WxH] [--there-and-back on|off] [--write-masks DIR]"),
         }
     }
     let world = world();
     // The host's job system: frames run on its threads (rayon allocates a
     // queue block every 63 jobs injected from outside a pool).
     let pool = Pool::new(rayon::ThreadPoolBuilder::new().build()?);
-    pool.clone()
-        .install(|| run(&world, &pool, frames, every, size, there_and_back))
+    let args = Args {
+        frames,
+        every,
+        size,
+        there_and_back,
+        write_masks,
+    };
+    pool.clone().install(|| run(&world, &pool, &args))
 }
 
 /// The loop: uploads, then frames along the path with the checks.
-fn run(
-    world: &HostWorld,
-    pool: &Pool,
+/// The command line.
+struct Args {
     frames: u32,
     every: u32,
     size: (u32, u32),
     there_and_back: bool,
-) -> anyhow::Result<()> {
+    /// Each frame's masks as binary PGM (P5, one byte per pixel, DESIGN's
+    /// class values), `frame_KKK_light_L.pgm`: what `examples/c/host.c` writes.
+    write_masks: Option<std::path::PathBuf>,
+}
+
+/// Writes `mask` as a binary PGM with maxval 3 (the class values).
+fn write_pgm(path: &std::path::Path, mask: &shadowcull::mask::Mask) -> std::io::Result<()> {
+    let mut bytes = format!("P5\n{} {}\n3\n", mask.width, mask.height).into_bytes();
+    bytes.extend(mask.pixels.iter().map(|&p| p as u8));
+    std::fs::write(path, bytes)
+}
+
+fn run(world: &HostWorld, pool: &Pool, args: &Args) -> anyhow::Result<()> {
+    let Args {
+        frames,
+        every,
+        size,
+        there_and_back,
+        ..
+    } = *args;
     let mut culled = upload(world, CullingSpec::Chcpp, pool)?;
     let mut unculled = upload(world, CullingSpec::None, pool)?;
     let (mut psr, mut psc, mut ms) = (Vec::new(), Vec::new(), Vec::new());
@@ -472,6 +498,12 @@ fn run(
             let out = culled.pipeline.last_output().expect("a frame ran");
             out.lights().map(|l| (l.id(), l.mask().cloned())).collect()
         };
+        if let Some(dir) = &args.write_masks {
+            for (l, (_, m)) in masks.iter().enumerate() {
+                let path = dir.join(format!("frame_{k:03}_light_{l}.pgm"));
+                write_pgm(&path, m.as_ref().expect("mask"))?;
+            }
+        }
         // The same frame without culling: conservative culling changes no pixel.
         host_frame(&mut unculled.pipeline, size, [view, projection])?;
         let plain = unculled.pipeline.last_output().expect("a frame ran");

@@ -1,23 +1,33 @@
-/* A C host of shadowcull: it keeps its own arrays (a unit cube, a ground
- * slab and a grid of boxes, two lights), uploads them once, and every frame
- * of a camera path hands the pipeline its view and projection matrices
- * (OpenGL conventions), moving one box, removing one and adding one along the
- * way. It prints per frame the PSR and PSC counts and the volume triangles,
- * and last one JSON line.
+/* A C host of shadowcull: the same scene, path and edits as
+ * examples/host_loop.rs, from the host's own arrays (the same generator
+ * constants): a ground quad and 506 cubes and towers, a point light and a
+ * sun; every frame it hands the pipeline its OpenGL view and jittered
+ * projection matrices, moves one object, and early on removes one and adds
+ * an invisible shadow proxy. It prints per frame the PSR and PSC counts and
+ * the volume triangles, and last one JSON line.
  *
- *   make -C examples/c run       (builds the library, runs under valgrind)
+ *   host [--write-masks DIR]   each frame's masks as binary PGM (P5), one
+ *                              byte per pixel: 0 lit, 1 shadow, 2 unlit,
+ *                              3 background; host_loop --write-masks writes
+ *                              the same files.
+ *   make -C examples/c run     builds, runs under valgrind, compares masks.
  */
+#define _POSIX_C_SOURCE 199309L
 #include "shadowcull.h"
 
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 #define FRAMES 30
-#define WIDTH 160
-#define HEIGHT 120
-#define OBJECTS 37
+#define WIDTH 320
+#define HEIGHT 240
+#define GRID_X 22
+#define GRID_Z 23
+#define OBJECTS (1 + GRID_X * GRID_Z)
+#define PI 3.14159265358979323846
 
 #define CHECK(call)                                                        \
   do {                                                                     \
@@ -29,45 +39,100 @@
     }                                                                      \
   } while (0)
 
-/* Column-major 4x4: scale then translate. */
-static void placement(int k, double m[16]) {
-  double sx = 1.5, sy = 1.0 + (k % 4), sz = 1.5, tx, ty = 0.0, tz;
-  if (k == 0) {
-    sx = 40.0, sy = 0.5, sz = 40.0, tx = -20.0, ty = -0.5, tz = -20.0;
-  } else {
-    tx = -15.0 + 5.0 * ((k - 1) % 6);
-    tz = -15.0 + 5.0 * ((k - 1) / 6);
-  }
-  memset(m, 0, 16 * sizeof(double));
-  m[0] = sx, m[5] = sy, m[10] = sz, m[15] = 1.0;
-  m[12] = tx, m[13] = ty, m[14] = tz;
+/* Column-major 4x4 of doubles, as the pipeline takes them. */
+typedef struct { double m[16]; } mat4;
+
+/* scale, then a rotation of `angle` about +y, then translate: the float
+ * operations in the order of glam's DMat4::from_scale_rotation_translation
+ * with DQuat::from_rotation_y. */
+static mat4 srt_y(double sx, double sy, double sz, double angle, double tx, double ty, double tz) {
+  double x = 0.0, y = sin(angle * 0.5), z = 0.0, w = cos(angle * 0.5);
+  double x2 = x + x, y2 = y + y, z2 = z + z;
+  double xx = x * x2, xy = x * y2, xz = x * z2, yy = y * y2, yz = y * z2, zz = z * z2;
+  double wx = w * x2, wy = w * y2, wz = w * z2;
+  mat4 r = {{(1.0 - (yy + zz)) * sx, (xy + wz) * sx, (xz - wy) * sx, 0.0,
+             (xy - wz) * sy, (1.0 - (xx + zz)) * sy, (yz + wx) * sy, 0.0,
+             (xz + wy) * sz, (yz - wx) * sz, (1.0 - (xx + yy)) * sz, 0.0,
+             tx, ty, tz, 1.0}};
+  return r;
 }
 
-/* The view (right-handed look-at) and OpenGL projection of frame f. */
-static void matrices(int f, double view[16], double proj[16]) {
-  double a = f * 0.15, e[3] = {25.0 * cos(a), 9.0, 25.0 * sin(a)};
-  double fw[3] = {-e[0], 1.0 - e[1], -e[2]}, r[3], u[3];
-  double n = sqrt(fw[0] * fw[0] + fw[1] * fw[1] + fw[2] * fw[2]);
-  for (int i = 0; i < 3; i++) fw[i] /= n;
-  r[0] = -fw[2], r[1] = 0.0, r[2] = fw[0]; /* f x (0,1,0) */
-  n = sqrt(r[0] * r[0] + r[2] * r[2]);
-  r[0] /= n, r[2] /= n;
-  u[0] = r[1] * fw[2] - r[2] * fw[1];
-  u[1] = r[2] * fw[0] - r[0] * fw[2];
-  u[2] = r[0] * fw[1] - r[1] * fw[0];
-  memset(view, 0, 16 * sizeof(double));
-  for (int i = 0; i < 3; i++) {
-    view[4 * i + 0] = r[i], view[4 * i + 1] = u[i], view[4 * i + 2] = -fw[i];
+/* a * b, each column as glam sums it: ((x·c.x + y·c.y) + z·c.z) + w·c.w. */
+static mat4 mul(const mat4 *a, const mat4 *b) {
+  mat4 r;
+  for (int c = 0; c < 4; c++) {
+    for (int k = 0; k < 4; k++) {
+      double v = a->m[0 + k] * b->m[4 * c + 0];
+      v = v + a->m[4 + k] * b->m[4 * c + 1];
+      v = v + a->m[8 + k] * b->m[4 * c + 2];
+      v = v + a->m[12 + k] * b->m[4 * c + 3];
+      r.m[4 * c + k] = v;
+    }
   }
-  view[12] = -(r[0] * e[0] + r[1] * e[1] + r[2] * e[2]);
-  view[13] = -(u[0] * e[0] + u[1] * e[1] + u[2] * e[2]);
-  view[14] = fw[0] * e[0] + fw[1] * e[1] + fw[2] * e[2];
-  view[15] = 1.0;
-  double near = 0.1, far = 200.0, t = 1.0 / tan(30.0 * 3.14159265358979323846 / 180.0);
-  memset(proj, 0, 16 * sizeof(double));
-  proj[0] = t / ((double)WIDTH / HEIGHT), proj[5] = t;
-  proj[10] = -(far + near) / (far - near), proj[11] = -1.0;
-  proj[14] = -2.0 * far * near / (far - near);
+  return r;
+}
+
+typedef struct { double x, y, z; } vec3;
+
+static double dot(vec3 a, vec3 b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+
+static vec3 cross(vec3 a, vec3 b) {
+  vec3 r = {a.y * b.z - b.y * a.z, a.z * b.x - b.z * a.x, a.x * b.y - b.x * a.y};
+  return r;
+}
+
+static vec3 normalize(vec3 v) {
+  double k = 1.0 / sqrt(dot(v, v));
+  vec3 r = {v.x * k, v.y * k, v.z * k};
+  return r;
+}
+
+static double halton(unsigned i, unsigned b) {
+  double r = 0.0, f = 1.0;
+  while (i > 0) {
+    f /= (double)b;
+    r += f * (double)(i % b);
+    i /= b;
+  }
+  return r - 0.5;
+}
+
+/* The view and projection of frame f of n: down a street, rising at the end;
+ * OpenGL-style, with a far plane and a TAA jitter. */
+static void host_matrices(unsigned f, unsigned n, double view[16], double proj[16]) {
+  double t = (double)f / (double)((n < 2 ? 2 : n) - 1);
+  vec3 eye = {-95.0 + 170.0 * t, 2.0 + 25.0 * t * t, 4.0};
+  vec3 d0 = {1.0, -0.15 - 0.4 * t * t, 0.25 * sin(6.0 * t)};
+  vec3 dir = normalize(d0), yaxis = {0.0, 1.0, 0.0};
+  vec3 side = normalize(cross(dir, yaxis));
+  vec3 up = cross(side, dir);
+  double v[16] = {side.x, up.x, -dir.x, 0.0, side.y, up.y, -dir.y, 0.0,
+                  side.z, up.z, -dir.z, 0.0, -dot(side, eye), -dot(up, eye), dot(dir, eye), 1.0};
+  memcpy(view, v, sizeof v);
+  double near = 0.1, far = 2000.0, fy = 1.0 / tan(30.0 * (PI / 180.0));
+  double jx = 2.0 * halton(f + 1, 2) / (double)WIDTH;
+  double jy = 2.0 * halton(f + 1, 3) / (double)HEIGHT;
+  double p[16] = {fy * (double)HEIGHT / (double)WIDTH, 0, 0, 0, 0, fy, 0, 0,
+                  jx, jy, -(far + near) / (far - near), -1.0,
+                  0, 0, -2.0 * far * near / (far - near), 0};
+  memcpy(proj, p, sizeof p);
+}
+
+static uint32_t seed = 0x2545f491u;
+
+static double rnd(void) {
+  seed ^= seed << 13;
+  seed ^= seed >> 17;
+  seed ^= seed << 5;
+  return (double)seed / (double)UINT32_MAX;
+}
+
+static sc_mesh upload(sc_pipeline p, const float (*pos)[3], uint32_t n, const uint32_t *idx,
+                      uint32_t count) {
+  sc_mesh_desc d = {sizeof d, SC_F32, sizeof pos[0], n, pos, SC_U32, count, idx};
+  sc_mesh m = 0;
+  CHECK(sc_mesh_create(p, &d, &m));
+  return m;
 }
 
 static int cmp(const void *a, const void *b) {
@@ -75,69 +140,122 @@ static int cmp(const void *a, const void *b) {
   return (x > y) - (x < y);
 }
 
+static int cmp_f(const void *a, const void *b) {
+  double x = *(const double *)a, y = *(const double *)b;
+  return (x > y) - (x < y);
+}
+
+static double median_f(double *v, int n) {
+  qsort(v, n, sizeof *v, cmp_f);
+  return v[n / 2];
+}
+
+static double now_ms(void) {
+  struct timespec t;
+  clock_gettime(CLOCK_MONOTONIC, &t);
+  return t.tv_sec * 1e3 + t.tv_nsec * 1e-6;
+}
+
 static size_t median(size_t *v, int n) {
   qsort(v, n, sizeof *v, cmp);
   return v[n / 2];
 }
 
-int main(void) {
-  /* The host's cube: 8 corners (float), 12 triangles (uint16). */
-  float corners[8][3];
+static void write_mask(const char *dir, int f, size_t l, const uint8_t *mask) {
+  char path[4096];
+  snprintf(path, sizeof path, "%s/frame_%03d_light_%zu.pgm", dir, f, l);
+  FILE *o = fopen(path, "wb");
+  if (!o) {
+    perror(path);
+    exit(1);
+  }
+  fprintf(o, "P5\n%d %d\n3\n", WIDTH, HEIGHT);
+  fwrite(mask, 1, (size_t)WIDTH * HEIGHT, o);
+  fclose(o);
+}
+
+int main(int argc, char **argv) {
+  const char *masks = NULL;
+  if (argc == 3 && !strcmp(argv[1], "--write-masks")) {
+    masks = argv[2];
+  } else if (argc != 1) {
+    fprintf(stderr, "usage: host [--write-masks DIR]\n");
+    return 2;
+  }
+  /* The host's meshes: a unit cube standing on y = 0, a tower (its top
+   * narrowed to 60 %), the ground. */
+  float cube[8][3], tower[8][3];
   for (int i = 0; i < 8; i++) {
-    corners[i][0] = (float)(i & 1), corners[i][1] = (float)((i >> 1) & 1);
-    corners[i][2] = (float)((i >> 2) & 1);
+    cube[i][0] = (float)(i & 1) - 0.5f;
+    cube[i][1] = (float)((i >> 1) & 1);
+    cube[i][2] = (float)((i >> 2) & 1) - 0.5f;
+    memcpy(tower[i], cube[i], sizeof cube[i]);
+    if (tower[i][1] == 1.0f) tower[i][0] *= 0.6f, tower[i][2] *= 0.6f;
   }
-  static const uint16_t quads[6][4] = {{0, 2, 3, 1}, {4, 5, 7, 6}, {0, 1, 5, 4},
+  static const uint32_t faces[6][4] = {{0, 2, 3, 1}, {4, 5, 7, 6}, {0, 1, 5, 4},
                                        {2, 6, 7, 3}, {0, 4, 6, 2}, {1, 3, 7, 5}};
-  uint16_t indices[36];
+  uint32_t box_idx[36];
   for (int q = 0; q < 6; q++) {
-    const uint16_t *c = quads[q];
-    uint16_t t[6] = {c[0], c[1], c[2], c[0], c[2], c[3]};
-    memcpy(indices + 6 * q, t, sizeof t);
+    const uint32_t *c = faces[q];
+    uint32_t t[6] = {c[0], c[1], c[2], c[0], c[2], c[3]};
+    memcpy(box_idx + 6 * q, t, sizeof t);
   }
+  float ground[4][3] = {{-120, 0, -120}, {-120, 0, 120}, {120, 0, 120}, {120, 0, -120}};
+  uint32_t ground_idx[6] = {0, 1, 2, 0, 2, 3};
 
   sc_pipeline_options options;
   CHECK(sc_pipeline_options_default(&options));
   options.stencil = SC_STENCIL_H; /* a GPU host keeps SC_STENCIL_NONE */
-  options.light_resolution = 256;
   sc_pipeline p = 0;
   CHECK(sc_pipeline_create(&options, &p));
+  sc_mesh meshes[3] = {upload(p, ground, 4, ground_idx, 6), upload(p, cube, 8, box_idx, 36),
+                       upload(p, tower, 8, box_idx, 36)};
 
-  sc_mesh_desc mesh = {sizeof(sc_mesh_desc)};
-  mesh.position_type = SC_F32, mesh.position_stride = sizeof corners[0];
-  mesh.vertex_count = 8, mesh.positions = corners;
-  mesh.index_type = SC_U16, mesh.index_count = 36, mesh.indices = indices;
-  sc_mesh cube = 0;
-  CHECK(sc_mesh_create(p, &mesh, &cube));
-
-  sc_object objects[OBJECTS + 1];
-  for (int k = 0; k < OBJECTS; k++) {
-    double m[16];
-    placement(k, m);
-    CHECK(sc_object_create(p, cube, m, SC_FLAGS_ALL, &objects[k]));
+  static mat4 world[OBJECTS];
+  static sc_object objects[OBJECTS + 1];
+  world[0] = srt_y(1, 1, 1, 0, 0, 0, 0); /* the identity */
+  CHECK(sc_object_create(p, meshes[0], world[0].m, SC_FLAGS_ALL, &objects[0]));
+  int k = 1;
+  for (int i = 0; i < GRID_X; i++) {
+    for (int j = 0; j < GRID_Z; j++, k++) {
+      double x = ((double)i - 10.5) * 9.0, z = ((double)j - 11.0) * 8.0;
+      double w = 2.0 + 3.0 * rnd(), d = 2.0 + 3.0 * rnd(), h = 2.0 + 14.0 * rnd();
+      int mesh = 1 + (rnd() < 0.3);
+      world[k] = srt_y(w, h, d, rnd() * 0.8, x, 0.0, z);
+      /* Every 25th object shows no shadows on itself. */
+      uint32_t flags = k % 25 ? SC_FLAGS_ALL : SC_FLAGS_ALL & ~SC_RECEIVES;
+      CHECK(sc_object_create(p, meshes[mesh], world[k].m, flags, &objects[k]));
+    }
   }
-  sc_light_desc point = {sizeof(sc_light_desc), SC_LIGHT_POINT, {2.0, 14.0, 3.0}};
-  sc_light_desc sun = {sizeof(sc_light_desc), SC_LIGHT_DIRECTIONAL, {0}, {0.4, -0.8, 0.3}};
+  sc_light_desc point = {sizeof point, SC_LIGHT_POINT, {15.0, 70.0, -10.0}};
+  sc_light_desc sun = {sizeof sun, SC_LIGHT_DIRECTIONAL, {0}, {-0.45, -1.0, -0.3}};
   sc_light lights[2];
   CHECK(sc_light_create(p, &point, &lights[0]));
   CHECK(sc_light_create(p, &sun, &lights[1]));
 
   size_t psr[FRAMES], psc[FRAMES], tris[FRAMES];
-  sc_frame_input in = {sizeof(sc_frame_input), WIDTH, HEIGHT, SC_CLIP_DEPTH_NEGATIVE_ONE_TO_ONE};
-  sc_frame_output out = {sizeof(sc_frame_output)};
+  /* Wall time of each sc_pipeline_frame call, the pipeline's own frame time
+     inside it, and their difference: what the C path adds. */
+  double wall[FRAMES], inner[FRAMES], extra[FRAMES];
+  sc_frame_input in = {sizeof in, WIDTH, HEIGHT, SC_CLIP_DEPTH_NEGATIVE_ONE_TO_ONE};
+  sc_frame_output out = {sizeof out};
   for (int f = 0; f < FRAMES; f++) {
-    double m[16];
-    placement(5, m);
-    m[12] += 0.3 * f; /* box 5 slides along x */
-    CHECK(sc_object_set_transform(p, objects[5], m));
-    if (f == 3) CHECK(sc_object_destroy(p, objects[7]));
-    if (f == 4) {
-      placement(7, m);
-      m[13] += 2.0; /* a box floats where box 7 stood */
-      CHECK(sc_object_create(p, cube, m, SC_FLAGS_ALL, &objects[OBJECTS]));
+    /* Object 1 circles its lot; early on the object beside the street goes
+     * and an invisible tower (a shadow proxy) appears. */
+    double a = (double)f * 0.2;
+    mat4 shift = srt_y(1, 1, 1, 0, 3.0 * cos(a), 0.0, 3.0 * sin(a));
+    mat4 moved = mul(&shift, &world[1]);
+    CHECK(sc_object_set_transform(p, objects[1], moved.m));
+    if (f == 1) CHECK(sc_object_destroy(p, objects[12]));
+    if (f == 2) {
+      mat4 proxy = srt_y(3.0, 12.0, 3.0, 0.0, -10.0, 0.0, 8.5);
+      CHECK(sc_object_create(p, meshes[2], proxy.m, SC_FLAGS_ALL & ~SC_VISIBLE,
+                             &objects[OBJECTS]));
     }
-    matrices(f, in.view, in.projection);
+    host_matrices((unsigned)f, FRAMES, in.view, in.projection);
+    double t0 = now_ms();
     CHECK(sc_pipeline_frame(p, &in, &out));
+    wall[f] = now_ms() - t0, inner[f] = out.stats.frame_ms, extra[f] = wall[f] - inner[f];
     psr[f] = out.psr_count, psc[f] = 0, tris[f] = 0;
     for (size_t l = 0; l < out.light_count; l++) {
       const sc_light_output *lo = &out.lights[l];
@@ -147,10 +265,14 @@ int main(void) {
            depth bounds, and draw this range's triangles: */
         tris[f] += lo->ranges[r].index_count / 3;
       }
+      if (masks) write_mask(masks, f, l, lo->mask);
     }
     printf("frame %d psr %zu psc %zu volume_triangles %zu\n", f, psr[f], psc[f], tris[f]);
   }
   CHECK(sc_pipeline_destroy(p));
+  /* Timings go to stderr: stdout is compared between builds. */
+  fprintf(stderr, "{\"frame_ms_median\":%.4f,\"pipeline_frame_ms_median\":%.4f,\"c_path_ms_median\":%.4f}\n",
+          median_f(wall, FRAMES), median_f(inner, FRAMES), median_f(extra, FRAMES));
   printf("{\"frames\":%d,\"psr_median\":%zu,\"psc_median\":%zu,\"volume_triangles_median\":%zu}\n",
          FRAMES, median(psr, FRAMES), median(psc, FRAMES), median(tris, FRAMES));
   return 0;

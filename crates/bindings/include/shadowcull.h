@@ -49,6 +49,42 @@
 // The ABI version: bumped when a struct or function changes incompatibly.
 #define SC_ABI_VERSION 1
 
+// The eye pass's view (`sc_view_role.kind`).
+#define SC_VIEW_EYE 0
+
+// A light view of a light's pass.
+#define SC_VIEW_LIGHT 1
+
+// Standard coverage: pixel centres (`coverage` of draws and queries).
+#define SC_RASTER_STANDARD 0
+
+// Outer-conservative: every pixel the primitive touches.
+#define SC_RASTER_OUTER 1
+
+// Inner-conservative: only pixels the primitive covers whole.
+#define SC_RASTER_INNER 2
+
+// Conservative coverage takes the nearest depth over pixel ∩ primitive.
+#define SC_PICK_NEAREST 0
+
+// Conservative coverage takes the farthest depth over pixel ∩ primitive.
+#define SC_PICK_FARTHEST 1
+
+// A query over one box (`sc_query_command.kind`).
+#define SC_QUERY_BOX 0
+
+// A query over the union of several boxes (one result).
+#define SC_QUERY_BOXES 1
+
+// A query over a mesh's triangles.
+#define SC_QUERY_MESH 2
+
+// Count every passing sample (`sc_query_command.mode`).
+#define SC_QUERY_COUNT 0
+
+// Any passing sample decides: the host may stop at the first and answer 1.
+#define SC_QUERY_ANY 1
+
 // zpass volume (no caps; `sc_volume_range.method`).
 #define SC_ZPASS 0
 
@@ -367,6 +403,126 @@ typedef struct sc_frame_output {
   struct sc_frame_stats stats;
 } sc_frame_output;
 
+// Which view a backend serves.
+typedef struct sc_view_role {
+  // `SC_VIEW_EYE` or `SC_VIEW_LIGHT`.
+  uint32_t kind;
+  // Viewport width (the eye) or the light view's side, in pixels.
+  uint32_t width;
+  // Viewport height (the eye) or the light view's side, in pixels.
+  uint32_t height;
+  // The light view's index among its light's views (0 for the eye).
+  uint32_t view;
+  // The light (0 for the eye).
+  sc_light light;
+} sc_view_role;
+
+// The receivers restricting a light view's queries: per pixel (row-major,
+// row 0 at the top) the farthest receiver depth, `+∞` where none.
+typedef struct sc_receivers {
+  // Width in pixels.
+  uint32_t width;
+  // Height in pixels.
+  uint32_t height;
+  // `width × height` depths.
+  const float *depth;
+} sc_receivers;
+
+// An occluder draw: triangles of a mesh, depth-tested (GEQUAL, reversed Z)
+// and written; nothing else.
+typedef struct sc_draw_command {
+  // Local → clip, column-major.
+  float clip_from_local[16];
+  // Local positions `[x, y, z, 1]`.
+  const float (*positions)[4];
+  // Number of `positions`.
+  size_t position_count;
+  // Triangles, three indices into `positions` each.
+  const uint32_t (*triangles)[3];
+  // Number of `triangles`.
+  size_t triangle_count;
+  // The object (its `sc_object` handle minus 1 when it is one).
+  uint32_t object;
+  // `SC_RASTER_*`: light views draw occluders `SC_RASTER_INNER` at the
+  // farthest depth; the eye pass draws `SC_RASTER_STANDARD`.
+  uint32_t coverage;
+  // `SC_PICK_*` for conservative coverage.
+  uint32_t depth_pick;
+  // Zero.
+  uint32_t reserved;
+} sc_draw_command;
+
+// An occlusion query: how many samples of its geometry pass GEQUAL against
+// the depth drawn so far (and, with receivers set, lie over a marked pixel
+// at or in front of its receiver depth).
+typedef struct sc_query_command {
+  // `SC_QUERY_BOX`, `SC_QUERY_BOXES` or `SC_QUERY_MESH`.
+  uint32_t kind;
+  // `SC_QUERY_COUNT` or `SC_QUERY_ANY`.
+  uint32_t mode;
+  // `SC_RASTER_*`: queries of conservative culling are `SC_RASTER_OUTER`
+  // at the nearest depth.
+  uint32_t coverage;
+  // `SC_PICK_*`.
+  uint32_t depth_pick;
+  // Local → clip, column-major.
+  float clip_from_local[16];
+  // `SC_QUERY_BOX`: the box minimum and maximum.
+  float min[3];
+  // See `min`.
+  float max[3];
+  // `SC_QUERY_BOXES`: boxes as `[min x, y, z, max x, y, z]`.
+  const float (*boxes)[6];
+  // Number of `boxes`.
+  size_t box_count;
+  // `SC_QUERY_MESH`: local positions `[x, y, z, 1]`.
+  const float (*positions)[4];
+  // Number of `positions`.
+  size_t position_count;
+  // `SC_QUERY_MESH`: triangles.
+  const uint32_t (*triangles)[3];
+  // Number of `triangles`.
+  size_t triangle_count;
+} sc_query_command;
+
+// A host's occlusion backend. Every callback gets `user` and the `view`
+// state `begin_view` returned; statuses are 0 for success (anything else
+// fails the frame with `SC_INVALID_ARGUMENT`).
+//
+// What a backend must honour to keep the masks exact: draws and queries in
+// the coverage they carry (a GPU without conservative rasterization must
+// run the pipeline with `SC_COVERAGE_POINT`, whose mismatch is measured);
+// light-view queries restricted to the receivers of `set_receivers`;
+// GEQUAL with reversed Z. Callbacks arrive from the pipeline's pool
+// threads, several views at once, each view on one thread at a time.
+typedef struct sc_backend_callbacks {
+  // `sizeof(sc_backend_callbacks)`.
+  uint32_t struct_size;
+  // Zero.
+  uint32_t reserved;
+  // Passed to every callback.
+  void *user;
+  // A view's state for one frame; NULL fails the frame.
+  void *(*begin_view)(void *user, const struct sc_view_role *role);
+  // Drops a view's state.
+  void (*end_view)(void *user, void *view);
+  // Clears depth to the background (0, reversed Z).
+  void (*clear)(void *user, void *view);
+  // Sets (or with NULL removes) the receivers restricting later queries.
+  int32_t (*set_receivers)(void *user, void *view, const struct sc_receivers *r);
+  // Draws occluders.
+  int32_t (*draw)(void *user, void *view, const struct sc_draw_command *cmd);
+  // Issues a query; its id goes to `*id` (ids count from 0 per view).
+  int32_t (*issue_query)(void *user, void *view, const struct sc_query_command *q, uint32_t *id);
+  // 1 with the sample count in `*samples` when query `id`'s result has
+  // arrived, else 0.
+  int32_t (*poll)(void *user, void *view, uint32_t id, uint32_t *samples);
+  // Query `id`'s sample count, waiting for it.
+  uint32_t (*wait)(void *user, void *view, uint32_t id);
+  // Returns when every command has executed.
+  void (*finish)(void *user, void *view);
+} sc_backend_callbacks;
+
 #ifdef __cplusplus
 extern "C" {
 #endif // __cplusplus
@@ -459,6 +615,12 @@ enum sc_status sc_light_destroy(sc_pipeline pipeline, sc_light light);
 enum sc_status sc_pipeline_frame(sc_pipeline pipeline,
                                  const struct sc_frame_input *input,
                                  struct sc_frame_output *out);
+
+// Sends the pipeline's occluder draws and occlusion queries (eye pass and
+// every light view) to the host's callbacks; NULL returns to the library's
+// own rasterizer. Every callback must be set.
+enum sc_status sc_pipeline_set_backend(sc_pipeline pipeline,
+                                       const struct sc_backend_callbacks *callbacks);
 
 // The message of the last failed call on this thread ("" after a success),
 // naming the function and the argument or field. The string stays valid

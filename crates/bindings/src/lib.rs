@@ -21,11 +21,13 @@
 // checked and refused). Marking them `unsafe` would change nothing for C.
 #![allow(clippy::not_unsafe_ptr_arg_deref)]
 
+mod backend;
 mod error;
 mod frame;
 mod handles;
 mod structs;
 
+pub use backend::*;
 pub use error::{sc_last_error, sc_status};
 pub use frame::{
     sc_frame_output, sc_frame_stats, sc_light, sc_light_output, sc_light_stats, sc_object,

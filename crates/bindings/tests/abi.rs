@@ -497,3 +497,231 @@ fn two_pipelines_on_two_threads() {
     assert_eq!(a, alone);
     assert_eq!(b, alone);
 }
+
+/// The host backend through the C callbacks, each forwarding to the
+/// library's own software backend (`raster::SyncBackend`): the output equals
+/// the pipeline's without it, frame by frame (PSR, PSC, volumes, masks).
+mod forwarding {
+    use super::*;
+    use shadowcull::raster::{
+        Coverage, DepthPick, DepthTarget, DrawCommand, OcclusionBackend, QueryCommand, QueryId,
+        QueryMode, QueryOptions, ReceiverTarget, SyncBackend, TileSize,
+    };
+    use std::ffi::c_void;
+    use std::sync::atomic::{AtomicU64, Ordering};
+    use std::sync::Arc;
+
+    /// Views begun and ended, over every pipeline of the test.
+    static BEGUN: AtomicU64 = AtomicU64::new(0);
+    static ENDED: AtomicU64 = AtomicU64::new(0);
+
+    struct View(SyncBackend);
+
+    fn view<'a>(v: *mut c_void) -> &'a mut SyncBackend {
+        // SAFETY: `v` is the `View` `begin_view` boxed, used by one thread.
+        unsafe { &mut (*(v as *mut View)).0 }
+    }
+
+    fn coverage(c: u32, pick: u32) -> Coverage {
+        let p = if pick == SC_PICK_FARTHEST {
+            DepthPick::Farthest
+        } else {
+            DepthPick::Nearest
+        };
+        match c {
+            SC_RASTER_OUTER => Coverage::Outer(p),
+            SC_RASTER_INNER => Coverage::Inner(p),
+            _ => Coverage::Standard,
+        }
+    }
+
+    extern "C" fn begin_view(_: *mut c_void, role: *const sc_view_role) -> *mut c_void {
+        // SAFETY: the library passes a valid role.
+        let r = unsafe { &*role };
+        BEGUN.fetch_add(1, Ordering::SeqCst);
+        let t = DepthTarget::new(r.width, r.height, TileSize::T8, false).unwrap();
+        Box::into_raw(Box::new(View(SyncBackend::new(t)))).cast()
+    }
+
+    extern "C" fn end_view(_: *mut c_void, v: *mut c_void) {
+        ENDED.fetch_add(1, Ordering::SeqCst);
+        // SAFETY: boxed by `begin_view`, ended once.
+        drop(unsafe { Box::from_raw(v as *mut View) });
+    }
+
+    extern "C" fn clear(_: *mut c_void, v: *mut c_void) {
+        view(v).clear();
+    }
+
+    extern "C" fn set_receivers(_: *mut c_void, v: *mut c_void, r: *const sc_receivers) -> i32 {
+        let b = view(v);
+        let receivers = if r.is_null() {
+            None
+        } else {
+            // SAFETY: the library passes width × height depths.
+            let r = unsafe { &*r };
+            let rows = slice(r.depth, (r.width * r.height) as usize);
+            Some(Arc::new(
+                ReceiverTarget::from_rows(b.target(), rows).unwrap(),
+            ))
+        };
+        i32::from(b.set_receivers(receivers).is_err())
+    }
+
+    fn positions(p: *const [f32; 4], n: usize) -> Arc<[glam::Vec4]> {
+        slice(p, n)
+            .iter()
+            .map(|&a| glam::Vec4::from_array(a))
+            .collect()
+    }
+
+    extern "C" fn draw(_: *mut c_void, v: *mut c_void, cmd: *const sc_draw_command) -> i32 {
+        // SAFETY: the library passes a valid command.
+        let c = unsafe { &*cmd };
+        let d = DrawCommand {
+            clip_from_local: glam::Mat4::from_cols_array(&c.clip_from_local),
+            positions: positions(c.positions, c.position_count),
+            triangles: slice(c.triangles, c.triangle_count).into(),
+            object: c.object,
+            coverage: coverage(c.coverage, c.depth_pick),
+        };
+        i32::from(view(v).draw(d).is_err())
+    }
+
+    extern "C" fn issue_query(
+        _: *mut c_void,
+        v: *mut c_void,
+        q: *const sc_query_command,
+        id: *mut u32,
+    ) -> i32 {
+        // SAFETY: the library passes a valid command and id slot.
+        let (q, id) = unsafe { (&*q, &mut *id) };
+        let options = QueryOptions {
+            coverage: coverage(q.coverage, q.depth_pick),
+            mode: if q.mode == SC_QUERY_ANY {
+                QueryMode::Any
+            } else {
+                QueryMode::Count
+            },
+        };
+        let m = glam::Mat4::from_cols_array(&q.clip_from_local);
+        let cmd = match q.kind {
+            SC_QUERY_BOX => QueryCommand::Aabb {
+                clip_from_local: m,
+                min: q.min.into(),
+                max: q.max.into(),
+                options,
+            },
+            SC_QUERY_BOXES => QueryCommand::Aabbs {
+                clip_from_local: m,
+                boxes: slice(q.boxes, q.box_count)
+                    .iter()
+                    .map(|b| {
+                        (
+                            glam::Vec3::new(b[0], b[1], b[2]),
+                            glam::Vec3::new(b[3], b[4], b[5]),
+                        )
+                    })
+                    .collect(),
+                options,
+            },
+            _ => QueryCommand::Mesh {
+                clip_from_local: m,
+                positions: positions(q.positions, q.position_count),
+                triangles: slice(q.triangles, q.triangle_count).into(),
+                options,
+            },
+        };
+        match view(v).issue_query(cmd) {
+            Ok(QueryId(i)) => {
+                *id = i;
+                0
+            }
+            Err(_) => 1,
+        }
+    }
+
+    extern "C" fn poll(_: *mut c_void, v: *mut c_void, id: u32, samples: *mut u32) -> i32 {
+        match view(v).poll(QueryId(id)) {
+            Some(n) => {
+                // SAFETY: the library passes a writable slot.
+                unsafe { *samples = n };
+                1
+            }
+            None => 0,
+        }
+    }
+
+    extern "C" fn wait(_: *mut c_void, v: *mut c_void, id: u32) -> u32 {
+        view(v).wait(QueryId(id))
+    }
+
+    extern "C" fn finish(_: *mut c_void, v: *mut c_void) {
+        view(v).finish();
+    }
+
+    fn callbacks() -> sc_backend_callbacks {
+        sc_backend_callbacks {
+            struct_size: std::mem::size_of::<sc_backend_callbacks>() as u32,
+            reserved: 0,
+            user: std::ptr::null_mut(),
+            begin_view: Some(begin_view),
+            end_view: Some(end_view),
+            clear: Some(clear),
+            set_receivers: Some(set_receivers),
+            draw: Some(draw),
+            issue_query: Some(issue_query),
+            poll: Some(poll),
+            wait: Some(wait),
+            finish: Some(finish),
+        }
+    }
+
+    /// Per frame: PSR, per light (PSC, indices, mask).
+    type Frame = (Vec<u64>, Vec<(Vec<u64>, Vec<u32>, Vec<u8>)>);
+
+    fn frames(p: sc_pipeline) -> Vec<Frame> {
+        let mut out = empty_output();
+        (0..6)
+            .map(|f| {
+                ok(sc_pipeline_frame(p, &input(f), &mut out));
+                let lights = slice(out.lights, out.light_count)
+                    .iter()
+                    .map(|l| {
+                        (
+                            slice(l.psc, l.psc_count).to_vec(),
+                            slice(l.indices, l.index_count).to_vec(),
+                            slice(l.mask, (W * H) as usize).to_vec(),
+                        )
+                    })
+                    .collect();
+                (slice(out.psr, out.psr_count).to_vec(), lights)
+            })
+            .collect()
+    }
+
+    #[test]
+    fn host_callbacks_give_the_bundled_output() {
+        let (plain, _, _) = c_pipeline();
+        let (hosted, _, _) = c_pipeline();
+        ok(sc_pipeline_set_backend(hosted, &callbacks()));
+        let (a, b) = (frames(plain), frames(hosted));
+        assert!(
+            BEGUN.load(Ordering::SeqCst) >= 6 * 3,
+            "eye and light views went to the host"
+        );
+        assert_eq!(a, b);
+        // Back to the bundled rasterizer; a missing callback is refused.
+        ok(sc_pipeline_set_backend(hosted, std::ptr::null()));
+        let mut c = callbacks();
+        c.wait = None;
+        assert_eq!(
+            sc_pipeline_set_backend(hosted, &c),
+            sc_status::SC_INVALID_ARGUMENT
+        );
+        assert!(last_error().contains("callbacks.wait"), "{}", last_error());
+        ok(sc_pipeline_destroy(plain));
+        ok(sc_pipeline_destroy(hosted));
+        assert_eq!(BEGUN.load(Ordering::SeqCst), ENDED.load(Ordering::SeqCst));
+    }
+}

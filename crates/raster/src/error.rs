@@ -46,6 +46,12 @@ pub enum Error {
         /// Target height.
         height: u32,
     },
+    /// A host's occlusion backend reported a failure.
+    #[error("host backend: {message}")]
+    Host {
+        /// What failed.
+        message: String,
+    },
 }
 
 /// Result with the crate's [`Error`].

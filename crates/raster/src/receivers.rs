@@ -7,6 +7,7 @@
 //! [`RECEIVER_EPS_PX`] pixels (Euclidean) of its projection.
 
 use crate::depth_target::{DepthTarget, Layout};
+use crate::{Error, Result};
 use glam::{Mat4, Vec4};
 
 /// Footprint of a receiver point, in pixels: it covers the f32 rounding of the
@@ -63,6 +64,45 @@ impl ReceiverTarget {
         assert!(x < self.layout.width && y < self.layout.height);
         let d = self.depth[self.layout.pixel_index(x, y)];
         (d != f32::INFINITY).then_some(d)
+    }
+
+    /// Per pixel, row-major from the top row, the farthest receiver depth
+    /// (`+∞` where unmarked), into `out` (cleared first): what a host backend
+    /// uploads (as a texture, say) to restrict its queries.
+    pub fn rows_into(&self, out: &mut Vec<f32>) {
+        let (w, h) = self.size();
+        out.clear();
+        out.reserve((w * h) as usize);
+        for y in 0..h {
+            out.extend((0..w).map(|x| self.depth[self.layout.pixel_index(x, y)]));
+        }
+    }
+
+    /// The receiver target of `target`'s size marked from row-major depths
+    /// (`+∞` where unmarked), as [`ReceiverTarget::rows_into`] gives them.
+    ///
+    /// # Errors
+    /// [`Error::MaskLength`] when `rows` does not hold one depth per pixel.
+    pub fn from_rows(target: &DepthTarget, rows: &[f32]) -> Result<Self> {
+        let mut r = ReceiverTarget::for_target(target);
+        let (w, h) = r.size();
+        if rows.len() != (w * h) as usize {
+            return Err(Error::MaskLength {
+                expected: (w * h) as usize,
+                got: rows.len(),
+                width: w,
+                height: h,
+            });
+        }
+        for y in 0..h {
+            for x in 0..w {
+                let z = rows[(y * w + x) as usize];
+                if z != f32::INFINITY {
+                    r.mark_pixel(r.layout.pixel_index(x, y), z);
+                }
+            }
+        }
+        Ok(r)
     }
 
     /// The tile rows `r0..r1` holding every marked pixel, `None` when none is
