@@ -368,10 +368,11 @@ impl Scene {
         })?;
         check_transform(o.node, &Transform::Matrix(world_from_local))?;
         let mesh_bounds = self.graph.meshes()[o.mesh.0 as usize].bounds();
+        let world = world_bounds(&mesh_bounds, &world_from_local, o.node)?;
         let o = &mut self.objects[id.0 as usize];
         o.world_from_local = world_from_local;
         o.mirrored = world_from_local.determinant() < 0.0;
-        o.world_bounds = mesh_bounds.transformed(&world_from_local);
+        o.world_bounds = world;
         self.refit();
         Ok(())
     }
@@ -459,6 +460,9 @@ impl Scene {
             });
         }
         let bounds = new.bounds();
+        for o in self.objects.iter().filter(|o| o.alive && o.mesh == mesh) {
+            world_bounds(&bounds, &o.world_from_local, o.node)?;
+        }
         self.graph.replace_mesh(mesh, new);
         self.mesh_versions[mesh.0 as usize] += 1;
         let mut slots = Vec::new();
@@ -538,7 +542,7 @@ impl Scene {
             mesh,
             world_from_local,
             mirrored: world_from_local.determinant() < 0.0,
-            world_bounds: bounds.transformed(&world_from_local),
+            world_bounds: world_bounds(&bounds, &world_from_local, node)?,
             alive: true,
             flags,
         };
@@ -572,10 +576,11 @@ impl Scene {
         let o = &self.objects[slot];
         check_transform(o.node, &Transform::Matrix(world_from_local))?;
         let bounds = self.graph.meshes()[o.mesh.0 as usize].bounds();
+        let world = world_bounds(&bounds, &world_from_local, o.node)?;
         let o = &mut self.objects[slot];
         o.world_from_local = world_from_local;
         o.mirrored = world_from_local.determinant() < 0.0;
-        o.world_bounds = bounds.transformed(&world_from_local);
+        o.world_bounds = world;
         self.pending.refit = true;
         Ok(())
     }
@@ -683,6 +688,20 @@ impl Scene {
         }
         self.refit_order.reverse();
     }
+}
+
+/// `bounds` (a mesh's) in world space by `world_from_local`; an error naming
+/// `node` when they overflow to a non-finite box (a finite matrix or mesh can
+/// still be too large for f32 world bounds).
+fn world_bounds(bounds: &Aabb, world_from_local: &DMat4, node: NodeId) -> Result<Aabb> {
+    let b = bounds.transformed(world_from_local);
+    if b.is_empty() || (b.min.is_finite() && b.max.is_finite()) {
+        return Ok(b);
+    }
+    Err(Error::Graph {
+        node: node.0,
+        message: "the object's world bounds overflow (its matrix or mesh is too large)".into(),
+    })
 }
 
 fn to_obvhs(b: &Aabb) -> obvhs::aabb::Aabb {
@@ -878,6 +897,28 @@ mod tests {
         assert!(s
             .set_node_transform(n0, Transform::translation(DVec3::NAN))
             .is_err());
+    }
+
+    /// A finite matrix whose world bounds overflow f32 is refused (the BVH
+    /// builder needs finite boxes), on add and on move; the scene stays as it was.
+    #[test]
+    fn overflowing_world_bounds_are_refused() {
+        let cube = crate::procedural::analytic::box_mesh("cube", Vec3::ZERO, Vec3::ONE).unwrap();
+        let mut s = Scene::new(SceneGraph::new()).unwrap();
+        let m = s.add_mesh(cube);
+        let huge = DMat4::from_scale(DVec3::splat(1e300));
+        let e = s.stage_add_object(m, huge, ObjectFlags::ALL).unwrap_err();
+        assert!(e.to_string().contains("overflow"), "{e}");
+        let a = s
+            .stage_add_object(m, DMat4::IDENTITY, ObjectFlags::ALL)
+            .unwrap();
+        assert!(s.stage_set_transform(a, huge).is_err());
+        s.commit_edits();
+        assert_eq!(
+            s.object(ObjectId(a.slot())).world_from_local,
+            DMat4::IDENTITY
+        );
+        assert!(s.bounds().max.is_finite());
     }
 
     /// Host edits by id: stale ids are errors, slots are reused with the next

@@ -339,7 +339,9 @@ impl Emitter<'_> {
                     .transform_vector3(world - position)
                     .normalize_or_zero()
                     .as_vec3();
-                debug_assert!(d != Vec3::ZERO, "a casting vertex coincides with the light");
+                // A casting vertex at the light is reachable only through
+                // rounding of degenerate (hostile) transforms: it extrudes to
+                // the zero vector, which clipping drops.
                 let s = self.push([d.x, d.y, d.z, 0.0]);
                 self.scratch.infinite[v as usize] = s;
                 s
