@@ -228,6 +228,9 @@ pub extern "C" fn sc_pipeline_create_from_file(
     out: *mut sc_pipeline,
 ) -> sc_status {
     guard("sc_pipeline_create_from_file", || {
+        if out.is_null() {
+            return Err(Failure::invalid("out: NULL"));
+        }
         if path.is_null() {
             return Err(Failure::invalid("path: NULL"));
         }

@@ -131,12 +131,9 @@ fn c_options() -> sc_pipeline_options {
     o
 }
 
-/// The scene through the C ABI: (pipeline, objects, lights).
-fn c_pipeline() -> (sc_pipeline, Vec<sc_object>, Vec<sc_light>) {
-    let mut p = 0;
-    ok(sc_pipeline_create(&c_options(), &mut p));
-    let (pos, idx) = cube();
-    let desc = sc_mesh_desc {
+/// The description of the cube `pos`, `idx` (f32 positions, u16 indices).
+fn cube_desc(pos: &[[f32; 3]], idx: &[u16]) -> sc_mesh_desc {
+    sc_mesh_desc {
         struct_size: std::mem::size_of::<sc_mesh_desc>() as u32,
         position_type: SC_F32,
         position_stride: 12,
@@ -145,7 +142,15 @@ fn c_pipeline() -> (sc_pipeline, Vec<sc_object>, Vec<sc_light>) {
         index_type: SC_U16,
         index_count: idx.len() as u32,
         indices: idx.as_ptr().cast(),
-    };
+    }
+}
+
+/// The scene through the C ABI: (pipeline, objects, lights).
+fn c_pipeline() -> (sc_pipeline, Vec<sc_object>, Vec<sc_light>) {
+    let mut p = 0;
+    ok(sc_pipeline_create(&c_options(), &mut p));
+    let (pos, idx) = cube();
+    let desc = cube_desc(&pos, &idx);
     let mut mesh = 0;
     ok(sc_mesh_create(p, &desc, &mut mesh));
     let objects = (0..OBJECTS)
@@ -313,14 +318,8 @@ fn misuse_gives_statuses_and_messages() {
     let (p, objects, lights) = c_pipeline();
     let (pos, idx) = cube();
     let mut desc = sc_mesh_desc {
-        struct_size: std::mem::size_of::<sc_mesh_desc>() as u32,
-        position_type: SC_F32,
         position_stride: 0,
-        vertex_count: pos.len() as u32,
-        positions: pos.as_ptr().cast(),
-        index_type: SC_U16,
-        index_count: idx.len() as u32,
-        indices: idx.as_ptr().cast(),
+        ..cube_desc(&pos, &idx)
     };
     let mut mesh = 0;
     // Stride 0.
@@ -391,6 +390,52 @@ fn misuse_gives_statuses_and_messages() {
         sc_light_set(p, lights[0], &light_desc(&lights_0())),
         SC_INVALID_ARGUMENT
     );
+    // NULL for the remaining pointer arguments.
+    let m = DMat4::IDENTITY.to_cols_array();
+    let nul = std::ptr::null_mut();
+    let mut x = 0;
+    for (what, status) in [
+        (
+            "sc_mesh_create out",
+            sc_mesh_create(p, &cube_desc(&pos, &idx), nul),
+        ),
+        (
+            "sc_mesh_update_positions",
+            sc_mesh_update_positions(p, 1, std::ptr::null()),
+        ),
+        (
+            "sc_object_create out",
+            sc_object_create(p, 1, m.as_ptr(), SC_FLAGS_ALL, nul),
+        ),
+        (
+            "sc_object_create_f32",
+            sc_object_create_f32(p, 1, std::ptr::null(), SC_FLAGS_ALL, &mut x),
+        ),
+        (
+            "sc_object_set_transform_f32",
+            sc_object_set_transform_f32(p, objects[3], std::ptr::null()),
+        ),
+        (
+            "sc_light_create desc",
+            sc_light_create(p, std::ptr::null(), &mut x),
+        ),
+        (
+            "sc_light_create out",
+            sc_light_create(p, &light_desc(&lights_0()), nul),
+        ),
+        ("sc_light_set", sc_light_set(p, lights[1], std::ptr::null())),
+        (
+            "sc_pipeline_create_from_file path",
+            sc_pipeline_create_from_file(&c_options(), std::ptr::null(), &mut x),
+        ),
+        (
+            "sc_pipeline_create_from_file out",
+            sc_pipeline_create_from_file(&c_options(), c"a.obj".as_ptr(), nul),
+        ),
+    ] {
+        assert_eq!(status, SC_INVALID_ARGUMENT, "{what}: {}", last_error());
+        assert!(last_error().contains("NULL"), "{what}: {}", last_error());
+    }
     // A mesh in use cannot go; an unknown one is stale.
     assert_eq!(sc_mesh_destroy(p, 1), SC_INVALID_ARGUMENT);
     assert_eq!(sc_mesh_destroy(p, 77), SC_INVALID_ARGUMENT);
