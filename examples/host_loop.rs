@@ -445,6 +445,40 @@ struct Args {
     write_masks: Option<std::path::PathBuf>,
 }
 
+/// Writes frame `k`'s id lists and volume buffers as little-endian binary
+/// files, as `examples/c/host.c` does: `frame_KKK_psr.bin` (u32 slot ids),
+/// per light `frame_KKK_light_L_psc.bin` (u32) and `_volumes.bin` (the
+/// positions as f32 × 4, the u32 indices, then per range its object, method,
+/// first index and index count as u32).
+fn write_outputs(
+    dir: &std::path::Path,
+    k: u32,
+    out: &shadowcull::FrameOutput<'_>,
+) -> std::io::Result<()> {
+    let ids =
+        |ids: &[ObjectId]| -> Vec<u8> { ids.iter().flat_map(|id| id.0.to_le_bytes()).collect() };
+    std::fs::write(dir.join(format!("frame_{k:03}_psr.bin")), ids(out.psr()))?;
+    for (l, light) in out.lights().enumerate() {
+        let name = |what: &str| dir.join(format!("frame_{k:03}_light_{l}_{what}.bin"));
+        std::fs::write(name("psc"), ids(light.psc()))?;
+        let v = light.volumes();
+        let mut b: Vec<u8> = v
+            .positions
+            .iter()
+            .flatten()
+            .flat_map(|x| x.to_le_bytes())
+            .collect();
+        b.extend(v.indices.iter().flat_map(|i| i.to_le_bytes()));
+        for r in &v.ranges {
+            for x in [r.object, r.method as u32, r.first_index, r.index_count] {
+                b.extend(x.to_le_bytes());
+            }
+        }
+        std::fs::write(name("volumes"), b)?;
+    }
+    Ok(())
+}
+
 /// Writes `mask` as a binary PGM with maxval 3 (the class values).
 fn write_pgm(path: &std::path::Path, mask: &shadowcull::mask::Mask) -> std::io::Result<()> {
     let mut bytes = format!("P5\n{} {}\n3\n", mask.width, mask.height).into_bytes();
@@ -503,6 +537,8 @@ fn run(world: &HostWorld, pool: &Pool, args: &Args) -> anyhow::Result<()> {
                 let path = dir.join(format!("frame_{k:03}_light_{l}.pgm"));
                 write_pgm(&path, m.as_ref().expect("mask"))?;
             }
+            let out = culled.pipeline.last_output().expect("a frame ran");
+            write_outputs(dir, k, &out)?;
         }
         // The same frame without culling: conservative culling changes no pixel.
         host_frame(&mut unculled.pipeline, size, [view, projection])?;

@@ -8,8 +8,9 @@
  *
  *   host [--write-masks DIR]   each frame's masks as binary PGM (P5), one
  *                              byte per pixel: 0 lit, 1 shadow, 2 unlit,
- *                              3 background; host_loop --write-masks writes
- *                              the same files.
+ *                              3 background, and its id lists and volume
+ *                              buffers; host_loop --write-masks writes the
+ *                              same files.
  *   make -C examples/c run     builds, runs under valgrind, compares masks.
  */
 #define _POSIX_C_SOURCE 199309L
@@ -161,6 +162,53 @@ static size_t median(size_t *v, int n) {
   return v[n / 2];
 }
 
+/* Writes n little-endian u32 values (this host is little-endian, as x86-64 and
+ * AArch64 are) to DIR/frame_FFF_NAME.bin, after `extra` bytes of head. */
+static void write_bin(const char *dir, int f, const char *name, const void *head, size_t extra,
+                      const uint32_t *v, size_t n) {
+  char path[4096];
+  snprintf(path, sizeof path, "%s/frame_%03d_%s.bin", dir, f, name);
+  FILE *o = fopen(path, "wb");
+  if (!o) {
+    perror(path);
+    exit(1);
+  }
+  if (extra) fwrite(head, 1, extra, o);
+  if (n) fwrite(v, sizeof *v, n, o);
+  fclose(o);
+}
+
+/* Frame f's id lists and volume buffers as host_loop --write-masks writes
+ * them: slot ids (handle - 1) as u32; per light the positions, the indices,
+ * then per range its object, method, first index and index count. */
+static void write_outputs(const char *dir, int f, const sc_frame_output *out) {
+  uint32_t *ids = malloc((out->psr_count + 1) * sizeof *ids);
+  for (size_t i = 0; i < out->psr_count; i++) ids[i] = (uint32_t)(out->psr[i] - 1);
+  write_bin(dir, f, "psr", NULL, 0, ids, out->psr_count);
+  free(ids);
+  for (size_t l = 0; l < out->light_count; l++) {
+    const sc_light_output *lo = &out->lights[l];
+    char name[64];
+    ids = malloc((lo->psc_count + 1) * sizeof *ids);
+    for (size_t i = 0; i < lo->psc_count; i++) ids[i] = (uint32_t)(lo->psc[i] - 1);
+    snprintf(name, sizeof name, "light_%zu_psc", l);
+    write_bin(dir, f, name, NULL, 0, ids, lo->psc_count);
+    free(ids);
+    size_t n = lo->index_count + 4 * lo->range_count;
+    uint32_t *v = malloc((n + 1) * sizeof *v);
+    memcpy(v, lo->indices, lo->index_count * sizeof *v);
+    for (size_t r = 0; r < lo->range_count; r++) {
+      const sc_volume_range *g = &lo->ranges[r];
+      uint32_t *w = v + lo->index_count + 4 * r;
+      w[0] = (uint32_t)(g->object - 1), w[1] = g->method, w[2] = g->first_index;
+      w[3] = g->index_count;
+    }
+    snprintf(name, sizeof name, "light_%zu_volumes", l);
+    write_bin(dir, f, name, lo->positions, lo->position_count * sizeof *lo->positions, v, n);
+    free(v);
+  }
+}
+
 static void write_mask(const char *dir, int f, size_t l, const uint8_t *mask) {
   char path[4096];
   snprintf(path, sizeof path, "%s/frame_%03d_light_%zu.pgm", dir, f, l);
@@ -267,6 +315,7 @@ int main(int argc, char **argv) {
       }
       if (masks) write_mask(masks, f, l, lo->mask);
     }
+    if (masks) write_outputs(masks, f, &out);
     printf("frame %d psr %zu psc %zu volume_triangles %zu\n", f, psr[f], psc[f], tris[f]);
   }
   CHECK(sc_pipeline_destroy(p));
