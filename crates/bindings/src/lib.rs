@@ -83,9 +83,11 @@ fn matrix(m: *const f64, name: &str) -> Result<DMat4> {
     }
     // SAFETY: non-NULL, and by the API's contract 16 readable doubles.
     let a = unsafe { std::slice::from_raw_parts(m, 16) };
-    let mut cols = [0.0; 16];
-    cols.copy_from_slice(a);
-    let m = DMat4::from_cols_array(&cols);
+    finite(DMat4::from_cols_slice(a), name)
+}
+
+/// `m`, or an error naming it when an element is not finite.
+fn finite(m: DMat4, name: &str) -> Result<DMat4> {
     if !m.is_finite() {
         return Err(Failure::invalid(format!("{name}: a non-finite element")));
     }
@@ -99,8 +101,7 @@ fn matrix_f32(m: *const f32, name: &str) -> Result<DMat4> {
     }
     // SAFETY: non-NULL, and by the API's contract 16 readable floats.
     let a = unsafe { std::slice::from_raw_parts(m, 16) };
-    let cols: [f64; 16] = std::array::from_fn(|i| f64::from(a[i]));
-    matrix(cols.as_ptr(), name)
+    finite(glam::Mat4::from_cols_slice(a).as_dmat4(), name)
 }
 
 /// The positions and triangles a mesh description points to.
@@ -329,15 +330,32 @@ pub extern "C" fn sc_object_create(
     out: *mut sc_object,
 ) -> sc_status {
     guard("sc_object_create", || {
-        if out.is_null() {
-            return Err(Failure::invalid("out: NULL"));
-        }
-        let id = MeshId(id_of(mesh, "mesh")?);
-        let m = matrix(world_from_local, "world_from_local")?;
-        let f = structs::flags(flags)?;
-        let o = handles::with(pipeline, |e| Ok(e.pipeline.add_object(id, m, f)?))?;
-        put(out, "out", object_handle(o))
+        object_create(
+            pipeline,
+            mesh,
+            || matrix(world_from_local, "world_from_local"),
+            flags,
+            out,
+        )
     })
+}
+
+/// The body of `sc_object_create` and `sc_object_create_f32`.
+fn object_create(
+    pipeline: sc_pipeline,
+    mesh: sc_mesh,
+    world_from_local: impl FnOnce() -> Result<DMat4>,
+    flags: u32,
+    out: *mut sc_object,
+) -> Result<()> {
+    if out.is_null() {
+        return Err(Failure::invalid("out: NULL"));
+    }
+    let id = MeshId(id_of(mesh, "mesh")?);
+    let m = world_from_local()?;
+    let f = structs::flags(flags)?;
+    let o = handles::with(pipeline, |e| Ok(e.pipeline.add_object(id, m, f)?))?;
+    put(out, "out", object_handle(o))
 }
 
 /// `sc_object_create` with a matrix of 16 floats.
@@ -350,23 +368,9 @@ pub extern "C" fn sc_object_create_f32(
     out: *mut sc_object,
 ) -> sc_status {
     guard("sc_object_create_f32", || {
-        let m = matrix_f32(world_from_local, "world_from_local")?.to_cols_array();
-        match sc_object_create(pipeline, mesh, m.as_ptr(), flags, out) {
-            sc_status::SC_OK => Ok(()),
-            status => Err(Failure {
-                status,
-                message: last_message(),
-            }),
-        }
+        let m = || matrix_f32(world_from_local, "world_from_local");
+        object_create(pipeline, mesh, m, flags, out)
     })
-}
-
-/// The message `sc_last_error` holds now, without its function name.
-fn last_message() -> String {
-    // SAFETY: `sc_last_error` returns a valid NUL-terminated string.
-    let s = unsafe { CStr::from_ptr(sc_last_error()) }.to_string_lossy();
-    s.split_once(": ")
-        .map_or(s.to_string(), |(_, m)| m.to_string())
 }
 
 /// Moves an object: its new column-major world matrix (16 doubles).
