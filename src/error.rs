@@ -38,6 +38,16 @@ pub enum Error {
         /// What is wrong.
         message: String,
     },
+    /// A shard of a batch job cannot be run or merged: a bad `--shard`, a
+    /// missing, overlapping or foreign shard directory. `path` names the
+    /// directory (or the job file); the message says what to rerun or drop.
+    #[error("{}: {message}", path.display())]
+    Shard {
+        /// The shard directory (or job file).
+        path: PathBuf,
+        /// What is wrong.
+        message: String,
+    },
     /// Reading or writing a file failed.
     #[error("{}: {source}", path.display())]
     Io {

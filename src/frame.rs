@@ -33,6 +33,8 @@ pub struct FrameRunner {
     references: Option<HashMap<ReferenceKey, ReferenceMask>>,
     /// Time spent building the reference's BVH (ms), 0 until it is built.
     pub bvh_ms: f64,
+    /// Reset all coherent state at frames that are multiples of this.
+    keyframe: Option<u32>,
 }
 
 /// One light's result within a frame.
@@ -70,7 +72,15 @@ impl FrameRunner {
             scene: scene.into(),
             references: None,
             bvh_ms: 0.0,
+            keyframe: None,
         }
+    }
+
+    /// Resets all coherent state ([`Pipeline::reset_history`]) before every
+    /// frame whose number is a multiple of `keyframe` (`None`: only before
+    /// frame 0, where every job's history starts).
+    pub fn set_keyframe(&mut self, keyframe: Option<u32>) {
+        self.keyframe = keyframe.filter(|&k| k > 0);
     }
 
     /// Keeps every reference mask computed, keyed by frame, light and reference
@@ -80,10 +90,12 @@ impl FrameRunner {
         self.references = on.then(HashMap::new);
     }
 
-    /// Runs frame `frame` seen by `camera` at `width × height` for every light
-    /// of `lights` with `options` (a change of options starts the pipeline's
-    /// per-view state cold, [`Pipeline::set_options`]); computes the
-    /// reference too when `reference`.
+    /// Runs job frame `frame` seen by `camera` at `width × height` for every
+    /// light of `lights` with `options` (a change of options starts the
+    /// pipeline's per-view state cold, [`Pipeline::set_options`]); computes
+    /// the reference too when `reference`. The pipeline numbers the frame
+    /// `frame` ([`Pipeline::set_frame_number`]), and forgets its history
+    /// first at frame 0 and at keyframes ([`FrameRunner::set_keyframe`]).
     ///
     /// # Errors
     /// Pipeline errors (an invalid light or option names its field).
@@ -117,6 +129,10 @@ impl FrameRunner {
             for (&id, l) in self.lights.iter().zip(lights) {
                 pipeline.set_light(id, *l)?;
             }
+        }
+        pipeline.set_frame_number(frame);
+        if frame == 0 || self.keyframe.is_some_and(|k| frame % k == 0) {
+            pipeline.reset_history();
         }
         let out = pipeline.frame(&FrameInput {
             width,

@@ -11,7 +11,8 @@
 //! Besides the pipeline the crate holds the exact ray-cast shadow reference
 //! every option is measured against ([`mod@reference`]), the four-class masks
 //! ([`mask`]), per-frame statistics ([`stats`]), and, with the `jobs`
-//! feature, RON batch jobs ([`config`], [`run`], [`compare`]).
+//! feature, RON batch jobs ([`config`], [`run`], [`compare`]), split over
+//! machines by [`shard`] and put back together by [`merge`].
 //!
 //! # Features
 //! - `gltf`, `obj`: the scene loaders (passed to `shadowcull-scene`);
@@ -47,10 +48,14 @@ mod error;
 pub mod frame;
 pub mod hybrid;
 pub mod mask;
+#[cfg(feature = "jobs")]
+pub mod merge;
 pub mod pipeline;
 pub mod reference;
 #[cfg(feature = "jobs")]
 pub mod run;
+#[cfg(feature = "jobs")]
+pub mod shard;
 pub mod stats;
 mod surface;
 

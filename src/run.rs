@@ -10,6 +10,7 @@ use crate::error::io_err;
 use crate::frame::FrameRunner;
 use crate::mask::Mask;
 use crate::reference::ReferenceMask;
+use crate::shard::{warmup_start, Shard, ShardManifest};
 use crate::stats::{CheckStats, FrameRow, ReferenceStats, ShadowStats};
 use crate::{Error, Result};
 use scene::{Light, SceneCounts};
@@ -23,8 +24,30 @@ use std::time::Instant;
 pub struct RunOptions {
     /// Output directory (created if missing; other files in it are left alone).
     pub out_dir: PathBuf,
-    /// Stop after this many frames.
+    /// Stop after this many frames (F, the job's frames, is then at most this).
     pub max_frames: Option<u32>,
+    /// Run only this shard's block of frames and write `shard.json`
+    /// ([`crate::shard`]).
+    pub shard: Option<Shard>,
+    /// Warm-up frames before a shard's block; default the job's
+    /// `pipeline.chcpp.revisit`.
+    pub warmup: Option<u32>,
+    /// Reset all coherent state every this many frames; overrides the job's
+    /// `keyframe`.
+    pub keyframe: Option<u32>,
+}
+
+impl Default for RunOptions {
+    /// Into `out`, every frame, no shard, the job's keyframes.
+    fn default() -> Self {
+        RunOptions {
+            out_dir: PathBuf::from("out"),
+            max_frames: None,
+            shard: None,
+            warmup: None,
+            keyframe: None,
+        }
+    }
 }
 
 /// What `summary.json` holds.
@@ -40,20 +63,31 @@ pub struct RunSummary {
     pub warnings: Vec<String>,
     /// Viewport.
     pub resolution: (u32, u32),
-    /// Frames run.
-    pub frames: u32,
     /// Lights per frame.
     pub lights: Vec<Light>,
     /// Time to load or generate the scene and flatten it (ms).
     pub load_ms: f64,
     /// Time to build the reference's triangle BVH (ms; 0 when no frame ran it).
     pub bvh_ms: f64,
-    /// Mean reference time per frame and light over the frames that ran it (ms).
+    /// Everything derived from the rows (`frames`, means, medians, totals).
+    #[serde(flatten)]
+    pub rows: RowSummary,
+}
+
+/// The keys of `summary.json` derived from the `stats.csv` rows alone, so a
+/// merge of shards recomputes them from the merged rows by the same rule.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct RowSummary {
+    /// Frames run (the rows hold `frames ×` lights rows).
+    pub frames: u32,
+    /// Mean reference time per frame and light over the rows that ran it
+    /// (ms; a row ran it when its reference classified any pixel).
     pub mean_reference_ms: f64,
     /// Mean pipeline time per frame and light (ms; the rows' `frame_ms`).
     pub mean_frame_ms: f64,
     /// Median whole-frame time: the wall time of [`crate::Pipeline::frame`]
-    /// for all lights, the reference and file output excluded (ms).
+    /// for all lights, the reference and file output excluded (ms; each
+    /// frame's first row's `pipeline_frame_ms`).
     pub frame_ms_median: f64,
     /// Mean whole-frame time, as `frame_ms_median` (ms).
     pub frame_ms_mean: f64,
@@ -65,21 +99,84 @@ pub struct RunSummary {
     pub check_totals: CheckStats,
 }
 
+impl RowSummary {
+    /// The summary of `frames` frames whose rows are `rows`.
+    pub fn of(frames: u32, rows: &[FrameRow]) -> RowSummary {
+        let mut s = RowSummary {
+            frames,
+            ..Default::default()
+        };
+        let mut ref_rows = 0u32;
+        let mut frame_times = Vec::with_capacity(frames as usize);
+        let mut frame_ms_sum = 0.0;
+        for (i, row) in rows.iter().enumerate() {
+            let r = &row.reference;
+            if r.lit + r.shadow + r.unlit + r.background > 0 {
+                ref_rows += 1;
+            }
+            if i == 0 || rows[i - 1].frame != row.frame {
+                frame_times.push(row.pipeline_frame_ms);
+            }
+            s.totals.add(r);
+            s.shadow_totals.add(&row.shadow);
+            s.check_totals.add(&row.check);
+            frame_ms_sum += row.frame_ms;
+        }
+        if ref_rows > 0 {
+            s.mean_reference_ms = s.totals.reference_ms / f64::from(ref_rows);
+        }
+        s.mean_frame_ms = frame_ms_sum / rows.len().max(1) as f64;
+        s.frame_ms_median = crate::stats::median(&frame_times);
+        s.frame_ms_mean = frame_times.iter().sum::<f64>() / frame_times.len().max(1) as f64;
+        s
+    }
+}
+
+/// The bundled default job's text, whose hash names it in `shard.json`.
+const DEFAULT_JOB_TEXT: &str = include_str!("../data/jobs/default_city.ron");
+
 /// Runs `job` (read from `job_file`, or the bundled default when `None`),
-/// calling `on_frame` after every frame-and-light row.
+/// calling `on_frame` after every frame-and-light row with the number of
+/// frames the run writes.
+///
+/// With [`RunOptions::shard`] it runs the shard's warm-up frames and then its
+/// block only, numbering frames as in the whole job, and writes `shard.json`
+/// last, so a shard directory without one did not finish.
 ///
 /// # Errors
-/// Scene, job and I/O errors.
+/// Scene, job and I/O errors; [`Error::Options`] for a keyframe of 0.
 pub fn run_job(
     job: &Job,
     job_file: Option<&Path>,
     options: &RunOptions,
     on_frame: &mut dyn FnMut(&FrameRow, u32),
 ) -> Result<RunSummary> {
+    let started = Instant::now();
     let name = job_file
         .map(|p| p.display().to_string())
         .unwrap_or_else(|| "<default>".into());
     let file = job_file.unwrap_or(Path::new("<default job>"));
+    let keyframe = options.keyframe.or(job.keyframe);
+    if keyframe == Some(0) {
+        return Err(Error::Options {
+            field: "keyframe".into(),
+            message: "must be at least 1".into(),
+        });
+    }
+    let job_hash = match (options.shard, job_file) {
+        (None, _) => String::new(),
+        (Some(_), Some(p)) => crate::shard::job_hash(&std::fs::read(p).map_err(io_err(p))?),
+        (Some(_), None) => crate::shard::job_hash(DEFAULT_JOB_TEXT.as_bytes()),
+    };
+
+    let out = &options.out_dir;
+    std::fs::create_dir_all(out).map_err(io_err(out))?;
+    // A shard manifest from an earlier run would vouch for this run's files.
+    let manifest = out.join("shard.json");
+    match std::fs::remove_file(&manifest) {
+        Err(e) if e.kind() != std::io::ErrorKind::NotFound => return Err(io_err(&manifest)(e)),
+        _ => {}
+    }
 
     let t0 = Instant::now();
     let (loaded, scene, path) = load_scene_for_job(job, job_file)?;
@@ -89,15 +186,16 @@ pub fn run_job(
     let frames = job
         .frame_count()
         .min(options.max_frames.unwrap_or(u32::MAX));
+    let block = options.shard.map_or(0..frames, |s| s.range(frames));
+    let warmup = options.warmup.unwrap_or(job.pipeline.chcpp.revisit);
+    let warm = warmup_start(block.start, warmup, keyframe)..block.start;
     let (w, h) = job.resolution;
 
     let counts = scene.counts();
     let warnings = scene.warnings().to_vec();
     let mut runner = FrameRunner::new(scene);
-    let mut frame_times = Vec::with_capacity(frames as usize);
+    runner.set_keyframe(keyframe);
 
-    let out = &options.out_dir;
-    std::fs::create_dir_all(out).map_err(io_err(out))?;
     let frames_dir = out.join("frames");
     if job.outputs.masks || job.outputs.shaded || job.outputs.tile_image {
         std::fs::create_dir_all(&frames_dir).map_err(io_err(&frames_dir))?;
@@ -106,12 +204,17 @@ pub fn run_job(
     let mut csv = std::fs::File::create(&csv_path).map_err(io_err(&csv_path))?;
     writeln!(csv, "{}", FrameRow::csv_header()).map_err(io_err(&csv_path))?;
 
-    let mut totals = ReferenceStats::default();
-    let mut shadow_totals = ShadowStats::default();
-    let mut check_totals = CheckStats::default();
-    let mut ref_runs = 0u32;
-    let mut frame_ms_sum = 0.0;
-    for frame in 0..frames {
+    // Warm-up: the pipeline only, to rebuild the history the single run has.
+    let t_warm = Instant::now();
+    for frame in warm.clone() {
+        let camera = frame_camera(&path, frame, (w, h), file)?;
+        runner.frame(frame, &camera, &lights, (w, h), &job.pipeline, false)?;
+    }
+    let warmup_ms = ms(t_warm);
+
+    let written = block.len() as u32;
+    let mut rows = Vec::with_capacity(block.len() * lights.len());
+    for frame in block.clone() {
         let camera = frame_camera(&path, frame, (w, h), file)?;
         let every = job.pipeline.reference_every;
         let with_reference = every > 0 && frame % every == 0;
@@ -123,81 +226,97 @@ pub fn run_job(
             &job.pipeline,
             with_reference,
         )?;
-        if let Some(first) = results.first() {
-            frame_times.push(first.row.pipeline_frame_ms);
-        }
         for (li, lf) in results.iter().enumerate() {
             let row = &lf.row;
             if frame % job.outputs.image_every == 0 {
-                if job.outputs.masks {
-                    let p = frames_dir.join(format!("{frame}_{li}_mask.png"));
-                    if let Some(shadow) = &lf.shadow {
-                        atomic(&p, |tmp| shadow.mask.write_png(tmp))?;
-                    }
-                    if let Some(r) = &lf.reference {
-                        let p = frames_dir.join(format!("{frame}_{li}_reference.png"));
-                        atomic(&p, |tmp| r.mask.write_png(tmp))?;
-                    }
-                }
-                if let (true, Some(t)) = (
-                    job.outputs.tile_image,
-                    lf.shadow.as_ref().and_then(|s| s.tiles.as_ref()),
-                ) {
-                    // [Aila04 Fig. 1]: lit, shadow and boundary tiles of the frame.
-                    let p = frames_dir.join(format!("{frame}_{li}_tiles.png"));
-                    let rgb = t.rgb(w, h);
-                    atomic(&p, |tmp| {
-                        crate::mask::write_png(tmp, w, h, png::ColorType::Rgb, &rgb)
-                    })?;
-                }
-                if let (true, Some(r), Some(s)) = (job.outputs.shaded, &lf.reference, &lf.shadow) {
-                    let p = frames_dir.join(format!("{frame}_{li}_shaded.png"));
-                    atomic(&p, |tmp| write_shaded(&s.mask, r, tmp))?;
-                }
+                write_images(job, &frames_dir, frame, li, lf)?;
             }
-            if lf.reference.is_some() {
-                ref_runs += 1;
-            }
-            totals.add(&row.reference);
-            shadow_totals.add(&row.shadow);
-            check_totals.add(&row.check);
-            frame_ms_sum += row.frame_ms;
-            writeln!(csv, "{}", row.csv_row())
+            // One write per row: a row is never split.
+            let line = format!("{}\n", row.csv_row());
+            csv.write_all(line.as_bytes())
                 .and_then(|_| csv.flush())
                 .map_err(io_err(&csv_path))?;
             row.emit();
-            on_frame(row, frames);
+            on_frame(row, written);
+            rows.push(*row);
         }
     }
-    let rows = (frames as usize * lights.len()).max(1) as f64;
     let summary = RunSummary {
-        job: name,
+        job: name.clone(),
         scene: counts,
         bounds,
         warnings,
         resolution: job.resolution,
-        frames,
         lights,
         load_ms,
         bvh_ms: runner.bvh_ms,
-        mean_reference_ms: if ref_runs > 0 {
-            totals.reference_ms / ref_runs as f64
-        } else {
-            0.0
-        },
-        mean_frame_ms: frame_ms_sum / rows,
-        frame_ms_median: crate::stats::median(&frame_times),
-        frame_ms_mean: frame_times.iter().sum::<f64>() / frame_times.len().max(1) as f64,
-        totals,
-        shadow_totals,
-        check_totals,
+        rows: RowSummary::of(written, &rows),
     };
-    let sp = out.join("summary.json");
-    atomic(&sp, |tmp| {
-        let text = serde_json::to_string_pretty(&summary).map_err(std::io::Error::other)?;
-        std::fs::write(tmp, text)
-    })?;
+    write_json(&out.join("summary.json"), &summary)?;
+    if let Some(shard) = options.shard {
+        let m = ShardManifest {
+            job_path: name,
+            job_hash,
+            index: shard.index,
+            count: shard.count,
+            job_frames: frames,
+            frames: [block.start, block.end],
+            warmup,
+            warmup_frames: warm.len() as u32,
+            keyframe,
+            version: env!("CARGO_PKG_VERSION").into(),
+            load_ms,
+            warmup_ms,
+            wall_ms: ms(started),
+        };
+        write_json(&manifest, &m)?;
+    }
     Ok(summary)
+}
+
+/// Writes `value` as pretty JSON to `path`, atomically.
+pub(crate) fn write_json<T: Serialize>(path: &Path, value: &T) -> Result<()> {
+    atomic(path, |tmp| {
+        let text = serde_json::to_string_pretty(value).map_err(std::io::Error::other)?;
+        std::fs::write(tmp, text)
+    })
+}
+
+/// The images of one frame and light the job's `outputs` ask for.
+fn write_images(
+    job: &Job,
+    frames_dir: &Path,
+    frame: u32,
+    li: usize,
+    lf: &crate::frame::LightFrame,
+) -> Result<()> {
+    let (w, h) = job.resolution;
+    if job.outputs.masks {
+        if let Some(shadow) = &lf.shadow {
+            let p = frames_dir.join(format!("{frame}_{li}_mask.png"));
+            atomic(&p, |tmp| shadow.mask.write_png(tmp))?;
+        }
+        if let Some(r) = &lf.reference {
+            let p = frames_dir.join(format!("{frame}_{li}_reference.png"));
+            atomic(&p, |tmp| r.mask.write_png(tmp))?;
+        }
+    }
+    if let (true, Some(t)) = (
+        job.outputs.tile_image,
+        lf.shadow.as_ref().and_then(|s| s.tiles.as_ref()),
+    ) {
+        // [Aila04 Fig. 1]: lit, shadow and boundary tiles of the frame.
+        let p = frames_dir.join(format!("{frame}_{li}_tiles.png"));
+        let rgb = t.rgb(w, h);
+        atomic(&p, |tmp| {
+            crate::mask::write_png(tmp, w, h, png::ColorType::Rgb, &rgb)
+        })?;
+    }
+    if let (true, Some(r), Some(s)) = (job.outputs.shaded, &lf.reference, &lf.shadow) {
+        let p = frames_dir.join(format!("{frame}_{li}_shaded.png"));
+        atomic(&p, |tmp| write_shaded(&s.mask, r, tmp))?;
+    }
+    Ok(())
 }
 
 /// The camera of `frame` for a `width × height` viewport.

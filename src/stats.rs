@@ -149,6 +149,8 @@ pub struct FrameRow {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
 #[non_exhaustive]
 pub struct FrameStats {
+    /// The frame's number ([`crate::Pipeline::set_frame_number`]).
+    pub frame: u32,
     /// Wall time of the whole `frame` call, every light included (ms).
     pub frame_ms: f64,
     /// The eye pass, with culling its traversal and the receiver points (ms).
@@ -242,6 +244,28 @@ macro_rules! stats_row {
             pub fn emit(&self) {
                 tracing::info!(target: "shadowcull::frame", $($name = self.$($path).+),*);
             }
+
+            /// Parses a CSV line of [`FrameRow::COLUMNS`] (as [`FrameRow::csv_row`]
+            /// writes it; times keep their three decimals).
+            ///
+            /// # Errors
+            /// The column that is missing or not a number.
+            pub fn from_csv(line: &str) -> std::result::Result<FrameRow, String> {
+                let mut row = FrameRow::default();
+                let mut fields = line.split(',');
+                $(
+                    let text = fields
+                        .next()
+                        .ok_or_else(|| format!("no `{}` column", stringify!($name)))?;
+                    row.$($path).+ = CsvValue::parse(text).ok_or_else(|| {
+                        format!("`{}`: {text:?} is not a value of the column", stringify!($name))
+                    })?;
+                )*
+                if fields.next().is_some() {
+                    return Err(format!("more than the {} columns", Self::COLUMNS.len()));
+                }
+                Ok(row)
+            }
         }
     };
 }
@@ -304,22 +328,32 @@ pub fn median(values: &[f64]) -> f64 {
     v[v.len() / 2]
 }
 
-trait CsvValue {
+trait CsvValue: Sized {
     fn csv(&self) -> String;
+    fn parse(text: &str) -> Option<Self>;
 }
 impl CsvValue for f64 {
     fn csv(&self) -> String {
         format!("{self:.3}")
+    }
+    fn parse(text: &str) -> Option<Self> {
+        text.parse().ok()
     }
 }
 impl CsvValue for u64 {
     fn csv(&self) -> String {
         self.to_string()
     }
+    fn parse(text: &str) -> Option<Self> {
+        text.parse().ok()
+    }
 }
 impl CsvValue for u32 {
     fn csv(&self) -> String {
         self.to_string()
+    }
+    fn parse(text: &str) -> Option<Self> {
+        text.parse().ok()
     }
 }
 fn format_value<T: CsvValue>(v: &T) -> String {
@@ -408,5 +442,13 @@ mod tests {
         assert!(pairs.contains(&("frame", "3")));
         assert!(pairs.contains(&("shadow", "42")));
         assert!(pairs.contains(&("reference_ms", "1.235")));
+        // Back from CSV: counters exactly, times to three decimals.
+        let back = FrameRow::from_csv(&row).unwrap();
+        assert_eq!(back.csv_row(), row);
+        assert_eq!((back.frame, back.light, back.reference.shadow), (3, 1, 42));
+        assert!(FrameRow::from_csv("3,1").unwrap_err().contains("update_ms"));
+        assert!(FrameRow::from_csv(&format!("{row},9")).is_err());
+        let bad = row.replacen(",42,", ",x,", 1);
+        assert!(FrameRow::from_csv(&bad).unwrap_err().contains("`shadow`"));
     }
 }

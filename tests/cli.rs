@@ -400,3 +400,229 @@ fn run_reports_job_errors_with_line_and_column() {
         "{err}"
     );
 }
+
+/// A 12-frame job with coherent culling, whose history-dependent columns
+/// (queries, PSR, PSC) differ between a single run and a cold-started shard.
+const SHARD_JOB: &str = r#"(
+    version: 1,
+    scene: City((blocks_x: 3, blocks_z: 3)),
+    resolution: (80, 60),
+    camera: Path("street"),
+    frames: 12,
+    lights: [AboveScene(1.5), Sun(elevation_deg: 35.0, azimuth_deg: 30.0)],
+    outputs: (masks: true, shaded: true, tile_image: true),
+    pipeline: (stencil: h, culling: chcpp),
+)"#;
+
+/// Runs `shadowcull` with `args`, asserting success.
+fn run_ok<S: AsRef<std::ffi::OsStr> + std::fmt::Debug>(args: &[S]) {
+    let o = bin().args(args).output().unwrap();
+    assert!(
+        o.status.success(),
+        "{args:?}: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+}
+
+/// Runs `shadowcull` with `args`, expecting exit status 1; returns stderr.
+fn run_err<S: AsRef<std::ffi::OsStr> + std::fmt::Debug>(args: &[S]) -> String {
+    let o = bin().args(args).output().unwrap();
+    let err = String::from_utf8_lossy(&o.stderr).into_owned();
+    assert_eq!(o.status.code(), Some(1), "{args:?}: {err}");
+    assert_eq!(err.trim_end().lines().count(), 1, "one line: {err}");
+    err
+}
+
+/// `stats.csv` as (header, rows of fields).
+fn stats(dir: &Path) -> (Vec<String>, Vec<Vec<String>>) {
+    let text = std::fs::read_to_string(dir.join("stats.csv")).unwrap();
+    let mut lines = text.lines();
+    let header = lines.next().unwrap().split(',').map(String::from).collect();
+    let rows = lines
+        .map(|l| l.split(',').map(String::from).collect())
+        .collect();
+    (header, rows)
+}
+
+/// The columns of `a` and `b` (same header) whose values differ in some row.
+fn differing_columns(a: &Path, b: &Path) -> Vec<String> {
+    let ((ha, ra), (hb, rb)) = (stats(a), stats(b));
+    assert_eq!(ha, hb);
+    assert_eq!(ra.len(), rb.len(), "{} vs {}", a.display(), b.display());
+    (0..ha.len())
+        .filter(|&c| ra.iter().zip(&rb).any(|(x, y)| x[c] != y[c]))
+        .map(|c| ha[c].clone())
+        .collect()
+}
+
+/// The names of `dir/frames` whose bytes differ from `other/frames`' (the
+/// two must hold the same names).
+fn differing_images(a: &Path, b: &Path) -> Vec<String> {
+    let names = |d: &Path| {
+        let mut v: Vec<String> = std::fs::read_dir(d.join("frames"))
+            .unwrap()
+            .map(|e| e.unwrap().file_name().into_string().unwrap())
+            .collect();
+        v.sort();
+        v
+    };
+    let (na, nb) = (names(a), names(b));
+    assert_eq!(na, nb, "{} vs {}", a.display(), b.display());
+    assert!(!na.is_empty());
+    na.into_iter()
+        .filter(|n| {
+            std::fs::read(a.join("frames").join(n)).unwrap()
+                != std::fs::read(b.join("frames").join(n)).unwrap()
+        })
+        .collect()
+}
+
+/// The equality contract of sharded jobs: merged shards give the single
+/// run's masks and mask-derived columns byte for byte, whatever the split;
+/// with keyframes on the shard boundaries, every column but the times; and
+/// a missing, overlapping or foreign shard is an error naming its directory.
+#[test]
+fn sharded_runs_merge_into_the_single_run() {
+    let dir = tmp_dir("shards");
+    let job = dir.join("job.ron");
+    std::fs::write(&job, SHARD_JOB).unwrap();
+    let d = |name: &str| dir.join(name);
+    let run = |out: &Path, extra: &[&str]| {
+        let mut args: Vec<&std::ffi::OsStr> =
+            vec!["run".as_ref(), job.as_ref(), "--out".as_ref(), out.as_ref()];
+        args.extend(extra.iter().map(std::ffi::OsStr::new));
+        run_ok(&args);
+    };
+    let merge = |out: &Path, shards: &[PathBuf]| {
+        let mut args = vec!["merge".into(), out.as_os_str().to_owned()];
+        args.extend(shards.iter().map(|s| s.as_os_str().to_owned()));
+        args
+    };
+    let sharded = |tag: &str, n: u32, extra: &[&str]| {
+        let dirs: Vec<PathBuf> = (0..n).map(|i| d(&format!("{tag}_{i}of{n}"))).collect();
+        for (i, s) in dirs.iter().enumerate() {
+            let shard = format!("{i}/{n}");
+            let mut args = vec!["--shard", shard.as_str()];
+            args.extend_from_slice(extra);
+            run(s, &args);
+        }
+        let out = d(&format!("{tag}_merged{n}"));
+        run_ok(&merge(&out, &dirs));
+        (out, dirs)
+    };
+    // Mask-derived columns: identical under any split.
+    let mask_columns = [
+        "lit",
+        "shadow",
+        "unlit",
+        "background",
+        "ambiguous",
+        "shadowed_pixels",
+        "mismatch_pixels",
+        "mismatch_off_boundary",
+        "ambiguous_pixels",
+        "compared_pixels",
+    ];
+    let single = d("single");
+    run(&single, &[]);
+    let mut history_differs = false;
+    for n in [1, 2, 3] {
+        let (merged, dirs) = sharded("plain", n, &[]);
+        let columns = differing_columns(&single, &merged);
+        for c in &columns {
+            assert!(!mask_columns.contains(&c.as_str()), "N = {n}: {c} differs");
+        }
+        history_differs |= columns.iter().any(|c| !c.ends_with("_ms"));
+        for name in differing_images(&single, &merged) {
+            assert!(name.ends_with("_tiles.png"), "N = {n}: {name} differs");
+        }
+        let summary: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(merged.join("summary.json")).unwrap())
+                .unwrap();
+        assert_eq!(summary["frames"], 12);
+        assert_eq!(summary["shards"].as_array().unwrap().len(), n as usize);
+        let manifest: serde_json::Value = serde_json::from_str(
+            &std::fs::read_to_string(dirs[n as usize - 1].join("shard.json")).unwrap(),
+        )
+        .unwrap();
+        assert_eq!(manifest["count"], n);
+        assert_eq!(manifest["frames"][1], 12);
+        assert!(manifest["job_hash"]
+            .as_str()
+            .unwrap()
+            .starts_with("fnv1a64:"));
+    }
+    assert!(
+        history_differs,
+        "cold-started shards should query differently from the single run"
+    );
+
+    // Keyframes every 4 frames, shard boundaries at 4 and 8: identical in
+    // every column but the times, and in every image.
+    let single_k = d("single_k");
+    run(&single_k, &["--keyframe", "4"]);
+    let (merged_k, dirs_k) = sharded("key", 3, &["--keyframe", "4"]);
+    let columns = differing_columns(&single_k, &merged_k);
+    assert!(
+        columns.iter().all(|c| c.ends_with("_ms")),
+        "with keyframes only times may differ: {columns:?}"
+    );
+    assert_eq!(differing_images(&single_k, &merged_k), Vec::<String>::new());
+    let m: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dirs_k[1].join("shard.json")).unwrap())
+            .unwrap();
+    assert_eq!(
+        m["warmup_frames"], 0,
+        "a block starting on a keyframe needs no warm-up"
+    );
+    assert_eq!(m["keyframe"], 4);
+
+    // Errors name the directory.
+    let plain = |i: u32, n: u32| d(&format!("plain_{i}of{n}"));
+    let e = run_err(&merge(&d("bad1"), &[plain(0, 3), plain(2, 3)]));
+    assert!(
+        e.contains("shard 1/3 is missing") && e.contains("bad1"),
+        "{e}"
+    );
+    let e = run_err(&merge(&d("bad2"), &[plain(0, 2), plain(1, 2), plain(1, 2)]));
+    assert!(e.contains("overlaps") && e.contains("plain_1of2"), "{e}");
+    let e = run_err(&merge(&d("bad3"), &[plain(0, 2), dirs_k[1].clone()]));
+    assert!(e.contains("another job") && e.contains("key_1of3"), "{e}");
+    let e = run_err(&merge(&plain(0, 1), &[plain(0, 1)]));
+    assert!(e.contains("one of the shards"), "{e}");
+    let e = run_err(&merge(&d("bad4"), std::slice::from_ref(&single)));
+    assert!(
+        e.contains("no readable shard.json") && e.contains("single"),
+        "{e}"
+    );
+    // A job edited between shards is foreign.
+    let other = dir.join("other.ron");
+    std::fs::write(&other, SHARD_JOB.replace("frames: 12", "frames: 12 ")).unwrap();
+    let foreign = d("foreign_1of2");
+    run_ok(&[
+        "run".as_ref(),
+        other.as_os_str(),
+        "--out".as_ref(),
+        foreign.as_os_str(),
+        "--shard".as_ref(),
+        "1/2".as_ref(),
+    ] as &[&std::ffi::OsStr]);
+    let e = run_err(&merge(&d("bad5"), &[plain(0, 2), foreign]));
+    assert!(e.contains("job_hash") && e.contains("foreign_1of2"), "{e}");
+    // A bad shard is a usage error that says what is wanted.
+    let o = bin()
+        .args([
+            "run".as_ref(),
+            job.as_os_str(),
+            "--shard".as_ref(),
+            "3/3".as_ref(),
+        ] as [&std::ffi::OsStr; 4])
+        .output()
+        .unwrap();
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success());
+    assert!(
+        e.contains("3/3") && e.contains("below the shard count"),
+        "{e}"
+    );
+}

@@ -173,8 +173,55 @@ fn volumes_only_pipeline_gives_the_same_volumes_and_no_mask() -> Result<()> {
     Ok(())
 }
 
+/// `reset_history` (a keyframe) makes the next frames equal a new pipeline's
+/// started at the same frame number, counters included; frame numbers, not
+/// calls, set CHC++'s revisit phases.
+#[test]
+fn reset_history_equals_a_fresh_pipeline_at_that_frame() -> Result<()> {
+    let (scene, path) = city();
+    let lights = lights(&scene, &path);
+    let o = options(CullingSpec::Chcpp, StencilBackend::H);
+    let summary = |out: shadowcull::FrameOutput<'_>| {
+        let lights: Vec<_> = out
+            .lights()
+            .map(|l| (l.psc().to_vec(), l.mask().cloned(), l.stats().queries))
+            .collect();
+        (
+            out.stats().frame,
+            out.psr().to_vec(),
+            out.stats().eye_queries,
+            lights,
+        )
+    };
+    let (mut long, _) = pipeline(&scene, o, &lights)?;
+    for frame in 0..4 {
+        long.frame(&input(&path, frame))?;
+    }
+    long.reset_history();
+    let (mut fresh, _) = pipeline(&scene, o, &lights)?;
+    fresh.set_frame_number(4);
+    let (mut at_zero, _) = pipeline(&scene, o, &lights)?;
+    let mut phases_differ = false;
+    for frame in 4..8 {
+        let x = summary(long.frame(&input(&path, frame))?);
+        let y = summary(fresh.frame(&input(&path, frame))?);
+        assert_eq!(x.0, frame);
+        assert_eq!(x, y, "frame {frame}");
+        // Numbered from 0 instead: the same masks, other revisit queries.
+        let z = summary(at_zero.frame(&input(&path, frame))?);
+        for (a, b) in x.3.iter().zip(&z.3) {
+            assert_eq!(a.1, b.1, "masks never depend on history");
+        }
+        phases_differ |= (x.2, x.3.iter().map(|l| l.2).collect::<Vec<_>>())
+            != (z.2, z.3.iter().map(|l| l.2).collect::<Vec<_>>());
+    }
+    assert!(phases_differ, "revisit phases follow the frame number");
+    Ok(())
+}
+
 /// Changing options starts the per-view state cold: the next frames equal a
-/// new pipeline's with those options, counters included.
+/// new pipeline's with those options started at the same frame number,
+/// counters included.
 #[test]
 fn set_options_equals_a_fresh_pipeline() -> Result<()> {
     let (scene, path) = city();
@@ -188,6 +235,7 @@ fn set_options_equals_a_fresh_pipeline() -> Result<()> {
     switched.set_options(b)?;
     assert_eq!(switched.options(), &b);
     let (mut fresh, _) = pipeline(&scene, b, &lights)?;
+    fresh.set_frame_number(2);
     for frame in 2..5 {
         let x = switched.frame(&input(frame))?;
         let (psr, xs): (Vec<_>, Vec<_>) = (

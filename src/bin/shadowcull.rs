@@ -1,6 +1,8 @@
 //! `shadowcull`: run RON batch jobs and inspect scenes.
 //!
-//! - `shadowcull run [JOB.ron] [--out DIR] [--frames N] [--log-format text|json]`
+//! - `shadowcull run [JOB.ron] [--out DIR] [--frames N] [--shard I/N [--warmup W]]
+//!   [--keyframe K] [--log-format text|json]`
+//! - `shadowcull merge OUT SHARD_DIR...`
 //! - `shadowcull compare JOB.ron [--out DIR] [--frames N]`
 //! - `shadowcull inspect SCENE [--json]`
 //!
@@ -10,6 +12,7 @@ use anyhow::Context as _;
 use clap::{Parser, Subcommand, ValueEnum};
 use shadowcull::compare::{compare_job, CompareOptions};
 use shadowcull::config::{default_job, Job};
+use shadowcull::merge::merge_shards;
 use shadowcull::run::{run_job, RunOptions};
 use shadowcull::stats::FrameRow;
 use std::io::IsTerminal;
@@ -39,9 +42,30 @@ enum Command {
         /// Stop after the first N frames.
         #[arg(long)]
         frames: Option<u32>,
+        /// Run only shard I of N (0-based): frames ⌊I·F/N⌋ up to ⌊(I+1)·F/N⌋ of
+        /// the job's F frames; writes shard.json for `merge`.
+        #[arg(long, value_name = "I/N")]
+        shard: Option<shadowcull::shard::Shard>,
+        /// Warm-up frames run before the shard's block (no reference, no
+        /// output); default: the job's `pipeline.chcpp.revisit`.
+        #[arg(long, value_name = "W", requires = "shard")]
+        warmup: Option<u32>,
+        /// Reset all coherent state (culling histories, caches) every K
+        /// frames; overrides the job's `keyframe`.
+        #[arg(long, value_name = "K", value_parser = clap::value_parser!(u32).range(1..))]
+        keyframe: Option<u32>,
         /// How per-frame statistics are logged: plain text on stderr, or JSON lines on stdout.
         #[arg(long, value_enum, default_value_t = LogFormat::Text)]
         log_format: LogFormat,
+    },
+    /// Merge the output directories of `run --shard` into the single run's
+    /// stats.csv, frames/ and summary.json.
+    Merge {
+        /// The merged output directory (created if missing).
+        out: PathBuf,
+        /// The shard directories, in any order; together they must cover the job once.
+        #[arg(required = true)]
+        shards: Vec<PathBuf>,
     },
     /// Run the job's `pipelines` variants on the same frames; write compare.csv and compare.svg.
     Compare {
@@ -110,8 +134,32 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
             job,
             out,
             frames,
+            shard,
+            warmup,
+            keyframe,
             log_format,
-        } => run(job.as_deref(), out, frames, log_format),
+        } => {
+            let options = RunOptions {
+                out_dir: out,
+                max_frames: frames,
+                shard,
+                warmup,
+                keyframe,
+            };
+            run(job.as_deref(), options, log_format)
+        }
+        Command::Merge { out, shards } => {
+            let r = merge_shards(&out, &shards)?;
+            eprintln!(
+                "shadowcull: merged {} shards: {} frames, {} rows, {} images; wrote {}",
+                r.shards,
+                r.frames,
+                r.rows,
+                r.images,
+                out.display()
+            );
+            Ok(())
+        }
         Command::Compare { job, out, frames } => compare(&job, out, frames),
         Command::Inspect {
             scene,
@@ -147,12 +195,7 @@ fn compare(job_file: &Path, out: PathBuf, frames: Option<u32>) -> anyhow::Result
     Ok(())
 }
 
-fn run(
-    job_file: Option<&Path>,
-    out: PathBuf,
-    frames: Option<u32>,
-    log_format: LogFormat,
-) -> anyhow::Result<()> {
+fn run(job_file: Option<&Path>, options: RunOptions, log_format: LogFormat) -> anyhow::Result<()> {
     use tracing_subscriber::prelude::*;
     let job = match job_file {
         Some(p) => Job::from_file(p)?,
@@ -206,11 +249,8 @@ fn run(
             ));
         }
     };
-    let options = RunOptions {
-        out_dir: out.clone(),
-        max_frames: frames,
-    };
     let summary = run_job(&job, job_file, &options, &mut on_frame)?;
+    let out = &options.out_dir;
     if let Some(b) = &bar {
         b.finish_and_clear();
     }
@@ -219,12 +259,12 @@ fn run(
             "shadowcull: {} objects, {} triangles; {} frames × {} lights; mean pipeline {:.1} ms, mean reference {:.1} ms; {} mismatched pixels ({} off a shadow boundary); wrote {}",
             summary.scene.objects,
             summary.scene.triangles,
-            summary.frames,
+            summary.rows.frames,
             summary.lights.len(),
-            summary.mean_frame_ms,
-            summary.mean_reference_ms,
-            summary.check_totals.mismatch_pixels,
-            summary.check_totals.mismatch_off_boundary,
+            summary.rows.mean_frame_ms,
+            summary.rows.mean_reference_ms,
+            summary.rows.check_totals.mismatch_pixels,
+            summary.rows.check_totals.mismatch_off_boundary,
             out.display()
         );
     }

@@ -37,6 +37,12 @@ pub struct Job {
     /// Number of frames; default: the camera's sequence length, else 1.
     #[serde(default)]
     pub frames: Option<u32>,
+    /// Reset all coherent state (culling histories, caches) every this many
+    /// frames, at job frames 0, K, 2K, … ([`crate::Pipeline::reset_history`]):
+    /// a job split into shards on multiples of K then equals the single run
+    /// in every column but times. Default: never (history runs through).
+    #[serde(default)]
+    pub keyframe: Option<u32>,
     /// Lights; each frame is computed once per light. Default: the scene's
     /// named lights, else one point light above the scene.
     #[serde(default)]
@@ -233,6 +239,7 @@ pub fn default_job() -> Job {
         resolution: (800, 600),
         camera: CameraSpec::Path("street".into()),
         frames: Some(8),
+        keyframe: None,
         lights: vec![
             LightSpec::AboveScene(1.5),
             LightSpec::Sun {

@@ -40,6 +40,9 @@ impl Job {
         if self.frames == Some(0) {
             return Err(bad("frames", "must be at least 1".into()));
         }
+        if self.keyframe == Some(0) {
+            return Err(bad("keyframe", "must be at least 1".into()));
+        }
         if self.outputs.image_every == 0 {
             return Err(bad("outputs.image_every", "must be at least 1".into()));
         }

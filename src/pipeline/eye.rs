@@ -247,6 +247,11 @@ impl EyeCulling {
         self.culler.reset();
     }
 
+    /// Numbers the next traversal ([`visibility::ViewCuller::set_frame`]).
+    pub(crate) fn set_frame(&mut self, frame: u32) {
+        self.culler.set_frame(frame);
+    }
+
     /// Rebuilds the hierarchy and the meshes from `scene` (after its BVH was
     /// rebuilt or its meshes changed) and carries the eye view's CHC state
     /// over ([`visibility::ViewCuller::remap`]); returns the old hierarchy

@@ -22,8 +22,8 @@ pub(crate) struct LightCulling {
     pub ms: f64,
 }
 
-/// Runs the light pass of every live light of `slots` concurrently; each
-/// light's `culling.result` and `ms` are replaced.
+/// Runs the light pass of every live light of `slots` concurrently for job
+/// frame `frame`; each light's `culling.result` and `ms` are replaced.
 ///
 /// # Errors
 /// The first light's error.
@@ -37,6 +37,7 @@ pub(crate) fn light_passes(
     camera: &Camera,
     receivers: &ReceiverPoints,
     options: &LightPassOptions,
+    frame: u32,
 ) -> Result<()> {
     use rayon::prelude::*;
     slots
@@ -46,6 +47,7 @@ pub(crate) fn light_passes(
             let t = Instant::now();
             let (light, key) = (state.light, state.id.0);
             let c = &mut state.culling;
+            c.pass.set_frame(frame);
             c.pass.run_into(
                 hierarchy,
                 scene,

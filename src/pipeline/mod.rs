@@ -194,6 +194,8 @@ pub struct Pipeline {
     pool: Option<Arc<rayon::ThreadPool>>,
     /// The pool came from [`Pipeline::set_thread_pool`] (kept across option changes).
     host_pool: bool,
+    /// The job frame number of the next frame ([`Pipeline::set_frame_number`]).
+    next_frame: u32,
 }
 
 impl std::fmt::Debug for Pipeline {
@@ -238,6 +240,7 @@ impl Pipeline {
             bvh_ms: 0.0,
             pool: own_pool(options.threads)?,
             host_pool: false,
+            next_frame: 0,
             backends: None,
             options,
             scene,
@@ -301,6 +304,34 @@ impl Pipeline {
         Ok(())
     }
 
+    /// Numbers the next frame `frame` (from 0); the frames after it count on.
+    /// A new pipeline's first frame is 0. Coherent culling reads these
+    /// numbers, not how many frames ran: a node's history carries only from
+    /// the frame just before, and CHC++'s revisit phases are a function of
+    /// the number ([`visibility::ViewCuller::set_frame`]). So a batch job
+    /// split into blocks of frames numbers each block's frames as in the
+    /// whole job, and a host that skips frames may say so.
+    pub fn set_frame_number(&mut self, frame: u32) {
+        self.next_frame = frame;
+    }
+
+    /// Forgets all coherent state — the eye's and every light view's culling
+    /// history, the silhouette and casting-triangle caches — keeping the
+    /// buffers and scene-derived data: the next frame runs as a new
+    /// pipeline's would (at its own frame number). Call it at a camera cut,
+    /// or at a batch job's keyframes so that every block between keyframes
+    /// gives the same results however the job is split. Shadow masks never
+    /// depend on history; query counts, PSR, PSC and the volumes drawn do.
+    pub fn reset_history(&mut self) {
+        if let Some(c) = &mut self.culling {
+            c.reset();
+        }
+        for s in self.lights.iter_mut().filter_map(|s| s.state.as_mut()) {
+            s.culling.pass.reset_history();
+            s.scratch.cache.clear();
+        }
+    }
+
     /// Runs one frame: the scene edits since the last frame are applied
     /// (hierarchy refit or rebuilt, culling state remapped), then the eye
     /// pass, and for every light the light pass, the volumes and (unless
@@ -331,6 +362,8 @@ impl Pipeline {
             });
         }
         let start = Instant::now();
+        let frame = self.next_frame;
+        self.next_frame = frame.saturating_add(1);
         self.apply_edits();
         let camera = &input.camera;
         let scene: &Scene = &self.scene;
@@ -341,6 +374,7 @@ impl Pipeline {
         let previous = self.eye.take();
         let (eye, eye_queries, eye_waits) = if culled {
             let state = self.culling.get_or_insert_with(|| EyeCulling::new(scene));
+            state.set_frame(frame);
             let eye = match &self.backends {
                 None => eye::eye_pass_culled_into(
                     scene,
@@ -402,6 +436,7 @@ impl Pipeline {
                 camera,
                 &self.receivers,
                 &o.light_pass_options(),
+                frame,
             )?;
         }
 
@@ -477,6 +512,7 @@ impl Pipeline {
         self.eye = Some(eye);
         self.camera = Some(*camera);
         self.stats = FrameStats {
+            frame,
             frame_ms: ms(start),
             eye_ms,
             objects: self.counts.objects as u64,

@@ -379,8 +379,8 @@ typedef struct sc_frame_stats {
   uint64_t eye_waits;
   // Lights.
   uint32_t lights;
-  // Zero.
-  uint32_t reserved0;
+  // The frame's number (`sc_pipeline_set_frame_number`).
+  uint32_t frame;
   // Zero; room for fields to come.
   uint64_t reserved[8];
 } sc_frame_stats;
@@ -607,6 +607,16 @@ enum sc_status sc_light_set(sc_pipeline pipeline, sc_light light, const struct s
 
 // Removes a light. The null handle is a no-op.
 enum sc_status sc_light_destroy(sc_pipeline pipeline, sc_light light);
+
+// Numbers the next frame `frame` (from 0; a new pipeline's first frame is
+// 0); the frames after it count on. Coherent culling reads these numbers,
+// not how many frames ran, so a batch job split into blocks numbers each
+// block's frames as in the whole job.
+enum sc_status sc_pipeline_set_frame_number(sc_pipeline pipeline, uint32_t frame);
+
+// Forgets all coherent state (culling histories, silhouette caches): the
+// next frame runs as a new pipeline's would. For camera cuts and keyframes.
+enum sc_status sc_pipeline_reset_history(sc_pipeline pipeline);
 
 // Runs one frame: the edits since the last frame, the eye pass (PSR), per
 // light the light pass (PSC), the shadow volumes and, with a CPU stencil,

@@ -143,8 +143,8 @@ pub struct sc_frame_stats {
     pub eye_waits: u64,
     /// Lights.
     pub lights: u32,
-    /// Zero.
-    pub reserved0: u32,
+    /// The frame's number (`sc_pipeline_set_frame_number`).
+    pub frame: u32,
     /// Zero; room for fields to come.
     pub reserved: [u64; 8],
 }
@@ -283,7 +283,7 @@ impl Outputs {
                 eye_queries: s.eye_queries,
                 eye_waits: s.eye_waits,
                 lights: s.lights,
-                reserved0: 0,
+                frame: s.frame,
                 reserved: [0; 8],
             },
         };

@@ -471,6 +471,32 @@ pub extern "C" fn sc_light_destroy(pipeline: sc_pipeline, light: sc_light) -> sc
     })
 }
 
+/// Numbers the next frame `frame` (from 0; a new pipeline's first frame is
+/// 0); the frames after it count on. Coherent culling reads these numbers,
+/// not how many frames ran, so a batch job split into blocks numbers each
+/// block's frames as in the whole job.
+#[no_mangle]
+pub extern "C" fn sc_pipeline_set_frame_number(pipeline: sc_pipeline, frame: u32) -> sc_status {
+    guard("sc_pipeline_set_frame_number", || {
+        handles::with(pipeline, |e| {
+            e.pipeline.set_frame_number(frame);
+            Ok(())
+        })
+    })
+}
+
+/// Forgets all coherent state (culling histories, silhouette caches): the
+/// next frame runs as a new pipeline's would. For camera cuts and keyframes.
+#[no_mangle]
+pub extern "C" fn sc_pipeline_reset_history(pipeline: sc_pipeline) -> sc_status {
+    guard("sc_pipeline_reset_history", || {
+        handles::with(pipeline, |e| {
+            e.pipeline.reset_history();
+            Ok(())
+        })
+    })
+}
+
 /// Runs one frame: the edits since the last frame, the eye pass (PSR), per
 /// light the light pass (PSC), the shadow volumes and, with a CPU stencil,
 /// the mask. `out` (its `struct_size` set) receives pointers that stay valid

@@ -250,16 +250,29 @@ fn output_equals_the_rust_pipeline() {
             ok(sc_object_destroy(p, objects[7]));
             r.remove_object(ids[7]).unwrap();
         }
+        // A jump in frame numbers, then a keyframe.
+        if f == 5 {
+            ok(sc_pipeline_set_frame_number(p, 40));
+            r.set_frame_number(40);
+        }
+        if f == 6 {
+            ok(sc_pipeline_reset_history(p));
+            r.reset_history();
+        }
         ok(sc_pipeline_frame(p, &input(f), &mut out));
         let (view, proj) = matrices(f);
         let cam = Camera::from_view_projection(view, proj, ClipDepth::NegativeOneToOne).unwrap();
         let o = r.frame(&FrameInput::new(W, H, cam)).unwrap();
+        let number = if f < 5 { f } else { f + 35 };
+        assert_eq!((out.stats.frame, o.stats().frame), (number, number));
+        assert_eq!(out.stats.eye_queries, o.stats().eye_queries, "frame {f}");
         let psr: Vec<u64> = o.psr().iter().map(|id| u64::from(id.0) + 1).collect();
         assert_eq!(slice(out.psr, out.psr_count), &psr[..], "frame {f}: PSR");
         let lights = slice(out.lights, out.light_count);
         assert_eq!(lights.len(), o.light_count());
         for (c, l) in lights.iter().zip(o.lights()) {
             assert_eq!(c.light, u64::from(l.id().0) + 1);
+            assert_eq!(c.stats.queries, l.stats().queries, "frame {f}: queries");
             let psc: Vec<u64> = l.psc().iter().map(|id| u64::from(id.0) + 1).collect();
             assert_eq!(slice(c.psc, c.psc_count), &psc[..], "frame {f}: PSC");
             let v = l.volumes();
@@ -448,6 +461,10 @@ fn misuse_gives_statuses_and_messages() {
         SC_INVALID_ARGUMENT
     );
     assert_eq!(sc_object_destroy(p, objects[1]), SC_INVALID_ARGUMENT);
+    assert_eq!(sc_pipeline_set_frame_number(p, 3), SC_INVALID_ARGUMENT);
+    assert!(last_error().contains("stale"), "{}", last_error());
+    assert_eq!(sc_pipeline_reset_history(p), SC_INVALID_ARGUMENT);
+    assert_eq!(sc_pipeline_reset_history(0), SC_INVALID_ARGUMENT);
     ok(sc_pipeline_destroy(0));
     // A frame before any object exists.
     let mut q = 0;

@@ -199,12 +199,11 @@ impl ViewCuller {
     fn issue_batch(&mut self, run: &mut Run<'_, '_>, s: &mut Scratch) -> Result<()> {
         let frame = self.frame;
         s.cand.clear();
+        // A node never seen visible has been invisible since the history began.
+        let never = self.origin.saturating_sub(1);
         s.cand.extend(s.batch.drain(..).map(|node| {
-            let st = &self.state[node as usize];
-            (
-                keep_invisible(frame.saturating_sub(st.last_visible + 1)),
-                node,
-            )
+            let last = self.state[node as usize].last_visible.max(never);
+            (keep_invisible(frame.saturating_sub(last + 1)), node)
         }));
         let cand = &mut s.cand;
         cand.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));

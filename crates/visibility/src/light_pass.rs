@@ -133,6 +133,8 @@ pub struct LightPass {
     fit_scratch: FitScratch,
     /// Per object: already in the PSC being collected.
     in_psc: Vec<bool>,
+    /// The job frame number of the next run, shared by every view's culler.
+    frame: u32,
 }
 
 /// Per object, the triangles it casts with (light-facing, or all when
@@ -298,6 +300,24 @@ impl LightPass {
         &self.views
     }
 
+    /// Makes the next run job frame `frame`; later runs count on from it.
+    /// Every view's culler takes this number ([`ViewCuller::set_frame`]), so
+    /// a view that found no receivers for a while, or was re-fitted, stays
+    /// in step with the job's frames.
+    pub fn set_frame(&mut self, frame: u32) {
+        self.frame = frame;
+    }
+
+    /// Forgets every view's culling history and the casting-triangle cache,
+    /// keeping the buffers: the next run is a cold start (a keyframe).
+    pub fn reset_history(&mut self) {
+        for s in &mut self.slots {
+            s.culler.reset();
+        }
+        self.casting.entries.clear();
+        self.casting.key = None;
+    }
+
     /// Carries every light view's state over to a rebuilt hierarchy
     /// ([`ViewCuller::remap`]).
     pub fn remap(&mut self, old: &Hierarchy, new: &Hierarchy) {
@@ -408,6 +428,11 @@ impl LightPass {
             cache.get(scene, meshes, light, options.two_sided, id)
         };
         let prepared = &self.receivers;
+        let frame = self.frame;
+        self.frame = frame.saturating_add(1);
+        for s in &mut self.slots {
+            s.culler.set_frame(frame);
+        }
         // The views are independent: each has its own culler and targets.
         self.slots
             .par_iter_mut()

@@ -277,7 +277,15 @@ pub(crate) struct NodeState {
 #[derive(Clone, Debug, Default)]
 pub struct ViewCuller {
     pub(crate) state: Vec<NodeState>,
+    /// The last traversal's frame, counted from 1 (0: none yet): the job
+    /// frame number plus one. Node states record it; CHC++'s revisit phases
+    /// and multiquery grouping read it.
     pub(crate) frame: u32,
+    /// The job frame number of the next traversal, when the caller set it.
+    next: Option<u32>,
+    /// `frame` of the first traversal since the history began (new or
+    /// reset): a node never found visible counts as invisible since then.
+    pub(crate) origin: u32,
     /// The traversals' queues and lists, kept between frames.
     scratch: Scratch,
     /// Box lists of union queries.
@@ -503,10 +511,22 @@ impl ViewCuller {
         ViewCuller::default()
     }
 
-    /// Forgets all history.
+    /// Forgets all history: every node is previously invisible again. The
+    /// frame numbering goes on.
     pub fn reset(&mut self) {
         self.state.clear();
-        self.frame = 0;
+    }
+
+    /// Makes the next traversal job frame `frame` (from 0); later traversals
+    /// count on from it unless set again. Coherence reads frame numbers, not
+    /// calls: a node's state carries into a traversal only from the frame
+    /// just before it, and CHC++'s revisit phases are a function of the
+    /// frame number. So frame `k` of a run gives what frame `k` of any other
+    /// run gives from the same history, whatever ran before (a sharded batch
+    /// job's frames, a host skipping frames). Without a call, the first
+    /// traversal is frame 0.
+    pub fn set_frame(&mut self, frame: u32) {
+        self.next = Some(frame);
     }
 
     /// Carries the per-node state from `old` over to `new`, a rebuilt
@@ -585,12 +605,16 @@ impl ViewCuller {
         backend: &mut dyn OcclusionBackend,
         out: &mut CullResult,
     ) -> Result<()> {
+        self.frame = match self.next.take() {
+            Some(f) => f.saturating_add(1),
+            None => self.frame.saturating_add(1),
+        };
         if self.state.len() != h.len() {
             // Keeps the allocation across resets.
             self.state.clear();
             self.state.resize(h.len(), NodeState::default());
+            self.origin = self.frame;
         }
-        self.frame += 1;
         backend.clear();
         out.clear();
         let mut s = std::mem::take(&mut self.scratch);
@@ -884,7 +908,7 @@ mod tests {
             let a = frame(&mut kept, &h1, 6, culling);
             let b = frame(&mut remapped, &h2, 6, culling);
             let mut fresh = ViewCuller::new();
-            fresh.frame = 6;
+            fresh.set_frame(6);
             let c = frame(&mut fresh, &h2, 6, culling);
             assert_eq!(a.visible, b.visible, "{culling:?}");
             println!(
@@ -898,5 +922,56 @@ mod tests {
                 b.stats.queries
             );
         }
+    }
+
+    /// Coherence reads job frame numbers, not calls: a cold start at frame
+    /// 100 behaves like one at frame 0 (the revisit period 5 divides 100, and
+    /// never-visible nodes count from the start of the history), while a
+    /// cold start at frame 101 queries other leaves on revisit (and so
+    /// reports another superset of the visible objects).
+    #[test]
+    fn frame_numbers_not_calls_decide() {
+        let loaded = city(&CityParams {
+            blocks_x: 4,
+            blocks_z: 4,
+            ..Default::default()
+        })
+        .unwrap();
+        let path = loaded.paths.iter().find(|(n, _)| n == "street").unwrap();
+        let cam = path.1.at(3).unwrap().camera(4.0 / 3.0).unwrap();
+        let scene = Scene::new(loaded.graph).unwrap();
+        let meshes = MeshData::from_scene(&scene);
+        let h = Hierarchy::from_scene(&scene);
+        let clip = |w: &DMat4| scene::transform::clip_from_local(&cam, w);
+        let view = ViewSetup::eye(&cam, &clip, 0);
+        let culling = Culling::ChcPlusPlus(ChcppOptions::default());
+        // Per frame: queries issued and the visible objects.
+        let run = |first: Option<u32>| {
+            let mut culler = ViewCuller::new();
+            if let Some(f) = first {
+                culler.set_frame(f);
+            }
+            (0..12)
+                .map(|_| {
+                    let mut b =
+                        SyncBackend::new(DepthTarget::new(160, 120, TileSize::T8, true).unwrap());
+                    let mut r = culler
+                        .cull(&h, &scene, &meshes, &view, culling, &mut b)
+                        .unwrap();
+                    r.visible.sort_unstable();
+                    (r.stats.queries, r.visible)
+                })
+                .collect::<Vec<_>>()
+        };
+        let at0 = run(None);
+        assert_eq!(run(Some(0)), at0);
+        assert_eq!(run(Some(100)), at0);
+        let at101 = run(Some(101));
+        let queries = |r: &[(u64, Vec<ObjectId>)]| r.iter().map(|x| x.0).collect::<Vec<_>>();
+        assert_ne!(
+            queries(&at101),
+            queries(&at0),
+            "revisit phases follow the frame number"
+        );
     }
 }

@@ -55,7 +55,7 @@ fuzz_target!(|data: &[u8]| {
         if b.0.is_empty() {
             break;
         }
-        match b.u8() % 12 {
+        match b.u8() % 14 {
             0 => {
                 let mut o = base;
                 let size = if b.u8() % 4 == 0 {
@@ -190,6 +190,14 @@ fuzz_target!(|data: &[u8]| {
             10 => {
                 let (p, o) = (b.handle(&pipelines), b.handle(&objects));
                 check(sc_object_set_flags(p, o, b.u32() % 20));
+            }
+            11 => {
+                let p = b.handle(&pipelines);
+                check(sc_pipeline_set_frame_number(p, b.u32()));
+            }
+            12 => {
+                let p = b.handle(&pipelines);
+                check(sc_pipeline_reset_history(p));
             }
             _ => {
                 let p = b.handle(&pipelines);
