@@ -5,7 +5,8 @@
 //! Writes `compare.csv` (one row per variant) and `compare.svg` (time against
 //! mismatch per variant). The reference of a frame and light is computed once
 //! and shared by every variant with the same reference options; each variant
-//! starts with cold silhouette caches so no variant inherits another's work.
+//! starts with no history (culling, silhouette caches) at frame 0, so no
+//! variant inherits another's work.
 
 use crate::config::{load_scene_for_job, resolve_lights};
 use crate::config::{Job, NamedPipeline};
@@ -238,6 +239,8 @@ pub fn compare_job(
     let res = job.resolution;
     let mut runner = FrameRunner::new(scene);
     runner.cache_references(true);
+    // Every variant starts cold at frame 0, and forgets at the job's keyframes.
+    runner.set_keyframe(job.keyframe);
     let mut table = Vec::new();
     for v in variants(job) {
         let mut rows = Vec::new();

@@ -839,25 +839,25 @@ mod tests {
         Hierarchy { nodes }
     }
 
-    /// After a rebuild, remapped CHC state gives the next frame the same
-    /// visible set and the same queries as if nothing had been rebuilt; a
-    /// fresh state pays for the lost coherence.
-    #[test]
-    fn remapped_state_survives_a_rebuild() {
+    /// A 4×4-block procedural city and its `street` camera path.
+    fn street_city() -> (Scene, scene::CameraPath) {
         let loaded = city(&CityParams {
             blocks_x: 4,
             blocks_z: 4,
             ..Default::default()
         })
         .unwrap();
-        let path = loaded
-            .paths
-            .iter()
-            .find(|(n, _)| n == "street")
-            .unwrap()
-            .1
-            .clone();
-        let scene = Scene::new(loaded.graph).unwrap();
+        let path = loaded.paths.iter().find(|(n, _)| n == "street").unwrap();
+        let path = path.1.clone();
+        (Scene::new(loaded.graph).unwrap(), path)
+    }
+
+    /// After a rebuild, remapped CHC state gives the next frame the same
+    /// visible set and the same queries as if nothing had been rebuilt; a
+    /// fresh state pays for the lost coherence.
+    #[test]
+    fn remapped_state_survives_a_rebuild() {
+        let (scene, path) = street_city();
         let meshes = MeshData::from_scene(&scene);
         let h1 = Hierarchy::from_scene(&scene);
         let h2 = renumbered(&h1);
@@ -931,15 +931,8 @@ mod tests {
     /// reports another superset of the visible objects).
     #[test]
     fn frame_numbers_not_calls_decide() {
-        let loaded = city(&CityParams {
-            blocks_x: 4,
-            blocks_z: 4,
-            ..Default::default()
-        })
-        .unwrap();
-        let path = loaded.paths.iter().find(|(n, _)| n == "street").unwrap();
-        let cam = path.1.at(3).unwrap().camera(4.0 / 3.0).unwrap();
-        let scene = Scene::new(loaded.graph).unwrap();
+        let (scene, path) = street_city();
+        let cam = path.at(3).unwrap().camera(4.0 / 3.0).unwrap();
         let meshes = MeshData::from_scene(&scene);
         let h = Hierarchy::from_scene(&scene);
         let clip = |w: &DMat4| scene::transform::clip_from_local(&cam, w);
