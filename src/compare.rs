@@ -10,7 +10,6 @@
 
 use crate::config::{load_scene_for_job, resolve_lights};
 use crate::config::{Job, NamedPipeline};
-use crate::error::io_err;
 use crate::frame::FrameRunner;
 use crate::pipeline::{CoverageSpec, CullingSpec, PipelineOptions, StencilBackend};
 use crate::run::{atomic, frame_camera};
@@ -231,6 +230,8 @@ pub fn compare_job(
     options: &CompareOptions,
 ) -> Result<Vec<VariantRow>> {
     let file = job_file.unwrap_or(Path::new("<default job>"));
+    // One writer per directory, before any work.
+    let _lock = crate::out_dir::OutputLock::acquire(&options.out_dir)?;
     let (loaded, scene, path) = load_scene_for_job(job, job_file)?;
     let lights = resolve_lights(job, &loaded, &scene.bounds(), file)?;
     let frames = job
@@ -261,7 +262,6 @@ pub fn compare_job(
         table.push(row);
     }
     let out = &options.out_dir;
-    std::fs::create_dir_all(out).map_err(io_err(out))?;
     let csv_path = out.join("compare.csv");
     let mut text = String::from(CSV_HEADER);
     text.push('\n');

@@ -48,6 +48,17 @@ pub enum Error {
         /// What is wrong.
         message: String,
     },
+    /// Another `shadowcull` run, merge or comparison holds the output
+    /// directory's lock. Fix: wait for it, or write somewhere else.
+    #[error(
+        "{}: another shadowcull run is writing to this directory (it holds {}); wait for it to finish or choose another --out",
+        dir.display(),
+        dir.join(crate::out_dir::LOCK_FILE).display()
+    )]
+    OutputBusy {
+        /// The output directory.
+        dir: PathBuf,
+    },
     /// Reading or writing a file failed.
     #[error("{}: {source}", path.display())]
     Io {

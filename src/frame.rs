@@ -131,7 +131,7 @@ impl FrameRunner {
             }
         }
         pipeline.set_frame_number(frame);
-        if frame == 0 || self.keyframe.is_some_and(|k| frame % k == 0) {
+        if frame == 0 || self.keyframe.is_some_and(|k| frame.is_multiple_of(k)) {
             pipeline.reset_history();
         }
         let out = pipeline.frame(&FrameInput {

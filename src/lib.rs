@@ -50,6 +50,8 @@ pub mod hybrid;
 pub mod mask;
 #[cfg(feature = "jobs")]
 pub mod merge;
+#[cfg(feature = "jobs")]
+pub mod out_dir;
 pub mod pipeline;
 pub mod reference;
 #[cfg(feature = "jobs")]

@@ -166,8 +166,9 @@ pub fn merge_shards(out: &Path, dirs: &[PathBuf]) -> Result<MergeReport> {
         }
     }
 
-    // Write: stats.csv, frames/, summary.json.
-    std::fs::create_dir_all(out).map_err(io_err(out))?;
+    // Write: stats.csv, frames/, summary.json (into a locked directory,
+    // emptied of an earlier run's or merge's outputs).
+    let _lock = crate::out_dir::claim_for_run(out)?;
     let mut text = FrameRow::csv_header();
     text.push('\n');
     let mut rows = Vec::new();

@@ -22,7 +22,9 @@ use std::time::Instant;
 /// How to run a job.
 #[derive(Clone, Debug)]
 pub struct RunOptions {
-    /// Output directory (created if missing; other files in it are left alone).
+    /// Output directory (created if missing). The run locks it and first
+    /// removes what an earlier run left there (`stats.csv`, `summary.json`,
+    /// `shard.json`, `frames/`); other files are left alone.
     pub out_dir: PathBuf,
     /// Stop after this many frames (F, the job's frames, is then at most this).
     pub max_frames: Option<u32>,
@@ -170,13 +172,10 @@ pub fn run_job(
     };
 
     let out = &options.out_dir;
-    std::fs::create_dir_all(out).map_err(io_err(out))?;
-    // A shard manifest from an earlier run would vouch for this run's files.
+    // One writer at a time, and none of an earlier run's files left beside
+    // this run's (a stale shard.json would vouch for them).
+    let _lock = crate::out_dir::claim_for_run(out)?;
     let manifest = out.join("shard.json");
-    match std::fs::remove_file(&manifest) {
-        Err(e) if e.kind() != std::io::ErrorKind::NotFound => return Err(io_err(&manifest)(e)),
-        _ => {}
-    }
 
     let t0 = Instant::now();
     let (loaded, scene, path) = load_scene_for_job(job, job_file)?;

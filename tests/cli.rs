@@ -626,3 +626,117 @@ fn sharded_runs_merge_into_the_single_run() {
         "{e}"
     );
 }
+
+/// One writer per output directory: while a run holds the lock, a second
+/// run into the same `--out` fails at once with a message naming it; a run
+/// first removes what an earlier run owns there (so an interrupted rerun
+/// leaves no stale `summary.json`) and nothing else; a killed run leaves no
+/// stale lock.
+#[test]
+fn one_writer_per_output_directory() {
+    use std::time::{Duration, Instant};
+    let dir = tmp_dir("lock");
+    let long = dir.join("long.ron");
+    std::fs::write(&long, SMALL_JOB.replace("frames: 3", "frames: 100000")).unwrap();
+    let short = dir.join("short.ron");
+    std::fs::write(&short, SMALL_JOB).unwrap();
+    let out = dir.join("out");
+    std::fs::create_dir_all(out.join("frames")).unwrap();
+    std::fs::write(out.join("summary.json"), "an earlier run's").unwrap();
+    std::fs::write(out.join("shard.json"), "an earlier run's").unwrap();
+    std::fs::write(out.join("frames/77777_0_mask.png"), "an earlier run's").unwrap();
+    std::fs::write(out.join("keep.txt"), "the user's").unwrap();
+    let mut first = bin()
+        .arg("run")
+        .arg(&long)
+        .arg("--out")
+        .arg(&out)
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    // Once the first run has written a row, it holds the lock.
+    let deadline = Instant::now() + Duration::from_secs(120);
+    while std::fs::read_to_string(out.join("stats.csv")).map_or(true, |t| t.lines().count() < 2) {
+        assert!(Instant::now() < deadline, "the first run wrote no row");
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    for stale in ["summary.json", "shard.json", "frames/77777_0_mask.png"] {
+        assert!(!out.join(stale).exists(), "{stale} is an earlier run's");
+    }
+    assert!(out.join("keep.txt").exists(), "other files are left alone");
+    let started = Instant::now();
+    let o = bin()
+        .arg("run")
+        .arg(&short)
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{e}");
+    let last = e.trim_end().lines().last().unwrap_or_default();
+    assert!(
+        last.starts_with("error: ")
+            && last.contains("another shadowcull run is writing")
+            && last.contains(&*out.to_string_lossy()),
+        "{e}"
+    );
+    assert!(
+        started.elapsed() < Duration::from_secs(30),
+        "it fails at once"
+    );
+    // Interrupted: no summary beside the partial stats.csv, and no stale lock.
+    first.kill().unwrap();
+    first.wait().unwrap();
+    assert!(!out.join("summary.json").exists());
+    run_ok(&[
+        "run".as_ref(),
+        short.as_os_str(),
+        "--out".as_ref(),
+        out.as_os_str(),
+    ] as &[&std::ffi::OsStr]);
+    let (header, rows) = stats(&out);
+    assert_eq!(rows.len(), 3 * 2, "frames × lights");
+    assert!(rows.iter().all(|r| r.len() == header.len()), "whole rows");
+    assert!(out.join("summary.json").exists() && out.join("keep.txt").exists());
+}
+
+/// A reader that stops reading (`shadowcull inspect --objects … | head -1`)
+/// ends the output normally: exit 0, nothing on stderr.
+#[test]
+fn a_closed_stdout_is_a_normal_end() {
+    use std::io::{BufRead, BufReader};
+    let dir = tmp_dir("pipe");
+    let obj = dir.join("many.obj");
+    let mut text = String::new();
+    for i in 0..3000 {
+        let x = i as f32 * 2.0;
+        text.push_str(&format!(
+            "o object_with_a_long_name_{i}\nv {x} 0 0\nv {} 0 0\nv {x} 1 0\nf {} {} {}\n",
+            x + 1.0,
+            3 * i + 1,
+            3 * i + 2,
+            3 * i + 3
+        ));
+    }
+    std::fs::write(&obj, text).unwrap();
+    let mut child = bin()
+        .arg("inspect")
+        .arg(&obj)
+        .arg("--objects")
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut first = String::new();
+    BufReader::new(child.stdout.take().unwrap())
+        .read_line(&mut first)
+        .unwrap();
+    assert!(first.contains("many.obj"), "{first}");
+    // The reader is gone; the rest (over 200 KB) meets a closed pipe.
+    let o = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(err.is_empty(), "{err}");
+}

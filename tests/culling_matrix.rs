@@ -194,7 +194,7 @@ fn run_case(case: &Case, two_sided: bool) -> Outcome {
         out.totals[0].1.add(&a);
         out.counts
             .push(a.iter().map(|l| l.mask().counts()).collect());
-        if case.reference_every > 0 && frame % case.reference_every == 0 {
+        if case.reference_every > 0 && frame.is_multiple_of(case.reference_every) {
             let eye = eye_pass(&fx.scene, &fx.meshes, cam, w, h).unwrap();
             for (li, (light, lf)) in lights.iter().zip(&a).enumerate() {
                 let r = reference_mask(&fx.bvh, cam, light, w, h, &ropts, Some(eye.surface()));

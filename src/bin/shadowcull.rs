@@ -6,7 +6,9 @@
 //! - `shadowcull compare JOB.ron [--out DIR] [--frames N]`
 //! - `shadowcull inspect SCENE [--json]`
 //!
-//! Exit status 0 on success, 1 on any error (one line on stderr naming the file).
+//! Exit status 0 on success (also when the reader of stdout stopped reading,
+//! as with `| head`), 1 on any error (one line on stderr naming the file), 2
+//! on a usage error (a bad or missing argument; clap's message and usage).
 
 use anyhow::Context as _;
 use clap::{Parser, Subcommand, ValueEnum};
@@ -105,12 +107,22 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     match std::panic::catch_unwind(|| dispatch(cli)) {
         Ok(Ok(())) => ExitCode::SUCCESS,
+        // A reader that stopped reading (`shadowcull inspect … | head`) ends
+        // the output normally, as for any Unix filter.
+        Ok(Err(e)) if is_broken_pipe(&e) => ExitCode::SUCCESS,
         Ok(Err(e)) => {
             eprintln!("error: {}", one_line(&e));
             ExitCode::from(1)
         }
         Err(_) => ExitCode::from(1),
     }
+}
+
+fn is_broken_pipe(e: &anyhow::Error) -> bool {
+    e.chain().any(|c| {
+        c.downcast_ref::<std::io::Error>()
+            .is_some_and(|io| io.kind() == std::io::ErrorKind::BrokenPipe)
+    })
 }
 
 fn one_line(e: &anyhow::Error) -> String {
@@ -272,6 +284,10 @@ fn run(job_file: Option<&Path>, options: RunOptions, log_format: LogFormat) -> a
 }
 
 fn inspect(path: &Path, json: bool, list_objects: bool) -> anyhow::Result<()> {
+    use std::io::Write as _;
+    // Written through a handle, so that a closed pipe (`| head`) is an error
+    // `main` treats as a normal end, not a panic.
+    let mut out = std::io::stdout().lock();
     let shown = path.display().to_string();
     let with_file = |e: String| {
         if e.contains(&shown) {
@@ -329,35 +345,54 @@ fn inspect(path: &Path, json: bool, list_objects: bool) -> anyhow::Result<()> {
         if list_objects {
             v["object_list"] = serde_json::Value::Array(object_list);
         }
-        println!("{}", serde_json::to_string(&v).context("encoding JSON")?);
+        writeln!(
+            out,
+            "{}",
+            serde_json::to_string(&v).context("encoding JSON")?
+        )?;
     } else {
-        println!("{shown}");
-        println!("  objects              {}", c.objects);
-        println!("  meshes               {}", c.meshes);
-        println!(
+        writeln!(out, "{shown}")?;
+        writeln!(out, "  objects              {}", c.objects)?;
+        writeln!(out, "  meshes               {}", c.meshes)?;
+        writeln!(
+            out,
             "  triangles            {} ({} drawn)",
             c.triangles, c.drawn_triangles
-        );
-        println!("  vertices             {}", c.vertices);
+        )?;
+        writeln!(out, "  vertices             {}", c.vertices)?;
         if b.is_empty() {
-            println!("  bounds               (empty)");
+            writeln!(out, "  bounds               (empty)")?;
         } else {
-            println!(
+            writeln!(
+                out,
                 "  bounds               {:?} .. {:?}",
                 b.min.to_array(),
                 b.max.to_array()
-            );
+            )?;
         }
-        println!("  boundary edges       {}", c.topology.boundary_edges);
-        println!("  non-manifold edges   {}", c.topology.non_manifold_edges);
-        println!("  inconsistent edges   {}", c.topology.inconsistent_edges);
-        println!("  degenerate triangles {}", c.topology.degenerate_triangles);
-        println!("  warnings             {}", scene.warnings().len());
+        writeln!(out, "  boundary edges       {}", c.topology.boundary_edges)?;
+        writeln!(
+            out,
+            "  non-manifold edges   {}",
+            c.topology.non_manifold_edges
+        )?;
+        writeln!(
+            out,
+            "  inconsistent edges   {}",
+            c.topology.inconsistent_edges
+        )?;
+        writeln!(
+            out,
+            "  degenerate triangles {}",
+            c.topology.degenerate_triangles
+        )?;
+        writeln!(out, "  warnings             {}", scene.warnings().len())?;
         for w in scene.warnings() {
-            println!("    - {w}");
+            writeln!(out, "    - {w}")?;
         }
         for o in &object_list {
-            println!(
+            writeln!(
+                out,
                 "  object {} `{}` mesh `{}`: {} triangles, bounds {} .. {}",
                 o["id"],
                 o["name"].as_str().unwrap_or(""),
@@ -365,7 +400,7 @@ fn inspect(path: &Path, json: bool, list_objects: bool) -> anyhow::Result<()> {
                 o["triangles"],
                 o["bounds"]["min"],
                 o["bounds"]["max"]
-            );
+            )?;
         }
     }
     Ok(())

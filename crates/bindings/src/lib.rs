@@ -152,7 +152,7 @@ fn mesh_arrays(d: &sc_mesh_desc) -> Result<(Vec<Vec3>, Vec<[u32; 3]>)> {
         })
         .collect();
     let count = d.index_count as usize;
-    if count % 3 != 0 {
+    if !count.is_multiple_of(3) {
         return Err(Failure::invalid(format!(
             "mesh.index_count: {count} is not a multiple of 3"
         )));

@@ -163,7 +163,7 @@ impl VolumeBuffer {
     /// # Errors
     /// A description of the first inconsistency found.
     pub fn check(&self) -> std::result::Result<(), String> {
-        if self.indices.len() % 3 != 0 {
+        if !self.indices.len().is_multiple_of(3) {
             return Err("index count is not a multiple of 3".into());
         }
         for (i, r) in self.ranges.iter().enumerate() {

@@ -73,7 +73,7 @@ impl ChcppOptions {
         }
         let r = u64::from(self.revisit);
         let phase = splitmix64(self.seed ^ (u64::from(object) << 20)) % r;
-        (u64::from(frame) + phase) % r == 0
+        (u64::from(frame) + phase).is_multiple_of(r)
     }
 }
 

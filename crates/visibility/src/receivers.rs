@@ -259,7 +259,7 @@ fn clear_face(d: DVec3, slack: f64) -> Option<usize> {
 /// for both other axes — a convex cone, so a segment clip decides.
 fn segment_meets_face(a: DVec3, b: DVec3, k: usize, slack: f64) -> bool {
     let axis = k / 2;
-    let sign = if k % 2 == 0 { 1.0 } else { -1.0 };
+    let sign = if k.is_multiple_of(2) { 1.0 } else { -1.0 };
     let (mut t0, mut t1) = (0.0f64, 1.0f64);
     for o in (0..3).filter(|&o| o != axis) {
         for so in [1.0, -1.0] {
@@ -340,7 +340,7 @@ mod tests {
         let slack = 1.01;
         let inside = |d: DVec3, k: usize| {
             let axis = k / 2;
-            let s = if k % 2 == 0 { 1.0 } else { -1.0 };
+            let s = if k.is_multiple_of(2) { 1.0 } else { -1.0 };
             (0..3)
                 .filter(|&o| o != axis)
                 .all(|o| s * d[axis] * slack >= d[o].abs())

@@ -141,7 +141,7 @@ fn decode(bytes: &[u8]) -> (Cow<'_, str>, bool) {
                 u16::from_le_bytes(pair)
             }
         });
-        let mut lossy = bytes.len() % 2 != 0;
+        let mut lossy = !bytes.len().is_multiple_of(2);
         let text: String = char::decode_utf16(units)
             .map(|c| {
                 c.unwrap_or_else(|_| {

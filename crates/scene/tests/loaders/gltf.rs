@@ -752,7 +752,7 @@ fn gltf_glb_container_and_lying_lengths() {
     .unwrap();
     let glb = |json: &[u8], bin: &[u8]| {
         let mut json = json.to_vec();
-        while json.len() % 4 != 0 {
+        while !json.len().is_multiple_of(4) {
             json.push(b' ');
         }
         let mut out = Vec::new();
