@@ -53,11 +53,13 @@ pub enum Error {
     #[error(
         "{}: another shadowcull run is writing to this directory (it holds {}); wait for it to finish or choose another --out",
         dir.display(),
-        dir.join(crate::out_dir::LOCK_FILE).display()
+        lock.display()
     )]
     OutputBusy {
         /// The output directory.
         dir: PathBuf,
+        /// The lock file the other run holds.
+        lock: PathBuf,
     },
     /// Reading or writing a file failed.
     #[error("{}: {source}", path.display())]

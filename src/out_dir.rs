@@ -52,6 +52,7 @@ impl OutputLock {
             Ok(()) => Ok(OutputLock { _file: file }),
             Err(TryLockError::WouldBlock) => Err(Error::OutputBusy {
                 dir: dir.to_path_buf(),
+                lock: path,
             }),
             Err(TryLockError::Error(e)) => Err(io_err(&path)(e)),
         }
