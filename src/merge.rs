@@ -140,30 +140,32 @@ pub fn merge_shards(out: &Path, dirs: &[PathBuf]) -> Result<MergeReport> {
             ));
         }
     }
-    for want in 0..count {
+    for s in &shards {
+        let m = &s.manifest;
+        let shard = crate::shard::Shard::new(m.index, count)
+            .map_err(|e| shard_err(&s.dir, format!("shard.json: {e}")))?;
+        let range = shard.range(frames);
+        if m.block() != range {
+            return Err(shard_err(
+                &s.dir,
+                format!(
+                    "shard.json says frames {}..{}, but shard {shard} of {frames} frames is {}..{}",
+                    m.frames[0], m.frames[1], range.start, range.end
+                ),
+            ));
+        }
+    }
+    // Indices are distinct and below N: N of them cover every block.
+    if let Some(want) = (0..count).find(|&i| shards.iter().all(|s| s.manifest.index != i)) {
         let shard = crate::shard::Shard::new(want, count)?;
         let range = shard.range(frames);
-        match shards.iter().find(|s| s.manifest.index == want) {
-            None => {
-                return Err(shard_err(
-                    out,
-                    format!(
-                        "shard {shard} is missing: frames {}..{} of {frames} are not covered (run it with --shard {shard})",
-                        range.start, range.end
-                    ),
-                ))
-            }
-            Some(s) if s.manifest.block() != range => {
-                return Err(shard_err(
-                    &s.dir,
-                    format!(
-                        "shard.json says frames {}..{}, but shard {shard} of {frames} frames is {}..{}",
-                        s.manifest.frames[0], s.manifest.frames[1], range.start, range.end
-                    ),
-                ))
-            }
-            Some(_) => {}
-        }
+        return Err(shard_err(
+            out,
+            format!(
+                "shard {shard} is missing: frames {}..{} of {frames} are not covered (run it with --shard {shard})",
+                range.start, range.end
+            ),
+        ));
     }
 
     // Write: stats.csv, frames/, summary.json (into a locked directory,
