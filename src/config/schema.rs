@@ -114,6 +114,7 @@ pub enum CameraSpec {
 
 /// A light of the job.
 #[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub enum LightSpec {
     /// Point light; `range` limits it.
     Point {
@@ -323,6 +324,30 @@ mod tests {
                 "(version: 1, scene: City(()), pipeline: ({text}))"
             ));
             assert!(e.is_err(), "{text}");
+        }
+    }
+
+    /// A misspelled field inside a light variant or a camera pose is an
+    /// error naming it, not a silently dropped value (`rnage` once ran with
+    /// `range: None`, `fov_x_deg` was ignored).
+    #[test]
+    fn misspelled_light_and_pose_fields_are_rejected() {
+        for (text, field) in [
+            (
+                "(scene: City(()), lights: [Point(position: (0.0, 9.0, 0.0), rnage: Some(1.0))])",
+                "rnage",
+            ),
+            (
+                "(scene: City(()), lights: [Spot(position: (0.0, 9.0, 0.0), direction: (0.0, -1.0, 0.0), apex_deg: 40.0, far: 1.0)])",
+                "far",
+            ),
+            (
+                "(scene: City(()), camera: Fixed((eye: (0.0, 1.0, 5.0), target: (0.0, 0.0, 0.0), up: (0.0, 1.0, 0.0), fov_y_deg: 60.0, near: 0.1, fov_x_deg: 80.0)))",
+                "fov_x_deg",
+            ),
+        ] {
+            let e = parse(text).unwrap_err().to_string();
+            assert!(e.contains(field), "{field}: {e}");
         }
     }
 

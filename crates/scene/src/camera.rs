@@ -30,6 +30,7 @@ pub struct Camera {
 /// A camera placement independent of the viewport: where it stands and looks.
 /// [`LookAt::camera`] turns it into a [`Camera`] once the aspect is known.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct LookAt {
     /// Eye position.
     pub eye: DVec3,

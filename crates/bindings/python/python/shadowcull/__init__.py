@@ -1,0 +1,470 @@
+"""shadowcull from Python: CPU-side culling middleware for stencil shadow volumes.
+
+A :class:`Pipeline` holds a scene (meshes from numpy arrays, objects,
+lights, or files loaded with :meth:`Pipeline.load`) and computes, once per
+:meth:`Pipeline.frame`, the potentially shadowed receivers (PSR), per light
+the potential shadow casters (PSC) and the shadow volumes to draw, and, with
+a CPU stencil backend, the exact four-class shadow mask::
+
+    import numpy as np
+    import shadowcull as sc
+
+    p = sc.Pipeline(culling="chcpp", stencil="h")
+    ground = p.add_mesh(np.array([[-9, 0, -9], [-9, 0, 9], [9, 0, 9], [9, 0, -9]], np.float32),
+                        np.array([[0, 1, 2], [0, 2, 3]]))
+    p.add_object(ground)
+    sun = p.add_light("sun", elevation_deg=40, azimuth_deg=30)
+    f = p.frame(640, 480, camera=sc.look_at(eye=(6, 5, 8), target=(0, 0, 0)))
+    f.psr, f.psc[sun], f.volumes[sun].ranges, f.mask[sun], f.stats["frame_ms"]
+
+Batch jobs (the RON files of ``shadowcull run``) run with :func:`run_job`,
+split over machines with ``shard=(i, n)`` and put back together with
+:func:`merge`; ``python -m shadowcull.distributed`` fans a job out over a Ray
+cluster.
+
+Conventions are the library's (DESIGN.md): right-handed world, +y up;
+matrices are numpy 4×4 arrays applied to column vectors (``M @ [x, y, z, 1]``);
+masks are ``(height, width)`` arrays, row 0 at the top, of the pixel classes
+:data:`LIT`, :data:`SHADOW`, :data:`UNLIT` and :data:`BACKGROUND`.
+
+Every array a frame returns is a copy the caller owns: it stays valid and
+unchanged after later frames. A pipeline is used by one thread at a time
+(another thread's call while a frame runs raises ``RuntimeError``); the GIL
+is released while a frame, a reference mask, a load, a job or a merge runs.
+
+Errors are ``ValueError`` for bad input (an unknown option, a malformed
+array, a stale id) and ``OSError`` for files (unreadable scenes or jobs, a
+busy output directory), with the library's message naming the file, object
+or field.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from typing import Any, Dict, Iterable, List, NamedTuple, Optional, Sequence, Tuple
+
+import numpy as np
+
+from . import _native
+
+__version__: str = _native.__version__
+
+__all__ = [
+    "Pipeline",
+    "Frame",
+    "Volumes",
+    "ReferenceMask",
+    "Loaded",
+    "look_at",
+    "run_job",
+    "merge",
+    "default_options",
+    "RANGE_DTYPE",
+    "LIT",
+    "SHADOW",
+    "UNLIT",
+    "BACKGROUND",
+    "ZPASS",
+    "ZFAIL",
+    "ZPPLUS",
+]
+
+#: Pixel classes of a mask (``mask.pixels``' ``PixelClass`` in Rust).
+LIT, SHADOW, UNLIT, BACKGROUND = 0, 1, 2, 3
+#: Stencil methods of a volume range (``ranges["method"]``).
+ZPASS, ZFAIL, ZPPLUS = 0, 1, 2
+
+#: One shadow-volume range per caster and segment: the fields of Rust's
+#: ``raster::VolumeRange``. ``first_index``/``index_count`` select the range's
+#: triangles in ``Volumes.indices``; ``light_cap``/``dark_cap`` are ``[begin,
+#: end)`` index ranges; ``scissor`` is ``[x0, y0, x1, y1)`` in pixels;
+#: ``world_from_local`` places the range's local-space positions.
+RANGE_DTYPE = np.dtype(
+    [
+        ("object", np.uint32),
+        ("segment", np.uint32),
+        ("method", np.uint8),
+        ("first_vertex", np.uint32),
+        ("vertex_count", np.uint32),
+        ("first_index", np.uint32),
+        ("index_count", np.uint32),
+        ("light_cap", np.uint32, (2,)),
+        ("dark_cap", np.uint32, (2,)),
+        ("scissor", np.uint32, (4,)),
+        ("depth_near", np.float32),
+        ("depth_far", np.float32),
+        ("world_from_local", np.float64, (4, 4)),
+    ]
+)
+
+# Light kinds: the RON job's light variants, spelled in snake case.
+_LIGHT_VARIANTS = {
+    "point": "Point",
+    "spot": "Spot",
+    "directional": "Directional",
+    "sun": "Sun",
+    "above_scene": "AboveScene",
+    "named": "Named",
+}
+# The variants that hold one value, and the keyword that may name it.
+_LIGHT_VALUE = {"directional": "direction", "above_scene": "factor", "named": "name"}
+
+
+def _plain(value: Any) -> Any:
+    """JSON fallback for numpy values (arrays, scalars)."""
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, (tuple, set)):
+        return list(value)
+    raise TypeError(f"{type(value).__name__} is not a number, string, list or dict")
+
+
+def _json(what: str, value: Any) -> str:
+    try:
+        return json.dumps(value, default=_plain)
+    except (TypeError, ValueError) as e:
+        raise ValueError(f"{what}: {e}") from None
+
+
+def _matrix(name: str, m: Any) -> np.ndarray:
+    a = np.asarray(m, dtype=np.float64)
+    if a.shape != (4, 4):
+        raise ValueError(f"{name}: shape {a.shape} is not (4, 4)")
+    return a
+
+
+def look_at(
+    eye: Sequence[float],
+    target: Sequence[float],
+    up: Sequence[float] = (0.0, 1.0, 0.0),
+    fov_y_deg: float = 60.0,
+    near: float = 0.1,
+) -> Dict[str, Any]:
+    """A camera pose for :meth:`Pipeline.frame` (the RON job's ``LookAt``):
+    the aspect comes from the frame's size."""
+    return {
+        "eye": [float(x) for x in eye],
+        "target": [float(x) for x in target],
+        "up": [float(x) for x in up],
+        "fov_y_deg": float(fov_y_deg),
+        "near": float(near),
+    }
+
+
+def default_options() -> Dict[str, Any]:
+    """The default pipeline options: every keyword :class:`Pipeline` takes."""
+    return json.loads(_native.default_options())
+
+
+class Volumes(NamedTuple):
+    """One light's shadow volumes, ready to draw: ``positions`` ``(n, 4)``
+    float32 homogeneous local-space vertices (``w`` is 0 at infinity),
+    ``indices`` a flat uint32 triangle list, ``ranges`` one
+    :data:`RANGE_DTYPE` record per caster and segment."""
+
+    positions: np.ndarray
+    indices: np.ndarray
+    ranges: np.ndarray
+
+
+class ReferenceMask(NamedTuple):
+    """The exact ray-cast mask of one light: ``mask`` ``(h, w)`` uint8 pixel
+    classes, ``ambiguous`` ``(h, w)`` bool (pixels a comparison skips)."""
+
+    mask: np.ndarray
+    ambiguous: np.ndarray
+
+    def mismatches(self, mask: np.ndarray) -> int:
+        """Pixels where ``mask`` differs from the reference among those the
+        reference calls lit or shadow and not ambiguous (Rust's
+        ``mask::compare``)."""
+        mask = np.asarray(mask)
+        if mask.shape != self.mask.shape:
+            raise ValueError(f"mask: shape {mask.shape} is not the reference's {self.mask.shape}")
+        compared = ((self.mask == LIT) | (self.mask == SHADOW)) & ~self.ambiguous
+        return int(np.count_nonzero(compared & (mask != self.mask)))
+
+
+class Loaded(NamedTuple):
+    """What :meth:`Pipeline.load` added: the new objects' ids, and the
+    file's named cameras (``LookAt`` dicts), camera paths and lights (use
+    them with :meth:`Pipeline.path_camera` and ``add_light("named", name)``)."""
+
+    objects: np.ndarray
+    cameras: Dict[str, Dict[str, Any]]
+    paths: List[str]
+    lights: List[str]
+    warnings: List[str]
+
+
+class Frame:
+    """The results of one :meth:`Pipeline.frame`, keyed by light id where
+    per light. Every array is a copy the caller owns.
+
+    Attributes:
+        number: the frame's job number.
+        psr: uint32 ids of the potentially shadowed receivers, ascending.
+        psc: per light, uint32 ids of the potential shadow casters.
+        volumes: per light, the :class:`Volumes` to draw.
+        mask: per light, the ``(h, w)`` uint8 shadow mask, or None without a
+            CPU stencil (``stencil="none"``).
+        stats: the frame's counters and stage times (Rust's ``FrameStats``).
+        light_stats: per light, its counters and stage times (``ShadowStats``).
+        volume_stats: per light, volume construction counters (``VolumeStats``).
+        views: per light, the number of light views (cube faces, frusta) used.
+    """
+
+    def __init__(self, raw: Dict[str, Any]):
+        self.psr: np.ndarray = raw["psr"]
+        self.stats: Dict[str, Any] = json.loads(raw["stats"])
+        self.number: int = self.stats["frame"]
+        self.psc: Dict[int, np.ndarray] = {}
+        self.volumes: Dict[int, Volumes] = {}
+        self.mask: Dict[int, Optional[np.ndarray]] = {}
+        self.light_stats: Dict[int, Dict[str, Any]] = {}
+        self.volume_stats: Dict[int, Dict[str, Any]] = {}
+        self.views: Dict[int, int] = {}
+        for light in raw["lights"]:
+            i = light["id"]
+            self.psc[i] = light["psc"]
+            cols = light["ranges"]
+            ranges = np.zeros(len(cols["object"]), dtype=RANGE_DTYPE)
+            for name in RANGE_DTYPE.names:
+                ranges[name] = cols[name]
+            self.volumes[i] = Volumes(light["positions"], light["indices"], ranges)
+            self.mask[i] = light["mask"]
+            self.light_stats[i] = json.loads(light["stats"])
+            self.volume_stats[i] = json.loads(light["volume_stats"])
+            self.views[i] = light["views"]
+
+    def __repr__(self) -> str:
+        return (
+            f"Frame(number={self.number}, psr={len(self.psr)}, "
+            f"psc={ {k: len(v) for k, v in self.psc.items()} }, "
+            f"frame_ms={self.stats['frame_ms']:.2f})"
+        )
+
+
+class Pipeline:
+    """The shadow-volume culling pipeline.
+
+    ``Pipeline(**options)`` takes the RON job's ``pipeline`` fields as
+    keywords, with the same names and values: ``culling="chcpp"``,
+    ``stencil="h"``, ``method="auto"``, ``tile=8``, ``coverage="point"``,
+    ``chcpp=dict(batch=50, revisit=5, seed=1)``, ``reference_every=0``, ...
+    (see :func:`default_options`). An unknown name is a ``ValueError``.
+    """
+
+    def __init__(self, **options: Any):
+        self._p = _native.Pipeline(_json("options", options))
+
+    @property
+    def options(self) -> Dict[str, Any]:
+        """Every option's current value."""
+        return json.loads(self._p.options())
+
+    def set_options(self, **options: Any) -> None:
+        """Changes the named options, keeping the others, the scene, the
+        lights and the culling histories."""
+        merged = self.options
+        merged.update(options)
+        self._p.set_options(_json("options", merged))
+
+    # Scene -----------------------------------------------------------------
+
+    def add_mesh(self, positions: Any, indices: Any, name: str = "mesh") -> int:
+        """Adds a mesh: ``positions`` an ``(n, 3)`` float32 or float64 array
+        (any strides), ``indices`` an ``(m, 3)`` or ``(3m,)`` integer array.
+        The library copies it once and welds its vertices. Returns its id."""
+        return self._p.add_mesh(positions, indices, name)
+
+    def update_mesh_positions(self, mesh: int, positions: Any, indices: Any) -> None:
+        """Deforms ``mesh``: new positions, the same triangles."""
+        self._p.update_mesh_positions(mesh, positions, indices)
+
+    def remove_mesh(self, mesh: int) -> None:
+        """Removes a mesh no object draws any more."""
+        self._p.remove_mesh(mesh)
+
+    def add_object(
+        self,
+        mesh: int,
+        transform: Any = None,
+        *,
+        casts: bool = True,
+        receives: bool = True,
+        occludes: bool = True,
+        visible: bool = True,
+    ) -> int:
+        """Adds an object drawing ``mesh`` at ``transform`` (4×4, world from
+        local; identity when None). The flags say what it takes part in.
+        Returns its id, valid until :meth:`remove_object`."""
+        m = np.eye(4) if transform is None else _matrix("transform", transform)
+        return self._p.add_object(mesh, m, casts, receives, occludes, visible)
+
+    def set_transform(self, obj: int, transform: Any) -> None:
+        """Moves an object from the next frame on."""
+        self._p.set_transform(obj, _matrix("transform", transform))
+
+    def transform(self, obj: int) -> np.ndarray:
+        """An object's world matrix (as of the last frame or edit)."""
+        return self._p.transform(obj)
+
+    def set_flags(
+        self,
+        obj: int,
+        *,
+        casts: bool = True,
+        receives: bool = True,
+        occludes: bool = True,
+        visible: bool = True,
+    ) -> None:
+        """Sets every flag of an object (each defaults to on)."""
+        self._p.set_flags(obj, casts, receives, occludes, visible)
+
+    def remove_object(self, obj: int) -> None:
+        """Removes an object; its id is stale afterwards."""
+        self._p.remove_object(obj)
+
+    def load(self, path: "os.PathLike[str] | str") -> Loaded:
+        """Adds every object of a glTF (``.gltf``, ``.glb``), OBJ (``.obj``
+        or a directory of them) or box-city (``.txt``) file."""
+        objects, meta = self._p.load(os.fspath(path))
+        meta = json.loads(meta)
+        return Loaded(
+            np.asarray(objects, dtype=np.uint32),
+            meta["cameras"],
+            meta["paths"],
+            meta["lights"],
+            meta["warnings"],
+        )
+
+    @property
+    def bounds(self) -> Tuple[np.ndarray, np.ndarray]:
+        """World bounds ``(min, max)`` of the objects as of the last frame
+        and of every file loaded since."""
+        lo, hi = self._p.bounds()
+        return np.array(lo), np.array(hi)
+
+    def path_camera(self, name: str, frame: int) -> Optional[Dict[str, Any]]:
+        """The pose of a loaded camera path at ``frame`` (None past its end)."""
+        pose = self._p.path_camera(name, frame)
+        return None if pose is None else json.loads(pose)
+
+    # Lights ----------------------------------------------------------------
+
+    @staticmethod
+    def _light_spec(kind: str, value: Any, fields: Dict[str, Any]) -> str:
+        variant = _LIGHT_VARIANTS.get(kind)
+        if variant is None:
+            raise ValueError(f"light: unknown kind {kind!r} (one of {', '.join(_LIGHT_VARIANTS)})")
+        if kind in _LIGHT_VALUE:
+            key = _LIGHT_VALUE[kind]
+            if value is None:
+                value = fields.pop(key, None)
+            if value is None or fields:
+                raise ValueError(
+                    f"light {kind!r}: takes one value ({key}=...), got {sorted(fields) or 'none'}"
+                )
+            return _json("light", {variant: value})
+        if value is not None:
+            raise ValueError(f"light {kind!r}: takes keywords only")
+        return _json("light", {variant: fields})
+
+    def add_light(self, kind: str, value: Any = None, **fields: Any) -> int:
+        """Adds a light, spelled as in a RON job and returns its id:
+
+        - ``add_light("point", position=(x, y, z), range=None)``
+        - ``add_light("spot", position=..., direction=..., apex_deg=40, range=None)``
+        - ``add_light("directional", (dx, dy, dz))`` (the direction light travels)
+        - ``add_light("sun", elevation_deg=35, azimuth_deg=30)``
+        - ``add_light("above_scene", 1.5)`` (a point light above the scene bounds)
+        - ``add_light("named", "light")`` (a light a loaded file names)
+        """
+        return self._p.add_light(self._light_spec(kind, value, fields))
+
+    def set_light(self, light: int, kind: str, value: Any = None, **fields: Any) -> None:
+        """Replaces a light (same spelling as :meth:`add_light`)."""
+        self._p.set_light(light, self._light_spec(kind, value, fields))
+
+    def remove_light(self, light: int) -> None:
+        """Removes a light; its id is stale afterwards."""
+        self._p.remove_light(light)
+
+    def light(self, light: int) -> Dict[str, Any]:
+        """A light as the library holds it (``{"Point": {...}}``, ...)."""
+        return json.loads(self._p.light(light))
+
+    @property
+    def lights(self) -> List[int]:
+        """The live lights' ids."""
+        return list(self._p.light_ids())
+
+    # Frames ----------------------------------------------------------------
+
+    def set_frame_number(self, frame: int) -> None:
+        """The job frame number of the next frame (culling coherence follows
+        numbers, not calls: a jump starts a new history)."""
+        self._p.set_frame_number(frame)
+
+    def reset_history(self) -> None:
+        """Forgets the culling histories and caches (a camera cut)."""
+        self._p.reset_history()
+
+    def frame(
+        self,
+        width: int,
+        height: int,
+        *,
+        camera: Optional[Dict[str, Any]] = None,
+        view: Any = None,
+        projection: Any = None,
+        clip_depth: str = "negative_one_to_one",
+    ) -> Frame:
+        """Computes one ``width × height`` frame seen by ``camera`` (a
+        :func:`look_at` pose) or by the host's ``view`` and perspective
+        ``projection`` matrices (right-handed; ``clip_depth`` is
+        ``"negative_one_to_one"`` for OpenGL, ``"zero_to_one"`` for
+        Direct3D, Vulkan and Metal)."""
+        cam = None if camera is None else _json("camera", camera)
+        v = None if view is None else _matrix("view", view)
+        p = None if projection is None else _matrix("projection", projection)
+        return Frame(self._p.frame(width, height, cam, v, p, clip_depth))
+
+    def reference_mask(self, light: int) -> ReferenceMask:
+        """The exact ray-cast mask of ``light`` for the last frame: what every
+        culling and stencil option is measured against."""
+        mask, ambiguous = self._p.reference_mask(light)
+        return ReferenceMask(mask, ambiguous)
+
+
+# Batch jobs -----------------------------------------------------------------
+
+
+def run_job(
+    path: "os.PathLike[str] | str | None" = None,
+    *,
+    out: "os.PathLike[str] | str",
+    frames: Optional[int] = None,
+    shard: Optional[Tuple[int, int]] = None,
+    warmup: Optional[int] = None,
+    keyframe: Optional[int] = None,
+) -> Dict[str, Any]:
+    """Runs a RON job (the bundled default when ``path`` is None) into the
+    directory ``out``, as ``shadowcull run`` does; returns ``summary.json``.
+
+    ``frames`` cuts the run to its first frames; ``shard=(i, n)`` runs the
+    i-th of n blocks of frames (after ``warmup`` frames that prime culling
+    and are not written); ``keyframe`` resets the histories every k frames.
+    """
+    p = None if path is None else os.fspath(path)
+    return json.loads(_native.run_job(p, os.fspath(out), frames, shard, warmup, keyframe))
+
+
+def merge(out: "os.PathLike[str] | str", dirs: Iterable["os.PathLike[str] | str"]) -> Dict[str, Any]:
+    """Merges the shard directories ``dirs`` of one job into ``out``, as
+    ``shadowcull merge`` does; returns what it wrote."""
+    return json.loads(_native.merge(os.fspath(out), [os.fspath(d) for d in dirs]))

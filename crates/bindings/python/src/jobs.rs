@@ -1,0 +1,69 @@
+//! Batch jobs from Python: `run_job` and `merge`, the library functions
+//! behind `shadowcull run` and `shadowcull merge`, with the GIL released.
+
+use crate::error::{bad, to_py};
+use pyo3::prelude::*;
+use shadowcull::config::{default_job, Job};
+use shadowcull::run::RunOptions;
+use shadowcull::shard::Shard;
+use std::path::PathBuf;
+
+/// Runs the job at `path` (the bundled default job when None) into `out`;
+/// returns `summary.json`'s content.
+#[pyfunction]
+#[pyo3(signature = (path, out, frames=None, shard=None, warmup=None, keyframe=None))]
+pub(crate) fn run_job(
+    py: Python<'_>,
+    path: Option<PathBuf>,
+    out: PathBuf,
+    frames: Option<u32>,
+    shard: Option<(u32, u32)>,
+    warmup: Option<u32>,
+    keyframe: Option<u32>,
+) -> PyResult<String> {
+    let shard = shard
+        .map(|(index, count)| {
+            format!("{index}/{count}")
+                .parse::<Shard>()
+                .map_err(|e| bad(format!("shard: {e}")))
+        })
+        .transpose()?;
+    let options = RunOptions {
+        out_dir: out,
+        max_frames: frames,
+        shard,
+        warmup,
+        keyframe,
+    };
+    let summary = py
+        .detach(|| {
+            let job = match &path {
+                Some(p) => Job::from_file(p)?,
+                None => default_job(),
+            };
+            shadowcull::run::run_job(&job, path.as_deref(), &options, &mut |_, _| {})
+        })
+        .map_err(to_py)?;
+    serde_json::to_string(&summary).map_err(|e| bad(e.to_string()))
+}
+
+/// Merges shard directories into `out`; returns what it wrote as JSON.
+#[pyfunction]
+pub(crate) fn merge(py: Python<'_>, out: PathBuf, dirs: Vec<PathBuf>) -> PyResult<String> {
+    let r = py
+        .detach(|| shadowcull::merge::merge_shards(&out, &dirs))
+        .map_err(to_py)?;
+    Ok(serde_json::json!({
+        "shards": r.shards,
+        "frames": r.frames,
+        "rows": r.rows,
+        "images": r.images,
+    })
+    .to_string())
+}
+
+/// The default pipeline options as JSON (the RON `pipeline` section's defaults).
+#[pyfunction]
+pub(crate) fn default_options() -> PyResult<String> {
+    serde_json::to_string(&shadowcull::PipelineOptions::default()).map_err(|e| bad(e.to_string()))
+}

@@ -1,0 +1,429 @@
+//! `shadowcull._native.Pipeline`: one [`shadowcull::Pipeline`] owned by
+//! Python. Ids cross as plain integers: meshes as [`MeshId`]'s, objects as
+//! [`ObjectId`]'s (slot and generation, so a stale id is an error, never
+//! another object), lights as [`LightId`]'s. A frame's outputs are copied
+//! into new numpy arrays, which stay valid after later frames.
+
+use crate::arrays::{self, matrix, matrix_out, vec1, vec2};
+use crate::error::{bad, bad_json, scene_to_py, to_py};
+use numpy::ndarray::Array3;
+use numpy::{IntoPyArray, PyReadonlyArray2};
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyList};
+use shadowcull::config::LightSpec;
+use shadowcull::raster::{VolumeBuffer, VolumeMethod};
+use shadowcull::scene::load::Loaded;
+use shadowcull::scene::{
+    self, Camera, ClipDepth, LookAt, Mesh, MeshId, ObjectFlags, ObjectId, Scene,
+};
+use shadowcull::{FrameInput, LightId, LightOutput, PipelineOptions};
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+
+/// A mask and its ambiguity flags, both `(height, width)`.
+type MaskPair<'py> = (
+    Bound<'py, numpy::PyArray2<u8>>,
+    Bound<'py, numpy::PyArray2<bool>>,
+);
+
+/// The shadow-volume culling pipeline (see the Python class `shadowcull.Pipeline`).
+#[pyclass(module = "shadowcull._native")]
+pub(crate) struct Pipeline {
+    inner: shadowcull::Pipeline,
+    /// Named cameras, paths and lights of the files loaded so far (no geometry).
+    named: Loaded,
+    /// Bounds of the objects loaded or framed so far (`AboveScene` lights).
+    bounds: scene::Aabb,
+}
+
+/// Parses a JSON argument into one of the library's serde types.
+fn from_json<'a, T: serde::Deserialize<'a>>(what: &str, text: &'a str) -> PyResult<T> {
+    serde_json::from_str(text).map_err(|e| bad_json(what, e))
+}
+
+fn to_json<T: serde::Serialize>(value: &T) -> PyResult<String> {
+    serde_json::to_string(value).map_err(|e| bad(e.to_string()))
+}
+
+fn flags(casts: bool, receives: bool, occludes: bool, visible: bool) -> ObjectFlags {
+    ObjectFlags {
+        casts,
+        receives,
+        occludes,
+        visible,
+    }
+}
+
+impl Pipeline {
+    /// A light from its JSON spec (the RON job's `LightSpec`, externally tagged).
+    fn light_of(&self, spec: &str) -> PyResult<scene::Light> {
+        let spec: LightSpec = from_json("light", spec)?;
+        let bounds = self.bounds.union(&self.inner.scene().bounds());
+        spec.resolve(&self.named, &bounds, 0, Path::new("light"))
+            .map_err(to_py)
+    }
+
+    /// The arrays of one light's output.
+    fn light_dict<'py>(py: Python<'py>, l: &LightOutput<'_>) -> PyResult<Bound<'py, PyDict>> {
+        let d = PyDict::new(py);
+        d.set_item("id", l.id().0)?;
+        d.set_item("psc", vec1(py, ids(l.psc())))?;
+        let v = l.volumes();
+        d.set_item(
+            "positions",
+            vec2(py, v.positions.concat(), v.positions.len(), 4)?,
+        )?;
+        d.set_item("indices", vec1(py, v.indices.clone()))?;
+        d.set_item("ranges", ranges(py, v)?)?;
+        match l.mask() {
+            Some(m) => d.set_item(
+                "mask",
+                vec2(
+                    py,
+                    m.pixels.iter().map(|&c| c as u8).collect(),
+                    m.height as usize,
+                    m.width as usize,
+                )?,
+            )?,
+            None => d.set_item("mask", py.None())?,
+        }
+        d.set_item("views", l.views().len())?;
+        d.set_item("stats", to_json(l.stats())?)?;
+        d.set_item("volume_stats", to_json(l.volume_stats())?)?;
+        Ok(d)
+    }
+}
+
+fn ids(v: &[ObjectId]) -> Vec<u32> {
+    v.iter().map(|id| id.0).collect()
+}
+
+/// The ranges of a volume buffer, one column per field.
+fn ranges<'py>(py: Python<'py>, v: &VolumeBuffer) -> PyResult<Bound<'py, PyDict>> {
+    let r = &v.ranges;
+    let n = r.len();
+    let col = |f: fn(&shadowcull::raster::VolumeRange) -> u32| r.iter().map(f).collect::<Vec<_>>();
+    let d = PyDict::new(py);
+    d.set_item("object", vec1(py, col(|r| r.object)))?;
+    d.set_item("segment", vec1(py, col(|r| r.segment)))?;
+    let method = |m: VolumeMethod| match m {
+        VolumeMethod::ZPass => 0u8,
+        VolumeMethod::ZFail => 1,
+        VolumeMethod::ZpPlus => 2,
+    };
+    d.set_item(
+        "method",
+        vec1(py, r.iter().map(|r| method(r.method)).collect()),
+    )?;
+    d.set_item("first_vertex", vec1(py, col(|r| r.first_vertex)))?;
+    d.set_item("vertex_count", vec1(py, col(|r| r.vertex_count)))?;
+    d.set_item("first_index", vec1(py, col(|r| r.first_index)))?;
+    d.set_item("index_count", vec1(py, col(|r| r.index_count)))?;
+    let pairs = |f: fn(&shadowcull::raster::VolumeRange) -> [u32; 2]| {
+        r.iter().flat_map(f).collect::<Vec<_>>()
+    };
+    d.set_item(
+        "light_cap",
+        vec2(py, pairs(|r| [r.light_cap.start, r.light_cap.end]), n, 2)?,
+    )?;
+    d.set_item(
+        "dark_cap",
+        vec2(py, pairs(|r| [r.dark_cap.start, r.dark_cap.end]), n, 2)?,
+    )?;
+    d.set_item(
+        "scissor",
+        vec2(py, r.iter().flat_map(|r| r.scissor).collect(), n, 4)?,
+    )?;
+    d.set_item(
+        "depth_near",
+        vec1(py, r.iter().map(|r| r.depth_near).collect()),
+    )?;
+    d.set_item(
+        "depth_far",
+        vec1(py, r.iter().map(|r| r.depth_far).collect()),
+    )?;
+    let m = Array3::from_shape_fn((n, 4, 4), |(i, row, c)| r[i].world_from_local.col(c)[row]);
+    d.set_item("world_from_local", m.into_pyarray(py))?;
+    Ok(d)
+}
+
+#[pymethods]
+impl Pipeline {
+    /// An empty pipeline with `options` (JSON of the RON job's `pipeline` fields).
+    #[new]
+    fn new(options: &str) -> PyResult<Self> {
+        let options: PipelineOptions = from_json("options", options)?;
+        let scene = Scene::new(scene::SceneGraph::new()).map_err(scene_to_py)?;
+        Ok(Pipeline {
+            inner: shadowcull::Pipeline::new(scene, options).map_err(to_py)?,
+            named: Loaded::default(),
+            bounds: scene::Aabb::EMPTY,
+        })
+    }
+
+    /// The options as JSON.
+    fn options(&self) -> PyResult<String> {
+        to_json(self.inner.options())
+    }
+
+    /// Replaces the options (JSON); keeps the scene, lights and histories.
+    fn set_options(&mut self, options: &str) -> PyResult<()> {
+        let options: PipelineOptions = from_json("options", options)?;
+        self.inner.set_options(options).map_err(to_py)
+    }
+
+    /// Adds a mesh from `(n, 3)` positions and `(m, 3)` or `(3m,)` indices.
+    #[pyo3(signature = (positions, indices, name="mesh"))]
+    fn add_mesh(
+        &mut self,
+        positions: &Bound<'_, PyAny>,
+        indices: &Bound<'_, PyAny>,
+        name: &str,
+    ) -> PyResult<u32> {
+        let p = arrays::positions(positions)?;
+        let t = arrays::triangles(indices)?;
+        let mesh = Mesh::new(name, &p, &t).map_err(scene_to_py)?;
+        Ok(self.inner.add_mesh(mesh).0)
+    }
+
+    /// New positions for a mesh of the same topology.
+    fn update_mesh_positions(
+        &mut self,
+        mesh: u32,
+        positions: &Bound<'_, PyAny>,
+        indices: &Bound<'_, PyAny>,
+    ) -> PyResult<()> {
+        let p = arrays::positions(positions)?;
+        let t = arrays::triangles(indices)?;
+        self.inner
+            .update_mesh_positions(MeshId(mesh), &p, &t)
+            .map_err(to_py)
+    }
+
+    fn remove_mesh(&mut self, mesh: u32) -> PyResult<()> {
+        self.inner.remove_mesh(MeshId(mesh)).map_err(to_py)
+    }
+
+    /// Adds an object drawing `mesh` with the 4×4 `transform` (numpy layout).
+    #[allow(clippy::too_many_arguments)]
+    fn add_object(
+        &mut self,
+        mesh: u32,
+        transform: PyReadonlyArray2<'_, f64>,
+        casts: bool,
+        receives: bool,
+        occludes: bool,
+        visible: bool,
+    ) -> PyResult<u32> {
+        let m = matrix("transform", transform)?;
+        let f = flags(casts, receives, occludes, visible);
+        Ok(self.inner.add_object(MeshId(mesh), m, f).map_err(to_py)?.0)
+    }
+
+    fn set_transform(&mut self, object: u32, transform: PyReadonlyArray2<'_, f64>) -> PyResult<()> {
+        let m = matrix("transform", transform)?;
+        self.inner.set_transform(ObjectId(object), m).map_err(to_py)
+    }
+
+    fn set_flags(
+        &mut self,
+        object: u32,
+        casts: bool,
+        receives: bool,
+        occludes: bool,
+        visible: bool,
+    ) -> PyResult<()> {
+        let f = flags(casts, receives, occludes, visible);
+        self.inner.set_flags(ObjectId(object), f).map_err(to_py)
+    }
+
+    fn remove_object(&mut self, object: u32) -> PyResult<()> {
+        self.inner.remove_object(ObjectId(object)).map_err(to_py)
+    }
+
+    /// Adds a light from its JSON spec (the RON job's light variants).
+    fn add_light(&mut self, spec: &str) -> PyResult<u32> {
+        let light = self.light_of(spec)?;
+        Ok(self.inner.add_light(light).map_err(to_py)?.0)
+    }
+
+    fn set_light(&mut self, light: u32, spec: &str) -> PyResult<()> {
+        let l = self.light_of(spec)?;
+        self.inner.set_light(LightId(light), l).map_err(to_py)
+    }
+
+    fn remove_light(&mut self, light: u32) -> PyResult<()> {
+        self.inner.remove_light(LightId(light)).map_err(to_py)
+    }
+
+    /// A light as JSON (the library's `Light`).
+    fn light(&self, light: u32) -> PyResult<String> {
+        to_json(&self.inner.light(LightId(light)).map_err(to_py)?)
+    }
+
+    fn light_ids(&self) -> Vec<u32> {
+        self.inner.light_ids().map(|l| l.0).collect()
+    }
+
+    /// Adds every object of a glTF, OBJ or box-city file; returns their ids
+    /// and JSON of the file's named cameras, paths, lights and load warnings.
+    fn load(&mut self, py: Python<'_>, path: PathBuf) -> PyResult<(Vec<u32>, String)> {
+        let (loaded, scene) = py
+            .detach(|| {
+                let mut loaded = scene::load::load_path(&path)?;
+                let graph = std::mem::take(&mut loaded.graph);
+                Ok(Scene::new(graph).map(|s| (loaded, s)))
+            })
+            .and_then(|r| r)
+            .map_err(scene_to_py)?;
+        let mut meshes: HashMap<u32, MeshId> = HashMap::new();
+        let mut objects = Vec::with_capacity(scene.objects().len());
+        for o in scene.objects().iter().filter(|o| o.alive) {
+            let mesh = match meshes.get(&o.mesh.0) {
+                Some(&m) => m,
+                None => {
+                    let m = self
+                        .inner
+                        .add_mesh(scene.graph().meshes()[o.mesh.0 as usize].clone());
+                    meshes.insert(o.mesh.0, m);
+                    m
+                }
+            };
+            let id = self
+                .inner
+                .add_object(mesh, o.world_from_local, o.flags)
+                .map_err(to_py)?;
+            objects.push(id.0);
+        }
+        self.bounds = self.bounds.union(&scene.bounds());
+        let meta = serde_json::json!({
+            "cameras": loaded.cameras.iter().cloned().collect::<HashMap<_, _>>(),
+            "paths": loaded.paths.iter().map(|(n, _)| n.clone()).collect::<Vec<_>>(),
+            "lights": loaded.lights.iter().map(|(n, _)| n.clone()).collect::<Vec<_>>(),
+            "warnings": scene.warnings(),
+            "path": path.display().to_string(),
+        });
+        self.named.merge(loaded);
+        Ok((objects, meta.to_string()))
+    }
+
+    /// The pose (JSON `LookAt`) of a loaded camera path at `frame`, or None
+    /// past its end.
+    fn path_camera(&self, name: &str, frame: u32) -> PyResult<Option<String>> {
+        let Some((_, path)) = self.named.paths.iter().find(|(n, _)| n == name) else {
+            let known: Vec<_> = self.named.paths.iter().map(|(n, _)| n.as_str()).collect();
+            return Err(bad(format!(
+                "path {name:?}: no loaded file names it (known: {known:?})"
+            )));
+        };
+        path.at(frame).map(|p| to_json(&p)).transpose()
+    }
+
+    fn set_frame_number(&mut self, frame: u32) {
+        self.inner.set_frame_number(frame);
+    }
+
+    fn reset_history(&mut self) {
+        self.inner.reset_history();
+    }
+
+    /// Runs one frame (the GIL released) and returns its outputs as a dict
+    /// of arrays: `psr`, `stats` (JSON), `lights` (one dict per light).
+    #[pyo3(signature = (width, height, camera=None, view=None, projection=None, clip_depth="negative_one_to_one"))]
+    #[allow(clippy::too_many_arguments)]
+    fn frame<'py>(
+        &mut self,
+        py: Python<'py>,
+        width: u32,
+        height: u32,
+        camera: Option<&str>,
+        view: Option<PyReadonlyArray2<'_, f64>>,
+        projection: Option<PyReadonlyArray2<'_, f64>>,
+        clip_depth: &str,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let camera = match (camera, view, projection) {
+            (Some(c), None, None) => {
+                let pose: LookAt = from_json("camera", c)?;
+                // An empty viewport is the frame's error (naming `viewport`), not the camera's.
+                let aspect = if width > 0 && height > 0 {
+                    f64::from(width) / f64::from(height)
+                } else {
+                    1.0
+                };
+                pose.camera(aspect).map_err(scene_to_py)?
+            }
+            (None, Some(v), Some(p)) => {
+                let depth = match clip_depth {
+                    "negative_one_to_one" => ClipDepth::NegativeOneToOne,
+                    "zero_to_one" => ClipDepth::ZeroToOne,
+                    other => {
+                        return Err(bad(format!(
+                            "clip_depth: {other:?} is neither \"negative_one_to_one\" (OpenGL) nor \"zero_to_one\" (Direct3D, Vulkan, Metal)"
+                        )))
+                    }
+                };
+                Camera::from_view_projection(matrix("view", v)?, matrix("projection", p)?, depth)
+                    .map_err(scene_to_py)?
+            }
+            _ => {
+                return Err(bad(
+                    "frame: give either camera= or both view= and projection=",
+                ))
+            }
+        };
+        let input = FrameInput::new(width, height, camera);
+        let inner = &mut self.inner;
+        py.detach(|| inner.frame(&input).map(|_| ()))
+            .map_err(to_py)?;
+        let out = self
+            .inner
+            .last_output()
+            .ok_or_else(|| bad("frame: no output"))?;
+        self.bounds = self.bounds.union(&self.inner.scene().bounds());
+        let d = PyDict::new(py);
+        d.set_item("psr", vec1(py, ids(out.psr())))?;
+        d.set_item("stats", to_json(out.stats())?)?;
+        d.set_item("camera_position", camera.position.to_array().to_vec())?;
+        let lights = PyList::empty(py);
+        for l in out.lights() {
+            lights.append(Self::light_dict(py, &l)?)?;
+        }
+        d.set_item("lights", lights)?;
+        Ok(d)
+    }
+
+    /// The exact ray-cast mask of `light` for the last frame (the GIL
+    /// released): `(mask, ambiguous)`, both `(height, width)`.
+    fn reference_mask<'py>(&mut self, py: Python<'py>, light: u32) -> PyResult<MaskPair<'py>> {
+        let inner = &mut self.inner;
+        let r = py
+            .detach(|| inner.reference_mask(LightId(light)))
+            .map_err(to_py)?;
+        let (w, h) = (r.mask.width as usize, r.mask.height as usize);
+        Ok((
+            vec2(py, r.mask.pixels.iter().map(|&c| c as u8).collect(), h, w)?,
+            vec2(py, r.ambiguous, h, w)?,
+        ))
+    }
+
+    /// World bounds `(min, max)` of the scene: its objects as of the last
+    /// frame, and every file loaded since.
+    fn bounds(&self) -> ([f32; 3], [f32; 3]) {
+        let b = self.bounds.union(&self.inner.scene().bounds());
+        (b.min.to_array(), b.max.to_array())
+    }
+
+    /// World matrix of an object (numpy layout), for checks and tools.
+    fn transform<'py>(
+        &self,
+        py: Python<'py>,
+        object: u32,
+    ) -> PyResult<Bound<'py, numpy::PyArray2<f64>>> {
+        let scene = self.inner.scene();
+        let slot = scene.live_slot(ObjectId(object)).map_err(scene_to_py)?;
+        Ok(matrix_out(
+            py,
+            &scene.objects()[slot as usize].world_from_local,
+        ))
+    }
+}

@@ -1,0 +1,275 @@
+"""The Pipeline from Python: a scene from numpy arrays, frames, the mask
+against the ray-cast reference, outputs that stay valid, errors, the GIL."""
+
+import sys
+import threading
+
+import numpy as np
+import pytest
+
+import shadowcull as sc
+from conftest import cube_arrays, quad_arrays, translation
+
+CAMERA = sc.look_at(eye=(6.0, 5.0, 8.0), target=(0.0, 0.0, 0.0), fov_y_deg=57.3)
+
+
+def box_scene(**options):
+    """A ground quad, three cubes, a point light and a sun."""
+    p = sc.Pipeline(**options)
+    ground = p.add_mesh(*quad_arrays())
+    cube = p.add_mesh(*cube_arrays())
+    p.add_object(ground)
+    cubes = [p.add_object(cube, translation(x, 0.0, z)) for x, z in [(0, 0), (-3, 1), (2, -3)]]
+    lamp = p.add_light("point", position=(2.0, 8.0, 1.0))
+    sun = p.add_light("sun", elevation_deg=40.0, azimuth_deg=30.0)
+    return p, cubes, lamp, sun
+
+
+@pytest.mark.parametrize("stencil", ["bf", "db", "h"])
+@pytest.mark.parametrize("culling", ["none", "chcpp"])
+def test_mask_equals_the_reference(stencil, culling):
+    p, cubes, lamp, sun = box_scene(stencil=stencil, culling=culling)
+    for frame in range(3):
+        f = p.frame(320, 240, camera=CAMERA)
+        assert f.number == frame
+        for light in (lamp, sun):
+            mask = f.mask[light]
+            assert mask.shape == (240, 320) and mask.dtype == np.uint8
+            classes = np.bincount(mask.ravel(), minlength=4)
+            assert classes[sc.SHADOW] > 100, "the cubes cast shadows on the ground"
+            assert classes[sc.LIT] > 100
+            ref = p.reference_mask(light)
+            assert ref.mask.shape == mask.shape
+            assert ref.mismatches(mask) == 0
+        # A culled frame equals the unculled one: PSR holds every visible object.
+        assert set(f.psr.tolist()) <= {0, *cubes}
+        p.set_transform(cubes[0], translation(0.2 * (frame + 1), 0.0, 0.0))
+
+
+def test_culled_masks_equal_unculled():
+    culled, _, lamp, sun = box_scene(stencil="h", culling="chcpp")
+    plain, _, _, _ = box_scene(stencil="bf", culling="none")
+    a = culled.frame(256, 192, camera=CAMERA)
+    b = plain.frame(256, 192, camera=CAMERA)
+    for light in (lamp, sun):
+        np.testing.assert_array_equal(a.mask[light], b.mask[light])
+    assert a.stats["eye_queries"] > 0 and b.stats["eye_queries"] == 0
+
+
+def test_volumes_are_drawable():
+    p, cubes, lamp, sun = box_scene(stencil="none", culling="chcpp")
+    f = p.frame(320, 240, camera=CAMERA)
+    assert f.mask[lamp] is None
+    for light in (lamp, sun):
+        v = f.volumes[light]
+        assert v.positions.dtype == np.float32 and v.positions.shape[1] == 4
+        assert v.indices.dtype == np.uint32 and len(v.indices) % 3 == 0
+        assert v.ranges.dtype == sc.RANGE_DTYPE
+        assert set(v.ranges["object"].tolist()) <= set(f.psc[light].tolist())
+        assert set(v.ranges["object"].tolist()) >= set(cubes)
+        for r in v.ranges:
+            idx = v.indices[r["first_index"]: r["first_index"] + r["index_count"]]
+            assert len(idx) == r["index_count"] > 0
+            assert idx.min() >= r["first_vertex"]
+            assert idx.max() < r["first_vertex"] + r["vertex_count"]
+            assert r["method"] in (sc.ZPASS, sc.ZFAIL, sc.ZPPLUS)
+            np.testing.assert_array_equal(r["world_from_local"], p.transform(int(r["object"])))
+        # The directional light has no dark caps; w = 0 marks vertices at infinity.
+        if light == sun:
+            assert (v.ranges["dark_cap"][:, 0] == v.ranges["dark_cap"][:, 1]).all()
+        assert set(np.unique(v.positions[:, 3]).tolist()) <= {0.0, 1.0}
+        assert f.light_stats[light]["volume_triangles"] == len(v.indices) // 3
+
+
+def test_strided_and_float64_positions_give_the_same_mesh():
+    corners, tris = cube_arrays()
+    wide = np.zeros((8, 6), np.float64)
+    wide[:, ::2] = corners  # a strided float64 view: every other column
+    strided = wide[:, ::2]
+    assert not strided.flags["C_CONTIGUOUS"]
+    results = []
+    for positions, indices in [(corners, tris), (strided, tris.ravel().astype(np.int32))]:
+        p = sc.Pipeline(stencil="bf", culling="none")
+        p.add_object(p.add_mesh(*quad_arrays()))
+        p.add_object(p.add_mesh(positions, indices), translation(0, 0.5, 0))
+        light = p.add_light("point", position=(2.0, 8.0, 1.0))
+        results.append(p.frame(200, 150, camera=CAMERA).mask[light])
+    np.testing.assert_array_equal(results[0], results[1])
+    assert np.count_nonzero(results[0] == sc.SHADOW) > 0
+
+
+def test_outputs_are_copies_that_stay_valid():
+    p, cubes, lamp, _ = box_scene(stencil="h", culling="chcpp")
+    first = p.frame(256, 192, camera=CAMERA)
+    kept = (first.mask[lamp].copy(), first.psr.copy(), first.volumes[lamp].positions.copy())
+    p.set_transform(cubes[0], translation(1.5, 0.0, 1.0))
+    second = p.frame(256, 192, camera=CAMERA)
+    assert not np.array_equal(second.mask[lamp], kept[0]), "the moved cube changes the mask"
+    np.testing.assert_array_equal(first.mask[lamp], kept[0])
+    np.testing.assert_array_equal(first.psr, kept[1])
+    np.testing.assert_array_equal(first.volumes[lamp].positions, kept[2])
+
+
+def test_view_projection_matrices_equal_look_at():
+    eye, target = np.array([6.0, 5.0, 8.0]), np.zeros(3)
+    f = (target - eye) / np.linalg.norm(target - eye)
+    s = np.cross(f, [0.0, 1.0, 0.0])
+    s /= np.linalg.norm(s)
+    u = np.cross(s, f)
+    view = np.eye(4)
+    view[0, :3], view[1, :3], view[2, :3] = s, u, -f
+    view[:3, 3] = -view[:3, :3] @ eye
+    fov, aspect, near, far = np.radians(50.0), 4.0 / 3.0, 0.1, 100.0
+    t = 1.0 / np.tan(fov / 2)
+    proj = np.zeros((4, 4))
+    proj[0, 0], proj[1, 1] = t / aspect, t
+    proj[2, 2], proj[2, 3] = -(far + near) / (far - near), -2 * far * near / (far - near)
+    proj[3, 2] = -1.0
+    a, _, lamp, _ = box_scene(stencil="bf")
+    b, _, _, _ = box_scene(stencil="bf")
+    fa = a.frame(320, 240, view=view, projection=proj)
+    fb = b.frame(320, 240, camera=sc.look_at(eye, target, fov_y_deg=50.0, near=0.1))
+    np.testing.assert_array_equal(fa.psr, fb.psr)
+    assert a.reference_mask(lamp).mismatches(fa.mask[lamp]) == 0
+    # The same mask up to pixels on the rounding edge of a shadow.
+    assert np.count_nonzero(fa.mask[lamp] != fb.mask[lamp]) < 20
+
+
+def test_edits_between_frames():
+    p, cubes, lamp, sun = box_scene(stencil="h", culling="chcpp")
+    p.frame(160, 120, camera=CAMERA)
+    p.remove_object(cubes[1])
+    p.set_flags(cubes[2], casts=False)
+    p.set_light(lamp, "spot", position=(0.0, 6.0, 0.0), direction=(0.0, -1.0, 0.0), apex_deg=60.0)
+    f = p.frame(160, 120, camera=CAMERA)
+    assert cubes[1] not in f.psr.tolist()
+    assert cubes[2] not in f.psc[sun].tolist()
+    assert "Spot" in p.light(lamp)
+    for light in (lamp, sun):
+        assert p.reference_mask(light).mismatches(f.mask[light]) == 0
+    p.remove_light(sun)
+    assert p.lights == [lamp]
+    with pytest.raises(ValueError, match="object"):
+        p.set_transform(cubes[1], np.eye(4))  # a removed object's id is stale
+
+
+def test_reset_history_equals_a_fresh_pipeline():
+    def path_frame(p, i):
+        return p.frame(200, 150, camera=sc.look_at((6.0 - 0.3 * i, 5.0, 8.0), (0, 0, 0)))
+
+    a, _, lamp, sun = box_scene(stencil="h", culling="chcpp")
+    for i in range(3):
+        path_frame(a, i)
+    a.reset_history()
+    a.set_frame_number(3)
+    fresh, _, _, _ = box_scene(stencil="h", culling="chcpp")
+    fresh.set_frame_number(3)
+    fa, fb = path_frame(a, 3), path_frame(fresh, 3)
+    assert fa.number == fb.number == 3
+    np.testing.assert_array_equal(fa.psr, fb.psr)
+    for light in (lamp, sun):
+        np.testing.assert_array_equal(fa.psc[light], fb.psc[light])
+        np.testing.assert_array_equal(fa.mask[light], fb.mask[light])
+        assert fa.light_stats[light]["queries"] == fb.light_stats[light]["queries"]
+    assert fa.stats["eye_queries"] == fb.stats["eye_queries"]
+
+
+def test_options_by_name():
+    p = sc.Pipeline(culling="chcpp", chcpp={"batch": 20}, tile=16)
+    o = p.options
+    assert (o["culling"], o["chcpp"]["batch"], o["tile"]) == ("chcpp", 20, 16)
+    assert set(o) == set(sc.default_options())
+    p.set_options(stencil="h")
+    assert (p.options["stencil"], p.options["tile"]) == ("h", 16)
+
+
+@pytest.mark.parametrize(
+    "call, match",
+    [
+        (lambda: sc.Pipeline(cullng="chc"), "unknown field `cullng`"),
+        (lambda: sc.Pipeline(tile=5), "tile"),
+        (lambda: sc.Pipeline(culling="sometimes"), "sometimes"),
+        (lambda: sc.Pipeline().add_mesh(np.zeros((4, 2), np.float32), [[0, 1, 2]]), r"\(n, 3\)"),
+        (lambda: sc.Pipeline().add_mesh(np.zeros((4, 3), np.int32), np.array([[0, 1, 2]])), "float32 or float64"),
+        (lambda: sc.Pipeline().add_mesh(np.zeros((4, 3), np.float32), np.array([[0, 1, 9]])), "9"),
+        (lambda: sc.Pipeline().add_mesh(np.zeros((4, 3), np.float32), np.array([[0, -1, 2]])), "-1"),
+        (lambda: sc.Pipeline().add_mesh(np.full((3, 3), np.nan, np.float32), np.array([0, 1, 2])), "finite"),
+        (lambda: sc.Pipeline().add_object(7), "mesh"),
+        (lambda: sc.Pipeline().add_light("laser"), "unknown kind"),
+        (lambda: sc.Pipeline().add_light("point", position=(0, 1, 0), rnage=3.0), "rnage"),
+        (lambda: sc.Pipeline().add_light("directional", (0.0, 0.0, 0.0)), "direction"),
+        (lambda: sc.Pipeline().reference_mask(0), "no frame"),
+        (lambda: sc.Pipeline().frame(64, 64), "camera"),
+        (lambda: sc.Pipeline().frame(0, 64, camera=CAMERA), "viewport"),
+        (lambda: sc.run_job(None, out="/tmp/x", shard=(2, 2)), "shard"),
+    ],
+)
+def test_bad_input_is_a_value_error(call, match):
+    with pytest.raises(ValueError, match=match):
+        call()
+
+
+def test_files_are_os_errors(tmp_path):
+    with pytest.raises(OSError, match="missing.glb"):
+        sc.Pipeline().load(tmp_path / "missing.glb")
+    with pytest.raises(OSError, match="no_job.ron"):
+        sc.run_job(tmp_path / "no_job.ron", out=tmp_path / "out")
+    bad = tmp_path / "bad.ron"
+    bad.write_text("(version: 1, scene: City(()), resolution: (64, 64), pipeline: (tile: 5))")
+    with pytest.raises(ValueError, match="bad.ron"):
+        sc.run_job(bad, out=tmp_path / "out")
+
+
+def test_load_a_shared_scene(shared_data):
+    p = sc.Pipeline(stencil="h", culling="chcpp")
+    loaded = p.load(shared_data / "scenes" / "cornell_box_multifile")
+    assert len(loaded.objects) == 8
+    light = p.add_light("above_scene", 0.9)
+    f = p.frame(160, 160, camera=sc.look_at((0.0, 1.0, 3.4), (0.0, 1.0, 0.0), fov_y_deg=45.0))
+    assert len(f.psr) > 0
+    assert p.reference_mask(light).mismatches(f.mask[light]) == 0
+
+
+def test_the_gil_is_released_during_a_frame():
+    """Python runs on another thread while a frame computes. With a switch
+    interval of a minute no thread is made to hand the GIL over: the main
+    thread gets it back from the worker only if the frame releases it, and
+    then counts to its target before the worker can finish."""
+    p, _, _, _ = box_scene(stencil="bf", culling="none", reference_every=0)
+    p.frame(64, 48, camera=CAMERA)
+    started = threading.Event()
+    state = {"done": False}
+
+    def work():
+        started.set()
+        p.frame(1600, 1200, camera=CAMERA)
+        state["done"] = True
+
+    target, turns = 200_000, 0
+    old = sys.getswitchinterval()
+    sys.setswitchinterval(60.0)
+    try:
+        t = threading.Thread(target=work)
+        t.start()
+        started.wait()
+        while not state["done"] and turns < target:
+            turns += 1
+        finished_first = state["done"]
+    finally:
+        sys.setswitchinterval(old)
+    t.join()
+    assert not finished_first and turns == target, f"{turns} turns before the frame ended"
+
+
+def test_the_readme_snippet_runs():
+    """README's "From Python" snippet, less its batch job (a 20-frame run)."""
+    from conftest import ROOT
+
+    text = (ROOT / "README.md").read_text()
+    start = text.index("```python\n", text.index("## From Python")) + len("```python\n")
+    code = text[start: text.index("```", start)]
+    lines = [line for line in code.splitlines() if not line.startswith("sc.run_job(")]
+    assert len(lines) < len(code.splitlines()), "the snippet shows a batch job"
+    scope = {}
+    exec("\n".join(lines), scope)
+    assert np.count_nonzero(scope["mask"] == sc.SHADOW) > 0

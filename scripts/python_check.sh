@@ -1,0 +1,33 @@
+#!/usr/bin/env bash
+# The Python package in CI: build the wheel with maturin, install it with its
+# test and Ray extras into a fresh virtual environment, run its pytest suite
+# (arrays, frames against the reference, errors, jobs, shards, the Ray
+# fan-out on a local loopback cluster) and examples/python/path_stats.py.
+# Everything comes from PyPI and crates.io; nothing is installed outside
+# the temporary directory.
+#
+#   scripts/python_check.sh
+set -euo pipefail
+cd "$(dirname "$0")/.."
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
+python=${PYTHON:-python3}
+# The package's Rust side is its own workspace: format and lint it here.
+cargo fmt --manifest-path crates/bindings/python/Cargo.toml -- --check
+CARGO_TARGET_DIR="$PWD/target" cargo clippy --manifest-path crates/bindings/python/Cargo.toml \
+  --all-targets -- -D warnings
+"$python" -m venv "$work/build"
+"$work/build/bin/pip" install --quiet --disable-pip-version-check "maturin>=1.9,<2"
+# The workspace's target directory: the release build of the library's
+# dependencies is reused (the package is its own workspace, built by maturin).
+CARGO_TARGET_DIR="$PWD/target" "$work/build/bin/maturin" build --release \
+  -m crates/bindings/python/Cargo.toml --out "$work/wheels"
+wheel=$(ls "$work"/wheels/shadowcull-*.whl)
+"$python" -m venv "$work/venv"
+"$work/venv/bin/pip" install --quiet --disable-pip-version-check "$wheel[test,ray]"
+# Ray: no usage reports (the machines have no network but the registries).
+export RAY_USAGE_STATS_ENABLED=0
+(cd "$work" && "$work/venv/bin/python" -m pytest -q -p no:cacheprovider "$OLDPWD/crates/bindings/python/tests")
+line=$("$work/venv/bin/python" examples/python/path_stats.py --out "$work/path_stats.png" | tail -n 1)
+echo "path_stats: $line"
+test -s "$work/path_stats.png"
