@@ -231,8 +231,15 @@ pub fn compare_job(
 ) -> Result<Vec<VariantRow>> {
     let file = job_file.unwrap_or(Path::new("<default job>"));
     // One writer per directory, before any work.
+    crate::run::check_max_frames(options.max_frames)?;
     let _lock = crate::out_dir::OutputLock::acquire(&options.out_dir)?;
+    let capped = job
+        .frame_count()
+        .min(options.max_frames.unwrap_or(u32::MAX));
+    let variants = job.pipelines.len().max(1) as u32;
+    crate::run::check_job_memory(job, capped, variants, None)?;
     let (loaded, scene, path) = load_scene_for_job(job, job_file)?;
+    crate::run::check_job_memory(job, capped, variants, Some(&scene.counts()))?;
     let lights = resolve_lights(job, &loaded, &scene.bounds(), file)?;
     let frames = job
         .frame_count()

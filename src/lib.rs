@@ -39,6 +39,7 @@
 //! the four classes of [`mask::PixelClass`].
 #![forbid(unsafe_code)]
 
+pub mod byte_size;
 #[cfg(feature = "jobs")]
 pub mod compare;
 #[cfg(feature = "jobs")]
@@ -48,6 +49,7 @@ mod error;
 pub mod frame;
 pub mod hybrid;
 pub mod mask;
+pub mod memory;
 #[cfg(feature = "jobs")]
 pub mod merge;
 #[cfg(feature = "jobs")]

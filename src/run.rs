@@ -5,7 +5,7 @@
 //! `summary.json` and every image are written atomically (temp file +
 //! rename), so an interrupted run leaves valid files.
 
-use crate::config::{load_scene_for_job, resolve_lights, Job};
+use crate::config::{load_scene_for_job, resolve_lights, Job, SceneSpec};
 use crate::error::io_err;
 use crate::frame::FrameRunner;
 use crate::mask::Mask;
@@ -165,6 +165,7 @@ pub fn run_job(
             message: "must be at least 1".into(),
         });
     }
+    check_max_frames(options.max_frames)?;
     let job_hash = match (options.shard, job_file) {
         (None, _) => String::new(),
         (Some(_), Some(p)) => crate::shard::job_hash(&std::fs::read(p).map_err(io_err(p))?),
@@ -177,14 +178,16 @@ pub fn run_job(
     let _lock = crate::out_dir::claim_for_run(out)?;
     let manifest = out.join("shard.json");
 
-    let t0 = Instant::now();
-    let (loaded, scene, path) = load_scene_for_job(job, job_file)?;
-    let load_ms = ms(t0);
-    let bounds = scene.bounds();
-    let lights = resolve_lights(job, &loaded, &bounds, file)?;
     let frames = job
         .frame_count()
         .min(options.max_frames.unwrap_or(u32::MAX));
+    check_job_memory(job, frames, 1, None)?;
+    let t0 = Instant::now();
+    let (loaded, scene, path) = load_scene_for_job(job, job_file)?;
+    let load_ms = ms(t0);
+    check_job_memory(job, frames, 1, Some(&scene.counts()))?;
+    let bounds = scene.bounds();
+    let lights = resolve_lights(job, &loaded, &bounds, file)?;
     let block = options.shard.map_or(0..frames, |s| s.range(frames));
     let warmup = options.warmup.unwrap_or(job.pipeline.chcpp.revisit);
     let warm = warmup_start(block.start, warmup, keyframe)..block.start;
@@ -341,13 +344,70 @@ fn ms(t: Instant) -> f64 {
     t.elapsed().as_secs_f64() * 1e3
 }
 
+/// Refuses a job whose memory estimate ([`crate::memory`]) exceeds its
+/// `pipeline.max_memory`: before the scene is loaded, with procedural
+/// cities bounded by their parameters (files count 0 then, their size is
+/// capped by the input limit), and after, with the loaded counts. `frames ×
+/// lights × variants` rows are kept for the summary.
+pub(crate) fn check_job_memory(
+    job: &Job,
+    frames: u32,
+    variants: u32,
+    counts: Option<&scene::SceneCounts>,
+) -> Result<()> {
+    fn cities(spec: &SceneSpec) -> Result<(u64, u64)> {
+        Ok(match spec {
+            SceneSpec::City(p) => p.bounds()?,
+            SceneSpec::Group(v) => v.iter().try_fold((0u64, 0u64), |(o, t), s| {
+                let (so, st) = cities(s)?;
+                Ok::<_, Error>((o.saturating_add(so), t.saturating_add(st)))
+            })?,
+            SceneSpec::Gltf(_) | SceneSpec::Obj(_) | SceneSpec::BoxCity(_) => (0, 0),
+        })
+    }
+    let (objects, triangles) = match counts {
+        Some(c) => (c.objects as u64, c.triangles as u64),
+        None => cities(&job.scene)?,
+    };
+    let lights = job.lights.len().max(1) as u32;
+    let workload = crate::memory::Workload {
+        width: job.resolution.0,
+        height: job.resolution.1,
+        lights,
+        triangles,
+        objects,
+        rows: u64::from(frames) * u64::from(lights) * u64::from(variants),
+    };
+    crate::memory::estimate(&job.pipeline, &workload).check(crate::memory::limit(&job.pipeline))
+}
+
+/// A frame cap of 0 is refused, as a job's `frames: 0` is: a run that
+/// writes nothing is a mistake, not a success.
+pub(crate) fn check_max_frames(max_frames: Option<u32>) -> Result<()> {
+    if max_frames == Some(0) {
+        return Err(Error::Options {
+            field: "frames".into(),
+            message: "must be at least 1 (as a job's `frames`)".into(),
+        });
+    }
+    Ok(())
+}
+
 /// Writes `path` through a temporary file in the same directory and a rename.
+/// On failure (a full disk, say) the temporary file is removed: an error
+/// leaves neither a partial `path` nor a `path.tmp` behind.
 pub(crate) fn atomic(path: &Path, write: impl FnOnce(&Path) -> std::io::Result<()>) -> Result<()> {
     let mut tmp = path.as_os_str().to_owned();
     tmp.push(".tmp");
     let tmp = PathBuf::from(tmp);
-    write(&tmp).map_err(io_err(&tmp))?;
-    std::fs::rename(&tmp, path).map_err(io_err(path))
+    let result = write(&tmp)
+        .map_err(io_err(&tmp))
+        .and_then(|()| std::fs::rename(&tmp, path).map_err(io_err(path)));
+    if result.is_err() {
+        // Best effort: the write's own error is the one to report.
+        let _ = std::fs::remove_file(&tmp);
+    }
+    result
 }
 
 /// A shaded RGB image: each object a muted colour of its own, Lambert-lit
@@ -389,4 +449,42 @@ fn object_colour(id: u32) -> [u8; 3] {
         160 + ((h >> 8) & 0x5f) as u8,
         160 + ((h >> 16) & 0x5f) as u8,
     ]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn scratch(name: &str) -> PathBuf {
+        let d = std::env::temp_dir().join(format!("shadowcull_run_{name}_{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&d);
+        std::fs::create_dir_all(&d).unwrap();
+        d
+    }
+
+    /// A write that fails half-way (a full disk) leaves no `.tmp` and no
+    /// partial file; a write that succeeds leaves only the file.
+    #[test]
+    fn a_failed_write_leaves_no_temporary_file() {
+        use std::io::Write as _;
+        let dir = scratch("atomic");
+        let path = dir.join("0_0_mask.png");
+        let e = atomic(&path, |tmp| {
+            std::fs::File::create(tmp)?.write_all(b"half a PNG")?;
+            Err(std::io::Error::new(
+                std::io::ErrorKind::StorageFull,
+                "no space left on device",
+            ))
+        })
+        .unwrap_err();
+        assert!(e.to_string().contains("0_0_mask.png.tmp"), "{e}");
+        assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 0);
+        atomic(&path, |tmp| std::fs::write(tmp, b"a PNG")).unwrap();
+        let names: Vec<_> = std::fs::read_dir(&dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .collect();
+        assert_eq!(names, ["0_0_mask.png"]);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 }

@@ -90,6 +90,7 @@ pub(crate) fn warmup_start(start: u32, warmup: u32, keyframe: Option<u32>) -> u3
 /// `shard.json`: what a shard directory holds, for [`crate::merge`] to check
 /// that shards describe one job and cover it exactly once.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct ShardManifest {
     /// The job file as given on the command line, or `<default>`.
     pub job_path: String,

@@ -5,6 +5,8 @@
 //! - `shadowcull merge OUT SHARD_DIR...`
 //! - `shadowcull compare JOB.ron [--out DIR] [--frames N]`
 //! - `shadowcull inspect SCENE [--json]`
+//! - every command: `--max-input-size SIZE` (default 4G; only regular files
+//!   are read), `--max-memory SIZE` (default 3/4 of the machine's memory)
 //!
 //! Exit status 0 on success (also when the reader of stdout stopped reading,
 //! as with `| head`), 1 on any error (one line on stderr naming the file), 2
@@ -30,6 +32,15 @@ use std::process::ExitCode;
 struct Cli {
     #[command(subcommand)]
     command: Command,
+    /// Largest input file read (job, scene, glTF buffer): bytes, or a number
+    /// with K, M or G (default 4G). Only regular files are ever read.
+    #[arg(long, global = true, value_name = "SIZE")]
+    max_input_size: Option<shadowcull::byte_size::ByteSize>,
+    /// Most memory a run may need, by its estimate (`run`, `compare`): bytes,
+    /// or a number with K, M or G; overrides the job's `pipeline.max_memory`
+    /// (default: three quarters of the machine's memory).
+    #[arg(long, global = true, value_name = "SIZE")]
+    max_memory: Option<shadowcull::byte_size::ByteSize>,
 }
 
 #[derive(Subcommand)]
@@ -105,6 +116,9 @@ fn main() -> ExitCode {
         eprintln!("error: internal error: {info}");
     }));
     let cli = Cli::parse();
+    if let Some(size) = cli.max_input_size {
+        shadowcull::scene::load::set_max_input_bytes(size.0);
+    }
     match std::panic::catch_unwind(|| dispatch(cli)) {
         Ok(Ok(())) => ExitCode::SUCCESS,
         // A reader that stopped reading (`shadowcull inspect … | head`) ends
@@ -141,6 +155,7 @@ fn one_line(e: &anyhow::Error) -> String {
 }
 
 fn dispatch(cli: Cli) -> anyhow::Result<()> {
+    let max_memory = cli.max_memory;
     match cli.command {
         Command::Run {
             job,
@@ -158,7 +173,7 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
                 warmup,
                 keyframe,
             };
-            run(job.as_deref(), options, log_format)
+            run(job.as_deref(), options, log_format, max_memory)
         }
         Command::Merge { out, shards } => {
             let r = merge_shards(&out, &shards)?;
@@ -172,7 +187,7 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
             );
             Ok(())
         }
-        Command::Compare { job, out, frames } => compare(&job, out, frames),
+        Command::Compare { job, out, frames } => compare(&job, out, frames, max_memory),
         Command::Inspect {
             scene,
             json,
@@ -181,8 +196,24 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
     }
 }
 
-fn compare(job_file: &Path, out: PathBuf, frames: Option<u32>) -> anyhow::Result<()> {
-    let job = Job::from_file(job_file)?;
+/// `--max-memory` over the job's own limit, for its pipeline and every variant.
+fn limit_memory(job: &mut Job, max_memory: Option<shadowcull::byte_size::ByteSize>) {
+    if let Some(size) = max_memory {
+        job.pipeline.max_memory = Some(size);
+        for v in &mut job.pipelines {
+            v.pipeline.max_memory = Some(size);
+        }
+    }
+}
+
+fn compare(
+    job_file: &Path,
+    out: PathBuf,
+    frames: Option<u32>,
+    max_memory: Option<shadowcull::byte_size::ByteSize>,
+) -> anyhow::Result<()> {
+    let mut job = Job::from_file(job_file)?;
+    limit_memory(&mut job, max_memory);
     let options = CompareOptions {
         out_dir: out.clone(),
         max_frames: frames,
@@ -207,12 +238,18 @@ fn compare(job_file: &Path, out: PathBuf, frames: Option<u32>) -> anyhow::Result
     Ok(())
 }
 
-fn run(job_file: Option<&Path>, options: RunOptions, log_format: LogFormat) -> anyhow::Result<()> {
+fn run(
+    job_file: Option<&Path>,
+    options: RunOptions,
+    log_format: LogFormat,
+    max_memory: Option<shadowcull::byte_size::ByteSize>,
+) -> anyhow::Result<()> {
     use tracing_subscriber::prelude::*;
-    let job = match job_file {
+    let mut job = match job_file {
         Some(p) => Job::from_file(p)?,
         None => default_job(),
     };
+    limit_memory(&mut job, max_memory);
     let tty = std::io::stderr().is_terminal();
     match log_format {
         LogFormat::Json => {

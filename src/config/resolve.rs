@@ -253,8 +253,35 @@ pub fn load_scene_for_job(
     let base = job_file.and_then(Path::parent).unwrap_or(Path::new("."));
     let file = job_file.unwrap_or(Path::new("<default job>"));
     let (loaded, scene) = prepare_scene(job, base)?;
+    if scene.counts().triangles == 0 {
+        // Say so here, not later as an empty camera or light: `/dev/null`
+        // or `/etc/passwd` as an OBJ load fine and hold nothing.
+        let said = scene
+            .warnings()
+            .first()
+            .map(|w| format!("; the loader said: {w}"))
+            .unwrap_or_default();
+        return Err(Error::Job {
+            file: file.to_path_buf(),
+            location: "scene".into(),
+            message: format!(
+                "{} holds no geometry (no triangles): check the path and the format{said}",
+                describe_scene(&job.scene)
+            ),
+        });
+    }
     let path = resolve_camera(&job.camera, &loaded, &scene.bounds(), file)?;
     Ok((loaded, scene, path))
+}
+
+/// The scene's sources as a job names them.
+fn describe_scene(spec: &SceneSpec) -> String {
+    match spec {
+        SceneSpec::Gltf(p) | SceneSpec::Obj(p) | SceneSpec::BoxCity(p) => p.display().to_string(),
+        SceneSpec::City(_) => "the procedural city".into(),
+        SceneSpec::Group(v) if v.is_empty() => "an empty Group([])".into(),
+        SceneSpec::Group(v) => v.iter().map(describe_scene).collect::<Vec<_>>().join(" + "),
+    }
 }
 
 /// The job's lights: its `lights`, else the scene's named lights, else one

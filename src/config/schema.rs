@@ -70,6 +70,7 @@ fn default_resolution() -> (u32, u32) {
 
 /// Where the scene comes from. Relative paths are relative to the job file.
 #[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub enum SceneSpec {
     /// A glTF 2.0 file (`.gltf` or `.glb`).
     Gltf(PathBuf),
@@ -95,6 +96,7 @@ pub struct Ground {
 
 /// The view of each frame.
 #[derive(Clone, Debug, PartialEq, Deserialize, Default)]
+#[serde(deny_unknown_fields)]
 pub enum CameraSpec {
     /// A fixed pose.
     Fixed(LookAt),
@@ -198,6 +200,8 @@ impl Job {
     /// [`Error::Job`] with line and column for syntax errors, unknown fields
     /// and bad values.
     pub fn from_ron(text: &str, file: &Path) -> Result<Job> {
+        // Editors on Windows may start the file with a byte-order mark.
+        let text = text.strip_prefix('\u{feff}').unwrap_or(text);
         let job: Job = ron::Options::default()
             .with_default_extension(ron::extensions::Extensions::IMPLICIT_SOME)
             .from_str(text)
@@ -210,12 +214,31 @@ impl Job {
         Ok(job)
     }
 
-    /// Reads and parses a job file.
+    /// Reads and parses a job file: a regular file within the input size
+    /// limit ([`scene::load::read_input`]), UTF-8 with or without a
+    /// byte-order mark.
     ///
     /// # Errors
-    /// [`Error::Io`] or [`Error::Job`].
+    /// [`Error::Io`], or [`Error::Job`] (with `line:column` for invalid UTF-8).
     pub fn from_file(path: &Path) -> Result<Job> {
-        let text = std::fs::read_to_string(path).map_err(crate::error::io_err(path))?;
+        let bytes = scene::load::read_input(path).map_err(crate::error::io_err(path))?;
+        let text = String::from_utf8(bytes).map_err(|e| {
+            let valid = &e.as_bytes()[..e.utf8_error().valid_up_to()];
+            let line = valid.iter().filter(|&&b| b == b'\n').count() + 1;
+            let line_start = valid.iter().rposition(|&b| b == b'\n').map_or(0, |i| i + 1);
+            let col = String::from_utf8_lossy(&valid[line_start..])
+                .chars()
+                .count()
+                + 1;
+            Error::Job {
+                file: path.to_path_buf(),
+                location: format!("{line}:{col}"),
+                message: format!(
+                    "invalid UTF-8 (byte 0x{:02x}): a job file is UTF-8 text",
+                    e.as_bytes()[valid.len()]
+                ),
+            }
+        })?;
         Job::from_ron(&text, path)
     }
 
@@ -325,6 +348,94 @@ mod tests {
             ));
             assert!(e.is_err(), "{text}");
         }
+    }
+
+    /// Every struct of the schema rejects a misspelled field: the test walks
+    /// jobs that use every struct and struct variant, inserts `zz_typo: 1`
+    /// at each struct opening `(name:` in turn, and expects an error naming it.
+    #[test]
+    fn a_misspelled_field_is_rejected_at_every_level() {
+        let pose = "(eye: (0.0, 1.0, 5.0), target: (0.0, 0.0, 0.0), up: (0.0, 1.0, 0.0), fov_y_deg: 60.0, near: 0.1)";
+        let jobs = [
+            format!(
+                r#"(version: 1,
+                scene: Group([City((seed: 3, blocks_x: 2)), Obj("a.obj")]),
+                ground: Some((size: 100.0, y: 0.0)),
+                resolution: (320, 240),
+                camera: Fixed({pose}),
+                frames: 2,
+                lights: [
+                    Point(position: (0.0, 9.0, 0.0), range: Some(20.0)),
+                    Spot(position: (0.0, 9.0, 0.0), direction: (0.0, -1.0, 0.0), apex_deg: 40.0),
+                    Sun(elevation_deg: 35.0, azimuth_deg: 30.0),
+                ],
+                outputs: (masks: true, image_every: 2),
+                pipeline: (stencil: h, culling: chcpp, chcpp: (batch: 10), reference: (depth_error: 1e-6)),
+                pipelines: [(name: "a", pipeline: (tile: 4, chcpp: (seed: 2)))])"#
+            ),
+            format!(r#"(scene: City(()), camera: Sequence([{pose}, {pose}]))"#),
+            format!(r#"(scene: City(()), camera: Keyframes([(0.0, {pose}), (9.0, {pose})]))"#),
+        ];
+        let mut levels = std::collections::BTreeSet::new();
+        for job in &jobs {
+            parse(job).unwrap();
+            let b = job.as_bytes();
+            for open in (0..b.len()).filter(|&i| b[i] == b'(') {
+                let rest = job[open + 1..].trim_start();
+                let name: String = rest
+                    .chars()
+                    .take_while(|c| c.is_ascii_lowercase() || *c == '_')
+                    .collect();
+                if name.is_empty() || !rest[name.len()..].trim_start().starts_with(':') {
+                    continue; // a tuple, a list or a variant's value, not a struct
+                }
+                levels.insert(name.clone());
+                let typo = format!("{}zz_typo: 1, {}", &job[..=open], &job[open + 1..]);
+                let e = parse(&typo)
+                    .expect_err(&format!("zz_typo before `{name}`"))
+                    .to_string();
+                assert!(e.contains("zz_typo"), "before `{name}`: {e}");
+            }
+        }
+        // Job, City, Ground, LookAt, Point, Spot, Sun, Outputs, the pipeline,
+        // chcpp, reference, a named pipeline and its pipeline and chcpp.
+        let expected = [
+            "version",
+            "seed",
+            "size",
+            "eye",
+            "position",
+            "elevation_deg",
+            "masks",
+            "stencil",
+            "batch",
+            "depth_error",
+            "name",
+            "tile",
+            "scene",
+        ];
+        for name in expected {
+            assert!(
+                levels.contains(name),
+                "no struct starting with `{name}`: {levels:?}"
+            );
+        }
+    }
+
+    /// A byte-order mark is accepted; invalid UTF-8 is named with its line
+    /// and column (it once said "Expected opening `(`" and gave no position).
+    #[test]
+    fn byte_order_marks_and_invalid_utf8() {
+        let dir = std::env::temp_dir().join(format!("job_utf8_{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let bom = dir.join("bom.ron");
+        std::fs::write(&bom, "\u{feff}(scene: City(()), frames: 2)").unwrap();
+        assert_eq!(Job::from_file(&bom).unwrap().frame_count(), 2);
+        let bad = dir.join("latin1.ron");
+        std::fs::write(&bad, b"(\n  scene: City(()),\n  // caf\xe9\n)").unwrap();
+        let e = Job::from_file(&bad).unwrap_err().to_string();
+        assert!(e.contains("latin1.ron:3:9") && e.contains("0xe9"), "{e}");
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     /// A misspelled field inside a light variant or a camera pose is an

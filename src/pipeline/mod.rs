@@ -362,9 +362,21 @@ impl Pipeline {
             });
         }
         let start = Instant::now();
+        self.apply_edits();
+        // Refuse a frame that cannot fit before its targets are allocated.
+        let lights = self.live_lights().count() as u32;
+        let workload = crate::memory::Workload {
+            width: w,
+            height: h,
+            lights,
+            triangles: self.counts.triangles as u64,
+            objects: self.counts.objects as u64,
+            rows: 0,
+        };
+        crate::memory::estimate(&self.options, &workload)
+            .check(crate::memory::limit(&self.options))?;
         let frame = self.next_frame;
         self.next_frame = frame.saturating_add(1);
-        self.apply_edits();
         let camera = &input.camera;
         let scene: &Scene = &self.scene;
         let o = self.options;

@@ -135,6 +135,11 @@ pub struct PipelineOptions {
     /// The reference's options (depth-error bound; its `two_sided` must equal
     /// the pipeline's or be left out).
     pub reference: crate::reference::ReferenceOptions,
+    /// The most memory a frame (or a batch job) may need, by the estimate of
+    /// [`crate::memory`]: bytes, or `"8G"`. `None` (the default): three
+    /// quarters of the machine's memory. A larger estimate is an
+    /// [`crate::Error::Options`] on `max_memory` before anything is allocated.
+    pub max_memory: Option<crate::byte_size::ByteSize>,
 }
 
 impl Default for PipelineOptions {
@@ -158,6 +163,7 @@ impl Default for PipelineOptions {
             threads: 0,
             reference_every: 1,
             reference: Default::default(),
+            max_memory: None,
         }
     }
 }

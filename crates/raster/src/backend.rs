@@ -79,6 +79,7 @@ pub enum QueryCommand {
 /// Counters of a backend.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
 pub struct BackendStats {
     /// Draw commands submitted.
     pub draws: u64,

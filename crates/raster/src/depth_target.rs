@@ -142,7 +142,8 @@ impl DepthTarget {
     /// target when `with_ids`.
     ///
     /// # Errors
-    /// [`Error::InvalidSize`] when a side is 0 or above [`MAX_TARGET_SIZE`].
+    /// [`Error::InvalidSize`] when a side is 0 or above [`MAX_TARGET_SIZE`];
+    /// [`Error::OutOfMemory`] when its buffers cannot be allocated.
     pub fn new(width: u32, height: u32, tile: TileSize, with_ids: bool) -> Result<Self> {
         if width == 0 || height == 0 || width > MAX_TARGET_SIZE || height > MAX_TARGET_SIZE {
             return Err(Error::InvalidSize {
@@ -160,12 +161,22 @@ impl DepthTarget {
             tiles_y: height.div_ceil(s),
             shift,
         };
-        let n = (layout.tiles_x * layout.tiles_y) as usize;
+        let n = (layout.tiles_x * layout.tiles_y) as usize * layout.tile_pixels();
+        let size = (width, height);
         let mut t = DepthTarget {
             vp: Viewport::new(width, height),
             layout,
-            depth: vec![BACKGROUND; n * layout.tile_pixels()],
-            ids: with_ids.then(|| vec![u64::MAX; n * layout.tile_pixels()]),
+            depth: crate::error::try_filled(n, BACKGROUND, "depth", size)?,
+            ids: if with_ids {
+                Some(crate::error::try_filled(
+                    n,
+                    u64::MAX,
+                    "primitive ids",
+                    size,
+                )?)
+            } else {
+                None
+            },
             tiles: Vec::new(),
             stats: RasterStats::default(),
             threads: 0,

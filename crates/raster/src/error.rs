@@ -52,7 +52,69 @@ pub enum Error {
         /// What failed.
         message: String,
     },
+    /// A target's buffer could not be allocated. Use a smaller target, or
+    /// free memory.
+    #[error("out of memory: {what} of {width}x{height} needs {bytes} bytes")]
+    OutOfMemory {
+        /// The buffer (`depth`, `primitive ids`).
+        what: &'static str,
+        /// Target width.
+        width: u32,
+        /// Target height.
+        height: u32,
+        /// The allocation that failed.
+        bytes: u64,
+    },
+}
+
+/// A vector of `n` copies of `value`, or [`Error::OutOfMemory`] when the
+/// allocation fails (instead of aborting the process): targets are sized by
+/// the user's viewport.
+pub(crate) fn try_filled<T: Clone>(
+    n: usize,
+    value: T,
+    what: &'static str,
+    (width, height): (u32, u32),
+) -> Result<Vec<T>> {
+    let mut v = Vec::new();
+    v.try_reserve_exact(n).map_err(|_| Error::OutOfMemory {
+        what,
+        width,
+        height,
+        bytes: (n as u64).saturating_mul(std::mem::size_of::<T>() as u64),
+    })?;
+    v.resize(n, value);
+    Ok(v)
 }
 
 /// Result with the crate's [`Error`].
 pub type Result<T> = std::result::Result<T, Error>;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// An allocation that cannot succeed is an error naming the buffer and
+    /// its size, not an abort.
+    #[test]
+    fn a_failed_allocation_is_an_error() {
+        let e = try_filled(usize::MAX / 4, 0u64, "depth", (16384, 16384)).unwrap_err();
+        assert!(
+            matches!(
+                e,
+                Error::OutOfMemory {
+                    what: "depth",
+                    width: 16384,
+                    ..
+                }
+            ),
+            "{e}"
+        );
+        assert!(
+            e.to_string()
+                .starts_with("out of memory: depth of 16384x16384"),
+            "{e}"
+        );
+        assert_eq!(try_filled(3, 7u8, "depth", (1, 3)).unwrap(), [7, 7, 7]);
+    }
+}

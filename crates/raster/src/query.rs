@@ -42,6 +42,7 @@ pub enum QueryMode {
 /// Options of a query.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
 pub struct QueryOptions {
     /// Coverage of the query geometry (outer-conservative at nearest depth for casters).
     pub coverage: Coverage,

@@ -4,6 +4,7 @@
 /// Counters of one pass of drawing and querying on a [`crate::DepthTarget`].
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
 pub struct RasterStats {
     /// Triangles submitted (draws and queries).
     pub triangles_in: u64,

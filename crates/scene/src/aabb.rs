@@ -7,6 +7,7 @@ use glam::{DMat4, DVec3, Vec3};
 /// f32, like everything handed to the rasterizer; boxes computed from f64 data
 /// are rounded outward so they stay conservative.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Aabb {
     /// Smallest corner.
     pub min: Vec3,

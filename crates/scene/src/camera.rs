@@ -90,8 +90,14 @@ impl Camera {
             return Err(cam_err("target", "must be finite"));
         }
         let forward = target - eye;
-        if forward.length_squared() == 0.0 || !forward.is_finite() {
+        if forward.length_squared() == 0.0 {
             return Err(cam_err("target", "must differ from the eye"));
+        }
+        if !forward.length_squared().is_finite() {
+            return Err(cam_err(
+                "eye",
+                "is too far from the target (their distance overflows an f64): bring them nearer each other",
+            ));
         }
         let f = forward.normalize();
         let side = f.cross(up);
@@ -280,6 +286,25 @@ mod tests {
             0.5,
         )
         .unwrap()
+    }
+
+    /// An eye so far away that the view distance overflows is blamed, not
+    /// `up` (whose cross product only then turned non-finite).
+    #[test]
+    fn an_eye_at_1e300_names_the_eye() {
+        let e = Camera::look_at(
+            DVec3::new(1e300, 1e300, 0.0),
+            DVec3::ZERO,
+            DVec3::Y,
+            1.0,
+            1.0,
+            0.1,
+        )
+        .unwrap_err();
+        assert!(
+            matches!(e, Error::InvalidCamera { field: "eye", .. }),
+            "{e}"
+        );
     }
 
     /// `Rays::row` spans the same rays as `Rays::direction`, pixel by pixel.

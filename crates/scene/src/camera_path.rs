@@ -5,6 +5,7 @@ use glam::{DQuat, DVec3};
 
 /// A camera pose as a function of the frame number.
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
 pub enum CameraPath {
     /// The same pose every frame.
     Fixed(LookAt),

@@ -5,6 +5,7 @@ use glam::DVec3;
 
 /// A light source. Directions are world space; positions are f64.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
 pub enum Light {
     /// Omnidirectional point light; `range` (> 0) limits what it reaches.
     Point {

@@ -54,6 +54,7 @@ impl From<ObjectId> for u32 {
 
 /// What an object takes part in; every flag on by default.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct ObjectFlags {
     /// It has shadow volumes and blocks light: it can be a potential shadow
     /// caster, light views draw it as an occluder, the reference's shadow

@@ -3,6 +3,7 @@
 
 use crate::error::{bad, to_py};
 use pyo3::prelude::*;
+use shadowcull::byte_size::ByteSize;
 use shadowcull::config::{default_job, Job};
 use shadowcull::run::RunOptions;
 use shadowcull::shard::Shard;
@@ -11,7 +12,8 @@ use std::path::PathBuf;
 /// Runs the job at `path` (the bundled default job when None) into `out`;
 /// returns `summary.json`'s content.
 #[pyfunction]
-#[pyo3(signature = (path, out, frames=None, shard=None, warmup=None, keyframe=None))]
+#[pyo3(signature = (path, out, frames=None, shard=None, warmup=None, keyframe=None, max_memory=None))]
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn run_job(
     py: Python<'_>,
     path: Option<PathBuf>,
@@ -20,7 +22,14 @@ pub(crate) fn run_job(
     shard: Option<(u32, u32)>,
     warmup: Option<u32>,
     keyframe: Option<u32>,
+    max_memory: Option<String>,
 ) -> PyResult<String> {
+    let max_memory = max_memory
+        .map(|m| {
+            m.parse::<ByteSize>()
+                .map_err(|e| bad(format!("max_memory: {e}")))
+        })
+        .transpose()?;
     let shard = shard
         .map(|(index, count)| {
             format!("{index}/{count}")
@@ -37,10 +46,13 @@ pub(crate) fn run_job(
     };
     let summary = py
         .detach(|| {
-            let job = match &path {
+            let mut job = match &path {
                 Some(p) => Job::from_file(p)?,
                 None => default_job(),
             };
+            if let Some(size) = max_memory {
+                job.pipeline.max_memory = Some(size);
+            }
             shadowcull::run::run_job(&job, path.as_deref(), &options, &mut |_, _| {})
         })
         .map_err(to_py)?;

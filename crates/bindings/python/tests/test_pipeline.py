@@ -202,6 +202,10 @@ def test_options_by_name():
         (lambda: sc.Pipeline().frame(64, 64), "camera"),
         (lambda: sc.Pipeline().frame(0, 64, camera=CAMERA), "viewport"),
         (lambda: sc.run_job(None, out="/tmp/x", shard=(2, 2)), "shard"),
+        (lambda: sc.run_job(None, out="/tmp/x", frames=0), "frames: must be at least 1"),
+        (lambda: sc.run_job(None, out="/tmp/x", max_memory="1M"), "max_memory"),
+        (lambda: sc.Pipeline(max_memory="lots"), "not a size"),
+        (lambda: box_scene(max_memory="1M")[0].frame(64, 64, camera=CAMERA), "max_memory"),
     ],
 )
 def test_bad_input_is_a_value_error(call, match):

@@ -53,7 +53,7 @@ use std::path::Path;
 pub fn load_gltf(path: &Path) -> Result<SceneGraph> {
     let bytes = super::read_file(path, None)?;
     let dir = path.parent().unwrap_or(Path::new("")).to_path_buf();
-    let mut resolve = |uri: &str| std::fs::read(dir.join(uri));
+    let mut resolve = |uri: &str| super::read_input(&dir.join(uri));
     load_gltf_slice(&bytes, path, &mut resolve)
 }
 

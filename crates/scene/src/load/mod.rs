@@ -16,6 +16,7 @@ mod triangulate;
 
 use crate::{CameraPath, Error, Light, LookAt, Result, SceneGraph};
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
 
 /// What a loader returns: the graph plus the named cameras, camera paths and
 /// lights the source defines (empty for plain meshes).
@@ -76,9 +77,102 @@ pub fn recentre(min: glam::DVec3, max: glam::DVec3) -> Option<glam::DVec3> {
     (centre.abs().max_element() > RECENTRE_RATIO * radius).then_some(centre)
 }
 
-/// Reads a whole file, naming it in the error.
+/// The default largest input file the loaders read (4 GiB): generous for
+/// scenes, finite for `/dev/zero` or a runaway generator.
+pub const DEFAULT_MAX_INPUT_BYTES: u64 = 4 << 30;
+
+static MAX_INPUT_BYTES: AtomicU64 = AtomicU64::new(DEFAULT_MAX_INPUT_BYTES);
+
+/// Sets, for the whole process, the largest file (scene, glTF buffer, job)
+/// that [`read_input`] and the loaders read; larger files are an error
+/// before anything is allocated. The CLI's `--max-input-size` sets it.
+pub fn set_max_input_bytes(bytes: u64) {
+    MAX_INPUT_BYTES.store(bytes, Ordering::Relaxed);
+}
+
+/// The largest input file read (see [`set_max_input_bytes`]).
+pub fn max_input_bytes() -> u64 {
+    MAX_INPUT_BYTES.load(Ordering::Relaxed)
+}
+
+/// Reads a whole input file: only a regular file (a FIFO would block
+/// forever, a device never end), of at most [`max_input_bytes`].
+///
+/// # Errors
+/// The I/O error; `InvalidInput` for anything but a regular file (naming its
+/// kind), `FileTooLarge` past the limit (naming both sizes).
+pub fn read_input(path: &Path) -> std::io::Result<Vec<u8>> {
+    read_capped(path, max_input_bytes())
+}
+
+/// [`read_input`] with the limit `cap`.
+pub(crate) fn read_capped(path: &Path, cap: u64) -> std::io::Result<Vec<u8>> {
+    use std::io::{Error as IoError, ErrorKind, Read};
+    // `metadata` follows symbolic links and opens nothing: a FIFO is refused
+    // before an `open` that would wait for a writer.
+    let meta = std::fs::metadata(path)?;
+    if !meta.is_file() {
+        return Err(IoError::new(
+            ErrorKind::InvalidInput,
+            format!(
+                "not a regular file ({}): refusing to read it",
+                file_kind(&meta)
+            ),
+        ));
+    }
+    let too_large = |len: u64| {
+        IoError::new(
+            ErrorKind::FileTooLarge,
+            format!(
+                "{len} bytes, more than the input size limit of {cap} bytes (raise it: --max-input-size, or scene::load::set_max_input_bytes)"
+            ),
+        )
+    };
+    if meta.len() > cap {
+        return Err(too_large(meta.len()));
+    }
+    let mut bytes = Vec::new();
+    bytes
+        .try_reserve_exact(meta.len() as usize)
+        .map_err(|e| IoError::new(ErrorKind::OutOfMemory, e.to_string()))?;
+    // The file may grow while it is read: never past the limit.
+    std::fs::File::open(path)?
+        .take(cap.saturating_add(1))
+        .read_to_end(&mut bytes)?;
+    if bytes.len() as u64 > cap {
+        return Err(too_large(bytes.len() as u64));
+    }
+    Ok(bytes)
+}
+
+/// What a non-regular file is, for the error.
+fn file_kind(meta: &std::fs::Metadata) -> &'static str {
+    let t = meta.file_type();
+    if t.is_dir() {
+        return "a directory";
+    }
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::FileTypeExt;
+        if t.is_fifo() {
+            return "a FIFO";
+        }
+        if t.is_char_device() {
+            return "a character device";
+        }
+        if t.is_block_device() {
+            return "a block device";
+        }
+        if t.is_socket() {
+            return "a socket";
+        }
+    }
+    "not a file"
+}
+
+/// Reads a whole input file ([`read_input`]), naming it in the error.
 pub(crate) fn read_file(path: &Path, referenced_from: Option<&Path>) -> Result<Vec<u8>> {
-    std::fs::read(path).map_err(|source| Error::Io {
+    read_input(path).map_err(|source| Error::Io {
         path: path.to_path_buf(),
         referenced_from: referenced_from.map(Path::to_path_buf),
         source,
@@ -138,6 +232,62 @@ fn feature_disabled(path: &Path, format: &str, feature: &str) -> Error {
 
 #[cfg(test)]
 mod tests {
+    use std::path::PathBuf;
+
+    fn scratch(name: &str) -> PathBuf {
+        let d = std::env::temp_dir().join(format!("scene_load_{name}_{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&d);
+        std::fs::create_dir_all(&d).unwrap();
+        d
+    }
+
+    /// A FIFO, a device (through a symbolic link with a scene's extension)
+    /// and a directory are refused at once: the FIFO once blocked forever,
+    /// `/dev/zero` grew to 8.4 GB.
+    #[cfg(unix)]
+    #[test]
+    fn only_regular_files_are_read() {
+        let d = scratch("special");
+        let zero = d.join("zero.obj");
+        std::os::unix::fs::symlink("/dev/zero", &zero).unwrap();
+        let e = super::load_path(&zero).unwrap_err().to_string();
+        assert!(
+            e.contains("zero.obj") && e.contains("a character device"),
+            "{e}"
+        );
+        let dir = d.join("dir.glb");
+        std::fs::create_dir(&dir).unwrap();
+        let e = super::read_input(&dir).unwrap_err();
+        assert_eq!(e.kind(), std::io::ErrorKind::InvalidInput);
+        assert!(e.to_string().contains("a directory"), "{e}");
+        let fifo = d.join("pipe.obj");
+        let made = std::process::Command::new("mkfifo").arg(&fifo).status();
+        if made.map(|s| s.success()).unwrap_or(false) {
+            let e = super::load_path(&fifo).unwrap_err().to_string();
+            assert!(e.contains("pipe.obj") && e.contains("a FIFO"), "{e}");
+        } else {
+            eprintln!("note: no mkfifo here; the FIFO case is skipped");
+        }
+        std::fs::remove_dir_all(&d).unwrap();
+    }
+
+    /// A file past the limit is refused before it is read, naming both sizes.
+    #[test]
+    fn files_past_the_size_limit_are_refused() {
+        let d = scratch("cap");
+        let f = d.join("big.obj");
+        std::fs::write(&f, vec![b'#'; 1000]).unwrap();
+        assert_eq!(super::read_capped(&f, 1000).unwrap().len(), 1000);
+        let e = super::read_capped(&f, 999).unwrap_err();
+        assert_eq!(e.kind(), std::io::ErrorKind::FileTooLarge);
+        assert!(
+            e.to_string().contains("1000 bytes") && e.to_string().contains("999"),
+            "{e}"
+        );
+        assert_eq!(super::max_input_bytes(), super::DEFAULT_MAX_INPUT_BYTES);
+        std::fs::remove_dir_all(&d).unwrap();
+    }
+
     /// `load_path` on a format whose feature is off names the feature.
     #[cfg(not(all(feature = "gltf", feature = "obj")))]
     fn assert_disabled(file: &str, feature: &str) {

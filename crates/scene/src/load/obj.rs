@@ -101,6 +101,55 @@ pub fn load_obj_dir(dir: &Path) -> Result<SceneGraph> {
     Ok(graph)
 }
 
+/// True when some line starts with a statement of the OBJ format (any
+/// geometry, grouping, material or free-form keyword); comments and blank
+/// lines do not count.
+fn has_obj_statement(text: &str) -> bool {
+    const KEYWORDS: &[&str] = &[
+        "v",
+        "vt",
+        "vn",
+        "vp",
+        "f",
+        "fo",
+        "l",
+        "p",
+        "o",
+        "g",
+        "s",
+        "mg",
+        "usemtl",
+        "mtllib",
+        "cstype",
+        "deg",
+        "bmat",
+        "step",
+        "curv",
+        "curv2",
+        "surf",
+        "parm",
+        "trim",
+        "hole",
+        "scrv",
+        "sp",
+        "end",
+        "con",
+        "lod",
+        "shadow_obj",
+        "trace_obj",
+        "bevel",
+        "c_interp",
+        "d_interp",
+        "usemap",
+        "maplib",
+        "ctech",
+        "stech",
+    ];
+    text.lines()
+        .filter_map(|l| l.split_whitespace().next())
+        .any(|k| KEYWORDS.contains(&k))
+}
+
 /// Loads OBJ text from memory (for fuzzing and tests). `file` names the
 /// source in errors and warnings and gives the name of the object that holds
 /// faces before any `o`/`g` (its file stem). No `.mtl` is read.
@@ -121,6 +170,12 @@ pub fn load_obj_bytes(bytes: &[u8], file: &Path) -> Result<SceneGraph> {
         .map(|s| s.to_string_lossy().trim().to_string())
         .filter(|s| !s.is_empty())
         .unwrap_or_else(|| "obj".to_string());
+    if !has_obj_statement(&text) {
+        graph.warn(format!(
+            "{shown}: no OBJ statement (`v`, `f`, `o`, `g`, ...) in {} lines: is this an OBJ file?",
+            text.lines().count()
+        ));
+    }
     let clean = sanitize(&text, file, &stem)?;
     clean.warn(&mut graph, file);
     let models = parse_with_tobj(&clean.text, file)?;

@@ -78,6 +78,11 @@ pub const BIRD_DEGREES_PER_FRAME: f64 = 1.0;
 const TREE_SCALE_MAX: f64 = 1.2;
 /// Distance of lamp posts from the block edge, metres.
 const LAMP_INSET: f64 = 0.6;
+/// Triangles of a block's ground tile.
+const TILE_TRIANGLES_MAX: u64 = 2;
+/// The most triangles a building has: three tiers of sides and rings and a
+/// roof (checked against generated cities in the tests).
+const BUILDING_TRIANGLES_MAX: u64 = 64;
 
 /// Parameters of [`city`]. Lengths in metres; every field has a default, so a
 /// RON/JSON job may name only what it changes (unknown fields are an error).
@@ -258,6 +263,30 @@ impl CityParams {
             ));
         }
         Ok(())
+    }
+
+    /// Upper bounds `(objects, triangles)` of the city these parameters
+    /// generate, computed without generating it (so that a run can refuse a
+    /// city that would not fit in memory): per block the ground tile, a
+    /// building on every lot with the most triangles a building shape has
+    /// (three tiers and a roof), every tree and every lamp post.
+    ///
+    /// # Errors
+    /// As [`CityParams::validate`], and a tree shape that cannot be built.
+    pub fn bounds(&self) -> Result<(u64, u64)> {
+        self.validate()?;
+        let tree = tree_mesh(self.tree_segments, self.tree_rings)?
+            .triangles()
+            .len() as u64;
+        let lamp = lamp_mesh()?.triangles().len() as u64;
+        let lots = u64::from(self.lots_per_side).pow(2);
+        let trees = u64::from(self.trees_per_block);
+        let lamps = u64::from(self.lamps_per_block);
+        let blocks = u64::from(self.blocks_x) * u64::from(self.blocks_z);
+        let objects = blocks * (1 + lots + trees + lamps);
+        let per_block =
+            TILE_TRIANGLES_MAX + lots * BUILDING_TRIANGLES_MAX + trees * tree + lamps * lamp;
+        Ok((objects, blocks.saturating_mul(per_block)))
     }
 
     fn pitch(&self) -> f64 {
@@ -708,6 +737,58 @@ mod tests {
             }
         );
         assert!(serde_json::from_str::<CityParams>(r#"{"blocks": 3}"#).is_err());
+    }
+
+    /// [`CityParams::bounds`] holds for generated cities whatever the shape mix.
+    #[test]
+    fn bounds_cover_generated_cities() {
+        for (tower, structure, hip) in [
+            (0.0, 0.0, 0.0),
+            (1.0, 0.0, 0.0),
+            (0.0, 1.0, 0.0),
+            (0.0, 0.0, 1.0),
+            (0.3, 0.3, 0.3),
+        ] {
+            let p = CityParams {
+                blocks_x: 3,
+                blocks_z: 2,
+                building_density: 1.0,
+                tower_fraction: tower,
+                roof_structure_fraction: structure,
+                hip_roof_fraction: hip,
+                ..CityParams::default()
+            };
+            let (objects, triangles) = p.bounds().unwrap();
+            let scene = crate::Scene::new(city(&p).unwrap().graph).unwrap();
+            let c = scene.counts();
+            assert!(
+                c.objects as u64 <= objects && c.triangles as u64 <= triangles,
+                "{c:?} vs {objects}, {triangles}"
+            );
+            for o in scene.objects() {
+                let name = scene.graph().meshes()[o.mesh.0 as usize].name().to_string();
+                if name.starts_with("building") {
+                    let t = scene.graph().meshes()[o.mesh.0 as usize].triangles().len() as u64;
+                    assert!(t <= BUILDING_TRIANGLES_MAX, "{name}: {t}");
+                }
+            }
+        }
+        // A city like the probe's (10.4 M objects, about 1.3e12 triangles) is
+        // bounded without being generated.
+        let huge = CityParams {
+            blocks_x: 1024,
+            blocks_z: 512,
+            lots_per_side: 4,
+            trees_per_block: 8,
+            tree_segments: 256,
+            tree_rings: 256,
+            ..CityParams::default()
+        };
+        let (objects, triangles) = huge.bounds().unwrap();
+        assert!(
+            objects > 10_000_000 && triangles > 100_000_000_000,
+            "{objects}, {triangles}"
+        );
     }
 
     #[test]

@@ -452,16 +452,19 @@ def run_job(
     shard: Optional[Tuple[int, int]] = None,
     warmup: Optional[int] = None,
     keyframe: Optional[int] = None,
+    max_memory: "int | str | None" = None,
 ) -> Dict[str, Any]:
     """Runs a RON job (the bundled default when ``path`` is None) into the
     directory ``out``, as ``shadowcull run`` does; returns ``summary.json``.
 
     ``frames`` cuts the run to its first frames; ``shard=(i, n)`` runs the
     i-th of n blocks of frames (after ``warmup`` frames that prime culling
-    and are not written); ``keyframe`` resets the histories every k frames.
+    and are not written); ``keyframe`` resets the histories every k frames;
+    ``max_memory`` (bytes, or ``"8G"``) overrides the job's memory limit.
     """
     p = None if path is None else os.fspath(path)
-    return json.loads(_native.run_job(p, os.fspath(out), frames, shard, warmup, keyframe))
+    limit = None if max_memory is None else str(max_memory)
+    return json.loads(_native.run_job(p, os.fspath(out), frames, shard, warmup, keyframe, limit))
 
 
 def merge(out: "os.PathLike[str] | str", dirs: Iterable["os.PathLike[str] | str"]) -> Dict[str, Any]:
