@@ -38,7 +38,7 @@ impl fmt::Display for ByteSize {
         let n = self.0;
         match [(30, "G"), (20, "M"), (10, "K")]
             .into_iter()
-            .find(|&(s, _)| n >= 1 << s && n % (1 << s) == 0)
+            .find(|&(s, _)| n >= 1 << s && n.is_multiple_of(1 << s))
         {
             Some((s, unit)) => write!(f, "{}{unit}", n >> s),
             None => write!(f, "{n}"),

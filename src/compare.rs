@@ -236,10 +236,10 @@ pub fn compare_job(
     let capped = job
         .frame_count()
         .min(options.max_frames.unwrap_or(u32::MAX));
-    let variants = job.pipelines.len().max(1) as u32;
-    crate::run::check_job_memory(job, capped, variants, None)?;
+    let count = variants(job).len() as u32;
+    crate::run::check_job_memory(job, capped, count, None)?;
     let (loaded, scene, path) = load_scene_for_job(job, job_file)?;
-    crate::run::check_job_memory(job, capped, variants, Some(&scene.counts()))?;
+    crate::run::check_job_memory(job, capped, count, Some(&scene.counts()))?;
     let lights = resolve_lights(job, &loaded, &scene.bounds(), file)?;
     let frames = job
         .frame_count()

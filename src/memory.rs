@@ -96,7 +96,7 @@ pub fn estimate(options: &PipelineOptions, w: &Workload) -> MemoryEstimate {
         let map = u64::from(options.map_size).pow(2);
         parts.push(("map_size", m(m(lights, map), PER_MAP_TEXEL)));
     }
-    parts.sort_by(|a, b| b.1.cmp(&a.1));
+    parts.sort_by_key(|p| std::cmp::Reverse(p.1));
     MemoryEstimate {
         total: parts.iter().fold(0u64, |t, p| t.saturating_add(p.1)),
         parts,

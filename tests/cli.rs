@@ -434,6 +434,17 @@ fn run_err<S: AsRef<std::ffi::OsStr> + std::fmt::Debug>(args: &[S]) -> String {
     err
 }
 
+/// Runs `shadowcull` with `args`, expecting exit status 1 and one `error:`
+/// line on stderr (after `run`'s progress line); returns that line.
+fn fails<S: AsRef<std::ffi::OsStr> + std::fmt::Debug>(args: &[S]) -> String {
+    let o = bin().args(args).output().unwrap();
+    let err = String::from_utf8_lossy(&o.stderr).into_owned();
+    assert_eq!(o.status.code(), Some(1), "{args:?}: {err}");
+    let errors: Vec<&str> = err.lines().filter(|l| l.starts_with("error: ")).collect();
+    assert_eq!(errors.len(), 1, "one error line: {err}");
+    errors[0].to_string()
+}
+
 /// `stats.csv` as (header, rows of fields).
 fn stats(dir: &Path) -> (Vec<String>, Vec<Vec<String>>) {
     let text = std::fs::read_to_string(dir.join("stats.csv")).unwrap();
@@ -749,7 +760,7 @@ fn zero_frames_is_an_error_everywhere() {
     let out = tmp_dir("zero_frames");
     let job = out.join("zero.ron");
     std::fs::write(&job, "(scene: City((blocks_x: 1, blocks_z: 1)), frames: 0)").unwrap();
-    let e = run_err(&[
+    let e = fails(&[
         OsStr::new("run"),
         job.as_os_str(),
         OsStr::new("--out"),
@@ -757,7 +768,7 @@ fn zero_frames_is_an_error_everywhere() {
     ]);
     assert!(e.contains("frames"), "{e}");
     for cmd in ["run", "compare"] {
-        let e = run_err(&[
+        let e = fails(&[
             OsStr::new(cmd),
             OsStr::new("data/jobs/default_city.ron"),
             OsStr::new("--out"),
@@ -777,16 +788,16 @@ fn inputs_are_regular_files_within_the_size_limit() {
     let out = tmp_dir("input_limits");
     let job = Path::new("data/jobs/default_city.ron");
     let len = std::fs::metadata(job).unwrap().len();
-    let e = run_err(&[
+    let e = fails(&[
         OsStr::new("run"),
         job.as_os_str(),
         OsStr::new("--out"),
         out.join("a").as_os_str(),
         OsStr::new("--max-input-size"),
-        OsStr::new("1K"),
+        OsStr::new("100"),
     ]);
     assert!(
-        e.contains(&format!("{len} bytes")) && e.contains("1024"),
+        e.contains(&format!("{len} bytes")) && e.contains("limit of 100 bytes"),
         "{e}"
     );
     let fifo = out.join("job.ron");
@@ -795,7 +806,7 @@ fn inputs_are_regular_files_within_the_size_limit() {
         .status()
         .is_ok_and(|s| s.success())
     {
-        let e = run_err(&[
+        let e = fails(&[
             OsStr::new("run"),
             fifo.as_os_str(),
             OsStr::new("--out"),
@@ -808,7 +819,7 @@ fn inputs_are_regular_files_within_the_size_limit() {
             .status()
             .unwrap()
             .success());
-        let e = run_err(&[OsStr::new("inspect"), scene.as_os_str()]);
+        let e = fails(&[OsStr::new("inspect"), scene.as_os_str()]);
         assert!(e.contains("scene.obj") && e.contains("a FIFO"), "{e}");
     } else {
         eprintln!("note: no mkfifo here; the FIFO case is skipped");
@@ -837,7 +848,7 @@ fn a_scene_without_geometry_is_named() {
     ] {
         let job = out.join("job.ron");
         std::fs::write(&job, format!("(scene: {scene})")).unwrap();
-        let e = run_err(&[
+        let e = fails(&[
             OsStr::new("run"),
             job.as_os_str(),
             OsStr::new("--out"),
@@ -867,7 +878,7 @@ fn jobs_that_cannot_fit_are_refused_up_front() {
         ),
     ] {
         std::fs::write(&job, text).unwrap();
-        let e = run_err(&[OsStr::new("run"), job.as_os_str(), OsStr::new("--out"), out.join("o").as_os_str()]);
+        let e = fails(&[OsStr::new("run"), job.as_os_str(), OsStr::new("--out"), out.join("o").as_os_str()]);
         assert!(e.contains("max_memory: ") && e.contains(field), "{text}: {e}");
     }
     std::fs::write(
@@ -881,7 +892,7 @@ fn jobs_that_cannot_fit_are_refused_up_front() {
         OsStr::new("--out"),
         out.join("ok").as_os_str(),
     ]);
-    let e = run_err(&[
+    let e = fails(&[
         OsStr::new("run"),
         job.as_os_str(),
         OsStr::new("--out"),
