@@ -55,12 +55,13 @@ pub struct Workload {
 }
 
 /// An estimate: the total and its parts, each named by the field that drives it.
-#[derive(Clone, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct MemoryEstimate {
     /// Bytes in all.
     pub total: u64,
-    /// `(field, bytes)`, largest first.
-    pub parts: Vec<(&'static str, u64)>,
+    /// `(field, bytes)`, largest first; parts that do not apply are 0.
+    /// (An array: a frame checks its estimate without allocating.)
+    pub parts: [(&'static str, u64); 6],
 }
 
 /// Estimates the memory of running `options` on `w`.
@@ -68,9 +69,18 @@ pub fn estimate(options: &PipelineOptions, w: &Workload) -> MemoryEstimate {
     let pixels = u64::from(w.width) * u64::from(w.height);
     let lights = u64::from(w.lights);
     let texels = u64::from(options.light_resolution).pow(2);
-    let reference = options.reference_every > 0;
     let m = |a: u64, b: u64| a.saturating_mul(b);
-    let mut parts = vec![
+    let reference = if options.reference_every > 0 {
+        m(pixels, PER_PIXEL_REFERENCE).saturating_add(m(w.triangles, PER_TRIANGLE_REFERENCE))
+    } else {
+        0
+    };
+    let map = if options.stencil == StencilBackend::Hybrid {
+        m(m(lights, u64::from(options.map_size).pow(2)), PER_MAP_TEXEL)
+    } else {
+        0
+    };
+    let mut parts = [
         (
             "resolution",
             m(pixels, PER_PIXEL + m(lights, PER_PIXEL_LIGHT)),
@@ -85,18 +95,10 @@ pub fn estimate(options: &PipelineOptions, w: &Workload) -> MemoryEstimate {
             "frames",
             m(w.rows, std::mem::size_of::<crate::stats::FrameRow>() as u64),
         ),
+        ("reference_every", reference),
+        ("map_size", map),
     ];
-    if reference {
-        parts.push((
-            "reference_every",
-            m(pixels, PER_PIXEL_REFERENCE).saturating_add(m(w.triangles, PER_TRIANGLE_REFERENCE)),
-        ));
-    }
-    if options.stencil == StencilBackend::Hybrid {
-        let map = u64::from(options.map_size).pow(2);
-        parts.push(("map_size", m(m(lights, map), PER_MAP_TEXEL)));
-    }
-    parts.sort_by_key(|p| std::cmp::Reverse(p.1));
+    parts.sort_unstable_by_key(|p| std::cmp::Reverse(p.1));
     MemoryEstimate {
         total: parts.iter().fold(0u64, |t, p| t.saturating_add(p.1)),
         parts,
