@@ -61,6 +61,16 @@ pub enum Error {
         /// The lock file the other run holds.
         lock: PathBuf,
     },
+    /// A buffer sized by the viewport or the scene could not be allocated.
+    /// Fix: a smaller resolution or scene, or lower `max_memory` so that the
+    /// run is refused up front.
+    #[error("out of memory: {what} need {bytes} bytes")]
+    OutOfMemory {
+        /// The buffer.
+        what: String,
+        /// The allocation that failed.
+        bytes: u64,
+    },
     /// Reading or writing a file failed.
     #[error("{}: {source}", path.display())]
     Io {

@@ -51,6 +51,7 @@
 //! 1e-3 and 1e3 and at coordinates of 1e5 and 1e6.
 
 use crate::mask::{is_unlit, ClassCounts, Mask, PixelClass};
+use crate::{Error, Result};
 use glam::{DVec3, Vec3A};
 use obvhs::{bvh2::Bvh2, ray::Ray};
 use rayon::prelude::*;
@@ -359,7 +360,8 @@ pub struct ReferenceMask {
 ///
 /// # Panics
 /// If `surface` has a size other than `width × height`, or names a primitive
-/// that is not in the scene.
+/// that is not in the scene; when its buffers cannot be allocated (use
+/// [`try_reference_mask`] where the viewport comes from a user).
 pub fn reference_mask(
     bvh: &TriangleBvh,
     camera: &Camera,
@@ -369,6 +371,40 @@ pub fn reference_mask(
     options: &ReferenceOptions,
     surface: Option<EyeSurface<'_>>,
 ) -> ReferenceMask {
+    try_reference_mask(bvh, camera, light, width, height, options, surface)
+        .unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// A vector of `n` copies of `value`, or [`Error::OutOfMemory`] naming `what`.
+fn try_filled<T: Clone>(n: usize, value: T, what: &str) -> Result<Vec<T>> {
+    let mut v = Vec::new();
+    v.try_reserve_exact(n).map_err(|_| Error::OutOfMemory {
+        what: what.to_string(),
+        bytes: (n as u64).saturating_mul(std::mem::size_of::<T>() as u64),
+    })?;
+    v.resize(n, value);
+    Ok(v)
+}
+
+/// [`reference_mask`], with an allocation failure of its per-pixel buffers
+/// an [`Error::OutOfMemory`] instead of an abort.
+///
+/// # Errors
+/// [`Error::OutOfMemory`] naming the buffer and its size.
+///
+/// # Panics
+/// If `surface` has a size other than `width × height`, or names a primitive
+/// that is not in the scene.
+#[allow(clippy::too_many_arguments)]
+pub fn try_reference_mask(
+    bvh: &TriangleBvh,
+    camera: &Camera,
+    light: &Light,
+    width: u32,
+    height: u32,
+    options: &ReferenceOptions,
+    surface: Option<EyeSurface<'_>>,
+) -> Result<ReferenceMask> {
     let n = width as usize * height as usize;
     if let Some(s) = &surface {
         assert_eq!(
@@ -406,8 +442,21 @@ pub fn reference_mask(
         Light::Directional { direction } => Light::Directional { direction },
     };
     let rays = camera.rays(width, height);
-    let mut out: Vec<(PixelClass, bool, Option<PrimitiveId>, f32)> =
-        vec![(PixelClass::Background, false, None, 0.0); n];
+    // Every per-pixel buffer first, so that running out of memory is an
+    // error before any work.
+    let mut out: Vec<(PixelClass, bool, Option<PrimitiveId>, f32)> = try_filled(
+        n,
+        (PixelClass::Background, false, None, 0.0),
+        "the reference's pixels",
+    )?;
+    let mut mask = Mask {
+        width,
+        height,
+        pixels: try_filled(n, PixelClass::Background, "the reference mask")?,
+    };
+    let mut ambiguous = try_filled(n, false, "the reference's ambiguity flags")?;
+    let mut primitive = try_filled(n, None, "the reference's primitive ids")?;
+    let mut lambert = try_filled(n, 0.0, "the reference's cosines")?;
     out.par_chunks_mut(width.max(1) as usize)
         .enumerate()
         .for_each(|(y, row)| {
@@ -486,10 +535,6 @@ pub fn reference_mask(
                 );
             }
         });
-    let mut mask = Mask::filled(width, height, PixelClass::Background);
-    let mut ambiguous = vec![false; n];
-    let mut primitive = vec![None; n];
-    let mut lambert = vec![0.0; n];
     for (i, (c, a, p, l)) in out.into_iter().enumerate() {
         mask.pixels[i] = c;
         ambiguous[i] = a;
@@ -500,13 +545,13 @@ pub fn reference_mask(
         classes: mask.counts(),
         ambiguous: ambiguous.iter().filter(|&&a| a).count() as u64,
     };
-    ReferenceMask {
+    Ok(ReferenceMask {
         mask,
         ambiguous,
         primitive,
         lambert,
         counts,
-    }
+    })
 }
 
 /// Whether the eye ray `eye + t·dir` crosses the boundary of the visible
@@ -611,5 +656,21 @@ fn classify(
         PixelClass::Shadow
     } else {
         PixelClass::Lit
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    /// The reference's buffers are allocated fallibly: a failed allocation
+    /// is an error naming the buffer, not an abort.
+    #[test]
+    fn a_failed_allocation_is_an_error() {
+        let e = super::try_filled(usize::MAX / 4, 0u64, "the reference's pixels").unwrap_err();
+        assert!(
+            e.to_string()
+                .starts_with("out of memory: the reference's pixels need"),
+            "{e}"
+        );
+        assert_eq!(super::try_filled(2, 1u8, "x").unwrap(), [1, 1]);
     }
 }

@@ -207,8 +207,9 @@ impl Job {
             .from_str(text)
             .map_err(|e| Error::Job {
                 file: file.to_path_buf(),
-                location: format!("{}:{}", e.position.line, e.position.col),
-                message: e.code.to_string(),
+                location: format!("{}:{}", e.span.start.line, e.span.start.col),
+                message: explain(text, e.span.start.line, e.span.start.col)
+                    .unwrap_or_else(|| e.code.to_string()),
             })?;
         job.validate(file)?;
         Ok(job)
@@ -284,6 +285,52 @@ pub fn default_job() -> Job {
         },
         pipelines: Vec::new(),
     }
+}
+
+/// A clearer message than the parser's where it is known to mislead: a
+/// fraction where a whole number belongs (`frames: 2.5`) stops the parser
+/// after `2`, which then reports "Expected comma". `line` and `col` are the
+/// parser's 1-based position.
+fn explain(text: &str, line: usize, col: usize) -> Option<String> {
+    let line_start = match line {
+        0 => return None,
+        1 => 0,
+        _ => text.match_indices('\n').nth(line - 2)?.0 + 1,
+    };
+    let at = line_start
+        + text[line_start..]
+            .char_indices()
+            .nth(col.checked_sub(1)?)?
+            .0;
+    // The number around the position: back over an integer part the parser
+    // already took, forward over the rest.
+    let digits = text[..at]
+        .trim_end_matches(|c: char| c.is_ascii_digit())
+        .len();
+    let start = text[..digits]
+        .strip_suffix(['-', '+'])
+        .map_or(digits, str::len);
+    let number: String = text[start..]
+        .chars()
+        .take_while(|&c| c.is_ascii_alphanumeric() || matches!(c, '.' | '-' | '+'))
+        .collect();
+    let numeric = number.starts_with(|c: char| c.is_ascii_digit() || c == '-' || c == '+');
+    if !(numeric && number.contains(['.', 'e', 'E']) && number.parse::<f64>().is_ok()) {
+        return None;
+    }
+    let field = text[..start]
+        .trim_end()
+        .strip_suffix(':')
+        .and_then(|b| {
+            b.trim_end()
+                .rsplit(|c: char| !(c.is_ascii_alphanumeric() || c == '_'))
+                .next()
+        })
+        .filter(|f| !f.is_empty());
+    Some(match field {
+        Some(f) => format!("`{f}` must be a whole number, not {number}"),
+        None => format!("expected a whole number, not {number}"),
+    })
 }
 
 #[cfg(test)]
@@ -420,6 +467,38 @@ mod tests {
                 "no struct starting with `{name}`: {levels:?}"
             );
         }
+    }
+
+    /// A fraction where a whole number belongs names the field and the
+    /// number (ron said "Expected comma").
+    #[test]
+    fn fractions_for_counts_name_the_field() {
+        let e = parse("(scene: City(()), frames: 2.5)")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("`frames` must be a whole number, not 2.5"),
+            "{e}"
+        );
+        let e = parse("(scene: City(()),\n resolution: (800.5, 600))")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("test.ron:2:") && e.contains("whole number, not 800.5"),
+            "{e}"
+        );
+        let e = parse("(scene: City((blocks_x: 2e3)))")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("`blocks_x` must be a whole number, not 2e3"),
+            "{e}"
+        );
+        // Other syntax errors keep the parser's message.
+        let e = parse("(scene: City(()) frames: 8)")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("Expected comma"), "{e}");
     }
 
     /// A byte-order mark is accepted; invalid UTF-8 is named with its line

@@ -36,7 +36,7 @@ pub use stencil::{
 };
 
 use crate::mask::Mask;
-use crate::reference::{reference_mask, ReferenceMask, TriangleBvh};
+use crate::reference::{try_reference_mask, ReferenceMask, TriangleBvh};
 use crate::stats::{FrameStats, ShadowStats};
 use crate::{Error, Result};
 use light::LightCulling;
@@ -586,7 +586,7 @@ impl Pipeline {
                 *bvh_ms = ms(t);
                 b
             });
-            reference_mask(
+            try_reference_mask(
                 bvh,
                 camera,
                 &light,
@@ -596,10 +596,10 @@ impl Pipeline {
                 Some(eye.surface()),
             )
         };
-        Ok(match pool {
+        match pool {
             Some(pool) => pool.install(run),
             None => run(),
-        })
+        }
     }
 
     /// Time spent building the reference's triangle BVH (ms), 0 until

@@ -48,6 +48,10 @@ impl From<shadowcull::Error> for Failure {
             | shadowcull::Error::Scene(SceneError::Io { .. } | SceneError::Load { .. }) => {
                 sc_status::SC_IO
             }
+            shadowcull::Error::OutOfMemory { .. }
+            | shadowcull::Error::Raster(shadowcull::raster::Error::OutOfMemory { .. }) => {
+                sc_status::SC_OUT_OF_MEMORY
+            }
             _ => sc_status::SC_INVALID_ARGUMENT,
         };
         Failure {

@@ -1,9 +1,10 @@
 //! The library's errors as Python exceptions: `OSError` for files (a missing
 //! or unreadable scene, job or output directory, a busy output directory),
-//! `ValueError` for everything a caller got wrong; the message is the
+//! `MemoryError` when a buffer cannot be allocated, `ValueError` for
+//! everything a caller got wrong; the message is the
 //! library's own, which names the file, object or field.
 
-use pyo3::exceptions::{PyOSError, PyValueError};
+use pyo3::exceptions::{PyMemoryError, PyOSError, PyValueError};
 use pyo3::PyErr;
 use shadowcull::scene;
 
@@ -14,6 +15,10 @@ pub(crate) fn to_py(e: shadowcull::Error) -> PyErr {
         shadowcull::Error::Io { .. }
         | shadowcull::Error::OutputBusy { .. }
         | shadowcull::Error::Scene(scene::Error::Io { .. }) => PyOSError::new_err(message),
+        shadowcull::Error::OutOfMemory { .. }
+        | shadowcull::Error::Raster(shadowcull::raster::Error::OutOfMemory { .. }) => {
+            PyMemoryError::new_err(message)
+        }
         _ => PyValueError::new_err(message),
     }
 }
