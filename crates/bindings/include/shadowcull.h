@@ -202,6 +202,12 @@ typedef struct sc_pipeline_options {
   uint32_t threads;
   // Non-zero: every triangle casts, back faces flipped.
   uint32_t two_sided;
+  // The most memory a frame may need, by the library's estimate, in
+  // bytes; a larger estimate fails the frame (`SC_INVALID_ARGUMENT`
+  // naming `max_memory`) before anything is allocated. 0: three quarters
+  // of the machine's memory. (Added in version 0.1 of this struct's
+  // 40-byte layout; a 32-byte struct from an older host means 0.)
+  uint64_t max_memory;
 } sc_pipeline_options;
 
 // A pipeline: 0 is the null handle.

@@ -87,6 +87,12 @@ pub struct sc_pipeline_options {
     pub threads: u32,
     /// Non-zero: every triangle casts, back faces flipped.
     pub two_sided: u32,
+    /// The most memory a frame may need, by the library's estimate, in
+    /// bytes; a larger estimate fails the frame (`SC_INVALID_ARGUMENT`
+    /// naming `max_memory`) before anything is allocated. 0: three quarters
+    /// of the machine's memory. (Added in version 0.1 of this struct's
+    /// 40-byte layout; a 32-byte struct from an older host means 0.)
+    pub max_memory: u64,
 }
 
 /// A mesh in the host's memory: positions `vertex_count` times, `stride`
@@ -210,6 +216,7 @@ impl Versioned for sc_pipeline_options {
             light_resolution: PipelineOptions::default().light_resolution,
             threads: 0,
             two_sided: 0,
+            max_memory: 0,
         }
     }
 }
@@ -297,6 +304,8 @@ impl sc_pipeline_options {
             light_resolution: self.light_resolution,
             threads: self.threads,
             two_sided: self.two_sided != 0,
+            max_memory: (self.max_memory > 0)
+                .then_some(shadowcull::byte_size::ByteSize(self.max_memory)),
             ..PipelineOptions::default()
         })
     }

@@ -523,6 +523,51 @@ fn versioned_structs() {
     assert_eq!(sc_version(), SC_ABI_VERSION);
 }
 
+/// `max_memory` (the 40-byte options): a frame whose memory estimate
+/// exceeds it fails before allocating, naming the field; a 32-byte struct
+/// from before the field means the machine's default.
+#[test]
+fn max_memory_refuses_a_frame_that_cannot_fit() {
+    use sc_status::*;
+    let mut o = c_options();
+    o.max_memory = 1 << 20;
+    let mut p = 0;
+    ok(sc_pipeline_create(&o, &mut p));
+    let (pos, idx) = cube();
+    let mut mesh = 0;
+    ok(sc_mesh_create(p, &cube_desc(&pos, &idx), &mut mesh));
+    let mut obj = 0;
+    let m = placement(0).to_cols_array();
+    ok(sc_object_create(
+        p,
+        mesh,
+        m.as_ptr(),
+        SC_FLAGS_ALL,
+        &mut obj,
+    ));
+    let mut out = empty_output();
+    assert_eq!(
+        sc_pipeline_frame(p, &input(0), &mut out),
+        SC_INVALID_ARGUMENT
+    );
+    assert!(last_error().contains("max_memory"), "{}", last_error());
+    ok(sc_pipeline_destroy(p));
+    let mut old = c_options();
+    old.struct_size = 32;
+    old.max_memory = 1; // past the old size: ignored
+    ok(sc_pipeline_create(&old, &mut p));
+    ok(sc_mesh_create(p, &cube_desc(&pos, &idx), &mut mesh));
+    ok(sc_object_create(
+        p,
+        mesh,
+        m.as_ptr(),
+        SC_FLAGS_ALL,
+        &mut obj,
+    ));
+    ok(sc_pipeline_frame(p, &input(0), &mut out));
+    ok(sc_pipeline_destroy(p));
+}
+
 /// Two pipelines on two threads at once give what each gives alone.
 #[test]
 fn two_pipelines_on_two_threads() {
