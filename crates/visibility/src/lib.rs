@@ -7,6 +7,29 @@
 //! 2004; Steiner Listing 2.1] and CHC++ [Mattausch, Bittner, Wimmer 2008].
 //!
 //! Depends on `scene` and `raster` only.
+//!
+//! # Conventions
+//! - Right-handed world, +y up, column vectors; matrices named `dst_from_src`.
+//!   World geometry (frusta, the intersection body, light positions) is f64;
+//!   node boxes are the scene BVH's f32 bounds, rounded outward.
+//! - Light views' `clip_from_world` (see `light_view.rs`): perspective views
+//!   and cube faces are reversed Z with an infinite far plane (depth 1 at the
+//!   near plane, 0 at infinity); orthographic views of directional lights map
+//!   B's nearest point to depth 1 and its farthest to 0. Every point of the
+//!   intersection body lies in some view's frustum or apex region
+//!   ([`LightView::covers`]).
+//! - Occlusion queries have the backend's GEQUAL semantics: a box counts the
+//!   samples at or in front of the depth drawn so far. [`Sampling::Conservative`]
+//!   with threshold 0 never culls an object that has a visible pixel (eye) or
+//!   can shadow a visible receiver (light); [`Sampling::Point`] and a
+//!   threshold above 0 are aggressive.
+//! - Coherence follows job frame numbers, not calls
+//!   ([`ViewCuller::set_frame`], [`LightPass::set_frame`]): a node's history
+//!   carries over only from the frame numbered just before, and CHC++'s
+//!   revisit phases are a function of (seed, object, frame).
+//! - Node ids are the scene BVH's ([`NodeId`]); per-node state survives
+//!   refits and is remapped across rebuilds (`ViewCuller::remap`).
+#![forbid(unsafe_code)]
 
 mod chcpp;
 mod error;
