@@ -400,25 +400,55 @@ fn counted<T>(f: impl FnOnce() -> T) -> (T, [u64; 3]) {
     (r, counts)
 }
 
-fn main() -> anyhow::Result<()> {
-    let (mut frames, mut every, mut size) = (60u32, 10u32, (320u32, 240u32));
-    let mut there_and_back = true;
-    let mut write_masks = None;
-    let args: Vec<String> = std::env::args().skip(1).collect();
-    for pair in args.chunks(2) {
-        let value = pair.get(1).map(String::as_str).unwrap_or("");
-        match pair[0].as_str() {
-            "--frames" => frames = value.parse()?,
-            "--reference-every" => every = value.parse()?,
-            "--there-and-back" => there_and_back = value == "on",
-            "--write-masks" => write_masks = Some(std::path::PathBuf::from(value)),
-            "--size" => {
-                let (w, h) = value.split_once('x').ok_or_else(|| anyhow::anyhow!("--size WxH"))?;
-                size = (w.parse()?, h.parse()?);
-            }
-            other => anyhow::bail!("unknown flag {other}; usage: host_loop [--frames N] [--reference-every K] [--size WxH] [--there-and-back on|off] [--write-masks DIR]"),
-        }
+/// `WxH`, e.g. `320x240`.
+fn parse_size(s: &str) -> Result<(u32, u32), String> {
+    let (w, h) = s.split_once('x').ok_or("--size WxH")?;
+    Ok((
+        w.parse().map_err(|e| format!("width: {e}"))?,
+        h.parse().map_err(|e| format!("height: {e}"))?,
+    ))
+}
+
+/// `on` or `off`.
+fn parse_on_off(s: &str) -> Result<bool, String> {
+    match s {
+        "on" => Ok(true),
+        "off" => Ok(false),
+        _ => Err(format!("{s:?} is neither on nor off")),
     }
+}
+
+/// The command line.
+#[derive(clap::Parser)]
+#[command(
+    about = "An engine-style loop around shadowcull::Pipeline, checked against the reference"
+)]
+struct Cli {
+    /// Frames of the camera path.
+    #[arg(long, default_value_t = 60)]
+    frames: u32,
+    /// Compare with the ray-cast reference every K-th frame.
+    #[arg(long = "reference-every", value_name = "K", default_value_t = 10)]
+    every: u32,
+    /// Viewport, WxH.
+    #[arg(long, value_parser = parse_size, default_value = "320x240")]
+    size: (u32, u32),
+    /// Run the path forward and back again (on|off).
+    #[arg(long = "there-and-back", value_parser = parse_on_off, default_value = "on", action = clap::ArgAction::Set)]
+    there_and_back: bool,
+    /// Write each frame's masks and volumes here (as examples/c/host.c does).
+    #[arg(long = "write-masks", value_name = "DIR")]
+    write_masks: Option<std::path::PathBuf>,
+}
+
+fn main() -> anyhow::Result<()> {
+    let Cli {
+        frames,
+        every,
+        size,
+        there_and_back,
+        write_masks,
+    } = <Cli as clap::Parser>::parse();
     let world = world();
     // The host's job system: frames run on its threads (rayon allocates a
     // queue block every 63 jobs injected from outside a pool).

@@ -237,10 +237,17 @@ pub fn compare_job(
         .frame_count()
         .min(options.max_frames.unwrap_or(u32::MAX));
     let count = variants(job).len() as u32;
-    crate::run::check_job_memory(job, capped, count, None)?;
+    let named = job.lights.len().max(1) as u32;
+    crate::run::check_job_memory(job, capped, count, named, None)?;
     let (loaded, scene, path) = load_scene_for_job(job, job_file)?;
-    crate::run::check_job_memory(job, capped, count, Some(&scene.counts()))?;
     let lights = resolve_lights(job, &loaded, &scene.bounds(), file)?;
+    crate::run::check_job_memory(
+        job,
+        capped,
+        count,
+        lights.len() as u32,
+        Some(&scene.counts()),
+    )?;
     let frames = job
         .frame_count()
         .min(options.max_frames.unwrap_or(u32::MAX));

@@ -91,3 +91,11 @@ pub(crate) fn io_err(path: &std::path::Path) -> impl FnOnce(std::io::Error) -> E
         source,
     }
 }
+
+/// Reads a text file the run did not write itself: a regular file within the
+/// input size limit ([`scene::load::read_input`]), UTF-8.
+#[cfg(feature = "jobs")]
+pub(crate) fn read_text(path: &std::path::Path) -> std::io::Result<String> {
+    let bytes = scene::load::read_input(path)?;
+    String::from_utf8(bytes).map_err(|e| std::io::Error::new(std::io::ErrorKind::InvalidData, e))
+}

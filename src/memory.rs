@@ -127,7 +127,7 @@ impl MemoryEstimate {
         Err(Error::Options {
             field: "max_memory".into(),
             message: format!(
-                "this run needs about {} of memory, more than the limit of {} ({}); lower those fields, or raise max_memory (--max-memory)",
+                "this run needs about {} of memory, more than the limit of {} ({}); lower those fields, or raise `max_memory` (CLI: --max-memory)",
                 human(self.total),
                 human(limit),
                 named.join(", ")
@@ -158,13 +158,13 @@ pub fn machine_memory() -> Option<u64> {
     })
 }
 
-/// Bytes for people: `13.6 GB`.
+/// Bytes for people, in the binary units `--max-memory` takes: `12.7 GiB`.
 fn human(bytes: u64) -> String {
     let b = bytes as f64;
     match bytes {
-        0..=999_999 => format!("{:.0} kB", b / 1e3),
-        1_000_000..=999_999_999 => format!("{:.0} MB", b / 1e6),
-        _ => format!("{:.1} GB", b / 1e9),
+        0..=0xF_FFFF => format!("{:.0} KiB", b / 1024.0),
+        0x10_0000..=0x3FFF_FFFF => format!("{:.0} MiB", b / 1048576.0),
+        _ => format!("{:.1} GiB", b / 1073741824.0),
     }
 }
 

@@ -229,10 +229,10 @@ fn read_shard(dir: &Path) -> Result<ShardDir> {
     };
     let manifest = ShardManifest::read(dir)?;
     let sp = dir.join("summary.json");
-    let summary: Value = serde_json::from_str(&std::fs::read_to_string(&sp).map_err(io_err(&sp))?)
+    let summary: Value = serde_json::from_str(&crate::error::read_text(&sp).map_err(io_err(&sp))?)
         .map_err(|e| bad(format!("summary.json: {e}")))?;
     let cp = dir.join("stats.csv");
-    let text = std::fs::read_to_string(&cp).map_err(io_err(&cp))?;
+    let text = crate::error::read_text(&cp).map_err(io_err(&cp))?;
     let mut lines = text.lines();
     let header = lines.next().unwrap_or_default();
     if header != FrameRow::csv_header() {
@@ -284,6 +284,13 @@ fn copy_images(dir: &Path, out: &Path, m: &ShardManifest) -> Result<usize> {
         let frame = name.split('_').next().and_then(|f| f.parse::<u32>().ok());
         if !name.ends_with(".png") || !frame.is_some_and(|f| m.block().contains(&f)) {
             continue;
+        }
+        // Only regular files: a FIFO named like an image would block the copy.
+        if !entry.file_type().is_ok_and(|t| t.is_file()) {
+            return Err(Error::Shard {
+                path: entry.path(),
+                message: "not a regular file: a shard's images are files `run` wrote".into(),
+            });
         }
         let target = to.join(name);
         std::fs::copy(entry.path(), &target).map_err(io_err(&target))?;

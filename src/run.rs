@@ -166,9 +166,19 @@ pub fn run_job(
         });
     }
     check_max_frames(options.max_frames)?;
+    let frames = job
+        .frame_count()
+        .min(options.max_frames.unwrap_or(u32::MAX));
+    let block = options.shard.map_or(0..frames, |s| s.range(frames));
+    // Before the output directory is touched: a refused run leaves an
+    // earlier run's results in place. A shard keeps its block's rows.
+    let rows = block.len() as u32;
+    check_job_memory(job, rows, 1, job.lights.len().max(1) as u32, None)?;
     let job_hash = match (options.shard, job_file) {
         (None, _) => String::new(),
-        (Some(_), Some(p)) => crate::shard::job_hash(&std::fs::read(p).map_err(io_err(p))?),
+        (Some(_), Some(p)) => {
+            crate::shard::job_hash(&scene::load::read_input(p).map_err(io_err(p))?)
+        }
         (Some(_), None) => crate::shard::job_hash(DEFAULT_JOB_TEXT.as_bytes()),
     };
 
@@ -178,17 +188,12 @@ pub fn run_job(
     let _lock = crate::out_dir::claim_for_run(out)?;
     let manifest = out.join("shard.json");
 
-    let frames = job
-        .frame_count()
-        .min(options.max_frames.unwrap_or(u32::MAX));
-    check_job_memory(job, frames, 1, None)?;
     let t0 = Instant::now();
     let (loaded, scene, path) = load_scene_for_job(job, job_file)?;
     let load_ms = ms(t0);
-    check_job_memory(job, frames, 1, Some(&scene.counts()))?;
     let bounds = scene.bounds();
     let lights = resolve_lights(job, &loaded, &bounds, file)?;
-    let block = options.shard.map_or(0..frames, |s| s.range(frames));
+    check_job_memory(job, rows, 1, lights.len() as u32, Some(&scene.counts()))?;
     let warmup = options.warmup.unwrap_or(job.pipeline.chcpp.revisit);
     let warm = warmup_start(block.start, warmup, keyframe)..block.start;
     let (w, h) = job.resolution;
@@ -347,12 +352,15 @@ fn ms(t: Instant) -> f64 {
 /// Refuses a job whose memory estimate ([`crate::memory`]) exceeds its
 /// `pipeline.max_memory`: before the scene is loaded, with procedural
 /// cities bounded by their parameters (files count 0 then, their size is
-/// capped by the input limit), and after, with the loaded counts. `frames ×
-/// lights × variants` rows are kept for the summary.
+/// capped by the input limit), and after, with the loaded counts and the
+/// resolved lights. `frames × lights × variants` rows are kept for the
+/// summary. The per-frame estimate leaves out the reference when the job
+/// never computes one.
 pub(crate) fn check_job_memory(
     job: &Job,
     frames: u32,
     variants: u32,
+    lights: u32,
     counts: Option<&scene::SceneCounts>,
 ) -> Result<()> {
     fn cities(spec: &SceneSpec) -> Result<(u64, u64)> {
@@ -369,7 +377,6 @@ pub(crate) fn check_job_memory(
         Some(c) => (c.objects as u64, c.triangles as u64),
         None => cities(&job.scene)?,
     };
-    let lights = job.lights.len().max(1) as u32;
     let workload = crate::memory::Workload {
         width: job.resolution.0,
         height: job.resolution.1,

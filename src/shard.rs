@@ -129,7 +129,7 @@ impl ShardManifest {
     /// [`Error::Shard`] naming `dir` when `shard.json` is missing or unreadable.
     pub fn read(dir: &Path) -> Result<ShardManifest> {
         let path = dir.join("shard.json");
-        let text = std::fs::read_to_string(&path).map_err(|e| Error::Shard {
+        let text = crate::error::read_text(&path).map_err(|e| Error::Shard {
             path: dir.to_path_buf(),
             message: format!(
                 "no readable shard.json ({e}): not the output of `run --shard`, or its run did not finish"

@@ -900,5 +900,77 @@ fn jobs_that_cannot_fit_are_refused_up_front() {
         OsStr::new("--max-memory"),
         OsStr::new("64M"),
     ]);
-    assert!(e.contains("more than the limit of 67 MB"), "{e}");
+    assert!(e.contains("more than the limit of 64 MiB"), "{e}");
+    // A refused rerun leaves the earlier run's results in place.
+    assert!(out.join("ok").join("stats.csv").exists());
+    let e = fails(&[
+        OsStr::new("run"),
+        job.as_os_str(),
+        OsStr::new("--out"),
+        out.join("ok").as_os_str(),
+        OsStr::new("--max-memory"),
+        OsStr::new("64M"),
+    ]);
+    assert!(e.contains("max_memory"), "{e}");
+    assert!(
+        out.join("ok").join("stats.csv").exists(),
+        "a refused run deleted the results"
+    );
+    // A shard keeps only its block's rows: a billion-frame job in 10-frame
+    // shards runs.
+    std::fs::write(
+        &job,
+        "(scene: City((blocks_x: 1, blocks_z: 1)), resolution: (32, 24), frames: 1000000000, outputs: (masks: false))",
+    )
+    .unwrap();
+    run_ok(&[
+        OsStr::new("run"),
+        job.as_os_str(),
+        OsStr::new("--out"),
+        out.join("shard").as_os_str(),
+        OsStr::new("--shard"),
+        OsStr::new("0/100000000"),
+    ]);
+    assert_eq!(stats(&out.join("shard")).1.len(), 10);
+}
+
+/// `merge` reads only regular files: a FIFO in a shard directory is an
+/// error naming it, not a hang.
+#[test]
+fn merge_refuses_a_fifo_in_a_shard() {
+    let out = tmp_dir("merge_fifo");
+    let job = out.join("job.ron");
+    std::fs::write(
+        &job,
+        "(scene: City((blocks_x: 1, blocks_z: 1)), resolution: (32, 24), frames: 4)",
+    )
+    .unwrap();
+    let dirs: Vec<PathBuf> = (0..2).map(|i| out.join(format!("s{i}"))).collect();
+    for (i, d) in dirs.iter().enumerate() {
+        run_ok(&[
+            OsStr::new("run"),
+            job.as_os_str(),
+            OsStr::new("--out"),
+            d.as_os_str(),
+            OsStr::new("--shard"),
+            OsStr::new(&format!("{i}/2")),
+        ]);
+    }
+    let csv = dirs[1].join("stats.csv");
+    std::fs::remove_file(&csv).unwrap();
+    if !Command::new("mkfifo")
+        .arg(&csv)
+        .status()
+        .is_ok_and(|s| s.success())
+    {
+        eprintln!("note: no mkfifo here; skipped");
+        return;
+    }
+    let e = fails(&[
+        OsStr::new("merge"),
+        out.join("merged").as_os_str(),
+        dirs[0].as_os_str(),
+        dirs[1].as_os_str(),
+    ]);
+    assert!(e.contains("stats.csv") && e.contains("a FIFO"), "{e}");
 }

@@ -208,7 +208,7 @@ impl Job {
             .map_err(|e| Error::Job {
                 file: file.to_path_buf(),
                 location: format!("{}:{}", e.span.start.line, e.span.start.col),
-                message: explain(text, e.span.start.line, e.span.start.col)
+                message: explain(text, e.span.start.line, e.span.start.col, &e.code)
                     .unwrap_or_else(|| e.code.to_string()),
             })?;
         job.validate(file)?;
@@ -288,10 +288,19 @@ pub fn default_job() -> Job {
 }
 
 /// A clearer message than the parser's where it is known to mislead: a
-/// fraction where a whole number belongs (`frames: 2.5`) stops the parser
-/// after `2`, which then reports "Expected comma". `line` and `col` are the
-/// parser's 1-based position.
-fn explain(text: &str, line: usize, col: usize) -> Option<String> {
+/// fraction where a whole number belongs. ron stops after the `2` of
+/// `frames: 2.5` and reports "Expected comma" there (`stopped_after`), or
+/// rejects `2e3` at its start with "Invalid digit" (`at_start`). `line` and
+/// `col` are the parser's 1-based position. Anything else keeps ron's text.
+fn explain(text: &str, line: usize, col: usize, code: &ron::Error) -> Option<String> {
+    let stopped_after = matches!(code, ron::Error::ExpectedComma);
+    let at_start = matches!(
+        code,
+        ron::Error::InvalidIntegerDigit { .. } | ron::Error::ExpectedInteger
+    );
+    if !(stopped_after || at_start) {
+        return None;
+    }
     let line_start = match line {
         0 => return None,
         1 => 0,
@@ -302,20 +311,32 @@ fn explain(text: &str, line: usize, col: usize) -> Option<String> {
             .char_indices()
             .nth(col.checked_sub(1)?)?
             .0;
-    // The number around the position: back over an integer part the parser
-    // already took, forward over the rest.
-    let digits = text[..at]
-        .trim_end_matches(|c: char| c.is_ascii_digit())
-        .len();
-    let start = text[..digits]
-        .strip_suffix(['-', '+'])
-        .map_or(digits, str::len);
+    let start = if stopped_after {
+        // Digits just before, then `.5` or `e3`.
+        let rest = &text[at..];
+        let fraction = rest.starts_with('.') && rest[1..].starts_with(|c: char| c.is_ascii_digit());
+        let digits = text[..at]
+            .trim_end_matches(|c: char| c.is_ascii_digit())
+            .len();
+        if !(fraction || rest.starts_with(['e', 'E'])) || digits == at {
+            return None;
+        }
+        text[..digits]
+            .strip_suffix(['-', '+'])
+            .map_or(digits, str::len)
+    } else {
+        at
+    };
+    // The number must stand alone: `0x1.5` is not a fraction of `1`.
+    let delimited = text[..start]
+        .chars()
+        .next_back()
+        .is_none_or(|c| c.is_whitespace() || matches!(c, '(' | '[' | ',' | ':'));
     let number: String = text[start..]
         .chars()
         .take_while(|&c| c.is_ascii_alphanumeric() || matches!(c, '.' | '-' | '+'))
         .collect();
-    let numeric = number.starts_with(|c: char| c.is_ascii_digit() || c == '-' || c == '+');
-    if !(numeric && number.contains(['.', 'e', 'E']) && number.parse::<f64>().is_ok()) {
+    if !(delimited && number.contains(['.', 'e', 'E']) && number.parse::<f64>().is_ok()) {
         return None;
     }
     let field = text[..start]
@@ -494,11 +515,21 @@ mod tests {
             e.contains("`blocks_x` must be a whole number, not 2e3"),
             "{e}"
         );
-        // Other syntax errors keep the parser's message.
-        let e = parse("(scene: City(()) frames: 8)")
-            .unwrap_err()
-            .to_string();
-        assert!(e.contains("Expected comma"), "{e}");
+        // Other errors keep the parser's message: a missing comma, a float
+        // field, a hexadecimal number, a number where a light belongs.
+        for (text, said) in [
+            ("(scene: City(()) frames: 8)", "Expected comma"),
+            ("(scene: City(()), resolution: (800, 600, 1.5))", ""),
+            ("(scene: City(()), frames: 0x1.5)", ""),
+            ("(scene: City(()), lights: [1.5])", ""),
+            (
+                "(scene: City(()), camera: Fixed((eye: (0.0, 1.0, 5.0), target: (0.0, 0.0, 0.0), up: (0.0, 1.0, 0.0), fov_y_deg: 60.0 1.5, near: 0.1)))",
+                "Expected comma",
+            ),
+        ] {
+            let e = parse(text).unwrap_err().to_string();
+            assert!(!e.contains("whole number") && e.contains(said), "{text}: {e}");
+        }
     }
 
     /// A byte-order mark is accepted; invalid UTF-8 is named with its line

@@ -363,18 +363,15 @@ impl Pipeline {
         }
         let start = Instant::now();
         self.apply_edits();
-        // Refuse a frame that cannot fit before its targets are allocated.
-        let lights = self.live_lights().count() as u32;
-        let workload = crate::memory::Workload {
-            width: w,
-            height: h,
-            lights,
-            triangles: self.counts.triangles as u64,
-            objects: self.counts.objects as u64,
-            rows: 0,
-        };
-        crate::memory::estimate(&self.options, &workload)
-            .check(crate::memory::limit(&self.options))?;
+        // Refuse a frame that cannot fit before its targets are allocated. A
+        // frame computes no reference ([`Pipeline::reference_mask`] checks
+        // its own share). The edits are applied by now: the last frame's
+        // outputs no longer describe the scene, so they are dropped.
+        if let Err(e) = self.check_memory(w, h, false) {
+            self.eye = None;
+            self.camera = None;
+            return Err(e);
+        }
         let frame = self.next_frame;
         self.next_frame = frame.saturating_add(1);
         let camera = &input.camera;
@@ -552,6 +549,17 @@ impl Pipeline {
     /// [`Error::Options`] before the first frame, after scene edits not yet
     /// framed, or for an unknown light.
     pub fn reference_mask(&mut self, light: LightId) -> Result<ReferenceMask> {
+        let Some((w, h)) = self
+            .eye
+            .as_ref()
+            .map(|e| (e.target.width(), e.target.height()))
+        else {
+            return Err(Error::Options {
+                field: "reference_mask".into(),
+                message: "no frame has run yet".into(),
+            });
+        };
+        self.check_memory(w, h, true)?;
         let (Some(eye), Some(camera)) = (&self.eye, &self.camera) else {
             return Err(Error::Options {
                 field: "reference_mask".into(),
@@ -600,6 +608,25 @@ impl Pipeline {
             Some(pool) => pool.install(run),
             None => run(),
         }
+    }
+
+    /// Checks the memory estimate of a `w × h` frame of the current scene
+    /// and lights ([`crate::memory`]) against the options' limit, with the
+    /// reference's share when `reference`.
+    fn check_memory(&self, w: u32, h: u32, reference: bool) -> Result<()> {
+        let options = PipelineOptions {
+            reference_every: u32::from(reference),
+            ..self.options
+        };
+        let workload = crate::memory::Workload {
+            width: w,
+            height: h,
+            lights: self.live_lights().count() as u32,
+            triangles: self.counts.triangles as u64,
+            objects: self.counts.objects as u64,
+            rows: 0,
+        };
+        crate::memory::estimate(&options, &workload).check(crate::memory::limit(&self.options))
     }
 
     /// Time spent building the reference's triangle BVH (ms), 0 until

@@ -31,11 +31,7 @@ pub(crate) fn run_job(
         })
         .transpose()?;
     let shard = shard
-        .map(|(index, count)| {
-            format!("{index}/{count}")
-                .parse::<Shard>()
-                .map_err(|e| bad(format!("shard: {e}")))
-        })
+        .map(|(index, count)| format!("{index}/{count}").parse::<Shard>().map_err(bad))
         .transpose()?;
     let options = RunOptions {
         out_dir: out,

@@ -60,7 +60,39 @@ impl Pipeline {
         let spec: LightSpec = from_json("light", spec)?;
         let bounds = self.bounds.union(&self.inner.scene().bounds());
         spec.resolve(&self.named, &bounds, 0, Path::new("light"))
-            .map_err(to_py)
+            .map_err(|e| match e {
+                // The job's `file:lights[i]` prefix means nothing here.
+                shadowcull::Error::Job { message, .. } => bad(format!("light: {message}")),
+                e => to_py(e),
+            })
+    }
+
+    /// Grows the known bounds by an object of `mesh` at `m`, so that an
+    /// `above_scene` light added before the next frame sees it.
+    fn grow_bounds(&mut self, mesh: MeshId, m: &glam::DMat4) {
+        let Ok(mesh) = self.inner.scene().live_mesh(mesh) else {
+            return;
+        };
+        let local = mesh
+            .positions()
+            .iter()
+            .fold(scene::Aabb::EMPTY, |b, &p| b.union(&scene::Aabb::new(p, p)));
+        if local.is_empty() {
+            return;
+        }
+        let corners = (0..8).map(|i| {
+            let pick =
+                |bit: usize, lo: f32, hi: f32| f64::from(if i >> bit & 1 == 0 { lo } else { hi });
+            m.transform_point3(glam::DVec3::new(
+                pick(0, local.min.x, local.max.x),
+                pick(1, local.min.y, local.max.y),
+                pick(2, local.min.z, local.max.z),
+            ))
+            .as_vec3()
+        });
+        for c in corners {
+            self.bounds = self.bounds.union(&scene::Aabb::new(c, c));
+        }
     }
 
     /// The arrays of one light's output.
@@ -217,7 +249,9 @@ impl Pipeline {
     ) -> PyResult<u32> {
         let m = matrix("transform", transform)?;
         let f = flags(casts, receives, occludes, visible);
-        Ok(self.inner.add_object(MeshId(mesh), m, f).map_err(to_py)?.0)
+        let id = self.inner.add_object(MeshId(mesh), m, f).map_err(to_py)?;
+        self.grow_bounds(MeshId(mesh), &m);
+        Ok(id.0)
     }
 
     fn set_transform(&mut self, object: u32, transform: PyReadonlyArray2<'_, f64>) -> PyResult<()> {
@@ -341,6 +375,15 @@ impl Pipeline {
         projection: Option<PyReadonlyArray2<'_, f64>>,
         clip_depth: &str,
     ) -> PyResult<Bound<'py, PyDict>> {
+        let depth = match clip_depth {
+            "negative_one_to_one" => ClipDepth::NegativeOneToOne,
+            "zero_to_one" => ClipDepth::ZeroToOne,
+            other => {
+                return Err(bad(format!(
+                    "clip_depth: {other:?} is neither \"negative_one_to_one\" (OpenGL) nor \"zero_to_one\" (Direct3D, Vulkan, Metal)"
+                )))
+            }
+        };
         let camera = match (camera, view, projection) {
             (Some(c), None, None) => {
                 let pose: LookAt = from_json("camera", c)?;
@@ -353,15 +396,6 @@ impl Pipeline {
                 pose.camera(aspect).map_err(scene_to_py)?
             }
             (None, Some(v), Some(p)) => {
-                let depth = match clip_depth {
-                    "negative_one_to_one" => ClipDepth::NegativeOneToOne,
-                    "zero_to_one" => ClipDepth::ZeroToOne,
-                    other => {
-                        return Err(bad(format!(
-                            "clip_depth: {other:?} is neither \"negative_one_to_one\" (OpenGL) nor \"zero_to_one\" (Direct3D, Vulkan, Metal)"
-                        )))
-                    }
-                };
                 Camera::from_view_projection(matrix("view", v)?, matrix("projection", p)?, depth)
                     .map_err(scene_to_py)?
             }

@@ -277,3 +277,33 @@ def test_the_readme_snippet_runs():
     scope = {}
     exec("\n".join(lines), scope)
     assert np.count_nonzero(scope["mask"] == sc.SHADOW) > 0
+
+
+def test_memory_limits_and_stale_outputs():
+    """A frame over `max_memory` is refused and drops the last frame's
+    outputs (the edits are applied); the reference's share counts only for
+    `reference_mask`, which a frame never computes."""
+    # The estimate (src/memory.rs): about 67 MB of base, 90 B per pixel with
+    # two lights, 48 more with the reference: 2000×2000 needs ~430 MB
+    # without it and ~620 MB with it.
+    p, cubes, lamp, _ = box_scene(stencil="bf", light_resolution=64, max_memory="500M")
+    p.frame(320, 240, camera=CAMERA)
+    with pytest.raises(ValueError, match="max_memory"):
+        p.frame(4000, 4000, camera=CAMERA)
+    with pytest.raises(ValueError, match="no frame has run yet"):
+        p.reference_mask(lamp)
+    f = p.frame(2000, 2000, camera=CAMERA)
+    assert f.mask[lamp].shape == (2000, 2000)
+    with pytest.raises(ValueError, match="reference_every"):
+        p.reference_mask(lamp)
+
+
+def test_lights_before_the_first_frame():
+    p = sc.Pipeline()
+    p.add_object(p.add_mesh(*quad_arrays()))
+    above = p.add_light("above_scene", 1.5)
+    assert p.light(above)["Point"]["position"][1] > 0
+    with pytest.raises(ValueError, match="NaN"):
+        p.add_light("point", position=(float("nan"), 1.0, 1.0))
+    with pytest.raises(ValueError, match="clip_depth"):
+        p.frame(64, 48, camera=CAMERA, clip_depth="sideways")

@@ -33,9 +33,10 @@ unchanged after later frames. A pipeline is used by one thread at a time
 is released while a frame, a reference mask, a load, a job or a merge runs.
 
 Errors are ``ValueError`` for bad input (an unknown option, a malformed
-array, a stale id) and ``OSError`` for files (unreadable scenes or jobs, a
-busy output directory), with the library's message naming the file, object
-or field.
+array, a stale id, a frame over ``max_memory``), ``OSError`` for files
+(unreadable scenes or jobs, a busy output directory) and ``MemoryError``
+when a buffer cannot be allocated, with the library's message naming the
+file, object or field.
 """
 
 from __future__ import annotations
@@ -124,8 +125,10 @@ def _plain(value: Any) -> Any:
 
 def _json(what: str, value: Any) -> str:
     try:
-        return json.dumps(value, default=_plain)
-    except (TypeError, ValueError) as e:
+        return json.dumps(value, default=_plain, allow_nan=False)
+    except ValueError as e:
+        raise ValueError(f"{what}: NaN and infinity are not allowed ({e})") from None
+    except TypeError as e:
         raise ValueError(f"{what}: {e}") from None
 
 
@@ -206,7 +209,7 @@ class Frame:
 
     Attributes:
         number: the frame's job number.
-        psr: uint32 ids of the potentially shadowed receivers, ascending.
+        psr: uint32 ids of the potentially shadowed receivers, in slot order.
         psc: per light, uint32 ids of the potential shadow casters.
         volumes: per light, the :class:`Volumes` to draw.
         mask: per light, the ``(h, w)`` uint8 shadow mask, or None without a
