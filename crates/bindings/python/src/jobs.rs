@@ -31,7 +31,7 @@ pub(crate) fn run_job(
         })
         .transpose()?;
     let shard = shard
-        .map(|(index, count)| format!("{index}/{count}").parse::<Shard>().map_err(bad))
+        .map(|(index, count)| format!("{index}/{count}").parse::<Shard>().map_err(to_py))
         .transpose()?;
     let options = RunOptions {
         out_dir: out,

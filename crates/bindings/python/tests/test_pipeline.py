@@ -301,8 +301,10 @@ def test_memory_limits_and_stale_outputs():
 def test_lights_before_the_first_frame():
     p = sc.Pipeline()
     p.add_object(p.add_mesh(*quad_arrays()))
+    p.add_object(p.add_mesh(*cube_arrays()), translation(0.0, 0.0, 0.0))
+    # Above the scene before any frame: 1.5 × its height (1) over its floor.
     above = p.add_light("above_scene", 1.5)
-    assert p.light(above)["Point"]["position"][1] > 0
+    assert p.light(above)["Point"]["position"][1] == pytest.approx(1.5)
     with pytest.raises(ValueError, match="NaN"):
         p.add_light("point", position=(float("nan"), 1.0, 1.0))
     with pytest.raises(ValueError, match="clip_depth"):
