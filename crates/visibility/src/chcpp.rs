@@ -203,7 +203,10 @@ impl ViewCuller {
         let never = self.origin.saturating_sub(1);
         s.cand.extend(s.batch.drain(..).map(|node| {
             let last = self.state[node as usize].last_visible.max(never);
-            (keep_invisible(frame.saturating_sub(last + 1)), node)
+            (
+                keep_invisible(frame.saturating_sub(last.saturating_add(1))),
+                node,
+            )
         }));
         let cand = &mut s.cand;
         cand.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));

@@ -772,7 +772,8 @@ impl ViewCuller {
     /// this frame; returns whether it was visible in the previous frame.
     pub(crate) fn leave_invisible(&mut self, node: u32) -> bool {
         let s = &mut self.state[node as usize];
-        let was_visible = s.visible && s.visited + 1 == self.frame;
+        // Checked: a host may number frames up to u32::MAX.
+        let was_visible = s.visible && s.visited.checked_add(1) == Some(self.frame);
         s.visible = false;
         s.visited = self.frame;
         was_visible
@@ -966,5 +967,40 @@ mod tests {
             queries(&at0),
             "revisit phases follow the frame number"
         );
+    }
+
+    /// Frame numbers up to `u32::MAX` (a host may pass any): CHC and CHC++
+    /// run on through the last number and past it (it saturates), with the
+    /// visible set of a cold start. The fuzzer found the overflow of
+    /// `visited + 1` at `u32::MAX`.
+    #[test]
+    fn frame_numbers_at_the_top_of_the_range() {
+        let (scene, path) = street_city();
+        let cam = path.at(3).unwrap().camera(4.0 / 3.0).unwrap();
+        let meshes = MeshData::from_scene(&scene);
+        let h = Hierarchy::from_scene(&scene);
+        let clip = |w: &DMat4| scene::transform::clip_from_local(&cam, w);
+        let view = ViewSetup::eye(&cam, &clip, 0);
+        let visible = |culler: &mut ViewCuller, culling: Culling| {
+            let mut b = SyncBackend::new(DepthTarget::new(160, 120, TileSize::T8, true).unwrap());
+            let mut r = culler
+                .cull(&h, &scene, &meshes, &view, culling, &mut b)
+                .unwrap();
+            r.visible.sort_unstable();
+            r.visible
+        };
+        // What stop-and-wait culling finds visible: every coherent frame holds it.
+        let exact = visible(&mut ViewCuller::new(), Culling::Exact);
+        for culling in [Culling::Chc, Culling::ChcPlusPlus(ChcppOptions::default())] {
+            let mut culler = ViewCuller::new();
+            culler.set_frame(u32::MAX - 2);
+            for _ in 0..5 {
+                let v = visible(&mut culler, culling);
+                assert!(
+                    exact.iter().all(|o| v.contains(o)),
+                    "{culling:?}: lost a visible object"
+                );
+            }
+        }
     }
 }
