@@ -77,6 +77,7 @@ pub struct StencilTests {
 
 /// Counters of [`StencilTarget::draw_volume`].
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct StencilStats {
     /// Per-pixel stencil operations: fragments covered by a volume triangle (or a
     /// zp+ near-cap fan triangle) on non-background pixels that pass the enabled
