@@ -351,6 +351,26 @@ def main(argv):
             comps = sccs(sorted(modules), edges)
             rel = os.path.relpath(root, top)
             cycles = [c for c in comps if len(c) > 1]
+            # Folders too: a module with its submodules, taken as one node,
+            # must not import and be imported by the same other folder.
+            depth = max(len(n) for n in modules)
+            for d in range(1, depth):
+                folded = {}
+                for a, targets in edges.items():
+                    for b, lines in targets.items():
+                        fa, fb = a[:d], b[:d]
+                        if fa != fb:
+                            folded.setdefault(fa, {}).setdefault(fb, []).extend(lines)
+                nodes = sorted({n[:d] for n in modules})
+                folders = [n for n in nodes if any(len(m) > d and m[:d] == n for m in modules)]
+                for comp in sccs(nodes, folded):
+                    if len(comp) > 1 and any(c in folders for c in comp) and comp not in cycles:
+                        cycles.append(comp)
+                        for a in comp:
+                            for b, lines in folded.get(a, {}).items():
+                                if b in comp:
+                                    edges.setdefault(a, {}).setdefault(b, lines)
+                                    modules.setdefault(a, Module(a, "(folder)", ""))
             if cycles:
                 bad += 1
                 print(f"{rel}: {len(cycles)} import cycle(s)")

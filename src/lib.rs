@@ -49,7 +49,7 @@ mod error;
 pub mod frame;
 pub mod hybrid;
 pub mod mask;
-pub mod memory;
+
 #[cfg(feature = "jobs")]
 pub mod merge;
 #[cfg(feature = "jobs")]
@@ -64,6 +64,7 @@ pub mod stats;
 mod surface;
 
 pub use error::{Error, Result};
+pub use pipeline::memory;
 pub use pipeline::{
     CoverageSpec, CullingSpec, FrameInput, FrameOutput, LightId, LightOutput, Pipeline,
     PipelineOptions, StencilBackend,

@@ -5,7 +5,8 @@
 //! lights are independent (each owns its views' state) and run in parallel.
 
 use crate::Result;
-use scene::{Camera, Scene};
+use rayon::iter::ParallelIterator;
+use scene::{Camera, Light, Scene};
 use std::time::Instant;
 use visibility::{
     Hierarchy, LightPass, LightPassOptions, LightPassResult, MeshData, ReceiverPoints,
@@ -22,41 +23,49 @@ pub(crate) struct LightCulling {
     pub ms: f64,
 }
 
-/// Runs the light pass of every live light of `slots` concurrently for job
-/// frame `frame`; each light's `culling.result` and `ms` are replaced.
+/// What every light's pass of one frame reads.
+pub(crate) struct LightPassInput<'a> {
+    /// The host's occlusion backends, if it brings its own.
+    pub backends: Option<&'a visibility::BackendFactory>,
+    /// The object hierarchy.
+    pub hierarchy: &'a Hierarchy,
+    /// The scene.
+    pub scene: &'a Scene,
+    /// Meshes in the backends' form.
+    pub meshes: &'a MeshData,
+    /// The eye.
+    pub camera: &'a Camera,
+    /// The eye's visible surface.
+    pub receivers: &'a ReceiverPoints,
+    /// Light-pass options.
+    pub options: &'a LightPassOptions,
+    /// The job frame number.
+    pub frame: u32,
+}
+
+/// Runs the light pass of every light concurrently: each item is a light, its
+/// key for the host's backend factory, and its culling state, whose `result`
+/// and `ms` are replaced.
 ///
 /// # Errors
 /// The first light's error.
-#[allow(clippy::too_many_arguments)]
-pub(crate) fn light_passes(
-    slots: &mut [super::LightSlot],
-    backends: Option<&visibility::BackendFactory>,
-    hierarchy: &Hierarchy,
-    scene: &Scene,
-    meshes: &MeshData,
-    camera: &Camera,
-    receivers: &ReceiverPoints,
-    options: &LightPassOptions,
-    frame: u32,
+pub(crate) fn light_passes<'l>(
+    lights: impl ParallelIterator<Item = (Light, u32, &'l mut LightCulling)>,
+    input: &LightPassInput<'_>,
 ) -> Result<()> {
-    use rayon::prelude::*;
-    slots
-        .par_iter_mut()
-        .filter_map(|slot| slot.state.as_mut())
-        .map(|state| {
+    lights
+        .map(|(light, key, c)| {
             let t = Instant::now();
-            let (light, key) = (state.light, state.id.0);
-            let c = &mut state.culling;
-            c.pass.set_frame(frame);
+            c.pass.set_frame(input.frame);
             c.pass.run_into(
-                hierarchy,
-                scene,
-                meshes,
-                camera,
+                input.hierarchy,
+                input.scene,
+                input.meshes,
+                input.camera,
                 &light,
-                receivers,
-                options,
-                backends.map(|f| (f, key)),
+                input.receivers,
+                input.options,
+                input.backends.map(|f| (f, key)),
                 &mut c.result,
             )?;
             c.ms = t.elapsed().as_secs_f64() * 1e3;

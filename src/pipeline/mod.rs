@@ -20,7 +20,9 @@
 mod edit;
 pub mod eye;
 mod light;
+pub mod memory;
 mod options;
+mod shadow_options;
 pub mod stencil;
 mod volume;
 
@@ -31,9 +33,8 @@ pub use eye::{
 pub use options::{
     BadOption, ChcppSpec, CoverageSpec, CullingSpec, PipelineOptions, StencilBackend,
 };
-pub use stencil::{
-    shadow_mask, shadow_mask_for, Backend, ShadowFrame, ShadowOptions, ShadowScratch, TileImage,
-};
+pub use shadow_options::{Backend, ShadowOptions};
+pub use stencil::{shadow_mask, shadow_mask_for, ShadowFrame, ShadowScratch, TileImage};
 
 use crate::mask::Mask;
 use crate::reference::{try_reference_mask, ReferenceMask, TriangleBvh};
@@ -436,17 +437,23 @@ impl Pipeline {
         // 2. Light passes (PSC) of all lights, concurrently.
         if let (true, Some(state)) = (culled, &self.culling) {
             let (hierarchy, meshes) = state.parts();
-            light::light_passes(
-                &mut self.lights,
-                self.backends.as_deref(),
+            use rayon::prelude::*;
+            let lights = self
+                .lights
+                .par_iter_mut()
+                .filter_map(|slot| slot.state.as_mut())
+                .map(|state| (state.light, state.id.0, &mut state.culling));
+            let input = light::LightPassInput {
+                backends: self.backends.as_deref(),
                 hierarchy,
                 scene,
                 meshes,
                 camera,
-                &self.receivers,
-                &o.light_pass_options(),
+                receivers: &self.receivers,
+                options: &o.light_pass_options(),
                 frame,
-            )?;
+            };
+            light::light_passes(lights, &input)?;
         }
 
         // 3.–4. Per light: volumes, then the stencil and mask.
@@ -611,14 +618,14 @@ impl Pipeline {
     }
 
     /// Checks the memory estimate of a `w × h` frame of the current scene
-    /// and lights ([`crate::memory`]) against the options' limit, with the
+    /// and lights ([`memory`]) against the options' limit, with the
     /// reference's share when `reference`.
     fn check_memory(&self, w: u32, h: u32, reference: bool) -> Result<()> {
         let options = PipelineOptions {
             reference_every: u32::from(reference),
             ..self.options
         };
-        let workload = crate::memory::Workload {
+        let workload = memory::Workload {
             width: w,
             height: h,
             lights: self.live_lights().count() as u32,
@@ -626,7 +633,7 @@ impl Pipeline {
             objects: self.counts.objects as u64,
             rows: 0,
         };
-        crate::memory::estimate(&options, &workload).check(crate::memory::limit(&self.options))
+        memory::estimate(&options, &workload).check(memory::limit(&self.options))
     }
 
     /// Time spent building the reference's triangle BVH (ms), 0 until

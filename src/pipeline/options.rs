@@ -185,15 +185,15 @@ impl PipelineOptions {
     }
 
     /// The shadow stage's options.
-    pub fn shadow_options(&self) -> super::stencil::ShadowOptions {
-        super::stencil::ShadowOptions {
+    pub fn shadow_options(&self) -> super::shadow_options::ShadowOptions {
+        super::shadow_options::ShadowOptions {
             method: self.method,
             two_sided: self.two_sided,
             backend: match self.stencil {
                 StencilBackend::Bf | StencilBackend::Db | StencilBackend::None => {
-                    super::stencil::Backend::Brute
+                    super::shadow_options::Backend::Brute
                 }
-                StencilBackend::H => super::stencil::Backend::Hierarchical {
+                StencilBackend::H => super::shadow_options::Backend::Hierarchical {
                     tile: match self.tile {
                         4 => raster::TileSize::T4,
                         16 => raster::TileSize::T16,
@@ -201,7 +201,7 @@ impl PipelineOptions {
                     },
                     full_shadow: self.full_shadow,
                 },
-                StencilBackend::Hybrid => super::stencil::Backend::Hybrid {
+                StencilBackend::Hybrid => super::shadow_options::Backend::Hybrid {
                     map_size: self.map_size,
                 },
             },

@@ -4,36 +4,16 @@
 //! four-class mask ([`crate::mask::assemble`]).
 
 use super::eye::EyePass;
+pub use super::shadow_options::{Backend, ShadowOptions};
 use super::volume::build_for;
 use crate::mask::{assemble_into, Mask, PixelClass};
 use crate::Result;
 use raster::{
-    HierarchicalOptions, HierarchicalStencil, StencilBits, StencilStats, StencilTarget, TileClass,
-    TileSize, VolumeBuffer,
+    HierarchicalOptions, HierarchicalStencil, StencilStats, StencilTarget, TileClass, TileSize,
+    VolumeBuffer,
 };
 use scene::{Camera, Light, ObjectId, Scene};
-use shadowgen::{MethodChoice, SilhouetteCache, VolumeStats};
-
-/// Which stencil backend draws the volumes.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Backend {
-    /// Brute force: every volume fragment ([`StencilTarget`]).
-    Brute,
-    /// Hierarchical shadow volumes \[Aila04\] ([`HierarchicalStencil`]).
-    Hierarchical {
-        /// Tile size of the classification.
-        tile: TileSize,
-        /// The full-shadow bit [Aila04 §4.3.2].
-        full_shadow: bool,
-    },
-    /// A shadow map decides every pixel whose four nearest map comparisons
-    /// agree; the volumes (hierarchical stencil, 8×8 tiles, FS on) run only at
-    /// the others \[ChanDurand04\]. Not exact.
-    Hybrid {
-        /// Shadow-map texels per side (per cube face for point lights).
-        map_size: u32,
-    },
-}
+use shadowgen::{SilhouetteCache, VolumeStats};
 
 /// The tile classification of a hierarchical frame ([Aila04 Fig. 1]).
 #[derive(Clone, Debug, PartialEq)]
@@ -65,40 +45,6 @@ impl TileImage {
             }
         }
         out
-    }
-}
-
-/// Options of the shadow stage.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct ShadowOptions {
-    /// Stencil backend.
-    pub backend: Backend,
-    /// Volume method per caster.
-    pub method: MethodChoice,
-    /// Every triangle casts (matches the reference's two-sided mode).
-    pub two_sided: bool,
-    /// 8-bit wrapping stencil or wide counters.
-    pub bits: StencilBits,
-    /// Per-volume scissor test ([`raster::VolumeRange::scissor`]).
-    pub scissor: bool,
-    /// Per-volume depth-bounds test (`stencil: db`).
-    pub depth_bounds: bool,
-    /// Point and spot lights with a range extrude their volumes finitely
-    /// ([`shadowgen::BuildOptions::finite_extrusion`]).
-    pub finite_extrusion: bool,
-}
-
-impl Default for ShadowOptions {
-    fn default() -> Self {
-        ShadowOptions {
-            backend: Backend::Brute,
-            method: MethodChoice::Auto,
-            two_sided: false,
-            bits: StencilBits::Eight,
-            scissor: false,
-            depth_bounds: false,
-            finite_extrusion: false,
-        }
     }
 }
 

@@ -5,7 +5,7 @@
 //! bounds the stencil tests use — into a caller-owned
 //! [`raster::VolumeBuffer`] ([`shadowgen::build_volumes`]).
 
-use super::stencil::ShadowOptions;
+use super::shadow_options::ShadowOptions;
 use crate::Result;
 use raster::VolumeBuffer;
 use scene::{Camera, Light, ObjectId, Scene};

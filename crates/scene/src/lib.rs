@@ -31,10 +31,12 @@ mod frustum;
 mod graph;
 mod host_camera;
 pub mod load;
+mod loaded;
 mod mesh;
 mod plane;
 pub mod procedural;
 mod scene;
+mod splitmix;
 pub mod transform;
 
 pub use aabb::Aabb;
@@ -51,5 +53,6 @@ pub use plane::Plane;
 pub use scene::{
     Committed, Object, ObjectFlags, ObjectId, Scene, SceneCounts, MAX_NODE_DEPTH, MAX_OBJECTS,
 };
+pub use splitmix::splitmix64;
 
 mod light;

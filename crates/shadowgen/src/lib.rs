@@ -32,11 +32,13 @@ mod build;
 mod error;
 mod method;
 mod silhouette;
+mod silhouette_cache;
 mod volume;
 
 pub use bounds::{volume_bounds, VolumeBounds, BOUNDS_MARGIN};
 pub use build::{build_volumes, BuildOptions, VolumeStats};
 pub use error::{Error, Result};
 pub use method::{choose_method, zpass_is_safe, MethodChoice, NearLightHull, ZPASS_MARGIN};
-pub use silhouette::{silhouette, Silhouette, SilhouetteCache, SilhouetteEdge};
+pub use silhouette::{silhouette, Silhouette, SilhouetteEdge};
+pub use silhouette_cache::SilhouetteCache;
 pub use volume::{append_volume, LocalLight, VolumeCounts, VolumeScratch};

@@ -58,7 +58,7 @@
 //! `cos α` is within that of 1, i.e. for points within that distance of the
 //! range sphere.
 
-use crate::Silhouette;
+use crate::silhouette::Silhouette;
 use glam::{DMat4, DVec3, Vec3};
 use raster::{VolumeBuffer, VolumeMethod, VolumeRange};
 use scene::Light;

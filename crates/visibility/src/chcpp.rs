@@ -27,10 +27,10 @@
 //! only come nearer; assumed-visible leaves are drawn. The objects reported
 //! may be a superset of CHC's; the depth buffer is the unculled one.
 
+use crate::culler::{in_planes, Pending, Queued, Run, Scratch, ViewCuller};
 use crate::hierarchy::{Hierarchy, Node};
-use crate::traverse::{in_planes, Queued, Run, Scratch, ViewCuller};
 use crate::Result;
-use scene::ObjectId;
+use scene::{splitmix64, ObjectId};
 
 /// CHC++ parameters.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -55,15 +55,6 @@ impl Default for ChcppOptions {
     }
 }
 
-/// SplitMix64: the per-node phase RNG (one draw per node and seed, so a
-/// node's phase does not depend on traversal order).
-fn splitmix64(mut z: u64) -> u64 {
-    z = z.wrapping_add(0x9E37_79B9_7F4A_7C15);
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^ (z >> 31)
-}
-
 impl ChcppOptions {
     /// Whether a previously visible leaf holding `object` is queried in
     /// `frame` (keyed by object, so phases survive a hierarchy rebuild).
@@ -72,7 +63,9 @@ impl ChcppOptions {
             return true;
         }
         let r = u64::from(self.revisit);
-        let phase = splitmix64(self.seed ^ (u64::from(object) << 20)) % r;
+        // One draw per node and seed, so a node's phase does not depend on
+        // traversal order.
+        let phase = splitmix64(&mut (self.seed ^ (u64::from(object) << 20))) % r;
         (u64::from(frame) + phase).is_multiple_of(r)
     }
 }
@@ -80,21 +73,6 @@ impl ChcppOptions {
 /// Estimated probability that a node invisible for `t` frames stays invisible.
 fn keep_invisible(t: u32) -> f64 {
     0.99 - 0.7 * (-f64::from(t)).exp()
-}
-
-/// A query in flight.
-#[derive(Clone, Copy, Debug)]
-pub(crate) enum Pending {
-    Node {
-        node: u32,
-        was_visible: bool,
-    },
-    /// A multiquery: `len` nodes from `start` in the frame's group list.
-    Group {
-        start: u32,
-        len: u32,
-    },
-    Revisit(u32),
 }
 
 fn surface_area(n: &Node) -> f64 {

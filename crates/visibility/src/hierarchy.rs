@@ -11,9 +11,10 @@
 use glam::Vec3;
 use scene::{ObjectId, Scene};
 
-/// Index of a node; the root is node 0.
+/// Index of a node of the BVH [`Hierarchy`] (not a scene-graph node,
+/// [`scene::NodeId`]); the root is node 0.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
-pub struct NodeId(pub u32);
+pub struct BvhNodeId(pub u32);
 
 /// No node (the root's parent, a leaf's children).
 pub(crate) const NONE: u32 = u32::MAX;
@@ -105,7 +106,7 @@ impl Hierarchy {
     ///
     /// # Panics
     /// When `id` is out of range.
-    pub fn object(&self, id: NodeId) -> Option<ObjectId> {
+    pub fn object(&self, id: BvhNodeId) -> Option<ObjectId> {
         let n = &self.nodes[id.0 as usize];
         n.is_leaf().then_some(ObjectId(n.object))
     }
@@ -129,7 +130,7 @@ mod tests {
         let h = Hierarchy::from_scene(&scene);
         let mut seen = vec![0u32; scene.objects().len()];
         for (i, n) in h.nodes.iter().enumerate() {
-            if let Some(o) = h.object(NodeId(i as u32)) {
+            if let Some(o) = h.object(BvhNodeId(i as u32)) {
                 seen[o.0 as usize] += 1;
                 let b = scene.object(o).world_bounds;
                 let mut p = i as u32;

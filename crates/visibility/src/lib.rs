@@ -27,11 +27,12 @@
 //!   ([`ViewCuller::set_frame`], [`LightPass::set_frame`]): a node's history
 //!   carries over only from the frame numbered just before, and CHC++'s
 //!   revisit phases are a function of (seed, object, frame).
-//! - Node ids are the scene BVH's ([`NodeId`]); per-node state survives
+//! - Node ids are the scene BVH's ([`BvhNodeId`]); per-node state survives
 //!   refits and is remapped across rebuilds (`ViewCuller::remap`).
 #![forbid(unsafe_code)]
 
 mod chcpp;
+mod culler;
 mod error;
 mod hierarchy;
 mod intersection_body;
@@ -40,16 +41,17 @@ mod light_view;
 mod polyhedron;
 mod receivers;
 mod traverse;
+mod view_setup;
 
 pub use chcpp::ChcppOptions;
+pub use culler::{CullResult, TraversalStats, ViewCuller};
 pub use error::{Error, Result};
-pub use hierarchy::{Hierarchy, NodeId};
+pub use hierarchy::{BvhNodeId, Hierarchy};
 pub use intersection_body::{intersection_body, Face, Polyhedron};
 pub use light_pass::{BackendFactory, LightPass, LightPassOptions, LightPassResult, ViewRole};
 pub use light_view::{
     fit_light_views, wasted_area, LightView, LightViewKind, DEFAULT_LIGHT_VIEW_RESOLUTION,
 };
 pub use receivers::{ReceiverPoints, PIECE_STEPS, RECEIVER_PUSH};
-pub use traverse::{
-    CullResult, Culling, MeshData, Sampling, TraversalStats, ViewCuller, ViewSetup,
-};
+pub use traverse::Culling;
+pub use view_setup::{MeshData, Sampling, ViewSetup};

@@ -29,13 +29,13 @@
 //! every pixel within [`raster::RECEIVER_EPS_PX`] of its projection — through
 //! the segments of `receivers.rs`, which mark a superset.
 
+use crate::culler::{CullResult, TraversalStats, ViewCuller};
 use crate::hierarchy::Hierarchy;
 use crate::intersection_body::{intersection_body_into, BodyScratch, Polyhedron};
 use crate::light_view::{fit_light_views_into, FitScratch, LightView};
 use crate::receivers::{Marks, Prepared, ReceiverPoints};
-use crate::traverse::{
-    CullResult, Culling, MeshData, Sampling, TraversalStats, ViewCuller, ViewSetup,
-};
+use crate::traverse::Culling;
+use crate::view_setup::{MeshData, Sampling, ViewSetup};
 use crate::Result;
 use glam::{DMat4, DVec3, DVec4};
 use raster::{

@@ -21,7 +21,7 @@
 //! nothing there.
 
 use crate::light_view::{LightView, LightViewKind};
-use crate::traverse::Sampling;
+use crate::view_setup::Sampling;
 use glam::{DVec3, Vec4};
 use rayon::prelude::*;
 use scene::Light;

@@ -26,7 +26,8 @@
 //! shadowcull builds its own reversed-Z projection. Errors name the file and
 //! the 1-based line.
 
-use super::{read_file, Loaded};
+use super::input::read_file;
+use crate::loaded::Loaded;
 use crate::procedural::analytic::{box_mesh, horizontal_quad};
 use crate::{CameraPath, Error, Light, LookAt, Result, SceneGraph, Transform};
 use glam::DVec3;

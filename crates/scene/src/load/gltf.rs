@@ -51,9 +51,9 @@ use std::path::Path;
 /// naming the file and element for malformed or unsupported content (see
 /// [`load_gltf_slice`]).
 pub fn load_gltf(path: &Path) -> Result<SceneGraph> {
-    let bytes = super::read_file(path, None)?;
+    let bytes = super::input::read_file(path, None)?;
     let dir = path.parent().unwrap_or(Path::new("")).to_path_buf();
-    let mut resolve = |uri: &str| super::read_input(&dir.join(uri));
+    let mut resolve = |uri: &str| super::input::read_input(&dir.join(uri));
     load_gltf_slice(&bytes, path, &mut resolve)
 }
 

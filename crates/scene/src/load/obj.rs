@@ -59,7 +59,7 @@ const LINES_IN_WARNING: usize = 8;
 /// and the line for an unparsable or non-finite coordinate, a face index that
 /// is 0, unparsable, or refers to a vertex not defined before its line.
 pub fn load_obj(path: &Path) -> Result<SceneGraph> {
-    let bytes = super::read_file(path, None)?;
+    let bytes = super::input::read_file(path, None)?;
     load_obj_bytes(&bytes, path)
 }
 
@@ -751,6 +751,6 @@ fn cluster_centres(groups: &[Group], positions: &[DVec3]) -> Vec<Option<DVec3>> 
     }
     roots
         .iter()
-        .map(|&r| super::recentre(cluster[r].0, cluster[r].1))
+        .map(|&r| super::recentre::recentre(cluster[r].0, cluster[r].1))
         .collect()
 }

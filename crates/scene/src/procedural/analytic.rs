@@ -9,7 +9,7 @@
 //! bit for bit. Objects come out in the order the builder documents (the scene
 //! graph's roots in order, flattened by [`crate::Scene::new`]).
 
-use crate::load::Loaded;
+use crate::loaded::Loaded;
 use crate::{Error, Light, LookAt, Mesh, Result, SceneGraph, Transform};
 use glam::{DVec3, Vec3};
 use std::path::PathBuf;

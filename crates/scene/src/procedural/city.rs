@@ -56,8 +56,11 @@ use super::analytic::horizontal_quad;
 use super::city_meshes::{
     building_mesh, lamp_mesh, tree_mesh, Tier, CROWN_RY, CROWN_Y, LAMP_HEIGHT,
 };
-use crate::load::Loaded;
-use crate::{CameraPath, Error, Light, LookAt, MeshId, Result, SceneGraph, Transform, MAX_OBJECTS};
+use crate::loaded::Loaded;
+use crate::{
+    splitmix64, CameraPath, Error, Light, LookAt, MeshId, Result, SceneGraph, Transform,
+    MAX_OBJECTS,
+};
 use glam::{DQuat, DVec3};
 use std::f64::consts::TAU;
 use std::path::PathBuf;
@@ -407,15 +410,6 @@ fn poses(params: &CityParams) -> (LookAt, LookAt) {
         near: (eye.length() / 400.0).min(5.0),
     };
     (street, bird)
-}
-
-/// splitmix64 (Steele, Lea, Flood 2014): one step of a Weyl sequence, mixed.
-fn splitmix64(state: &mut u64) -> u64 {
-    *state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
-    let mut z = *state;
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^ (z >> 31)
 }
 
 /// A tiny deterministic generator (splitmix64), one per block.

@@ -1,0 +1,173 @@
+//! What a view is to a traversal: how objects and boxes reach its clip space
+//! ([`ViewSetup`]), how it samples ([`Sampling`]), and the meshes in the
+//! backend's form ([`MeshData`]).
+
+use glam::{DMat4, DVec3, Mat4, Vec4};
+use raster::{Coverage, QueryOptions};
+use scene::{ObjectId, Plane, Scene};
+use std::sync::Arc;
+
+/// How draws, queries and receiver marks sample pixels.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum Sampling {
+    /// Conservative: box queries outer-conservative at the nearest depth;
+    /// light-view occluders inner-conservative at the farthest depth;
+    /// receivers widened by [`raster::RECEIVER_EPS_PX`] and pushed away from
+    /// the light. The culled mask equals the unculled one.
+    #[default]
+    Conservative,
+    /// Aggressive: everything at pixel centres (standard coverage), receivers
+    /// unwidened and unpushed, as a GPU implementation would sample. Can cull
+    /// a caster whose shadow falls between samples: measured, not exact.
+    Point,
+}
+
+/// Per-mesh vertex data in the backend's form (`w = 1`, shared with draw commands).
+#[derive(Clone, Debug)]
+pub struct MeshData {
+    pub(crate) positions: Vec<Arc<[Vec4]>>,
+    pub(crate) triangles: Vec<Arc<[[u32; 3]]>>,
+    /// The scene's mesh version each copy was made from.
+    versions: Vec<u64>,
+}
+
+impl MeshData {
+    /// Converts every mesh of `scene`.
+    pub fn from_scene(scene: &Scene) -> Self {
+        let mut data = MeshData {
+            positions: Vec::new(),
+            triangles: Vec::new(),
+            versions: Vec::new(),
+        };
+        data.sync(scene);
+        data
+    }
+
+    /// The triangles of mesh `mesh` (shared).
+    pub(crate) fn triangles_of(&self, mesh: scene::MeshId) -> Arc<[[u32; 3]]> {
+        self.triangles[mesh.0 as usize].clone()
+    }
+
+    /// Catches up with meshes added to `scene` since, and with meshes whose
+    /// vertices changed ([`Scene::mesh_version`]; a removed mesh keeps its
+    /// slot, empty).
+    pub fn sync(&mut self, scene: &Scene) {
+        let meshes = scene.graph().meshes();
+        self.positions.truncate(meshes.len());
+        self.triangles.truncate(meshes.len());
+        self.versions.truncate(meshes.len());
+        for (i, m) in meshes.iter().enumerate() {
+            let version = scene.mesh_version(scene::MeshId(i as u32));
+            if self.versions.get(i) == Some(&version) {
+                continue;
+            }
+            let p: Arc<[Vec4]> = m.positions().iter().map(|p| p.extend(1.0)).collect();
+            let t: Arc<[[u32; 3]]> = m.triangles().into();
+            if i < self.positions.len() {
+                self.positions[i] = p;
+                self.triangles[i] = t;
+                self.versions[i] = version;
+            } else {
+                self.positions.push(p);
+                self.triangles.push(t);
+                self.versions.push(version);
+            }
+        }
+    }
+}
+
+/// One view: how objects and boxes reach its clip space, its culling planes,
+/// and the coverage of its draws and queries.
+pub struct ViewSetup<'a> {
+    /// `clip_from_local` for an object's `world_from_local` (the one transform path).
+    pub clip_from_local: &'a dyn Fn(&DMat4) -> Mat4,
+    /// Boxes are sent relative to this point (f64 subtraction, rounded
+    /// outward), with [`ViewSetup::clip_from_origin`].
+    pub origin: DVec3,
+    /// `clip_from_local` of the translation to `origin`.
+    pub clip_from_origin: Mat4,
+    /// The view's planes (inside positive), for frustum culling.
+    pub planes: [Plane; 5],
+    /// Where front-to-back distances are measured from (the centre of projection).
+    pub apex: DVec3,
+    /// Coverage of occluder draws.
+    pub draw_coverage: Coverage,
+    /// Coverage and mode of box queries.
+    pub query: QueryOptions,
+    /// A node is visible when more than this many samples pass (0: conservative).
+    pub threshold: u32,
+    /// The triangles an object draws as an occluder, when not all of its
+    /// mesh's (a light view draws only the triangles that cast).
+    pub triangles: Option<&'a dyn Fn(ObjectId) -> Arc<[[u32; 3]]>>,
+    /// Which objects the view draws as occluders when it renders them (the
+    /// others are reported rendered but draw nothing): the eye draws visible
+    /// occluders ([`ViewSetup::eye_occluder`]), a light view casting ones.
+    pub occluder: fn(&scene::ObjectFlags) -> bool,
+}
+
+impl<'a> ViewSetup<'a> {
+    /// The eye view of `camera`: boxes eye-relative, the frustum's planes,
+    /// standard-coverage draws, outer-conservative box queries at the nearest
+    /// depth (any-samples when `threshold` is 0, counts otherwise).
+    /// `clip_from_local` is the eye pass's transform path
+    /// (`scene::transform::clip_from_local` with `camera`).
+    pub fn eye(
+        camera: &scene::Camera,
+        clip_from_local: &'a dyn Fn(&DMat4) -> Mat4,
+        threshold: u32,
+    ) -> Self {
+        Self::eye_sampled(camera, clip_from_local, threshold, Sampling::Conservative)
+    }
+
+    /// [`ViewSetup::eye`] with box queries sampled as `sampling` says.
+    pub fn eye_sampled(
+        camera: &scene::Camera,
+        clip_from_local: &'a dyn Fn(&DMat4) -> Mat4,
+        threshold: u32,
+        sampling: Sampling,
+    ) -> Self {
+        ViewSetup {
+            clip_from_local,
+            origin: camera.position,
+            clip_from_origin: scene::transform::clip_from_local(
+                camera,
+                &DMat4::from_translation(camera.position),
+            ),
+            planes: camera.frustum().planes,
+            apex: camera.position,
+            draw_coverage: Coverage::Standard,
+            query: QueryOptions {
+                coverage: sampling.query_coverage(),
+                // With threshold 0 one passing sample decides: stop there.
+                mode: if threshold == 0 {
+                    raster::QueryMode::Any
+                } else {
+                    raster::QueryMode::Count
+                },
+            },
+            threshold,
+            triangles: None,
+            occluder: Self::eye_occluder,
+        }
+    }
+
+    /// The eye's occluders: visible objects that may occlude.
+    pub fn eye_occluder(f: &scene::ObjectFlags) -> bool {
+        f.visible && f.occludes
+    }
+
+    /// A light view's occluders: casting objects that may occlude.
+    pub fn light_occluder(f: &scene::ObjectFlags) -> bool {
+        f.casts && f.occludes
+    }
+}
+
+impl Sampling {
+    /// Coverage of box queries.
+    pub(crate) fn query_coverage(self) -> Coverage {
+        match self {
+            Sampling::Conservative => Coverage::Outer(raster::DepthPick::Nearest),
+            Sampling::Point => Coverage::Standard,
+        }
+    }
+}
