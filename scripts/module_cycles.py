@@ -16,8 +16,9 @@ that names another module of the same crate: `crate::a::b`, `super::x`,
 out (tests may look anywhere). A path that names a re-export is followed to the
 module that defines the item, so `use crate::Error` in a module is an import of
 `error`, not of the crate root. The crate root may import every module (it is the
-facade); an item defined in the root itself and used by a module is an import of
-the root, and so closes a cycle.
+facade), and nothing imports from it but its re-exports: an item defined in the
+root itself and used by a module would close a cycle through the root, and is
+reported as one.
 """
 
 import os
@@ -93,7 +94,7 @@ def matching_brace(text, i):
 
 def drop_test_items(code):
     """Blanks every item under `#[cfg(test)]` (keeping line breaks)."""
-    pattern = re.compile(r"#\[cfg\(test\)\]")
+    pattern = re.compile(r"#\[cfg\((?:all\()?test\b")
     while True:
         m = pattern.search(code)
         if not m:
@@ -195,9 +196,16 @@ def load_crate(root_file):
     return modules
 
 
-def absolute(mod, segs):
-    """Absolute segments for a path written in `mod`, or None if external."""
+def absolute(mod, segs, inline=0):
+    """Absolute segments for a path written in `mod` (inside `inline` nested
+    inline `mod x { ... }` blocks, whose `super` is the file's module), or
+    None if external."""
     head = segs[0]
+    while inline and head == "super":
+        segs, inline = segs[1:], inline - 1
+        head = segs[0] if segs else "self"
+        if not segs:
+            return list(mod.name)
     if head == "crate":
         return list(segs[1:])
     if head == "self":
@@ -217,6 +225,12 @@ def absolute(mod, segs):
 def collect_uses(mod):
     code = mod.file
     taken = []
+    blocks = [(m.start(), matching_brace(code, m.end() - 1))
+              for m in re.finditer(r"\bmod\s+" + IDENT + r"\s*\{", code)]
+
+    def inline(pos):
+        return sum(1 for a, b in blocks if a < pos < b)
+
     for m in re.finditer(r"\b(pub(?:\([^)]*\))?\s+)?use\s+([^;]*);", code):
         line = code.count("\n", 0, m.start()) + 1
         taken.append((m.start(), m.end()))
@@ -225,7 +239,7 @@ def collect_uses(mod):
                 segs = segs[:-1]
             if not segs:
                 continue
-            path = absolute(mod, segs)
+            path = absolute(mod, segs, inline(m.start()))
             if path is None:
                 continue
             mod.uses.append((line, path))
@@ -238,7 +252,7 @@ def collect_uses(mod):
         if any(a <= m.start() < b for a, b in taken):
             continue
         segs = m.group(0).split("::")
-        path = absolute(mod, segs)
+        path = absolute(mod, segs, inline(m.start()))
         if path is not None:
             line = code.count("\n", 0, m.start()) + 1
             mod.uses.append((line, path))
@@ -382,7 +396,14 @@ def main(argv):
                             if b in members:
                                 path = os.path.relpath(modules[a].path, top)
                                 print(f"    {show(a)} -> {show(b)}  ({path}:{','.join(map(str, sorted(set(lines))))})")
-            else:
+            root_uses = sorted((a, lines) for a, t in edges.items() for b, lines in t.items() if b == () and a != ())
+            if root_uses:
+                bad += 1
+                print(f"{rel}: modules import items defined in the crate root (move them to a module):")
+                for a, lines in root_uses:
+                    path = os.path.relpath(modules[a].path, top)
+                    print(f"    {show(a)} -> (crate root)  ({path}:{','.join(map(str, sorted(set(lines))))})")
+            if not cycles and not root_uses:
                 print(f"{rel}: {len(modules)} modules, no import cycle")
             if order:
                 print("  bottom-up: " + " < ".join(show(c[0]) if len(c) == 1 else "{" + ", ".join(show(m) for m in c) + "}" for c in comps))

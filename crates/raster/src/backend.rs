@@ -10,9 +10,9 @@
 
 use crate::coverage::Coverage;
 use crate::depth_target::DepthTarget;
-use crate::draw::DrawItem;
-use crate::query::QueryOptions;
-use crate::receivers::ReceiverTarget;
+use crate::item::DrawItem;
+use crate::query_options::QueryOptions;
+use crate::receiver_target::ReceiverTarget;
 use crate::{Error, Result};
 use glam::{Mat4, Vec3, Vec4};
 use std::sync::mpsc;

@@ -13,14 +13,15 @@
 //! of f64 lanes instead of two.
 
 use crate::coverage::Coverage;
-use crate::depth_target::Band;
-use crate::draw::{setup_item, CullMode, DrawItem, TriSink};
+use crate::depth_target::CullMode;
 use crate::edge::Tri;
 use crate::hiz::{hidden, project, project_lanes, project_wide, Projected, RowSkip};
-use crate::query::{meets_apex_region, APEX_EPS, VISIBLE};
+use crate::item::{setup_item, DrawItem, TriSink};
+use crate::layout::Band;
+use crate::query_options::{meets_apex_region, APEX_EPS, VISIBLE};
 use crate::setup::{widen, VertexCache, Viewport, CACHE_VERTICES};
 use crate::stats::RasterStats;
-use crate::traverse::{draw_tri, probe_passes, query_tri, QueryView};
+use crate::tile_walk::{draw_tri, probe_passes, query_tri, QueryView};
 use crate::Result;
 use glam::{Mat4, Vec3};
 
@@ -123,6 +124,7 @@ macro_rules! multiversioned {
             $at(level(), $($a),*)
         }
 
+        $(#[$m])*
         #[allow(clippy::too_many_arguments)]
         pub(crate) fn $at(level: Level, $($a: $t),*) -> $r {
             #[inline(always)]
@@ -217,6 +219,7 @@ multiversioned! {
 
     /// The screen bounds of each of `items` into `out` (same length), as
     /// [`draw_mesh`] computes them.
+    #[cfg(feature = "parallel")]
     fn project_items / project_items_at(
         vp: &Viewport,
         items: &[DrawItem],
@@ -270,7 +273,7 @@ multiversioned! {
         st: &mut RasterStats,
     ) -> u32 {
         let (min, max) = bounds;
-        use crate::draw::{aabb_corners, AABB_TRIANGLES};
+        use crate::item::{AABB_TRIANGLES, aabb_corners};
         st.queries += 1;
         let mut cache = VertexCache::empty();
         cache.transform_box(clip_from_local, min, max);
@@ -500,11 +503,11 @@ mod tests {
                 Vec4::new(0.0, 0.0, 0.0, -1.0),
                 Vec4::new(0.0, 0.0, 0.1, 0.0),
             );
-            let corners = crate::draw::aabb_corners(lo, hi);
+            let corners = crate::item::aabb_corners(lo, hi);
             let boxed = DrawItem {
                 clip_from_local: m,
                 positions: &corners,
-                triangles: &crate::draw::AABB_TRIANGLES,
+                triangles: &crate::item::AABB_TRIANGLES,
                 object: 1000 + k,
             };
             for it in [&item, &boxed] {

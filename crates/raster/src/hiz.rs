@@ -6,7 +6,7 @@
 //! sample of the mesh can pass GREATER or GEQUAL, so it is skipped without setup.
 
 use crate::coverage::f32_up;
-use crate::depth_target::{Layout, TileBounds};
+use crate::layout::{Layout, TileBounds};
 use crate::setup::{transform_lanes, widen, Lanes, Wide, CACHE_VERTICES};
 use glam::{Mat4, Vec4};
 

@@ -56,8 +56,10 @@
 //! FS bit: `2·(3·S + 1)`); the resolve reads every written tile's entry
 //! (`3·S + 1`).
 
-use crate::depth_target::{DepthTarget, TileSize, BACKGROUND};
+use crate::depth_target::DepthTarget;
+
 use crate::edge::Tri;
+use crate::layout::{TileSize, BACKGROUND};
 use crate::open_edges::{open_edges, push_piece_edges, EdgeRec, Segment};
 use crate::setup::{Setup, SnappedVertex, SUBPIXEL};
 use crate::span::StripExtents;

@@ -48,29 +48,40 @@
 //! the results are bit-identical (`SHADOWCULL_RASTER_SCALAR=1` forces portable,
 //! `SHADOWCULL_RASTER_AVX2=1` caps at AVX2).
 
-mod backend;
+// Modules bottom-up: each imports only modules above it in this list
+// (`scripts/module_cycles.py` checks it).
+mod error;
+mod limits;
+mod stats;
+// Geometry: clipping, snapped setup, edge functions, coverage rules.
 mod clip;
 mod coverage;
-mod depth_target;
-mod dispatch;
-mod draw;
 mod edge;
-mod error;
-mod hiz;
-mod hstencil;
 mod near_cap;
 mod open_edges;
-mod prefetch;
-mod query;
-mod receivers;
 mod setup;
 mod span;
-mod stats;
+mod tile_class;
+mod volume_buffer;
+// Targets: the tile layout and hierarchical z, the depth and receiver targets.
+mod depth_target;
+mod hiz;
+mod layout;
+mod prefetch;
+mod receiver_target;
+// The tile walk, what is drawn, and the multiversioned per-mesh pipeline.
+mod dispatch;
+mod item;
+mod query_options;
+mod tile_walk;
+// Draws and queries, and the asynchronous seam.
+mod backend;
+mod draw;
+mod query;
+// The stencil stage: brute force, then hierarchical.
+mod hstencil;
 mod stencil;
 mod stencil_run;
-mod tile_class;
-mod traverse;
-mod volume_buffer;
 
 pub use backend::{
     BackendStats, DrawCommand, Gate, Latency, OcclusionBackend, QueryBuffers, QueryCommand,
@@ -78,32 +89,15 @@ pub use backend::{
 };
 pub use clip::MAX_CLIPPED_VERTICES;
 pub use coverage::{Coverage, DepthPick};
-pub use depth_target::{DepthTarget, TileSize, BACKGROUND, NO_ID};
-pub use draw::{aabb_corners, CullMode, DrawItem, AABB_TRIANGLES};
+pub use depth_target::{CullMode, DepthTarget, NO_ID};
 pub use error::{Error, Result};
 pub use hstencil::{HierarchicalOptions, HierarchicalStencil, TileClass};
-pub use query::{meets_apex_region, QueryMode, QueryOptions, APEX_EPS, VISIBLE};
-pub use receivers::{ReceiverTarget, RECEIVER_EPS_PX, SEGMENT_SLACK_PX};
+pub use item::{aabb_corners, DrawItem, AABB_TRIANGLES};
+pub use layout::{TileSize, BACKGROUND};
+pub use limits::{DEPTH_ERROR, GUARD_BAND_PX, MAX_TARGET_SIZE};
+pub use query_options::{meets_apex_region, QueryMode, QueryOptions, APEX_EPS, VISIBLE};
+pub use receiver_target::{ReceiverTarget, RECEIVER_EPS_PX, SEGMENT_SLACK_PX};
 pub use setup::{facing, setup_triangle, Facing, Setup, SnappedVertex, SUBPIXEL};
 pub use stats::RasterStats;
 pub use stencil::{StencilBits, StencilStats, StencilTarget, StencilTests};
 pub use volume_buffer::{VolumeBuffer, VolumeMethod, VolumeRange};
-
-/// Largest width or height of a target, in pixels.
-pub const MAX_TARGET_SIZE: u32 = 16384;
-
-/// Guard band: clipped vertices project to within this many pixels outside the target.
-/// With [`MAX_TARGET_SIZE`] every snapped coordinate stays below 2¹⁵ pixels, so edge
-/// functions stay below 2⁵⁰ and are exact in i64 and f64.
-pub const GUARD_BAND_PX: f64 = 8192.0;
-
-/// ε_z, the relative depth-error bound: `|z_raster − z| ≤ DEPTH_ERROR · z` for the
-/// depth `z` of the plane through the snapped post-clip vertices at a covered pixel
-/// centre (standard coverage).
-///
-/// Justification: depth is evaluated as `Σ E_i·z_i / area` in f64 with exact integer
-/// edge values `E_i ≥ 0` inside the triangle and vertex depths `z_i = z/w ≥ 0`, so no
-/// term cancels and the f64 result is within 5·2⁻⁵³ relative; rounding to f32 adds
-/// 2⁻²⁴. 2⁻²³ bounds the sum with room to spare. (It does not include the rounding of
-/// `clip_from_local` or of clipping, which happen before the "own vertices".)
-pub const DEPTH_ERROR: f64 = 1.0 / 8388608.0;

@@ -8,7 +8,7 @@
 //! bounds. A hint only: nothing depends on it but timing. (The same for draws
 //! measured no gain: a draw's loads are fewer per instruction.)
 
-use crate::depth_target::{Layout, TileBounds};
+use crate::layout::{Layout, TileBounds};
 use glam::{Mat4, Vec4};
 
 /// Boxes looked ahead: enough to cover a memory latency with the work of the

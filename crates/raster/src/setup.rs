@@ -276,7 +276,7 @@ impl VertexCache {
     }
 
     /// [`VertexCache::transform_into`] of the eight corners of the box `(min, max)`
-    /// in the order of [`crate::draw::aabb_corners`] (the same values).
+    /// in the order of [`crate::item::aabb_corners`] (the same values).
     #[inline(always)]
     pub fn transform_box(&mut self, m: &glam::Mat4, min: glam::Vec3, max: glam::Vec3) {
         self.len = 8;
@@ -396,7 +396,7 @@ mod tests {
             );
             let mut cache = VertexCache::empty();
             cache.transform_box(&m, lo, hi);
-            let corners = crate::draw::aabb_corners(lo, hi);
+            let corners = crate::item::aabb_corners(lo, hi);
             for k in 0..8 {
                 let want = m * p[k];
                 let got = Vec4::new(lanes[0][k], lanes[1][k], lanes[2][k], lanes[3][k]);

@@ -10,7 +10,7 @@
 //! rounded to f32 to nearest — so the depth of every fragment is bit-identical
 //! to the eye pass's and between the builds. A unit test checks the builds agree.
 
-use crate::depth_target::BACKGROUND;
+use crate::layout::BACKGROUND;
 
 /// Inputs of one run: edge values at its first pixel and their per-pixel
 /// steps, the plane's vertex depths and 1/area, the depth window, the rule.

@@ -7,9 +7,9 @@
 use crate::coverage::{
     depth_range, edge_offsets, f32_down, f32_up, Coverage, DepthPick, PLANE_EPS,
 };
-use crate::depth_target::{Band, Layout, TileBounds, BACKGROUND};
 use crate::edge::Tri;
 use crate::hiz::RowSkip;
+use crate::layout::{Band, Layout, TileBounds, BACKGROUND};
 use crate::setup::SUBPIXEL;
 use crate::stats::RasterStats;
 

@@ -6,7 +6,9 @@
 //! A point marks every pixel whose closed square lies within
 //! [`RECEIVER_EPS_PX`] pixels (Euclidean) of its projection.
 
-use crate::depth_target::{DepthTarget, Layout};
+use crate::depth_target::DepthTarget;
+
+use crate::layout::Layout;
 use crate::{Error, Result};
 use glam::{Mat4, Vec4};
 
