@@ -144,6 +144,9 @@ fn main() -> anyhow::Result<()> {
     let mut target = DepthTarget::new(a.width, a.height, a.tile, false)?;
     target.set_threads(a.threads.max(1));
     target.set_cull(a.cull);
+    if let Some(cap) = shadowcull::raster::InstructionSet::cap_from_env() {
+        target.set_instruction_set(cap);
+    }
     let opts = QueryOptions {
         coverage: Coverage::Standard,
         mode: a.mode,

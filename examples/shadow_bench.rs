@@ -181,6 +181,7 @@ fn parse() -> anyhow::Result<Args> {
         height: h.parse().context("height")?,
         pipeline: PipelineOptions {
             reference_every: 0,
+            instruction_set: shadowcull::raster::InstructionSet::cap_from_env(),
             ..Default::default()
         },
         reference: false,

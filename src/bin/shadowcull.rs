@@ -41,6 +41,44 @@ struct Cli {
     /// (default: three quarters of the machine's memory).
     #[arg(long, global = true, value_name = "SIZE")]
     max_memory: Option<shadowcull::byte_size::ByteSize>,
+    /// Caps the rasterizer's instruction set (portable, avx2, avx512);
+    /// overrides the job's `pipeline.instruction_set`. Without it,
+    /// SHADOWCULL_RASTER_SCALAR=1 caps at portable and SHADOWCULL_RASTER_AVX2=1
+    /// at AVX2. Results are identical at every level.
+    #[arg(long, global = true, value_name = "LEVEL")]
+    instruction_set: Option<shadowcull::raster::InstructionSet>,
+}
+
+/// What the global flags override in every pipeline of a job.
+#[derive(Clone, Copy)]
+struct Overrides {
+    max_memory: Option<shadowcull::byte_size::ByteSize>,
+    instruction_set: Option<shadowcull::raster::InstructionSet>,
+}
+
+impl Overrides {
+    fn of(cli: &Cli) -> Overrides {
+        Overrides {
+            max_memory: cli.max_memory,
+            instruction_set: cli
+                .instruction_set
+                .or_else(shadowcull::raster::InstructionSet::cap_from_env),
+        }
+    }
+
+    /// Applies the overrides to the job's pipeline and every variant.
+    fn apply(self, job: &mut Job) {
+        let pipelines = std::iter::once(&mut job.pipeline)
+            .chain(job.pipelines.iter_mut().map(|v| &mut v.pipeline));
+        for p in pipelines {
+            if let Some(size) = self.max_memory {
+                p.max_memory = Some(size);
+            }
+            if let Some(isa) = self.instruction_set {
+                p.instruction_set = Some(isa);
+            }
+        }
+    }
 }
 
 #[derive(Subcommand)]
@@ -155,7 +193,7 @@ fn one_line(e: &anyhow::Error) -> String {
 }
 
 fn dispatch(cli: Cli) -> anyhow::Result<()> {
-    let max_memory = cli.max_memory;
+    let overrides = Overrides::of(&cli);
     match cli.command {
         Command::Run {
             job,
@@ -173,7 +211,7 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
                 warmup,
                 keyframe,
             };
-            run(job.as_deref(), options, log_format, max_memory)
+            run(job.as_deref(), options, log_format, overrides)
         }
         Command::Merge { out, shards } => {
             let r = merge_shards(&out, &shards)?;
@@ -187,7 +225,7 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
             );
             Ok(())
         }
-        Command::Compare { job, out, frames } => compare(&job, out, frames, max_memory),
+        Command::Compare { job, out, frames } => compare(&job, out, frames, overrides),
         Command::Inspect {
             scene,
             json,
@@ -196,24 +234,14 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
     }
 }
 
-/// `--max-memory` over the job's own limit, for its pipeline and every variant.
-fn limit_memory(job: &mut Job, max_memory: Option<shadowcull::byte_size::ByteSize>) {
-    if let Some(size) = max_memory {
-        job.pipeline.max_memory = Some(size);
-        for v in &mut job.pipelines {
-            v.pipeline.max_memory = Some(size);
-        }
-    }
-}
-
 fn compare(
     job_file: &Path,
     out: PathBuf,
     frames: Option<u32>,
-    max_memory: Option<shadowcull::byte_size::ByteSize>,
+    overrides: Overrides,
 ) -> anyhow::Result<()> {
     let mut job = Job::from_file(job_file)?;
-    limit_memory(&mut job, max_memory);
+    overrides.apply(&mut job);
     let options = CompareOptions {
         out_dir: out.clone(),
         max_frames: frames,
@@ -242,14 +270,14 @@ fn run(
     job_file: Option<&Path>,
     options: RunOptions,
     log_format: LogFormat,
-    max_memory: Option<shadowcull::byte_size::ByteSize>,
+    overrides: Overrides,
 ) -> anyhow::Result<()> {
     use tracing_subscriber::prelude::*;
     let mut job = match job_file {
         Some(p) => Job::from_file(p)?,
         None => default_job(),
     };
-    limit_memory(&mut job, max_memory);
+    overrides.apply(&mut job);
     let tty = std::io::stderr().is_terminal();
     match log_format {
         LogFormat::Json => {

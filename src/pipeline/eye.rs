@@ -108,6 +108,29 @@ pub struct EyePass {
 }
 
 impl EyePass {
+    /// `previous` when it is `width × height`, else an empty pass of that
+    /// size, with the target's kernels capped at `isa`: what the eye passes
+    /// reuse, so the cap holds from the first frame.
+    ///
+    /// # Errors
+    /// [`crate::Error::Raster`] for a target larger than the rasterizer allows.
+    pub(crate) fn reusable(
+        previous: Option<EyePass>,
+        (width, height): (u32, u32),
+        isa: raster::InstructionSet,
+    ) -> Result<EyePass> {
+        let mut pass = match previous {
+            Some(p) if (p.target.width(), p.target.height()) == (width, height) => p,
+            _ => EyePass {
+                target: DepthTarget::new(width, height, TileSize::T8, true)?,
+                primitive: Vec::new(),
+                depth: Vec::new(),
+            },
+        };
+        pass.target.set_instruction_set(isa);
+        Ok(pass)
+    }
+
     /// The visible surface as the reference takes it: primitive ids and depth.
     pub fn surface(&self) -> crate::reference::EyeSurface<'_> {
         crate::reference::EyeSurface {

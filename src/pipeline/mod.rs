@@ -381,7 +381,11 @@ impl Pipeline {
         let culled = o.culling != CullingSpec::None;
 
         // 1. Eye pass (PSR) and, for the light pass, the visible surface points.
-        let previous = self.eye.take();
+        let previous = Some(EyePass::reusable(
+            self.eye.take(),
+            (w, h),
+            o.instruction_set.unwrap_or_default(),
+        )?);
         let (eye, eye_queries, eye_waits) = if culled {
             let state = self.culling.get_or_insert_with(|| EyeCulling::new(scene));
             state.set_frame(frame);

@@ -140,6 +140,12 @@ pub struct PipelineOptions {
     /// quarters of the machine's memory. A larger estimate is an
     /// [`crate::Error::Options`] on `max_memory` before anything is allocated.
     pub max_memory: Option<crate::byte_size::ByteSize>,
+    /// Caps the rasterizer kernels' instruction set (`portable`, `avx2`,
+    /// `avx512`; [`raster::InstructionSet`]). `None` (the default): the
+    /// detected one. Every level gives the same results; the cap is for
+    /// comparing builds.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub instruction_set: Option<raster::InstructionSet>,
 }
 
 impl Default for PipelineOptions {
@@ -164,6 +170,7 @@ impl Default for PipelineOptions {
             reference_every: 1,
             reference: Default::default(),
             max_memory: None,
+            instruction_set: None,
         }
     }
 }
@@ -289,6 +296,7 @@ impl PipelineOptions {
             resolution: self.light_resolution,
             threshold: self.query_threshold,
             two_sided: self.two_sided,
+            instruction_set: self.instruction_set.unwrap_or_default(),
         }
     }
 }

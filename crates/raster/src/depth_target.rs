@@ -8,6 +8,7 @@
 //! as "no surface" without a branch; tile bounds ignore them.
 
 use crate::hiz::RowSkip;
+use crate::isa::InstructionSet;
 use crate::layout::{Band, Layout, TileBounds, TileSize, BACKGROUND};
 use crate::setup::Viewport;
 use crate::stats::RasterStats;
@@ -50,6 +51,8 @@ pub struct DepthTarget {
     pub(crate) draw_rows: Option<(u32, u32)>,
     /// Facing culled by draws.
     pub(crate) cull: CullMode,
+    /// The kernels' instruction set: the detected one, or a lower cap.
+    pub(crate) isa: InstructionSet,
     /// Scratch of [`DepthTarget::draw`]'s hidden-row test (kept, not rebuilt per mesh).
     pub(crate) skip: Box<RowSkip>,
 }
@@ -99,6 +102,7 @@ impl DepthTarget {
             threads: 0,
             draw_rows: None,
             cull: CullMode::None,
+            isa: InstructionSet::detected(),
             skip: Box::new(RowSkip::new()),
         };
         t.clear();
@@ -146,6 +150,19 @@ impl DepthTarget {
     /// The cull mode of draws.
     pub fn cull(&self) -> CullMode {
         self.cull
+    }
+
+    /// Caps the instruction set of the kernels that draw into, query and
+    /// stencil against this target (default: the detected level; a cap above
+    /// it runs the detected level). Every level gives bit-identical results:
+    /// the cap is for comparing builds, or for ruling one out.
+    pub fn set_instruction_set(&mut self, cap: InstructionSet) {
+        self.isa = cap.capped();
+    }
+
+    /// The instruction set the kernels run at ([`DepthTarget::set_instruction_set`]).
+    pub fn instruction_set(&self) -> InstructionSet {
+        self.isa
     }
 
     /// Limits batch draws and queries to `threads` rayon workers (0 = rayon's pool size,
@@ -536,6 +553,66 @@ mod tests {
                     assert_eq!(t.tile_background(tx, ty), (x1 - x0 + 1) * (y1 - y0 + 1));
                 }
             }
+        }
+    }
+
+    /// A target capped at any level draws, queries and counts exactly what a
+    /// portable-capped one does (the public side of dispatch's bit-for-bit test).
+    #[test]
+    fn every_instruction_set_cap_gives_the_same_target() {
+        use crate::{InstructionSet, QueryOptions};
+        use glam::{Mat4, Vec3, Vec4};
+        let persp = Mat4::from_cols(
+            Vec4::new(1.2, 0.0, 0.0, 0.0),
+            Vec4::new(0.0, 1.6, 0.0, 0.0),
+            Vec4::new(0.0, 0.0, 0.0, -1.0),
+            Vec4::new(0.0, 0.0, 0.1, 0.0),
+        );
+        let run = |cap: InstructionSet| {
+            let mut t = DepthTarget::new(301, 203, TileSize::T8, true).unwrap();
+            t.set_instruction_set(cap);
+            assert!(
+                t.instruction_set() <= cap && t.instruction_set() <= InstructionSet::detected()
+            );
+            let mut s = 0x2545_f491_4f6c_dd1du64;
+            let mut rnd = || {
+                s ^= s << 13;
+                s ^= s >> 7;
+                s ^= s << 17;
+                (s >> 11) as f32 / (1u64 << 53) as f32 * 2.0 - 1.0
+            };
+            let mut answers = Vec::new();
+            for k in 0..200u32 {
+                let v: Vec<Vec4> = (0..3)
+                    .map(|_| Vec4::new(3.0 * rnd(), 3.0 * rnd(), -2.0 - 4.0 * rnd().abs(), 1.0))
+                    .collect();
+                let item = DrawItem {
+                    clip_from_local: persp,
+                    positions: &v,
+                    triangles: &[[0, 1, 2]],
+                    object: k,
+                };
+                t.draw(&item, Coverage::Standard).unwrap();
+                let lo = Vec3::new(2.0 * rnd(), 2.0 * rnd(), -3.0 - 3.0 * rnd().abs());
+                let hi = lo + Vec3::splat(0.05 + 0.3 * rnd().abs());
+                answers.push(
+                    t.query_aabb(persp, lo, hi, &QueryOptions::default(), None)
+                        .unwrap(),
+                );
+            }
+            let pixels: Vec<_> = (0..203)
+                .flat_map(|y| (0..301).map(move |x| (x, y)))
+                .map(|(x, y)| (t.depth_at(x, y).map(f32::to_bits), t.id_at(x, y)))
+                .collect();
+            (pixels, answers, t.stats())
+        };
+        let portable = run(InstructionSet::Portable);
+        assert!(portable.1.iter().any(|&n| n > 0) && portable.1.contains(&0));
+        for cap in [InstructionSet::Avx2, InstructionSet::Avx512] {
+            assert!(
+                run(cap) == portable,
+                "{cap} differs from the portable build"
+            );
         }
     }
 }

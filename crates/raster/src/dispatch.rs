@@ -5,8 +5,8 @@
 //! in f64, the per-vertex stage across vertices, and inlines `round`) — and
 //! chosen once at runtime. Every build performs the same IEEE operations in the
 //! same order (no fused multiply-add is enabled), so their results are
-//! bit-identical; a test checks it. `SHADOWCULL_RASTER_SCALAR=1` forces the
-//! portable build, `SHADOWCULL_RASTER_AVX2=1` caps it at AVX2.
+//! bit-identical; a test checks it. The level is the target's
+//! ([`crate::InstructionSet`]): the detected one unless the host caps it.
 //!
 //! AVX-512 pays on its own (measured on city_16384 `bird` 1920×1080, one thread:
 //! occluders 57 → 46 ms, identical output): an 8-pixel tile row is one register
@@ -16,6 +16,7 @@ use crate::coverage::Coverage;
 use crate::depth_target::CullMode;
 use crate::edge::Tri;
 use crate::hiz::{hidden, project, project_lanes, project_wide, Projected, RowSkip};
+use crate::isa::InstructionSet;
 use crate::item::{setup_item, DrawItem, TriSink};
 use crate::layout::Band;
 use crate::query_options::{meets_apex_region, APEX_EPS, VISIBLE};
@@ -24,77 +25,6 @@ use crate::stats::RasterStats;
 use crate::tile_walk::{draw_tri, probe_passes, query_tri, QueryView};
 use crate::Result;
 use glam::{Mat4, Vec3};
-
-/// An instruction-set level the pipeline is compiled for.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
-pub(crate) enum Level {
-    Portable,
-    #[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
-    Avx2,
-    #[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
-    Avx512,
-}
-
-/// The highest level this CPU runs (detected once).
-pub(crate) fn detected() -> Level {
-    #[cfg(target_arch = "x86_64")]
-    {
-        use std::sync::atomic::{AtomicU8, Ordering};
-        // 0 unknown, then 1 + the level.
-        static DETECTED: AtomicU8 = AtomicU8::new(0);
-        let code = match DETECTED.load(Ordering::Relaxed) {
-            0 => {
-                let level = if std::arch::is_x86_feature_detected!("avx512f")
-                    && std::arch::is_x86_feature_detected!("avx512vl")
-                    && std::arch::is_x86_feature_detected!("avx512bw")
-                    && std::arch::is_x86_feature_detected!("avx512dq")
-                    && std::arch::is_x86_feature_detected!("avx2")
-                {
-                    Level::Avx512
-                } else if std::arch::is_x86_feature_detected!("avx2") {
-                    Level::Avx2
-                } else {
-                    Level::Portable
-                };
-                let code = 1 + level as u8;
-                DETECTED.store(code, Ordering::Relaxed);
-                code
-            }
-            c => c,
-        };
-        match code {
-            3 => Level::Avx512,
-            2 => Level::Avx2,
-            _ => Level::Portable,
-        }
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        Level::Portable
-    }
-}
-
-/// The level the pipeline runs at: [`detected`], capped by the environment
-/// (`SHADOWCULL_RASTER_SCALAR`, `SHADOWCULL_RASTER_AVX2`), read once.
-pub(crate) fn level() -> Level {
-    static LEVEL: std::sync::OnceLock<Level> = std::sync::OnceLock::new();
-    *LEVEL.get_or_init(|| {
-        let cap = if std::env::var_os("SHADOWCULL_RASTER_SCALAR").is_some() {
-            Level::Portable
-        } else if std::env::var_os("SHADOWCULL_RASTER_AVX2").is_some() {
-            Level::Avx2
-        } else {
-            Level::Avx512
-        };
-        detected().min(cap)
-    })
-}
-
-/// Whether the AVX2 builds may run.
-#[inline]
-pub(crate) fn avx2_available() -> bool {
-    level() >= Level::Avx2
-}
 
 /// The screen bounds of `item`; a small mesh's vertex stage is left in `cache`
 /// (filled in place: moving it costs a copy per mesh).
@@ -109,24 +39,19 @@ fn screen_bounds(vp: &Viewport, item: &DrawItem, cache: &mut VertexCache) -> Pro
     }
 }
 
-/// Defines `name(args)`, running the body at [`level`], and `name_at(level, args)`,
-/// running it at `level` (capped at [`detected`], so any level is safe to ask for);
-/// the body is compiled once per level.
+/// Defines `name(isa, args)`, running the body compiled for `isa` (capped at
+/// [`InstructionSet::detected`], so any level is safe to ask for); the body is
+/// compiled once per level. (The `multiversion` crate was evaluated instead:
+/// its dispatch picks the best detected level by itself and cannot run a level
+/// the caller chooses, which the cap and the bit-for-bit test need.)
 macro_rules! multiversioned {
     ($(
         $(#[$m:meta])*
-        fn $name:ident / $at:ident ($($a:ident : $t:ty),* $(,)?) -> $r:ty $body:block
+        fn $name:ident ($($a:ident : $t:ty),* $(,)?) -> $r:ty $body:block
     )*) => {$(
         $(#[$m])*
-        #[inline]
         #[allow(clippy::too_many_arguments)]
-        pub(crate) fn $name($($a: $t),*) -> $r {
-            $at(level(), $($a),*)
-        }
-
-        $(#[$m])*
-        #[allow(clippy::too_many_arguments)]
-        pub(crate) fn $at(level: Level, $($a: $t),*) -> $r {
+        pub(crate) fn $name(isa: InstructionSet, $($a: $t),*) -> $r {
             #[inline(always)]
             #[allow(clippy::too_many_arguments)]
             fn imp($($a: $t),*) -> $r $body
@@ -142,16 +67,17 @@ macro_rules! multiversioned {
                 fn avx512($($a: $t),*) -> $r {
                     imp($($a),*)
                 }
-                match level.min(detected()) {
-                    // SAFETY: `detected` found AVX-512 F/VL/BW/DQ and AVX2 on this CPU.
-                    Level::Avx512 => return unsafe { avx512($($a),*) },
-                    // SAFETY: `detected` found AVX2 on this CPU.
-                    Level::Avx2 => return unsafe { avx2($($a),*) },
-                    Level::Portable => {}
+                match isa.capped() {
+                    // SAFETY: `capped` is at most the detected level: this CPU has
+                    // AVX-512 F/VL/BW/DQ and AVX2.
+                    InstructionSet::Avx512 => return unsafe { avx512($($a),*) },
+                    // SAFETY: as above, this CPU has AVX2.
+                    InstructionSet::Avx2 => return unsafe { avx2($($a),*) },
+                    InstructionSet::Portable => {}
                 }
             }
             #[cfg(not(target_arch = "x86_64"))]
-            let _ = level;
+            let _ = isa;
             imp($($a),*)
         }
     )*};
@@ -161,7 +87,7 @@ multiversioned! {
     /// Draws one mesh into the rows of `band`: vertex stage, screen bounds
     /// (`projected`, or computed here), hierarchical-z skip of its hidden tile rows
     /// (false: skipped whole, nothing counted), then setup and traversal.
-    fn draw_mesh / draw_mesh_at(
+    fn draw_mesh(
         vp: &Viewport,
         band: &mut Band,
         item: &DrawItem,
@@ -220,7 +146,7 @@ multiversioned! {
     /// The screen bounds of each of `items` into `out` (same length), as
     /// [`draw_mesh`] computes them.
     #[cfg(feature = "parallel")]
-    fn project_items / project_items_at(
+    fn project_items(
         vp: &Viewport,
         items: &[DrawItem],
         out: &mut [Projected],
@@ -232,7 +158,7 @@ multiversioned! {
     }
 
     /// Counts the samples of `item` passing the query test (1 at the first with `any`).
-    fn query_mesh / query_mesh_at(
+    fn query_mesh(
         vp: &Viewport,
         view: &QueryView,
         item: &DrawItem,
@@ -263,7 +189,7 @@ multiversioned! {
     /// The query of the box `(min, max)`: [`VISIBLE`] when it meets the apex
     /// region, 0 when hierarchical z hides its screen rectangle, else the count of
     /// its 12 triangles (at most `VISIBLE − 1`). Counts the query in `st`.
-    fn query_box / query_box_at(
+    fn query_box(
         vp: &Viewport,
         view: &QueryView,
         clip_from_local: &Mat4,
@@ -441,9 +367,9 @@ mod tests {
     /// portable build: depth, ids, counters, mesh and box query counts.
     #[test]
     fn simd_builds_equal_scalar_build() {
-        let levels: Vec<Level> = [Level::Avx2, Level::Avx512]
+        let levels: Vec<InstructionSet> = [InstructionSet::Avx2, InstructionSet::Avx512]
             .into_iter()
-            .filter(|&l| l <= detected())
+            .filter(|&l| l <= InstructionSet::detected())
             .collect();
         if levels.is_empty() {
             eprintln!("note: no SIMD build runs on this CPU; nothing to compare");
@@ -461,7 +387,7 @@ mod tests {
         }
     }
 
-    fn compare(level: Level, ids: bool, tile: TileSize, cull: CullMode) {
+    fn compare(level: InstructionSet, ids: bool, tile: TileSize, cull: CullMode) {
         let (w, h) = (77u32, 53u32);
         let vp = Viewport::new(w, h);
         let mut a = DepthTarget::new(w, h, tile, ids).unwrap();
@@ -512,7 +438,7 @@ mod tests {
             };
             for it in [&item, &boxed] {
                 let (mut ra, mut rb) = (RowSkip::new(), RowSkip::new());
-                let da = draw_mesh_at(
+                let da = draw_mesh(
                     level,
                     &vp,
                     &mut band(&mut a),
@@ -525,8 +451,8 @@ mod tests {
                     &mut ta,
                 )
                 .unwrap();
-                let db = draw_mesh_at(
-                    Level::Portable,
+                let db = draw_mesh(
+                    InstructionSet::Portable,
                     &vp,
                     &mut band(&mut b),
                     it,
@@ -542,9 +468,9 @@ mod tests {
             }
             let view = a.query_view(None);
             for any in [false, true] {
-                let qa = query_mesh_at(level, &vp, &view, &item, cov, any, &mut sa, &mut ta);
-                let qb = query_mesh_at(
-                    Level::Portable,
+                let qa = query_mesh(level, &vp, &view, &item, cov, any, &mut sa, &mut ta);
+                let qb = query_mesh(
+                    InstructionSet::Portable,
                     &vp,
                     &view,
                     &item,
@@ -554,8 +480,17 @@ mod tests {
                     &mut tb,
                 );
                 assert_eq!(qa.unwrap(), qb.unwrap());
-                let ba = query_box_at(level, &vp, &view, &m, (lo, hi), cov, any, &mut sa);
-                let bb = query_box_at(Level::Portable, &vp, &view, &m, (lo, hi), cov, any, &mut sb);
+                let ba = query_box(level, &vp, &view, &m, (lo, hi), cov, any, &mut sa);
+                let bb = query_box(
+                    InstructionSet::Portable,
+                    &vp,
+                    &view,
+                    &m,
+                    (lo, hi),
+                    cov,
+                    any,
+                    &mut sb,
+                );
                 assert_eq!(ba, bb);
             }
         }

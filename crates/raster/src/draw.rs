@@ -116,6 +116,7 @@ impl DepthTarget {
             };
             let mut st2 = RasterStats::default();
             match draw_mesh(
+                self.isa,
                 &vp,
                 &mut band,
                 item,
@@ -225,14 +226,14 @@ impl DepthTarget {
         use rayon::prelude::*;
         let vp = self.vp;
         let l = self.layout;
-        let cull = self.cull;
+        let (cull, isa) = (self.cull, self.isa);
         // (Indices were checked by `draw_batch`.)
         // Screen bounds of every item (in parallel, order kept).
         let mut projected = vec![Projected::Offscreen; items.len()];
         projected
             .par_chunks_mut(256)
             .zip(items.par_chunks(256))
-            .for_each(|(out, its)| project_items(&vp, its, out));
+            .for_each(|(out, its)| project_items(isa, &vp, its, out));
         // Bands of tile rows, several per thread, of similar estimated work; each
         // band sets up and draws, in submission order, the items whose bounds reach
         // it.
@@ -287,6 +288,7 @@ impl DepthTarget {
                     let mut sst = RasterStats::default();
                     // Indices were checked above.
                     let drawn = draw_mesh(
+                        isa,
                         &vp,
                         &mut band,
                         it,

@@ -44,13 +44,14 @@
 //! Whole meshes (draws and box queries) whose projected rectangle lies under tiles
 //! that are all strictly nearer than the mesh's nearest vertex are skipped before
 //! setup. The per-mesh pipeline (vertex stage, bounds, setup, traversal) is
-//! compiled three times — portable, AVX2 and AVX-512 — and chosen at runtime;
-//! the results are bit-identical (`SHADOWCULL_RASTER_SCALAR=1` forces portable,
-//! `SHADOWCULL_RASTER_AVX2=1` caps at AVX2).
+//! compiled three times — portable, AVX2 and AVX-512 — and chosen at runtime
+//! from the target's [`InstructionSet`] (the detected one unless capped with
+//! [`DepthTarget::set_instruction_set`]); the results are bit-identical.
 
 // Modules bottom-up: each imports only modules above it in this list
 // (`scripts/module_cycles.py` checks it).
 mod error;
+mod isa;
 mod limits;
 mod stats;
 // Geometry: clipping, snapped setup, edge functions, coverage rules.
@@ -92,6 +93,7 @@ pub use coverage::{Coverage, DepthPick};
 pub use depth_target::{CullMode, DepthTarget, NO_ID};
 pub use error::{Error, Result};
 pub use hstencil::{HierarchicalOptions, HierarchicalStencil, TileClass};
+pub use isa::InstructionSet;
 pub use item::{aabb_corners, DrawItem, AABB_TRIANGLES};
 pub use layout::{TileSize, BACKGROUND};
 pub use limits::{DEPTH_ERROR, GUARD_BAND_PX, MAX_TARGET_SIZE};

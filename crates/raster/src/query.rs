@@ -62,7 +62,16 @@ impl DepthTarget {
         let view = self.query_view(receivers);
         let any = opts.mode == QueryMode::Any;
         let mut st2 = RasterStats::default();
-        let count = query_mesh(&self.vp, &view, item, opts.coverage, any, st, &mut st2)?;
+        let count = query_mesh(
+            self.isa,
+            &self.vp,
+            &view,
+            item,
+            opts.coverage,
+            any,
+            st,
+            &mut st2,
+        )?;
         st.add(&st2);
         st.queries += 1;
         Ok(count.min(u64::from(VISIBLE - 1)) as u32)
@@ -120,6 +129,7 @@ impl DepthTarget {
         let view = self.query_view(receivers);
         let any = opts.mode == QueryMode::Any;
         Ok(query_box(
+            self.isa,
             &self.vp,
             &view,
             &clip_from_local,

@@ -816,8 +816,9 @@ struct Fill<'a, C> {
 #[inline(always)]
 fn fill_rows_dispatch<C: Counter>(f: Fill<'_, C>, st: &mut StencilStats) {
     #[cfg(target_arch = "x86_64")]
-    if crate::dispatch::avx2_available() {
-        // SAFETY: `fill_rows_avx2` only requires AVX2, detected at runtime.
+    if f.eye.isa >= crate::InstructionSet::Avx2 {
+        // SAFETY: `fill_rows_avx2` only requires AVX2; the target's level is at
+        // most the detected one.
         unsafe { fill_rows_avx2(f, st) };
         return;
     }
@@ -854,6 +855,7 @@ fn fill_rows<C: Counter>(f: Fill<'_, C>, st: &mut StencilStats) {
         zfail,
         delta,
     } = f;
+    let avx2 = eye.isa >= crate::InstructionSet::Avx2;
     let layout = eye.layout;
     let depth = &eye.depth;
     let off = edge_offsets(tri, Coverage::Standard);
@@ -935,7 +937,7 @@ fn fill_rows<C: Counter>(f: Fill<'_, C>, st: &mut StencilStats) {
                 dhi,
                 zfail,
             };
-            let (ins, upd) = run_masks(&plane, ds);
+            let (ins, upd) = run_masks(avx2, &plane, ds);
             processed += u64::from(ins.count_ones());
             updates += u64::from(upd.count_ones());
             if upd == (1 << n) - 1 {

@@ -25,12 +25,14 @@ pub(crate) struct RunPlane {
     pub zfail: bool,
 }
 
-/// Bit masks (bit k for pixel k of `depth`, at most 8 pixels): `(inside, update)`.
+/// Bit masks (bit k for pixel k of `depth`, at most 8 pixels): `(inside, update)`,
+/// with the AVX2 kernel when `avx2` (only true when the CPU has AVX2).
 #[inline(always)]
-pub(crate) fn run_masks(p: &RunPlane, depth: &[f32]) -> (u32, u32) {
+pub(crate) fn run_masks(avx2: bool, p: &RunPlane, depth: &[f32]) -> (u32, u32) {
     #[cfg(target_arch = "x86_64")]
-    if crate::dispatch::avx2_available() {
-        // SAFETY: `avx2::run_masks` only requires AVX2, detected at runtime.
+    if avx2 {
+        // SAFETY: `avx2::run_masks` only requires AVX2; callers pass `avx2` only
+        // when the target's level (at most the detected one) has it.
         return unsafe { avx2::run_masks(p, depth) };
     }
     run_masks_scalar(p, depth)
@@ -138,7 +140,8 @@ mod tests {
                 dhi: win.1,
                 zfail,
             };
-            prop_assert_eq!(run_masks(&p, &d), run_masks_scalar(&p, &d));
+            let avx2 = crate::InstructionSet::detected() >= crate::InstructionSet::Avx2;
+            prop_assert_eq!(run_masks(avx2, &p, &d), run_masks_scalar(&p, &d));
         }
     }
 }

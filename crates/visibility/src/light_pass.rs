@@ -90,6 +90,8 @@ pub struct LightPassOptions {
     pub two_sided: bool,
     /// Conservative (exact mask) or point-sampled (aggressive) light views.
     pub sampling: Sampling,
+    /// The light views' rasterizer level ([`DepthTarget::set_instruction_set`]).
+    pub instruction_set: raster::InstructionSet,
 }
 
 /// What a light pass found.
@@ -492,10 +494,11 @@ impl ViewSlot {
         let m = view.clip_from_world;
         let clip_from_origin = (m * DMat4::from_translation(origin)).as_mat4();
         let size = (view.resolution, view.resolution);
-        let target = match self.target.take() {
+        let mut target = match self.target.take() {
             Some(t) if (t.width(), t.height()) == size => t,
             _ => DepthTarget::new(size.0, size.1, TileSize::T8, false)?,
         };
+        target.set_instruction_set(options.instruction_set);
         // Reused unless the size changed or a host backend kept a reference.
         let mut marks = match self.marks.take() {
             Some(r)
