@@ -63,15 +63,47 @@ fn ceil_div(a: i64, b: i64) -> i64 {
     -((-a) >> 8)
 }
 
-/// Inclusive pixel range `(x0, x1, y0, y1)` that can be covered, clamped to the
-/// `width × height` target; `None` when empty.
+/// An inclusive pixel rectangle `[x0, x1] × [y0, y1]` (rows down from the
+/// top): what a triangle can cover, a tile, a scissor window.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct Rect {
+    pub x0: i64,
+    pub x1: i64,
+    pub y0: i64,
+    pub y1: i64,
+}
+
+impl Rect {
+    /// The unbounded rectangle (no clipping).
+    pub const ALL: Rect = Rect {
+        x0: i64::MIN,
+        x1: i64::MAX,
+        y0: i64::MIN,
+        y1: i64::MAX,
+    };
+
+    /// The common part of `self` and `o` (empty when [`Rect::is_empty`]).
+    #[inline(always)]
+    pub fn intersect(self, o: Rect) -> Rect {
+        Rect {
+            x0: self.x0.max(o.x0),
+            x1: self.x1.min(o.x1),
+            y0: self.y0.max(o.y0),
+            y1: self.y1.min(o.y1),
+        }
+    }
+
+    /// No pixel inside.
+    #[inline(always)]
+    pub fn is_empty(&self) -> bool {
+        self.x0 > self.x1 || self.y0 > self.y1
+    }
+}
+
+/// The pixels that can be covered, clamped to the `width × height` target;
+/// `None` when empty.
 #[inline(always)]
-pub(crate) fn pixel_bounds(
-    tri: &Tri,
-    cov: Coverage,
-    width: u32,
-    height: u32,
-) -> Option<(i64, i64, i64, i64)> {
+pub(crate) fn pixel_bounds(tri: &Tri, cov: Coverage, width: u32, height: u32) -> Option<Rect> {
     let s = SUBPIXEL;
     let (x0, x1, y0, y1) = match cov {
         Coverage::Outer(_) => (
@@ -89,7 +121,7 @@ pub(crate) fn pixel_bounds(
     };
     let (x0, y0) = (x0.max(0), y0.max(0));
     let (x1, y1) = (x1.min(width as i64 - 1), y1.min(height as i64 - 1));
-    (x0 <= x1 && y0 <= y1).then_some((x0, x1, y0, y1))
+    (x0 <= x1 && y0 <= y1).then_some(Rect { x0, x1, y0, y1 })
 }
 
 /// Rounds up to the next f32 at or above `x` (`f32::next_up` done by the bits,

@@ -12,7 +12,7 @@
 //! occluders 57 → 46 ms, identical output): an 8-pixel tile row is one register
 //! of f64 lanes instead of two.
 
-use crate::coverage::Coverage;
+use crate::coverage::{Coverage, Rect};
 use crate::depth_target::CullMode;
 use crate::edge::Tri;
 use crate::hiz::{hidden, project, project_lanes, project_wide, Projected, RowSkip};
@@ -272,7 +272,7 @@ struct Draw<'a, 'b> {
 
 impl TriSink for Draw<'_, '_> {
     #[inline(always)]
-    fn tri(&mut self, t: &Tri, pb: (i64, i64, i64, i64), id: u64) -> bool {
+    fn tri(&mut self, t: &Tri, pb: Rect, id: u64) -> bool {
         draw_tri(self.band, t, pb, self.cov, id, self.skip, self.st);
         false
     }
@@ -288,12 +288,9 @@ struct Query<'a, 'b> {
     /// Any-samples queries first probe every triangle's centroid pixel
     /// ([`probe_passes`]) and traverse the triangles kept here only when no probe
     /// passed: most visible boxes then need no tile loop at all.
-    pending: [Option<(Tri, PixelBounds)>; PENDING],
+    pending: [Option<(Tri, Rect)>; PENDING],
     deferred: usize,
 }
-
-/// Pixel bounds `(x0, x1, y0, y1)` of a triangle.
-type PixelBounds = (i64, i64, i64, i64);
 
 /// Triangles an any-samples query defers (a box's twelve; more are traversed at
 /// once).
@@ -328,7 +325,7 @@ impl<'a, 'b> Query<'a, 'b> {
 
 impl TriSink for Query<'_, '_> {
     #[inline(always)]
-    fn tri(&mut self, t: &Tri, pb: PixelBounds, _id: u64) -> bool {
+    fn tri(&mut self, t: &Tri, pb: Rect, _id: u64) -> bool {
         if self.any && self.cov == Coverage::Standard {
             if probe_passes(self.view, t, pb, self.st) {
                 self.count = 1;

@@ -3,7 +3,7 @@
 //! setup that clips, snaps and fans each triangle for the tile walk.
 
 use crate::clip::MAX_CLIPPED_VERTICES;
-use crate::coverage::{pixel_bounds, Coverage};
+use crate::coverage::{pixel_bounds, Coverage, Rect};
 use crate::depth_target::CullMode;
 use crate::edge::Tri;
 use crate::setup::{setup_into, Facing, Setup, SnappedVertex, VertexCache, Viewport};
@@ -98,7 +98,7 @@ pub(crate) fn check_indices(item: &DrawItem) -> Result<()> {
 pub(crate) trait TriSink {
     /// Takes fan triangle `t` with pixel bounds `pb` and id `id`; true to stop
     /// (an any-samples query that passed).
-    fn tri(&mut self, t: &Tri, pb: (i64, i64, i64, i64), id: u64) -> bool;
+    fn tri(&mut self, t: &Tri, pb: Rect, id: u64) -> bool;
 }
 
 /// Sets up every triangle of `item`, feeding each fan triangle that can cover a

@@ -48,8 +48,9 @@
 //! from the target's [`InstructionSet`] (the detected one unless capped with
 //! [`DepthTarget::set_instruction_set`]); the results are bit-identical.
 
-// Modules bottom-up: each imports only modules above it in this list
-// (`scripts/module_cycles.py` checks it).
+// Modules in layers, bottom-up: a module imports only from modules of its own
+// layer or of layers above it, never in a cycle (`scripts/module_cycles.py
+// --order` prints the exact order and CI checks it).
 mod error;
 mod isa;
 mod limits;
@@ -58,11 +59,7 @@ mod stats;
 mod clip;
 mod coverage;
 mod edge;
-mod near_cap;
-mod open_edges;
 mod setup;
-mod span;
-mod tile_class;
 mod volume_buffer;
 // Targets: the tile layout and hierarchical z, the depth and receiver targets.
 mod depth_target;
@@ -80,9 +77,7 @@ mod backend;
 mod draw;
 mod query;
 // The stencil stage: brute force, then hierarchical.
-mod hstencil;
 mod stencil;
-mod stencil_run;
 
 pub use backend::{
     BackendStats, DrawCommand, Gate, Latency, OcclusionBackend, QueryBuffers, QueryCommand,
@@ -92,7 +87,6 @@ pub use clip::MAX_CLIPPED_VERTICES;
 pub use coverage::{Coverage, DepthPick};
 pub use depth_target::{CullMode, DepthTarget, NO_ID};
 pub use error::{Error, Result};
-pub use hstencil::{HierarchicalOptions, HierarchicalStencil, TileClass};
 pub use isa::InstructionSet;
 pub use item::{aabb_corners, DrawItem, AABB_TRIANGLES};
 pub use layout::{TileSize, BACKGROUND};
@@ -101,5 +95,8 @@ pub use query_options::{meets_apex_region, QueryMode, QueryOptions, APEX_EPS, VI
 pub use receiver_target::{ReceiverTarget, RECEIVER_EPS_PX, SEGMENT_SLACK_PX};
 pub use setup::{facing, setup_triangle, Facing, Setup, SnappedVertex, SUBPIXEL};
 pub use stats::RasterStats;
-pub use stencil::{StencilBits, StencilStats, StencilTarget, StencilTests};
+pub use stencil::{
+    HierarchicalOptions, HierarchicalStencil, StencilBits, StencilStats, StencilTarget,
+    StencilTests, TileClass,
+};
 pub use volume_buffer::{VolumeBuffer, VolumeMethod, VolumeRange};

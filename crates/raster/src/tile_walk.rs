@@ -5,7 +5,7 @@
 //! whole), and only the remaining tiles get per-pixel work.
 
 use crate::coverage::{
-    depth_range, edge_offsets, f32_down, f32_up, Coverage, DepthPick, PLANE_EPS,
+    depth_range, edge_offsets, f32_down, f32_up, Coverage, DepthPick, Rect, PLANE_EPS,
 };
 use crate::edge::Tri;
 use crate::hiz::RowSkip;
@@ -53,13 +53,13 @@ fn classify(tri: &Tri, off: &[i64; 3], r: (u32, u32, u32, u32)) -> Option<TileCl
 
 /// Tile range `(tx0, tx1, ty0, ty1)` (inclusive) of a pixel range.
 #[inline]
-fn tiles_of(l: &Layout, p: (i64, i64, i64, i64)) -> (u32, u32, u32, u32) {
+fn tiles_of(l: &Layout, p: Rect) -> (u32, u32, u32, u32) {
     let s = l.shift;
     (
-        (p.0 as u32) >> s,
-        (p.1 as u32) >> s,
-        (p.2 as u32) >> s,
-        (p.3 as u32) >> s,
+        (p.x0 as u32) >> s,
+        (p.x1 as u32) >> s,
+        (p.y0 as u32) >> s,
+        (p.y1 as u32) >> s,
     )
 }
 
@@ -68,7 +68,7 @@ const MAX_TILE: usize = 16;
 
 /// Per-triangle constants of traversal.
 struct Prep {
-    pb: (i64, i64, i64, i64),
+    pb: Rect,
     off: [i64; 3],
     step_x: [i64; 3],
     step_y: [i64; 3],
@@ -88,7 +88,7 @@ struct Prep {
 }
 
 #[inline(always)]
-fn prep(tri: &Tri, pb: (i64, i64, i64, i64), cov: Coverage, l: &Layout) -> Prep {
+fn prep(tri: &Tri, pb: Rect, cov: Coverage, l: &Layout) -> Prep {
     let off = edge_offsets(tri, cov);
     let step_x = tri.e.map(|e| e.a * SUBPIXEL);
     let step_y = tri.e.map(|e| e.b * SUBPIXEL);
@@ -104,7 +104,7 @@ fn prep(tri: &Tri, pb: (i64, i64, i64, i64), cov: Coverage, l: &Layout) -> Prep 
         stepyf: step_y.map(|o| o as f64),
         // Small triangles (at most two tiles across): the vertex depth range is
         // nearly as tight as the per-tile corner range and much cheaper.
-        single_tile: (pb.1 - pb.0) < 2 << l.shift && (pb.3 - pb.2) < 2 << l.shift,
+        single_tile: (pb.x1 - pb.x0) < 2 << l.shift && (pb.y1 - pb.y0) < 2 << l.shift,
         zlo: f32_down(tri.zlo),
         zhi: f32_up(tri.zhi),
         tiles,
@@ -412,7 +412,7 @@ fn rows_query<const T: usize>(
 pub(crate) fn draw_tri(
     band: &mut Band,
     tri: &Tri,
-    pb: (i64, i64, i64, i64),
+    pb: Rect,
     cov: Coverage,
     id: u64,
     skip: &RowSkip,
@@ -432,7 +432,7 @@ pub(crate) fn draw_tri(
 fn draw_tri_as<const FAST: bool>(
     band: &mut Band,
     tri: &Tri,
-    pb: (i64, i64, i64, i64),
+    pb: Rect,
     cov: Coverage,
     id: u64,
     skip: &RowSkip,
@@ -474,10 +474,10 @@ fn draw_tri_as<const FAST: bool>(
                 st.tiles_accepted_whole += 1;
             }
             // Pixels of this tile inside the triangle's pixel bounds.
-            let px0 = rect.0.max(p.pb.0 as u32);
-            let px1 = rect.1.min(p.pb.1 as u32);
-            let py0 = rect.2.max(p.pb.2 as u32);
-            let py1 = rect.3.min(p.pb.3 as u32);
+            let px0 = rect.0.max(p.pb.x0 as u32);
+            let px1 = rect.1.min(p.pb.x1 as u32);
+            let py0 = rect.2.max(p.pb.y0 as u32);
+            let py1 = rect.3.min(p.pb.y1 as u32);
             let n = (px1 - px0 + 1) as usize;
             let no_test = c.full && lo > tb.zmax;
             let tile_base = t << (2 * l.shift);
@@ -636,16 +636,11 @@ pub(crate) struct QueryView<'a> {
 /// [`Tri::depth`], which the row loops match bit for bit), so a pass here is a
 /// pass traversal would find; a miss decides nothing.
 #[inline(always)]
-pub(crate) fn probe_passes(
-    v: &QueryView,
-    tri: &Tri,
-    pb: (i64, i64, i64, i64),
-    st: &mut RasterStats,
-) -> bool {
+pub(crate) fn probe_passes(v: &QueryView, tri: &Tri, pb: Rect, st: &mut RasterStats) -> bool {
     let sum = |f: fn(&crate::edge::Edge) -> i64| tri.e.iter().map(f).sum::<i64>();
     let x = sum(|e| e.ox).div_euclid(3 * SUBPIXEL);
     let y = sum(|e| e.oy).div_euclid(3 * SUBPIXEL);
-    if x < pb.0 || x > pb.1 || y < pb.2 || y > pb.3 {
+    if x < pb.x0 || x > pb.x1 || y < pb.y0 || y > pb.y1 {
         return false;
     }
     let off = edge_offsets(tri, Coverage::Standard);
@@ -667,7 +662,7 @@ pub(crate) fn probe_passes(
 pub(crate) fn query_tri(
     v: &QueryView,
     tri: &Tri,
-    pb: (i64, i64, i64, i64),
+    pb: Rect,
     cov: Coverage,
     any: bool,
     st: &mut RasterStats,
@@ -685,7 +680,7 @@ pub(crate) fn query_tri(
 fn query_tri_as<const STANDARD: bool>(
     v: &QueryView,
     tri: &Tri,
-    pb: (i64, i64, i64, i64),
+    pb: Rect,
     cov: Coverage,
     any: bool,
     st: &mut RasterStats,
@@ -736,10 +731,10 @@ fn query_tri_as<const STANDARD: bool>(
                     continue;
                 }
             }
-            let px0 = rect.0.max(p.pb.0 as u32);
-            let px1 = rect.1.min(p.pb.1 as u32);
-            let py0 = rect.2.max(p.pb.2 as u32);
-            let py1 = rect.3.min(p.pb.3 as u32);
+            let px0 = rect.0.max(p.pb.x0 as u32);
+            let px1 = rect.1.min(p.pb.x1 as u32);
+            let py0 = rect.2.max(p.pb.y0 as u32);
+            let py1 = rect.3.min(p.pb.y1 as u32);
             let n = (px1 - px0 + 1) as usize;
             let tile_base = t << (2 * l.shift);
             let mut erow: [f64; 3] = std::array::from_fn(|i| {
@@ -853,7 +848,12 @@ mod tests {
             let Some(tri) = Tri::new(v[0], v[1], v[2]) else {
                 continue;
             };
-            let pb = (tri.xmin, tri.xmax, tri.ymin, tri.ymax);
+            let pb = Rect {
+                x0: tri.xmin,
+                x1: tri.xmax,
+                y0: tri.ymin,
+                y1: tri.ymax,
+            };
             for cov in [
                 Coverage::Inner(DepthPick::Farthest),
                 Coverage::Outer(DepthPick::Nearest),

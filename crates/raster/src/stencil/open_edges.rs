@@ -33,6 +33,7 @@
 //! the tile widened by one sub-pixel step and depths widened by `2⁻²⁰`
 //! relative, beyond the f32 rounding of the classification.
 
+use crate::coverage::Rect;
 use crate::setup::{SnappedVertex, SUBPIXEL};
 
 /// A directed snapped edge, stored with its endpoints in canonical order and the
@@ -147,8 +148,8 @@ impl Segment {
     /// Whether the open edge makes the tile with pixel-centre rectangle
     /// `rect = (x0, x1, y0, y1)` and written depths `[zmin, zmax]` a boundary tile,
     /// for a volume counted in front of the surface (`!zfail`) or behind it.
-    pub fn marks(&self, rect: (i64, i64, i64, i64), zmin: f32, zmax: f32, zfail: bool) -> bool {
-        let Some((t0, t1)) = self.clip(rect.0, rect.1, rect.2, rect.3) else {
+    pub fn marks(&self, rect: Rect, zmin: f32, zmax: f32, zfail: bool) -> bool {
+        let Some((t0, t1)) = self.clip(rect.x0, rect.x1, rect.y0, rect.y1) else {
             return false;
         };
         let z = |t: f64| self.az + (self.bz - self.az) * t.clamp(0.0, 1.0);
@@ -215,7 +216,12 @@ mod tests {
             .iter()
             .find(|s| s.ay == s.by && s.ay == (4 * SUBPIXEL) as f64)
             .unwrap();
-        let tile = (0, 7, 0, 7);
+        let tile = Rect {
+            x0: 0,
+            x1: 7,
+            y0: 0,
+            y1: 7,
+        };
         // zpass: the edge is in front of zmin = 0.3 → boundary; behind zmin = 0.6 → not.
         assert!(seg.marks(tile, 0.3, 0.4, false));
         assert!(!seg.marks(tile, 0.6, 0.7, false));
@@ -223,7 +229,17 @@ mod tests {
         assert!(seg.marks(tile, 0.5, 0.6, true));
         assert!(!seg.marks(tile, 0.3, 0.4, true));
         // A tile the edge misses.
-        assert!(!seg.marks((0, 7, 16, 23), 0.0, 1.0, false));
+        assert!(!seg.marks(
+            Rect {
+                x0: 0,
+                x1: 7,
+                y0: 16,
+                y1: 23
+            },
+            0.0,
+            1.0,
+            false
+        ));
         assert_eq!(
             seg.columns(0, 7).map(|(a, b)| a <= 0 && b >= 40),
             Some(true)

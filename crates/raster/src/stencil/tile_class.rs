@@ -32,7 +32,7 @@
 //! at clip `w = 0` reaches here (the guard-band planes clipped it), and triangles
 //! crossing the near plane arrive as their near-clipped pieces.
 
-use crate::coverage::{edge_offsets, Coverage};
+use crate::coverage::{edge_offsets, Coverage, Rect};
 use crate::edge::Tri;
 use crate::setup::SUBPIXEL;
 
@@ -110,8 +110,8 @@ impl PiecePlane {
     /// [`Side`] of the piece over the pixel rectangle, against written depths in
     /// `[zmin, zmax]`.
     #[inline(always)]
-    pub fn side(&self, rect: (i64, i64, i64, i64), zmin: f32, zmax: f32) -> Side {
-        let (lo, hi) = self.depth_bounds(rect.0, rect.1, rect.2, rect.3);
+    pub fn side(&self, rect: Rect, zmin: f32, zmax: f32) -> Side {
+        let (lo, hi) = self.depth_bounds(rect.x0, rect.x1, rect.y0, rect.y1);
         if lo > zmax {
             Side::Front
         } else if hi <= zmin {
@@ -132,13 +132,7 @@ impl PiecePlane {
     /// rectangle widened by [`CLIP_SLACK`] pixels, so the computed polygon
     /// contains the true one despite rounding; the bounds add the plane's change
     /// over that slack to the widening of [`PiecePlane::depth_bounds`].
-    pub fn side_clipped(
-        &self,
-        tri: &Tri,
-        rect: (i64, i64, i64, i64),
-        zmin: f32,
-        zmax: f32,
-    ) -> Option<Side> {
+    pub fn side_clipped(&self, tri: &Tri, rect: Rect, zmin: f32, zmax: f32) -> Option<Side> {
         let s = SUBPIXEL as f64;
         let mut poly = [(0.0f64, 0.0f64); 9];
         let mut n = 3;
@@ -147,10 +141,10 @@ impl PiecePlane {
             poly[k] = (tri.e[*i].ox as f64 / s, tri.e[*i].oy as f64 / s);
         }
         let lim = [
-            rect.0 as f64 + 0.5 - CLIP_SLACK,
-            rect.1 as f64 + 0.5 + CLIP_SLACK,
-            rect.2 as f64 + 0.5 - CLIP_SLACK,
-            rect.3 as f64 + 0.5 + CLIP_SLACK,
+            rect.x0 as f64 + 0.5 - CLIP_SLACK,
+            rect.x1 as f64 + 0.5 + CLIP_SLACK,
+            rect.y0 as f64 + 0.5 - CLIP_SLACK,
+            rect.y1 as f64 + 0.5 + CLIP_SLACK,
         ];
         // Keep the side where `sign·(coord − bound) ≥ 0` for each of the 4 sides.
         for (axis, bound, sign) in [
@@ -190,12 +184,12 @@ impl PiecePlane {
             hi = hi.max(z);
         }
         let (hw, hh) = (
-            0.5 * (rect.1 - rect.0) as f64,
-            0.5 * (rect.3 - rect.2) as f64,
+            0.5 * (rect.x1 - rect.x0) as f64,
+            0.5 * (rect.y1 - rect.y0) as f64,
         );
         let (dx, dy) = (
-            0.5 * (rect.0 + rect.1) as f64 + 0.5 - self.x0,
-            0.5 * (rect.2 + rect.3) as f64 + 0.5 - self.y0,
+            0.5 * (rect.x0 + rect.x1) as f64 + 0.5 - self.x0,
+            0.5 * (rect.y0 + rect.y1) as f64 + 0.5 - self.y0,
         );
         let m = WIDEN
             * (self.z0
@@ -267,9 +261,14 @@ mod tests {
             let [a, b, c] = v.map(|(x, y, z)| SnappedVertex { x, y, z });
             let Some(tri) = Tri::new(a, b, c) else { return Ok(()); };
             let plane = PiecePlane::new(&tri);
-            let r = (rect.0, rect.0 + rect.2, rect.1, rect.1 + rect.3);
-            let covered: Vec<f32> = (r.2..=r.3)
-                .flat_map(|y| (r.0..=r.1).map(move |x| (x, y)))
+            let r = Rect {
+                x0: rect.0,
+                x1: rect.0 + rect.2,
+                y0: rect.1,
+                y1: rect.1 + rect.3,
+            };
+            let covered: Vec<f32> = (r.y0..=r.y1)
+                .flat_map(|y| (r.x0..=r.x1).map(move |x| (x, y)))
                 .filter(|&(x, y)| plane.covers(&tri, x, y))
                 .map(|(x, y)| rasterized_depth(&tri, x, y))
                 .collect();
@@ -308,8 +307,44 @@ mod tests {
             (f64::from(hi) - exact_hi).abs() < 1e-7,
             "{hi} vs {exact_hi}"
         );
-        assert_eq!(plane.side((0, 7, 0, 7), 0.6, 0.7), Side::Behind);
-        assert_eq!(plane.side((0, 7, 0, 7), 0.1, 0.2), Side::Front);
-        assert_eq!(plane.side((0, 7, 0, 7), 0.48, 0.6), Side::Crossing);
+        assert_eq!(
+            plane.side(
+                Rect {
+                    x0: 0,
+                    x1: 7,
+                    y0: 0,
+                    y1: 7
+                },
+                0.6,
+                0.7
+            ),
+            Side::Behind
+        );
+        assert_eq!(
+            plane.side(
+                Rect {
+                    x0: 0,
+                    x1: 7,
+                    y0: 0,
+                    y1: 7
+                },
+                0.1,
+                0.2
+            ),
+            Side::Front
+        );
+        assert_eq!(
+            plane.side(
+                Rect {
+                    x0: 0,
+                    x1: 7,
+                    y0: 0,
+                    y1: 7
+                },
+                0.48,
+                0.6
+            ),
+            Side::Crossing
+        );
     }
 }

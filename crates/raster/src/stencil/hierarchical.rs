@@ -56,18 +56,18 @@
 //! FS bit: `2·(3·S + 1)`); the resolve reads every written tile's entry
 //! (`3·S + 1`).
 
+use crate::coverage::Rect;
 use crate::depth_target::DepthTarget;
 
 use crate::edge::Tri;
 use crate::layout::{TileSize, BACKGROUND};
-use crate::open_edges::{open_edges, push_piece_edges, EdgeRec, Segment};
 use crate::setup::{Setup, SnappedVertex, SUBPIXEL};
-use crate::span::StripExtents;
-use crate::stencil::{
-    counter_bytes, pass_bytes, tiled_index, volume_polygons, Band, Counters, CountersMut, Piece,
-    Window, BAND_TILE_ROWS,
-};
-use crate::tile_class::{PiecePlane, Side};
+use crate::stencil::counters::{counter_bytes, pass_bytes, tiled_index, Counters, CountersMut};
+use crate::stencil::fill::{for_each_band, Band, BAND_TILE_ROWS};
+use crate::stencil::open_edges::{open_edges, push_piece_edges, EdgeRec, Segment};
+use crate::stencil::pieces::{volume_polygons, Piece, Window};
+use crate::stencil::span::StripExtents;
+use crate::stencil::tile_class::{PiecePlane, Side};
 use crate::volume_buffer::{headroom, VolumeBuffer, VolumeMethod, VolumeRange};
 use crate::MAX_CLIPPED_VERTICES;
 use crate::{Error, Result, StencilBits, StencilStats, StencilTarget, StencilTests};
@@ -657,40 +657,38 @@ impl HierarchicalStencil {
                 (bp, bo) = (&bp[np..], &bo[no..]);
             }
         };
-        let chunks = Chunks {
-            px: px_chunk,
-            tiles: tiles_per_band,
-            blocks: blocks_per_band,
-        };
         let (touched, hot, cold, blocks) = (
             &mut self.pixels.touched,
             &mut self.hot,
             &mut self.cold,
             &mut self.blocks,
         );
-        let bands = &mut band_work[..];
+        let (px, tiles) = (px_chunk, tiles_per_band);
+        macro_rules! run_with {
+            ($c:expr, $counters:path) => {
+                for_each_band!(
+                    |(k, (((((c, touched), hot), cold), blocks), w))| {
+                        let parts = BandParts {
+                            touched,
+                            hot,
+                            cold,
+                            blocks,
+                        };
+                        run(k, $counters(c), parts, &mut w[0])
+                    },
+                    $c => px,
+                    touched => px,
+                    hot => tiles,
+                    cold => tiles,
+                    blocks => blocks_per_band,
+                    band_work => 1,
+                )
+            };
+        }
         match &mut self.pixels.counters {
-            Counters::Eight(c) => run_h_bands(
-                c,
-                touched,
-                hot,
-                cold,
-                blocks,
-                chunks,
-                bands,
-                |k, c, p, w| run(k, CountersMut::Eight(c), p, w),
-            ),
-            Counters::Wide(c) => run_h_bands(
-                c,
-                touched,
-                hot,
-                cold,
-                blocks,
-                chunks,
-                bands,
-                |k, c, p, w| run(k, CountersMut::Wide(c), p, w),
-            ),
-        };
+            Counters::Eight(c) => run_with!(c, CountersMut::Eight),
+            Counters::Wide(c) => run_with!(c, CountersMut::Wide),
+        }
         for (_, p) in band_work.iter() {
             st.add(p);
         }
@@ -874,14 +872,6 @@ struct BandParts<'a> {
     blocks: &'a mut [[f32; 2]],
 }
 
-/// Chunk lengths of one band in each array.
-#[derive(Clone, Copy)]
-struct Chunks {
-    px: usize,
-    tiles: usize,
-    blocks: usize,
-}
-
 /// One band of 64 pixel rows: its per-pixel counters and its tiles.
 struct HBand<'a, 'g> {
     px: Band<'a>,
@@ -900,18 +890,18 @@ struct HBand<'a, 'g> {
 }
 
 /// Inclusive pixel rectangle of tile `idx` (global index) inside the target.
-fn tile_rect(g: &Geometry, idx: usize) -> (i64, i64, i64, i64) {
+fn tile_rect(g: &Geometry, idx: usize) -> Rect {
     let (tx, ty) = (
         (idx % g.tiles_x as usize) as i64,
         (idx / g.tiles_x as usize) as i64,
     );
     let s = 1i64 << g.shift;
-    (
-        tx * s,
-        (tx * s + s).min(i64::from(g.width)) - 1,
-        ty * s,
-        (ty * s + s).min(i64::from(g.height)) - 1,
-    )
+    Rect {
+        x0: tx * s,
+        x1: (tx * s + s).min(i64::from(g.width)) - 1,
+        y0: ty * s,
+        y1: (ty * s + s).min(i64::from(g.height)) - 1,
+    }
 }
 
 impl HBand<'_, '_> {
@@ -1006,13 +996,16 @@ impl HBand<'_, '_> {
                 ((y0 >> shift) * s).max(win.y0),
                 ((y1 >> shift) * s + s - 1).min(win.y1),
             );
+            // The pixels of tile columns `t0..=t1` in rows `y0..=y1`, inside the
+            // window and the target.
+            let columns = |t0: i64, t1: i64, y0: i64, y1: i64| Rect {
+                x0: (t0 * s).max(win.x0),
+                x1: (t1 * s + s - 1).min(win.x1).min(i64::from(g.width) - 1),
+                y0,
+                y1,
+            };
             // First the whole span against the band's depth range.
-            let span = (
-                (t0 * s).max(win.x0),
-                (t1 * s + s - 1).min(win.x1).min(i64::from(g.width) - 1),
-                wy0,
-                wy1,
-            );
+            let span = columns(t0, t1, wy0, wy1);
             let [z0, z1] = self.band_range;
             if z1 < dlo || z0 > dhi {
                 continue;
@@ -1032,12 +1025,7 @@ impl HBand<'_, '_> {
                         t0.max(b * BLOCK as i64),
                         t1.min(b * BLOCK as i64 + BLOCK as i64 - 1),
                     );
-                    let rect = (
-                        (bt0 * s).max(win.x0),
-                        (bt1 * s + s - 1).min(win.x1).min(i64::from(g.width) - 1),
-                        wy0,
-                        wy1,
-                    );
+                    let rect = columns(bt0, bt1, wy0, wy1);
                     match plane.side(rect, bz0, bz1) {
                         Side::Crossing => Some(Side::Crossing),
                         side if side == counted => Some(counted),
@@ -1083,12 +1071,7 @@ impl HBand<'_, '_> {
                         continue;
                     }
                     // The block level: the piece over these tiles' rectangles.
-                    let rect = (
-                        (bt0 * s).max(win.x0),
-                        (bt1 * s + s - 1).min(win.x1).min(i64::from(g.width) - 1),
-                        wy0,
-                        wy1,
-                    );
+                    let rect = columns(bt0, bt1, wy0, wy1);
                     let block_side = if band_side == counted {
                         counted
                     } else {
@@ -1119,12 +1102,7 @@ impl HBand<'_, '_> {
                             sc.pairs.push((pi, li as u32));
                             continue;
                         }
-                        let r = (
-                            (tx * s).max(win.x0),
-                            (tx * s + s - 1).min(win.x1).min(i64::from(g.width) - 1),
-                            wy0,
-                            wy1,
-                        );
+                        let r = columns(tx, tx, wy0, wy1);
                         let side = if block_side == counted {
                             counted
                         } else {
@@ -1145,8 +1123,8 @@ impl HBand<'_, '_> {
                             sc.pairs.push((pi, li as u32));
                             let c = &self.cold[li];
                             let (sx, sy) = (
-                                i64::from(c.sample_x).clamp(r.0, r.1),
-                                i64::from(c.sample_y).clamp(r.2, r.3),
+                                i64::from(c.sample_x).clamp(r.x0, r.x1),
+                                i64::from(c.sample_y).clamp(r.y0, r.y1),
                             );
                             if plane.covers(&p.tri, sx, sy) {
                                 t.count += delta;
@@ -1196,10 +1174,10 @@ impl HBand<'_, '_> {
             if t.zmax < 0.0 || t.psv & 1 != 0 || t.count == 0 {
                 continue;
             }
-            let inside = r.0 >= win.x0
-                && r.1 <= win.x1
-                && r.2 >= win.y0
-                && r.3 <= win.y1
+            let inside = r.x0 >= win.x0
+                && r.x1 <= win.x1
+                && r.y0 >= win.y0
+                && r.y1 <= win.y1
                 && t.zmin >= win.dlo
                 && t.zmax <= win.dhi;
             if !inside {
@@ -1269,7 +1247,7 @@ impl HBand<'_, '_> {
 
     /// `(Smin, Smax, pixels read)` of the per-pixel counters over tile `idx`'s written pixels.
     fn pixel_range(&self, eye: &DepthTarget, idx: usize) -> (i32, i32, u64) {
-        let (x0, x1, y0, y1) = tile_rect(self.geo, idx);
+        let Rect { x0, x1, y0, y1 } = tile_rect(self.geo, idx);
         let (mut lo, mut hi, mut n) = (i32::MAX, i32::MIN, 0u64);
         for y in y0..=y1 {
             for x in x0..=x1 {
@@ -1334,13 +1312,8 @@ fn all_shadowed(t: &Cold, bits: StencilBits) -> bool {
 }
 
 /// A tile's pixel rectangle clipped to the window's.
-fn clip_rect(r: (i64, i64, i64, i64), win: &Window) -> (i64, i64, i64, i64) {
-    (
-        r.0.max(win.x0),
-        r.1.min(win.x1),
-        r.2.max(win.y0),
-        r.3.min(win.y1),
-    )
+fn clip_rect(r: Rect, win: &Window) -> Rect {
+    r.intersect(win.rect())
 }
 
 /// Appends the fan pieces of a snapped polygon (as the brute-force pass does,
@@ -1353,7 +1326,7 @@ fn push_h_pieces(
     edges: &mut Vec<EdgeRec>,
 ) {
     let before = pieces.len();
-    crate::stencil::push_pieces(poly, zfail, job, pieces);
+    crate::stencil::pieces::push_pieces(poly, zfail, job, pieces);
     if pieces.len() == before {
         return;
     }
@@ -1363,51 +1336,4 @@ fn push_h_pieces(
             push_piece_edges([v0, v1, v2], edges);
         }
     }
-}
-
-/// Runs `f(k, counters, parts, work)` on the bands' chunks of every array and
-/// each band's entry of `work`, in parallel with the `parallel` feature.
-#[allow(clippy::too_many_arguments)]
-fn run_h_bands<C: Send, W: Send>(
-    counters: &mut [C],
-    touched: &mut [u8],
-    hot: &mut [Hot],
-    cold: &mut [Cold],
-    blocks: &mut [[f32; 2]],
-    n: Chunks,
-    work: &mut [W],
-    f: impl Fn(usize, &mut [C], BandParts<'_>, &mut W) + Sync,
-) {
-    let g = |(k, (((((c, touched), hot), cold), blocks), w)): (usize, _)| {
-        let parts = BandParts {
-            touched,
-            hot,
-            cold,
-            blocks,
-        };
-        f(k, c, parts, w)
-    };
-    #[cfg(feature = "parallel")]
-    {
-        use rayon::prelude::*;
-        counters
-            .par_chunks_mut(n.px)
-            .zip(touched.par_chunks_mut(n.px))
-            .zip(hot.par_chunks_mut(n.tiles))
-            .zip(cold.par_chunks_mut(n.tiles))
-            .zip(blocks.par_chunks_mut(n.blocks))
-            .zip(work.par_iter_mut())
-            .enumerate()
-            .for_each(g);
-    }
-    #[cfg(not(feature = "parallel"))]
-    counters
-        .chunks_mut(n.px)
-        .zip(touched.chunks_mut(n.px))
-        .zip(hot.chunks_mut(n.tiles))
-        .zip(cold.chunks_mut(n.tiles))
-        .zip(blocks.chunks_mut(n.blocks))
-        .zip(work.iter_mut())
-        .enumerate()
-        .for_each(g);
 }

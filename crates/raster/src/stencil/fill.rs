@@ -1,0 +1,290 @@
+//! Filling pieces into a band of counters: the per-row span walk, the strict
+//! depth test against the eye target and the counting rule, with the AVX2 run
+//! kernel when the eye target's level has it; and the one runner that fills
+//! bands in parallel.
+
+use super::counters::{tiled_index, Counter, CountersMut, StencilStats};
+use super::pieces::Window;
+use super::run::{run_masks, RunPlane};
+use super::span::{band_extent, SpanWalker};
+use crate::coverage::{edge_offsets, pixel_bounds, Coverage, Rect};
+use crate::depth_target::DepthTarget;
+use crate::edge::Tri;
+use crate::setup::SUBPIXEL;
+
+/// The rows `y0..=y1` of a [`StencilTarget`]: whole tile rows, whose counters
+/// and touched flags are the contiguous slices starting at tiled index `base`.
+pub(crate) struct Band<'a> {
+    pub counters: CountersMut<'a>,
+    pub touched: &'a mut [u8],
+    pub width: u32,
+    pub height: u32,
+    pub y0: i64,
+    pub y1: i64,
+    pub base: usize,
+}
+
+/// Tiles rows per band of [`StencilTarget::draw_volumes`] (64 pixel rows: small
+/// enough that the bands balance across threads, large enough that a band's
+/// share of a volume triangle is more than a few rows).
+pub(crate) const BAND_TILE_ROWS: usize = 8;
+
+impl Band<'_> {
+    /// Increments (or decrements, `!increment`) every covered non-background pixel of
+    /// `tri` inside `win` whose fragment passes (zpass) or fails (zfail) the strict
+    /// depth test. Each row walks only its covered span ([`crate::span`]).
+    pub(crate) fn fill_tri(
+        &mut self,
+        eye: &DepthTarget,
+        tri: &Tri,
+        win: &Window,
+        zfail: bool,
+        increment: bool,
+        st: &mut StencilStats,
+    ) {
+        self.fill_tri_within(eye, tri, win, zfail, increment, Rect::ALL, st);
+    }
+
+    /// [`Band::fill_tri`] restricted to the pixels of `clip` (the hierarchical
+    /// stencil's boundary tiles).
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn fill_tri_within(
+        &mut self,
+        eye: &DepthTarget,
+        tri: &Tri,
+        win: &Window,
+        zfail: bool,
+        increment: bool,
+        clip: Rect,
+        st: &mut StencilStats,
+    ) {
+        let (w, h) = (self.width, self.height);
+        let Some(covered) = pixel_bounds(tri, Coverage::Standard, w, h) else {
+            return;
+        };
+        let rows = Rect {
+            y0: self.y0,
+            y1: self.y1,
+            ..Rect::ALL
+        };
+        let rect = covered
+            .intersect(win.rect())
+            .intersect(rows)
+            .intersect(clip);
+        if rect.is_empty() {
+            return;
+        }
+        let touched = &mut *self.touched;
+        let base = self.base;
+        macro_rules! fill {
+            ($c:expr, $delta:expr) => {
+                fill_rows_dispatch(
+                    Fill {
+                        counters: $c,
+                        touched,
+                        base,
+                        width: w,
+                        eye,
+                        tri,
+                        rect,
+                        win,
+                        zfail,
+                        delta: $delta,
+                    },
+                    st,
+                )
+            };
+        }
+        match &mut self.counters {
+            CountersMut::Eight(c) => fill!(c, if increment { 1 } else { u8::MAX }),
+            CountersMut::Wide(c) => fill!(c, if increment { 1 } else { -1 }),
+        }
+    }
+}
+
+/// The band runner of both stencil passes: `for_each_band!(f, s₀ => n₀, s₁ =>
+/// n₁, …)` calls `f((k, (((c₀, c₁), c₂), …)))` for every band `k`, where `cᵢ`
+/// is the `k`-th chunk of `nᵢ` entries of slice `sᵢ` (the slices hold the same
+/// number of chunks), in parallel with the `parallel` feature and in band order
+/// without it. Bands own disjoint rows, so the result is the same either way.
+macro_rules! for_each_band {
+    ($f:expr, $s0:expr => $n0:expr $(, $s:expr => $n:expr)* $(,)?) => {{
+        #[cfg(feature = "parallel")]
+        {
+            use rayon::prelude::*;
+            $s0.par_chunks_mut($n0)$(.zip($s.par_chunks_mut($n)))*.enumerate().for_each($f);
+        }
+        #[cfg(not(feature = "parallel"))]
+        {
+            $s0.chunks_mut($n0)$(.zip($s.chunks_mut($n)))*.enumerate().for_each($f);
+        }
+    }};
+}
+pub(crate) use for_each_band;
+
+/// One triangle's fill in one band: where it writes, what it tests and adds.
+struct Fill<'a, C> {
+    /// The band's counters and touched flags, from tiled index `base`.
+    counters: &'a mut [C],
+    touched: &'a mut [u8],
+    base: usize,
+    width: u32,
+    eye: &'a DepthTarget,
+    tri: &'a Tri,
+    rect: Rect,
+    win: &'a Window,
+    zfail: bool,
+    delta: C,
+}
+
+/// [`fill_rows`], in its AVX2 build when the CPU has it: the run kernel
+/// ([`crate::stencil_run`]) then inlines into the row loop.
+#[inline(always)]
+fn fill_rows_dispatch<C: Counter>(f: Fill<'_, C>, st: &mut StencilStats) {
+    #[cfg(target_arch = "x86_64")]
+    if f.eye.isa >= crate::InstructionSet::Avx2 {
+        // SAFETY: `fill_rows_avx2` only requires AVX2; the target's level is at
+        // most the detected one.
+        unsafe { fill_rows_avx2(f, st) };
+        return;
+    }
+    fill_rows(f, st);
+}
+
+/// [`fill_rows`] compiled with AVX2 enabled.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn fill_rows_avx2<C: Counter>(f: Fill<'_, C>, st: &mut StencilStats) {
+    fill_rows(f, st);
+}
+
+/// The per-pixel loop of [`Band::fill_tri`], monomorphized per counter type:
+/// adds `delta` (wrapping) to each covered pixel of `rect` that is not background,
+/// lies within the depth window and passes (zpass) or fails (zfail) the strict test.
+///
+/// Each row's covered span is walked in runs that stay inside one tile row, where
+/// the tiled depth buffer is contiguous, with a branch-free body. Edge values are
+/// carried as f64: they are integers below 2⁵³ (see `edge.rs`), so stepping them
+/// in f64 is exact and the depth `Σ E_i·z_i / area` is bit-identical to the eye
+/// pass's.
+#[inline(always)]
+fn fill_rows<C: Counter>(f: Fill<'_, C>, st: &mut StencilStats) {
+    let Fill {
+        counters,
+        touched,
+        base,
+        width,
+        eye,
+        tri,
+        rect,
+        win,
+        zfail,
+        delta,
+    } = f;
+    let avx2 = eye.isa >= crate::InstructionSet::Avx2;
+    let layout = eye.layout;
+    let depth = &eye.depth;
+    let off = edge_offsets(tri, Coverage::Standard);
+    let step = tri.e.map(|e| (e.a * SUBPIXEL) as f64);
+    let run = (1i64 << layout.shift).min(8);
+    let (z, inv) = (tri.z, tri.inv_area);
+    let (dlo, dhi) = (win.dlo, win.dhi);
+    let zero = C::default();
+    let (mut processed, mut updates, mut first) = (0u64, 0u64, 0u64);
+    let walker = SpanWalker::new(tri, &off, rect.x0, rect.x1, rect.y0);
+    let tile = 1i64 << layout.shift;
+    let active = |tb: &crate::layout::TileBounds| !(tb.zmax < dlo.max(0.0) || tb.zmin > dhi);
+    let mut band_lo = rect.x0;
+    let mut band_hi = rect.x1;
+    for y in rect.y0..=rect.y1 {
+        if y == rect.y0 || y & (tile - 1) == 0 {
+            // A new band of tile rows: the columns the triangle can reach there,
+            // narrowed to the first and last tile with written depth inside
+            // the window; the band is skipped when there is none.
+            let yb = rect.y1.min(y | (tile - 1));
+            let (ty, tiles_x) = ((y >> layout.shift) as u32, layout.tiles_x as i64);
+            // Narrow pieces: their own columns are as good as the band's extent.
+            let (mut lo, mut hi) = if rect.x1 - rect.x0 < 32 {
+                (rect.x0, rect.x1)
+            } else {
+                band_extent(tri, y, yb).unwrap_or((1, 0))
+            };
+            lo = lo.max(rect.x0);
+            hi = hi.min(rect.x1);
+            let (mut t0, mut t1) = (lo.max(0) >> layout.shift, hi.max(-1) >> layout.shift);
+            t1 = t1.min(tiles_x - 1);
+            while t0 <= t1 && !active(&eye.tiles[layout.tile_index(t0 as u32, ty)]) {
+                t0 += 1;
+            }
+            while t1 >= t0 && !active(&eye.tiles[layout.tile_index(t1 as u32, ty)]) {
+                t1 -= 1;
+            }
+            band_lo = lo.max(t0 * tile);
+            band_hi = hi.min(t1 * tile + tile - 1);
+        }
+        if band_lo > band_hi {
+            continue;
+        }
+        let Some((a0, b0, e0)) = walker.span(y) else {
+            continue;
+        };
+        let (a, b) = (a0.max(band_lo), b0.min(band_hi));
+        if a > b {
+            continue;
+        }
+        let e_a = [0, 1, 2].map(|i| e0[i] + step[i] * (a - a0) as f64);
+        let ty = (y >> layout.shift) as u32;
+        let mut x = a;
+        while x <= b {
+            // The run x..=xe lies in one tile row of the depth and of the
+            // stencil: contiguous in both.
+            let xe = b.min(x | (run - 1));
+            let n = (xe - x + 1) as usize;
+            // Skip runs in tiles with no written depth inside the window
+            // (all background, or outside the depth bounds).
+            let tb = &eye.tiles[layout.tile_index((x >> layout.shift) as u32, ty)];
+            if !active(tb) {
+                x = xe + 1;
+                continue;
+            }
+            let di = layout.pixel_index(x as u32, y as u32);
+            let ds = &depth[di..di + n];
+            let i0 = tiled_index(width, x as u32, y as u32) - base;
+            let cs = &mut counters[i0..i0 + n];
+            let ts = &mut touched[i0..i0 + n];
+            // Edge values at the run's first pixel (exact integers).
+            let k0 = (x - a) as f64;
+            let plane = RunPlane {
+                e: [0, 1, 2].map(|i| e_a[i] + step[i] * k0),
+                step,
+                z,
+                inv,
+                dlo,
+                dhi,
+                zfail,
+            };
+            let (ins, upd) = run_masks(avx2, &plane, ds);
+            processed += u64::from(ins.count_ones());
+            updates += u64::from(upd.count_ones());
+            if upd == (1 << n) - 1 {
+                // Every pixel of the run updates (a branch-free, vectorizable loop).
+                for (c, t) in cs.iter_mut().zip(ts.iter_mut()) {
+                    first += u64::from(*t == 0);
+                    *t = 1;
+                    *c = c.wrapping(delta);
+                }
+            } else if upd != 0 {
+                for (k, (c, t)) in cs.iter_mut().zip(ts.iter_mut()).enumerate() {
+                    let u = (upd >> k) & 1 != 0;
+                    first += u64::from(u & (*t == 0));
+                    *t |= u8::from(u);
+                    *c = c.wrapping(if u { delta } else { zero });
+                }
+            }
+            x = xe + 1;
+        }
+    }
+    st.pixels_processed += processed;
+    st.stencil_updates += updates;
+    st.pixels_touched += first;
+}
