@@ -8,9 +8,9 @@ use shadowgen::MethodChoice;
 /// Which stencil backend draws the volumes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Backend {
-    /// Brute force: every volume fragment ([`StencilTarget`]).
+    /// Brute force: every volume fragment ([`raster::StencilTarget`]).
     Brute,
-    /// Hierarchical shadow volumes \[Aila04\] ([`HierarchicalStencil`]).
+    /// Hierarchical shadow volumes \[Aila04\] ([`raster::HierarchicalStencil`]).
     Hierarchical {
         /// Tile size of the classification.
         tile: TileSize,

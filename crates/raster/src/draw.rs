@@ -86,7 +86,7 @@ impl DepthTarget {
     /// ([`DepthTarget::set_cull`]) names.
     ///
     /// # Errors
-    /// [`Error::IndexOutOfRange`] when a triangle names a missing vertex (triangles
+    /// [`Error::IndexOutOfRange`](crate::Error::IndexOutOfRange) when a triangle names a missing vertex (triangles
     /// before it are drawn).
     pub fn draw(&mut self, item: &DrawItem, cov: Coverage) -> Result<()> {
         self.draw_one(item, cov, false)
@@ -172,7 +172,7 @@ impl DepthTarget {
     /// rasterized in parallel (see [`DepthTarget::set_threads`]).
     ///
     /// # Errors
-    /// [`Error::IndexOutOfRange`] as [`DepthTarget::draw`]; then nothing is drawn.
+    /// [`Error::IndexOutOfRange`](crate::Error::IndexOutOfRange) as [`DepthTarget::draw`]; then nothing is drawn.
     pub fn draw_batch(&mut self, items: &[DrawItem], cov: Coverage) -> Result<()> {
         let threads = self.effective_threads();
         let pixels = u64::from(self.width()) * u64::from(self.height());

@@ -35,8 +35,8 @@
 //! - [`OcclusionBackend`]: the asynchronous seam, with [`SyncBackend`],
 //!   [`SimulatedBackend`] ([`Latency::Commands`]) and [`ThreadedBackend`] (+ [`Gate`]).
 //! - [`RasterStats`] / [`BackendStats`]: plain counters.
-//! - [`setup_triangle`] / [`facing`]: the rasterizer's own setup (snapped post-clip
-//!   polygon), for references and the stencil stage.
+//! - `setup_triangle` / `facing` (feature `test-util`): the rasterizer's own
+//!   setup (snapped post-clip polygon), for tests that check kernels against it.
 //!
 //! - [`CullMode`]: draws may skip back faces ([`DepthTarget::set_cull`]), as a GPU
 //!   does for closed occluders; queries never cull.
@@ -83,7 +83,6 @@ pub use backend::{
     BackendStats, DrawCommand, Gate, Latency, OcclusionBackend, QueryBuffers, QueryCommand,
     QueryId, ReadTarget, SimulatedBackend, SyncBackend, ThreadedBackend,
 };
-pub use clip::MAX_CLIPPED_VERTICES;
 pub use coverage::{Coverage, DepthPick};
 pub use depth_target::{CullMode, DepthTarget, NO_ID};
 pub use error::{Error, Result};
@@ -93,7 +92,12 @@ pub use layout::{TileSize, BACKGROUND};
 pub use limits::{DEPTH_ERROR, GUARD_BAND_PX, MAX_TARGET_SIZE};
 pub use query_options::{meets_apex_region, QueryMode, QueryOptions, APEX_EPS, VISIBLE};
 pub use receiver_target::{ReceiverTarget, RECEIVER_EPS_PX, SEGMENT_SLACK_PX};
-pub use setup::{facing, setup_triangle, Facing, Setup, SnappedVertex, SUBPIXEL};
+pub use setup::Facing;
+// The rasterizer's own setup, for tests that check the kernels against it.
+#[cfg(feature = "test-util")]
+pub use clip::MAX_CLIPPED_VERTICES;
+#[cfg(feature = "test-util")]
+pub use setup::{facing, setup_triangle, Setup, SnappedVertex, SUBPIXEL};
 pub use stats::RasterStats;
 pub use stencil::{
     HierarchicalOptions, HierarchicalStencil, StencilBits, StencilStats, StencilTarget,

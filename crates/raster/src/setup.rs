@@ -107,10 +107,12 @@ pub(crate) fn facing_f64(d: [DVec4; 3]) -> Option<Facing> {
 ///
 /// # Panics
 /// In debug builds, when a side exceeds [`MAX_TARGET_SIZE`].
+#[cfg(any(test, feature = "test-util"))]
 pub fn setup_triangle(v: [Vec4; 3], width: u32, height: u32) -> Setup {
     setup_with(v, &Viewport::new(width, height))
 }
 
+#[cfg(any(test, feature = "test-util"))]
 pub(crate) fn setup_with(v: [Vec4; 3], vp: &Viewport) -> Setup {
     let mut s = Setup {
         facing: None,

@@ -21,8 +21,8 @@ pub struct BuildOptions {
     pub viewport: Option<(u32, u32)>,
     /// Point and spot lights with a range extrude finitely where the caster
     /// allows it (`w = 1` far vertices at distance `D` from the light, always
-    /// with a dark cap, zpass included; see [`crate::LocalLight::finite`] and
-    /// the docs of [`crate::append_volume`]'s module). Default `false`: every
+    /// with a dark cap, zpass included; see the finite-extrusion section of
+    /// `volume.rs`). Default `false`: every
     /// volume extrudes to infinity.
     pub finite_extrusion: bool,
 }
@@ -121,7 +121,7 @@ fn append_all(
     casters: &[ObjectId],
     options: BuildOptions,
     cache: &SilhouetteCache,
-    scratch: &mut crate::VolumeScratch,
+    scratch: &mut crate::volume::VolumeScratch,
     stats: &mut VolumeStats,
 ) -> Result<()> {
     let hull = NearLightHull::new(camera, light);

@@ -19,8 +19,8 @@
 //!
 //! # What is here
 //! - [`silhouette()`] and [`SilhouetteCache`]: signed edge counters [AW §2.4].
-//! - [`append_volume`]: sides, light and dark caps, `w = 0` extrusion [EK, Steiner §4.1],
-//!   or finite extrusion for ranged lights ([`LocalLight::finite`]).
+//! - `volume.rs`: sides, light and dark caps, `w = 0` extrusion [EK, Steiner §4.1],
+//!   or finite extrusion for ranged lights.
 //! - [`MethodChoice`], [`zpass_is_safe`]: near-plane/light pyramid test \[EK\].
 //! - [`volume_bounds`]: per-volume scissor and depth bounds [EK "Exploit Bounds"].
 //! - [`build_volumes`]: all of the above for one light, with [`VolumeStats`].
@@ -41,4 +41,3 @@ pub use error::{Error, Result};
 pub use method::{choose_method, zpass_is_safe, MethodChoice, NearLightHull, ZPASS_MARGIN};
 pub use silhouette::{silhouette, Silhouette, SilhouetteEdge};
 pub use silhouette_cache::SilhouetteCache;
-pub use volume::{append_volume, LocalLight, VolumeCounts, VolumeScratch};

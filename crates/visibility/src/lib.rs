@@ -49,9 +49,7 @@ pub use error::{Error, Result};
 pub use hierarchy::{BvhNodeId, Hierarchy};
 pub use intersection_body::{intersection_body, Face, Polyhedron};
 pub use light_pass::{BackendFactory, LightPass, LightPassOptions, LightPassResult, ViewRole};
-pub use light_view::{
-    fit_light_views, wasted_area, LightView, LightViewKind, DEFAULT_LIGHT_VIEW_RESOLUTION,
-};
+pub use light_view::{fit_light_views, LightView, LightViewKind, DEFAULT_LIGHT_VIEW_RESOLUTION};
 pub use receivers::{ReceiverPoints, PIECE_STEPS, RECEIVER_PUSH};
 pub use traverse::Culling;
 pub use view_setup::{MeshData, Sampling, ViewSetup};

@@ -185,7 +185,8 @@ pub(crate) fn fit_light_views_into(
 /// pixel count. A pixel's ray is the whole line for an orthographic view and
 /// the half-line from the light for perspective views and cube faces. 0 for no
 /// views.
-pub fn wasted_area(views: &[LightView], body: &Polyhedron) -> f64 {
+#[cfg(test)]
+pub(crate) fn wasted_area(views: &[LightView], body: &Polyhedron) -> f64 {
     let (mut total, mut wasted) = (0.0, 0.0);
     for v in views {
         let n = v.resolution.clamp(1, 64);
@@ -220,6 +221,7 @@ pub fn wasted_area(views: &[LightView], body: &Polyhedron) -> f64 {
 }
 
 /// Whether `{o + t·d : t ≥ t0}` meets `body` (planes widened by its epsilon).
+#[cfg(test)]
 fn line_meets(body: &Polyhedron, o: DVec3, d: DVec3, t0: f64) -> bool {
     let tol = body.epsilon();
     let (mut lo, mut hi) = (t0, f64::INFINITY);

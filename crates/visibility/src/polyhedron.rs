@@ -49,7 +49,7 @@ struct FaceRun {
 /// planes are those of the original box plus every plane that actually cut;
 /// `vertices` are the corners of the clipped body (within [`Self::epsilon`]).
 /// The faces' vertex lists are stored in one flat list, so clipping into a
-/// reused polyhedron ([`Polyhedron::clip_with`]) allocates nothing once its
+/// reused polyhedron (`Polyhedron::clip_with`) allocates nothing once its
 /// buffers have grown.
 #[derive(Debug, Default, PartialEq)]
 pub struct Polyhedron {

@@ -36,10 +36,11 @@ use super::counters::{
 };
 use super::fill::{for_each_band, Band, BAND_TILE_ROWS};
 use super::pieces::{check_range, push_pieces, volume_polygons, Piece, Window, PIECE_BATCH};
+use crate::clip::MAX_CLIPPED_VERTICES;
 use crate::depth_target::DepthTarget;
 use crate::setup::{Setup, SnappedVertex};
 use crate::volume_buffer::{VolumeBuffer, VolumeRange};
-use crate::{Error, Result, MAX_CLIPPED_VERTICES, MAX_TARGET_SIZE};
+use crate::{Error, Result, MAX_TARGET_SIZE};
 use glam::Mat4;
 
 /// A `width × height` stencil buffer, row-major from the top row, with a bitmap of
@@ -194,10 +195,10 @@ impl StencilTarget {
     /// `clip_from_local`, two-sided, against `eye`'s depth with the strict test (a
     /// fragment passes when strictly nearer than the stored depth):
     ///
-    /// - [`VolumeMethod::ZPass`]: passing fragments, front-facing +1, back-facing −1;
-    /// - [`VolumeMethod::ZFail`]: failing fragments (not strictly nearer),
+    /// - [`VolumeMethod::ZPass`](crate::VolumeMethod::ZPass): passing fragments, front-facing +1, back-facing −1;
+    /// - [`VolumeMethod::ZFail`](crate::VolumeMethod::ZFail): failing fragments (not strictly nearer),
     ///   back-facing +1, front-facing −1;
-    /// - [`VolumeMethod::ZpPlus`]: the zpass rule, plus the near-plane
+    /// - [`VolumeMethod::ZpPlus`](crate::VolumeMethod::ZpPlus): the zpass rule, plus the near-plane
     ///   initialization: for every triangle the near plane cuts, a fan triangle in
     ///   the near plane (depth 1), counted +1 front-facing / −1 back-facing where it
     ///   passes, so that the count starts at the number of volumes containing the

@@ -18,7 +18,7 @@ pub enum StencilBits {
     Wide,
 }
 
-/// Per-volume tests [`StencilTarget::draw_volume`] applies before a fragment's
+/// Per-volume tests [`StencilTarget::draw_volume`](crate::StencilTarget::draw_volume) applies before a fragment's
 /// stencil operation [EK "Exploit Bounds"]; both off by default.
 ///
 /// They are meant for bounds that are conservative — every pixel they reject has
@@ -27,8 +27,8 @@ pub enum StencilBits {
 /// unchanged and only save work. Bounds that are too tight change the result.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct StencilTests {
-    /// Scissor test: only pixels inside [`VolumeRange::scissor`] (`[x0, y0, x1, y1)`,
-    /// row 0 at the top, clamped to the target; [`VolumeRange::FULL_SCISSOR`] is
+    /// Scissor test: only pixels inside [`VolumeRange::scissor`](crate::VolumeRange::scissor) (`[x0, y0, x1, y1)`,
+    /// row 0 at the top, clamped to the target; [`VolumeRange::FULL_SCISSOR`](crate::VolumeRange::FULL_SCISSOR) is
     /// unbounded) are rasterized; every triangle's pixel loop is shrunk to it, and a
     /// volume with an empty (or inverted) rectangle is not set up at all.
     pub scissor: bool,
@@ -37,7 +37,7 @@ pub struct StencilTests {
     pub depth_bounds: bool,
 }
 
-/// Counters of [`StencilTarget::draw_volume`].
+/// Counters of [`StencilTarget::draw_volume`](crate::StencilTarget::draw_volume).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct StencilStats {
@@ -52,8 +52,8 @@ pub struct StencilStats {
     /// triangles are not counted).
     pub triangles: u64,
     /// Pixels this call updated for the first time since the target's last
-    /// [`StencilTarget::clear`] (or its creation). Summed over the calls on one
-    /// target since a clear, it is [`StencilTarget::touched_pixels`]: the number of
+    /// [`StencilTarget::clear`](crate::StencilTarget::clear) (or its creation). Summed over the calls on one
+    /// target since a clear, it is [`StencilTarget::touched_pixels`](crate::StencilTarget::touched_pixels): the number of
     /// distinct pixels whose counter was incremented or decremented at least once
     /// (even if it came back to its old value).
     pub pixels_touched: u64,

@@ -59,6 +59,7 @@
 use crate::coverage::Rect;
 use crate::depth_target::DepthTarget;
 
+use crate::clip::MAX_CLIPPED_VERTICES;
 use crate::edge::Tri;
 use crate::layout::{TileSize, BACKGROUND};
 use crate::setup::{Setup, SnappedVertex, SUBPIXEL};
@@ -69,7 +70,6 @@ use crate::stencil::pieces::{volume_polygons, Piece, Window};
 use crate::stencil::span::StripExtents;
 use crate::stencil::tile_class::{PiecePlane, Side};
 use crate::volume_buffer::{headroom, VolumeBuffer, VolumeMethod, VolumeRange};
-use crate::MAX_CLIPPED_VERTICES;
 use crate::{Error, Result, StencilBits, StencilStats, StencilTarget, StencilTests};
 use glam::Mat4;
 
