@@ -9,7 +9,7 @@
 
 use crate::hiz::RowSkip;
 use crate::isa::InstructionSet;
-use crate::layout::{Band, Layout, TileBounds, TileSize, BACKGROUND};
+use crate::layout::{Layout, TileBounds, TileRows, TileSize, BACKGROUND};
 use crate::setup::Viewport;
 use crate::stats::RasterStats;
 use crate::{Error, Result, MAX_TARGET_SIZE};
@@ -338,7 +338,7 @@ impl DepthTarget {
                 height: l.height,
             });
         }
-        let mut band = Band {
+        let mut band = TileRows {
             layout: l,
             ty0: 0,
             ty1: l.tiles_y,

@@ -18,7 +18,7 @@ use crate::edge::Tri;
 use crate::hiz::{hidden, project, project_lanes, project_wide, Projected, RowSkip};
 use crate::isa::InstructionSet;
 use crate::item::{setup_item, DrawItem, TriSink};
-use crate::layout::Band;
+use crate::layout::TileRows;
 use crate::query_options::{meets_apex_region, APEX_EPS, VISIBLE};
 use crate::setup::{widen, VertexCache, Viewport, CACHE_VERTICES};
 use crate::stats::RasterStats;
@@ -89,7 +89,7 @@ multiversioned! {
     /// (false: skipped whole, nothing counted), then setup and traversal.
     fn draw_mesh(
         vp: &Viewport,
-        band: &mut Band,
+        band: &mut TileRows,
         item: &DrawItem,
         cov: Coverage,
         cull: CullMode,
@@ -264,7 +264,7 @@ multiversioned! {
 
 /// [`setup_item`]'s consumer for draws.
 struct Draw<'a, 'b> {
-    band: &'a mut Band<'b>,
+    band: &'a mut TileRows<'b>,
     cov: Coverage,
     skip: &'a RowSkip,
     st: &'a mut RasterStats,
@@ -349,8 +349,8 @@ mod tests {
     use crate::{DepthPick, TileSize};
     use glam::{Mat4, Vec4};
 
-    fn band(t: &mut DepthTarget) -> Band<'_> {
-        Band {
+    fn band(t: &mut DepthTarget) -> TileRows<'_> {
+        TileRows {
             layout: t.layout,
             ty0: 0,
             ty1: t.layout.tiles_y,

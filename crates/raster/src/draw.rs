@@ -11,9 +11,9 @@ use crate::dispatch::project_items;
 #[cfg(feature = "parallel")]
 use crate::hiz::{hidden, Projected, RowSkip};
 use crate::item::{aabb_corners, check_indices, DrawItem, AABB_TRIANGLES};
-use crate::layout::Band;
 #[cfg(feature = "parallel")]
 use crate::layout::Layout;
+use crate::layout::TileRows;
 use crate::stats::RasterStats;
 use crate::Result;
 use glam::{Mat4, Vec3};
@@ -103,7 +103,7 @@ impl DepthTarget {
         if ty0 < ty1 {
             let px = l.tile_pixels();
             let (t0, t1) = ((ty0 * l.tiles_x) as usize, (ty1 * l.tiles_x) as usize);
-            let mut band = Band {
+            let mut band = TileRows {
                 layout: l,
                 ty0,
                 ty1,
@@ -263,7 +263,7 @@ impl DepthTarget {
         let outs: Vec<BandOut> = parts
             .into_par_iter()
             .map(|(ty0, ty1, depth, tiles, ids)| {
-                let mut band = Band {
+                let mut band = TileRows {
                     layout: l,
                     ty0,
                     ty1,

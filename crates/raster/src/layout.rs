@@ -127,7 +127,7 @@ pub(crate) fn tile_bounds<const T: usize>(rows: &[f32], w: usize) -> TileBounds 
 }
 
 /// Mutable access to the tile rows `ty0..ty1` of a target (one parallel bin).
-pub(crate) struct Band<'a> {
+pub(crate) struct TileRows<'a> {
     pub layout: Layout,
     pub ty0: u32,
     pub ty1: u32,
@@ -136,7 +136,7 @@ pub(crate) struct Band<'a> {
     pub tiles: &'a mut [TileBounds],
 }
 
-impl Band<'_> {
+impl TileRows<'_> {
     /// Offset of this band's first tile in the whole target.
     #[inline(always)]
     pub fn tile_base(&self) -> usize {

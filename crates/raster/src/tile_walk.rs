@@ -9,7 +9,7 @@ use crate::coverage::{
 };
 use crate::edge::Tri;
 use crate::hiz::RowSkip;
-use crate::layout::{Band, Layout, TileBounds, BACKGROUND};
+use crate::layout::{Layout, TileBounds, TileRows, BACKGROUND};
 use crate::setup::SUBPIXEL;
 use crate::stats::RasterStats;
 
@@ -410,7 +410,7 @@ fn rows_query<const T: usize>(
 /// buffer).
 #[inline(always)]
 pub(crate) fn draw_tri(
-    band: &mut Band,
+    band: &mut TileRows,
     tri: &Tri,
     pb: Rect,
     cov: Coverage,
@@ -430,7 +430,7 @@ pub(crate) fn draw_tri(
 /// [`draw_tri`]; `FAST`: the coverage is standard and there is no id target.
 #[inline(always)]
 fn draw_tri_as<const FAST: bool>(
-    band: &mut Band,
+    band: &mut TileRows,
     tri: &Tri,
     pb: Rect,
     cov: Coverage,

@@ -34,7 +34,7 @@ use super::counters::{
     counter_bytes, pass_bytes, tiled_index, Counters, CountersMut, StencilBits, StencilStats,
     StencilTests,
 };
-use super::fill::{for_each_band, Band, BAND_TILE_ROWS};
+use super::fill::{for_each_band, CounterRows, BAND_TILE_ROWS};
 use super::pieces::{check_range, push_pieces, volume_polygons, Piece, Window, PIECE_BATCH};
 use crate::clip::MAX_CLIPPED_VERTICES;
 use crate::depth_target::DepthTarget;
@@ -275,7 +275,7 @@ impl StencilTarget {
         let mut flush = |pieces: &mut Vec<Piece>, target: &mut StencilTarget| {
             let draw_band = |k: usize, counters: CountersMut<'_>, touched: &mut [u8]| {
                 let y0 = (k * band_tile_rows * 8) as i64;
-                let mut band = Band {
+                let mut band = CounterRows {
                     counters,
                     touched,
                     width,

@@ -14,7 +14,7 @@ use crate::setup::SUBPIXEL;
 
 /// The rows `y0..=y1` of a [`StencilTarget`]: whole tile rows, whose counters
 /// and touched flags are the contiguous slices starting at tiled index `base`.
-pub(crate) struct Band<'a> {
+pub(crate) struct CounterRows<'a> {
     pub counters: CountersMut<'a>,
     pub touched: &'a mut [u8],
     pub width: u32,
@@ -29,7 +29,7 @@ pub(crate) struct Band<'a> {
 /// share of a volume triangle is more than a few rows).
 pub(crate) const BAND_TILE_ROWS: usize = 8;
 
-impl Band<'_> {
+impl CounterRows<'_> {
     /// Increments (or decrements, `!increment`) every covered non-background pixel of
     /// `tri` inside `win` whose fragment passes (zpass) or fails (zfail) the strict
     /// depth test. Each row walks only its covered span ([`crate::span`]).
@@ -45,7 +45,7 @@ impl Band<'_> {
         self.fill_tri_within(eye, tri, win, zfail, increment, Rect::ALL, st);
     }
 
-    /// [`Band::fill_tri`] restricted to the pixels of `clip` (the hierarchical
+    /// [`CounterRows::fill_tri`] restricted to the pixels of `clip` (the hierarchical
     /// stencil's boundary tiles).
     #[allow(clippy::too_many_arguments)]
     pub(crate) fn fill_tri_within(
@@ -158,7 +158,7 @@ unsafe fn fill_rows_avx2<C: Counter>(f: Fill<'_, C>, st: &mut StencilStats) {
     fill_rows(f, st);
 }
 
-/// The per-pixel loop of [`Band::fill_tri`], monomorphized per counter type:
+/// The per-pixel loop of [`CounterRows::fill_tri`], monomorphized per counter type:
 /// adds `delta` (wrapping) to each covered pixel of `rect` that is not background,
 /// lies within the depth window and passes (zpass) or fails (zfail) the strict test.
 ///

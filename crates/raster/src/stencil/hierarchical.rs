@@ -64,7 +64,7 @@ use crate::edge::Tri;
 use crate::layout::{TileSize, BACKGROUND};
 use crate::setup::{Setup, SnappedVertex, SUBPIXEL};
 use crate::stencil::counters::{counter_bytes, pass_bytes, tiled_index, Counters, CountersMut};
-use crate::stencil::fill::{for_each_band, Band, BAND_TILE_ROWS};
+use crate::stencil::fill::{for_each_band, CounterRows, BAND_TILE_ROWS};
 use crate::stencil::open_edges::{open_edges, push_piece_edges, EdgeRec, Segment};
 use crate::stencil::pieces::{volume_polygons, Piece, Window};
 use crate::stencil::span::StripExtents;
@@ -621,7 +621,7 @@ impl HierarchicalStencil {
                    (scratch, bst): &mut (Scratch, StencilStats)| {
             let y0 = (k * band_rows) as i64;
             let mut band = HBand {
-                px: Band {
+                px: CounterRows {
                     counters,
                     touched: parts.touched,
                     width: geo.width,
@@ -874,7 +874,7 @@ struct BandParts<'a> {
 
 /// One band of 64 pixel rows: its per-pixel counters and its tiles.
 struct HBand<'a, 'g> {
-    px: Band<'a>,
+    px: CounterRows<'a>,
     hot: &'a mut [Hot],
     cold: &'a mut [Cold],
     blocks: &'a mut [[f32; 2]],
