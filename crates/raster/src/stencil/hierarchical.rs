@@ -889,6 +889,18 @@ struct HBand<'a, 'g> {
     geo: &'g Geometry,
 }
 
+/// What every stage of one volume in one band reads.
+struct VolumeWindow<'w> {
+    /// The volume's window.
+    win: &'w Window,
+    /// The volume's stamp in `Hot::psv` (bit 0: boundary).
+    stamp: u32,
+    /// Pixel rows of the band inside the window.
+    rows: (i64, i64),
+    /// The window's depth range, clamped to written depths.
+    depth: (f32, f32),
+}
+
 /// Inclusive pixel rectangle of tile `idx` (global index) inside the target.
 fn tile_rect(g: &Geometry, idx: usize) -> Rect {
     let (tx, ty) = (
@@ -917,20 +929,12 @@ impl HBand<'_, '_> {
         sc: &mut Scratch,
         st: &mut StencilStats,
     ) {
-        let g = self.geo;
-        let fs_on = g.options.full_shadow;
-        let sbytes = counter_bytes(g.options.bits);
-        let stamp = (v.job + 1) << 1;
         let (ya, yb) = (self.px.y0.max(win.y0), self.px.y1.min(win.y1));
         if ya > yb {
             return;
         }
         sc.touched.clear();
         sc.pairs.clear();
-        let shift = g.shift;
-        let s = 1i64 << shift;
-        let tiles_x = g.tiles_x as i64;
-        let nb = blocks_per_row(g.tiles_x) as i64;
         // Written depths lie in [0, 1]: skipped tiles (zmax = BACKGROUND) fail `zmax ≥ dlo`.
         let (dlo, dhi) = (win.dlo.max(0.0), win.dhi);
         // The whole volume against the band's tiles under it: dismissed when
@@ -940,48 +944,149 @@ impl HBand<'_, '_> {
         if dismissed(v.zfail, v.zlo, v.zhi, range, dlo, dhi) {
             return;
         }
-        let mut tests = 0u64;
+        let vw = VolumeWindow {
+            win,
+            stamp: (v.job + 1) << 1,
+            rows: (ya, yb),
+            depth: (dlo, dhi),
+        };
         // Stage 1: classify.
+        let mut tests = 0u64;
         for &pi in piece_ids {
-            let p = pieces[pi as usize];
-            let (y0, y1) = (p.y0.max(ya), p.y1.min(yb));
-            if y0 > y1 {
-                continue;
+            tests += self.classify_piece(pi, pieces[pi as usize], &vw, sc);
+        }
+        let sbytes = counter_bytes(self.geo.options.bits);
+        st.tile_tests += tests;
+        st.tile_bytes += tests * (8 + 2 * (sbytes + 1));
+        self.mark_open_edges(open_ids.iter().map(|&i| open[i as usize]), &vw, v.zfail);
+        self.mark_partial_tiles(&vw, sc);
+        // Stage 2: per-pixel work in boundary tiles, then the tiles' counts.
+        self.fill_boundary_tiles(eye, pieces, win, sc, st);
+        self.update_tiles(eye, sc, st);
+    }
+
+    /// Stage 1 for one piece: the band level, the block level, then every tile
+    /// the piece can count in: a tile whose depth box lies wholly on the piece's
+    /// counted side, under a sample pixel the piece covers, counts `±1` at once;
+    /// a tile the piece's plane crosses is marked for per-pixel work (and the
+    /// pair kept for stage 2). Returns the tile tests made.
+    #[inline(always)]
+    fn classify_piece(
+        &mut self,
+        pi: u32,
+        p: &Piece,
+        vw: &VolumeWindow<'_>,
+        sc: &mut Scratch,
+    ) -> u64 {
+        let g = self.geo;
+        let fs_on = g.options.full_shadow;
+        let shift = g.shift;
+        let s = 1i64 << shift;
+        let tiles_x = g.tiles_x as i64;
+        let nb = blocks_per_row(g.tiles_x) as i64;
+        let (win, stamp) = (vw.win, vw.stamp);
+        let ((ya, yb), (dlo, dhi)) = (vw.rows, vw.depth);
+        let mut tests = 0u64;
+        let (y0, y1) = (p.y0.max(ya), p.y1.min(yb));
+        if y0 > y1 {
+            return tests;
+        }
+        // Columns of every pixel-centre rectangle the closed triangle can
+        // meet, not only of the centres it covers: a sliver between two
+        // rows of centres covers none, yet its edges may bound counted
+        // pieces, so it must be classified like any other piece.
+        let half = SUBPIXEL / 2;
+        let px0 = (p.tri.xmin - half).div_euclid(SUBPIXEL).max(0);
+        let px1 = ((p.tri.xmax - half).div_euclid(SUBPIXEL) + 1).min(i64::from(g.width) - 1);
+        let (px0, px1) = (px0.max(win.x0), px1.min(win.x1));
+        if px0 > px1 {
+            return tests;
+        }
+        // The piece by its vertex depths, against the tiles of its columns.
+        if dismissed(
+            p.zfail,
+            p.tri.zlo,
+            p.tri.zhi,
+            self.depth_range(px0, px1),
+            dlo,
+            dhi,
+        ) {
+            return tests;
+        }
+        let plane = PiecePlane::new(&p.tri);
+        let strips = StripExtents::new(&p.tri);
+        let narrow = px1 - px0 < 2 * s;
+        let counted = if p.zfail { Side::Behind } else { Side::Front };
+        let delta = if p.increment { 1 } else { -1 };
+        // The band level: the piece over each block column's tiles in the
+        // band; `None` where it can be dismissed (no visited tile, or the
+        // uncounted side of all of them).
+        let (lo, hi) = if narrow {
+            (px0, px1)
+        } else {
+            match strips.extent(y0, y1) {
+                Some((lo, hi)) => (lo.max(px0), hi.min(px1)),
+                None => return tests,
             }
-            // Columns of every pixel-centre rectangle the closed triangle can
-            // meet, not only of the centres it covers: a sliver between two
-            // rows of centres covers none, yet its edges may bound counted
-            // pieces, so it must be classified like any other piece.
-            let half = SUBPIXEL / 2;
-            let px0 = (p.tri.xmin - half).div_euclid(SUBPIXEL).max(0);
-            let px1 = ((p.tri.xmax - half).div_euclid(SUBPIXEL) + 1).min(i64::from(g.width) - 1);
-            let (px0, px1) = (px0.max(win.x0), px1.min(win.x1));
-            if px0 > px1 {
-                continue;
-            }
-            // The piece by its vertex depths, against the tiles of its columns.
-            if dismissed(
-                p.zfail,
-                p.tri.zlo,
-                p.tri.zhi,
-                self.depth_range(px0, px1),
-                dlo,
-                dhi,
-            ) {
-                continue;
-            }
-            let plane = PiecePlane::new(&p.tri);
-            let strips = StripExtents::new(&p.tri);
-            let narrow = px1 - px0 < 2 * s;
-            let counted = if p.zfail { Side::Behind } else { Side::Front };
-            let delta = if p.increment { 1 } else { -1 };
-            // The band level: the piece over each block column's tiles in the
-            // band; `None` where it can be dismissed (no visited tile, or the
-            // uncounted side of all of them).
+        };
+        if lo > hi {
+            return tests;
+        }
+        let (t0, t1) = (lo >> shift, hi >> shift);
+        let (b0, b1) = (t0 / BLOCK as i64, t1 / BLOCK as i64);
+        sc.sides.clear();
+        let (wy0, wy1) = (
+            ((y0 >> shift) * s).max(win.y0),
+            ((y1 >> shift) * s + s - 1).min(win.y1),
+        );
+        // The pixels of tile columns `t0..=t1` in rows `y0..=y1`, inside the
+        // window and the target.
+        let columns = |t0: i64, t1: i64, y0: i64, y1: i64| Rect {
+            x0: (t0 * s).max(win.x0),
+            x1: (t1 * s + s - 1).min(win.x1).min(i64::from(g.width) - 1),
+            y0,
+            y1,
+        };
+        // First the whole span against the band's depth range.
+        let span = columns(t0, t1, wy0, wy1);
+        let [z0, z1] = self.band_range;
+        if z1 < dlo || z0 > dhi {
+            return tests;
+        }
+        match plane.side(span, z0, z1) {
+            Side::Crossing => {}
+            side if side == counted => {}
+            _ => return tests,
+        }
+        let mut any = false;
+        for b in b0..=b1 {
+            let [bz0, bz1] = self.band_blocks[b as usize];
+            let side = if bz1 < dlo || bz0 > dhi {
+                None
+            } else {
+                let (bt0, bt1) = (
+                    t0.max(b * BLOCK as i64),
+                    t1.min(b * BLOCK as i64 + BLOCK as i64 - 1),
+                );
+                let rect = columns(bt0, bt1, wy0, wy1);
+                match plane.side(rect, bz0, bz1) {
+                    Side::Crossing => Some(Side::Crossing),
+                    side if side == counted => Some(counted),
+                    _ => None,
+                }
+            };
+            any |= side.is_some();
+            sc.sides.push(side);
+        }
+        if !any {
+            return tests;
+        }
+        for ty in (y0 >> shift)..=(y1 >> shift) {
             let (lo, hi) = if narrow {
                 (px0, px1)
             } else {
-                match strips.extent(y0, y1) {
+                let (ry0, ry1) = ((ty * s).max(y0), (ty * s + s - 1).min(y1));
+                match strips.extent(ry0, ry1) {
                     Some((lo, hi)) => (lo.max(px0), hi.min(px1)),
                     None => continue,
                 }
@@ -989,155 +1094,103 @@ impl HBand<'_, '_> {
             if lo > hi {
                 continue;
             }
+            // Rows of the tile row inside the window (the rectangles classified).
+            let (wy0, wy1) = ((ty * s).max(win.y0), (ty * s + s - 1).min(win.y1));
             let (t0, t1) = (lo >> shift, hi >> shift);
-            let (b0, b1) = (t0 / BLOCK as i64, t1 / BLOCK as i64);
-            sc.sides.clear();
-            let (wy0, wy1) = (
-                ((y0 >> shift) * s).max(win.y0),
-                ((y1 >> shift) * s + s - 1).min(win.y1),
-            );
-            // The pixels of tile columns `t0..=t1` in rows `y0..=y1`, inside the
-            // window and the target.
-            let columns = |t0: i64, t1: i64, y0: i64, y1: i64| Rect {
-                x0: (t0 * s).max(win.x0),
-                x1: (t1 * s + s - 1).min(win.x1).min(i64::from(g.width) - 1),
-                y0,
-                y1,
-            };
-            // First the whole span against the band's depth range.
-            let span = columns(t0, t1, wy0, wy1);
-            let [z0, z1] = self.band_range;
-            if z1 < dlo || z0 > dhi {
-                continue;
-            }
-            match plane.side(span, z0, z1) {
-                Side::Crossing => {}
-                side if side == counted => {}
-                _ => continue,
-            }
-            let mut any = false;
-            for b in b0..=b1 {
-                let [bz0, bz1] = self.band_blocks[b as usize];
-                let side = if bz1 < dlo || bz0 > dhi {
-                    None
-                } else {
-                    let (bt0, bt1) = (
-                        t0.max(b * BLOCK as i64),
-                        t1.min(b * BLOCK as i64 + BLOCK as i64 - 1),
-                    );
-                    let rect = columns(bt0, bt1, wy0, wy1);
-                    match plane.side(rect, bz0, bz1) {
-                        Side::Crossing => Some(Side::Crossing),
-                        side if side == counted => Some(counted),
-                        _ => None,
-                    }
+            let row = (ty - self.ty0) * tiles_x;
+            let brow = (ty - self.ty0) * nb;
+            let mut b = t0 / BLOCK as i64;
+            while b * BLOCK as i64 <= t1 {
+                let (bt0, bt1) = (
+                    t0.max(b * BLOCK as i64),
+                    t1.min(b * BLOCK as i64 + BLOCK as i64 - 1),
+                );
+                b += 1;
+                let Some(band_side) = sc.sides[(b - 1 - b0) as usize] else {
+                    continue;
                 };
-                any |= side.is_some();
-                sc.sides.push(side);
-            }
-            if !any {
-                continue;
-            }
-            for ty in (y0 >> shift)..=(y1 >> shift) {
-                let (lo, hi) = if narrow {
-                    (px0, px1)
-                } else {
-                    let (ry0, ry1) = ((ty * s).max(y0), (ty * s + s - 1).min(y1));
-                    match strips.extent(ry0, ry1) {
-                        Some((lo, hi)) => (lo.max(px0), hi.min(px1)),
-                        None => continue,
-                    }
-                };
-                if lo > hi {
+                let [bz0, bz1] = self.blocks[(brow + b - 1) as usize];
+                if bz1 < dlo || bz0 > dhi {
                     continue;
                 }
-                // Rows of the tile row inside the window (the rectangles classified).
-                let (wy0, wy1) = ((ty * s).max(win.y0), (ty * s + s - 1).min(win.y1));
-                let (t0, t1) = (lo >> shift, hi >> shift);
-                let row = (ty - self.ty0) * tiles_x;
-                let brow = (ty - self.ty0) * nb;
-                let mut b = t0 / BLOCK as i64;
-                while b * BLOCK as i64 <= t1 {
-                    let (bt0, bt1) = (
-                        t0.max(b * BLOCK as i64),
-                        t1.min(b * BLOCK as i64 + BLOCK as i64 - 1),
-                    );
-                    b += 1;
-                    let Some(band_side) = sc.sides[(b - 1 - b0) as usize] else {
-                        continue;
-                    };
-                    let [bz0, bz1] = self.blocks[(brow + b - 1) as usize];
-                    if bz1 < dlo || bz0 > dhi {
+                // The block level: the piece over these tiles' rectangles.
+                let rect = columns(bt0, bt1, wy0, wy1);
+                let block_side = if band_side == counted {
+                    counted
+                } else {
+                    plane.side(rect, bz0, bz1)
+                };
+                if block_side != Side::Crossing && block_side != counted {
+                    continue;
+                }
+                for tx in bt0..=bt1 {
+                    let li = (row + tx) as usize;
+                    let t = &mut self.hot[li];
+                    if t.zmax < dlo || t.zmin > dhi {
                         continue;
                     }
-                    // The block level: the piece over these tiles' rectangles.
-                    let rect = columns(bt0, bt1, wy0, wy1);
-                    let block_side = if band_side == counted {
+                    tests += 1;
+                    if t.psv & !1 != stamp {
+                        t.psv = stamp;
+                        t.count = 0;
+                        sc.touched.push(li as u32);
+                        let c = &mut self.cold[li];
+                        if fs_on && all_shadowed(c, g.options.bits) {
+                            c.fs = true;
+                            t.zmax = BACKGROUND;
+                            continue;
+                        }
+                    }
+                    if t.psv & 1 != 0 {
+                        sc.pairs.push((pi, li as u32));
+                        continue;
+                    }
+                    let r = columns(tx, tx, wy0, wy1);
+                    let side = if block_side == counted {
                         counted
                     } else {
-                        plane.side(rect, bz0, bz1)
+                        match plane.side(r, t.zmin, t.zmax) {
+                            Side::Crossing => match plane.side_clipped(&p.tri, r, t.zmin, t.zmax) {
+                                Some(side) => side,
+                                None => continue,
+                            },
+                            side => side,
+                        }
                     };
-                    if block_side != Side::Crossing && block_side != counted {
-                        continue;
-                    }
-                    for tx in bt0..=bt1 {
-                        let li = (row + tx) as usize;
-                        let t = &mut self.hot[li];
-                        if t.zmax < dlo || t.zmin > dhi {
-                            continue;
-                        }
-                        tests += 1;
-                        if t.psv & !1 != stamp {
-                            t.psv = stamp;
-                            t.count = 0;
-                            sc.touched.push(li as u32);
-                            let c = &mut self.cold[li];
-                            if fs_on && all_shadowed(c, g.options.bits) {
-                                c.fs = true;
-                                t.zmax = BACKGROUND;
-                                continue;
-                            }
-                        }
-                        if t.psv & 1 != 0 {
-                            sc.pairs.push((pi, li as u32));
-                            continue;
-                        }
-                        let r = columns(tx, tx, wy0, wy1);
-                        let side = if block_side == counted {
-                            counted
-                        } else {
-                            match plane.side(r, t.zmin, t.zmax) {
-                                Side::Crossing => {
-                                    match plane.side_clipped(&p.tri, r, t.zmin, t.zmax) {
-                                        Some(side) => side,
-                                        None => continue,
-                                    }
-                                }
-                                side => side,
-                            }
-                        };
-                        if side == Side::Crossing {
-                            t.psv |= 1;
-                            sc.pairs.push((pi, li as u32));
-                        } else if side == counted {
-                            sc.pairs.push((pi, li as u32));
-                            let c = &self.cold[li];
-                            let (sx, sy) = (
-                                i64::from(c.sample_x).clamp(r.x0, r.x1),
-                                i64::from(c.sample_y).clamp(r.y0, r.y1),
-                            );
-                            if plane.covers(&p.tri, sx, sy) {
-                                t.count += delta;
-                            }
+                    if side == Side::Crossing {
+                        t.psv |= 1;
+                        sc.pairs.push((pi, li as u32));
+                    } else if side == counted {
+                        sc.pairs.push((pi, li as u32));
+                        let c = &self.cold[li];
+                        let (sx, sy) = (
+                            i64::from(c.sample_x).clamp(r.x0, r.x1),
+                            i64::from(c.sample_y).clamp(r.y0, r.y1),
+                        );
+                        if plane.covers(&p.tri, sx, sy) {
+                            t.count += delta;
                         }
                     }
                 }
             }
         }
-        st.tile_tests += tests;
-        st.tile_bytes += tests * (8 + 2 * (sbytes + 1));
-        // Open edges of the volume's surface.
-        for e in open_ids.iter().map(|&i| open[i as usize]) {
+        tests
+    }
+
+    /// Open edges of the volume's surface: a tile an open edge crosses, where
+    /// the edge can bound a counted region, needs per-pixel work.
+    fn mark_open_edges<'e>(
+        &mut self,
+        edges: impl Iterator<Item = &'e Segment>,
+        vw: &VolumeWindow<'_>,
+        zfail: bool,
+    ) {
+        let g = self.geo;
+        let shift = g.shift;
+        let s = 1i64 << shift;
+        let (win, stamp) = (vw.win, vw.stamp);
+        let (ya, yb) = vw.rows;
+        for e in edges {
             let (y0, y1) = (e.y0.max(ya), e.y1.min(yb));
             if y0 > y1 {
                 continue;
@@ -1161,13 +1214,17 @@ impl HBand<'_, '_> {
                     if t.psv != stamp || t.zmax < 0.0 {
                         continue;
                     }
-                    if e.marks(rect, t.zmin, t.zmax, v.zfail) {
+                    if e.marks(rect, t.zmin, t.zmax, zfail) {
                         t.psv |= 1;
                     }
                 }
             }
         }
-        // A count over a tile the window covers only in part needs per-pixel work.
+    }
+
+    /// A count over a tile the window covers only in part needs per-pixel work.
+    fn mark_partial_tiles(&mut self, vw: &VolumeWindow<'_>, sc: &Scratch) {
+        let (g, win) = (self.geo, vw.win);
         for &li in &sc.touched {
             let r = tile_rect(g, li as usize + self.tile0);
             let t = &mut self.hot[li as usize];
@@ -1184,7 +1241,18 @@ impl HBand<'_, '_> {
                 t.psv |= 1;
             }
         }
-        // Stage 2: per-pixel work in boundary tiles.
+    }
+
+    /// Stage 2: the pieces of every boundary tile, pixel by pixel.
+    fn fill_boundary_tiles(
+        &mut self,
+        eye: &DepthTarget,
+        pieces: &[&Piece],
+        win: &Window,
+        sc: &Scratch,
+        st: &mut StencilStats,
+    ) {
+        let g = self.geo;
         let mut frag = StencilStats::default();
         for &(pi, li) in &sc.pairs {
             let t = &self.hot[li as usize];
@@ -1200,7 +1268,14 @@ impl HBand<'_, '_> {
         st.stencil_updates += frag.stencil_updates;
         st.pixels_touched += frag.pixels_touched;
         st.pixel_bytes += pass_bytes(g.options.bits, frag.pixels_processed, frag.stencil_updates);
-        // Hierarchical updates.
+    }
+
+    /// The hierarchical updates: per touched tile, its counters' range after
+    /// per-pixel work, or its tile count (or full-shadow bit) otherwise.
+    fn update_tiles(&mut self, eye: &DepthTarget, sc: &Scratch, st: &mut StencilStats) {
+        let g = self.geo;
+        let fs_on = g.options.full_shadow;
+        let sbytes = counter_bytes(g.options.bits);
         for &li in &sc.touched {
             let idx = li as usize + self.tile0;
             st.tile_bytes += (sbytes + 1) + 2 * (3 * sbytes + 1);
