@@ -65,6 +65,94 @@ pub fn volume_bounds(
         return nothing;
     }
     let (blo, bhi) = (caster.min.as_dvec3(), caster.max.as_dvec3());
+    let Some((lo, hi, cone)) = swept_box(light, (blo, bhi), scene_bounds) else {
+        return nothing;
+    };
+    // Eye-relative from here on (precision far from the origin).
+    let eye = camera.position;
+    let (lo, hi) = (lo - eye, hi - eye);
+    let (blo, bhi) = (blo - eye, bhi - eye);
+    let r = (0..8)
+        .map(|i| corner(lo, hi, i).length())
+        .fold(0.0, f64::max);
+    let m = BOUNDS_MARGIN * DEPTH_ERROR * r;
+    let (lo, hi) = (lo - DVec3::splat(m), hi + DVec3::splat(m));
+    // Early outs: the box wholly behind the near plane or outside a side plane
+    // of the view frustum (side planes pass through the eye: d = 0 here).
+    let frustum = camera.frustum();
+    let outside = |n: DVec3, d: f64| {
+        let far = DVec3::select(n.cmpge(DVec3::ZERO), hi, lo);
+        n.dot(far) + d < 0.0
+    };
+    if outside(camera.forward(), -camera.near)
+        || frustum.planes[..4]
+            .iter()
+            .any(|p| outside(p.normal, m * p.normal.length()))
+    {
+        return nothing;
+    }
+
+    // Half-spaces n·x + d ≥ 0 holding the swept set H, each pushed out by m,
+    // then the near plane: view distance ≥ near.
+    let mut planes = [(DVec3::ZERO, 0.0f64); MAX_PLANES];
+    let mut np = swept_half_spaces(light, eye, (blo, bhi), cone, m, &mut planes);
+    let fwd = camera.forward();
+    let near = camera.near;
+    planes[np] = (fwd, -near);
+    np += 1;
+    // Drop half-spaces that hold the whole box; a box wholly outside one is empty.
+    let mut kept = 0;
+    for i in 0..np {
+        let (n, d) = planes[i];
+        let near_corner = DVec3::select(n.cmpge(DVec3::ZERO), lo, hi);
+        if n.dot(near_corner) + d >= 0.0 {
+            continue;
+        }
+        if outside(n, d) {
+            return nothing;
+        }
+        planes[kept] = planes[i];
+        kept += 1;
+    }
+    let planes = &planes[..kept];
+
+    let Some((xs, ys, ws)) = project_polyhedron(camera, (lo, hi), planes) else {
+        return nothing;
+    };
+    let ([xmin, xmax], [ymin, ymax], [wmin, wmax]) = (xs, ys, ws);
+    let (w, h) = (width as f64, height as f64);
+    let px = |x: f64| (x + 1.0) * 0.5 * w;
+    let py = |y: f64| (1.0 - y) * 0.5 * h;
+    let clamp = |v: f64, max: f64| v.clamp(0.0, max) as u32;
+    let x0 = clamp((px(xmin)).floor() - 1.0, w);
+    let x1 = clamp((px(xmax)).ceil() + 1.0, w);
+    let y0 = clamp((py(ymax)).floor() - 1.0, h);
+    let y1 = clamp((py(ymin)).ceil() + 1.0, h);
+    let k = BOUNDS_MARGIN * DEPTH_ERROR;
+    // Depth = near / w (reversed Z), rounded outward to f32.
+    let dn = (near / wmin * (1.0 + k)).min(1.0);
+    let df = (near / wmax * (1.0 - k)).max(0.0);
+    let depth_near = round_up(dn).min(1.0);
+    let depth_far = round_down(df).max(0.0);
+    VolumeBounds {
+        scissor: [x0, y0, x1.max(x0), y1.max(y0)],
+        depth_near,
+        depth_far: depth_far.min(depth_near),
+    }
+}
+
+/// A spot light's cone: apex, unit axis, half angle.
+type Cone = (DVec3, DVec3, f64);
+
+/// The world box of the swept set H of the caster box `(blo, bhi)`: per axis
+/// from the box to infinity where some light ray through it heads, clamped
+/// to the scene bounds, the light's range and a spot light's cone (which is
+/// returned too); `None` when empty.
+fn swept_box(
+    light: &Light,
+    (blo, bhi): (DVec3, DVec3),
+    scene_bounds: &Aabb,
+) -> Option<(DVec3, DVec3, Option<Cone>)> {
     // Per axis: does some light ray through B head toward + / −?
     let (up, down) = match *light {
         Light::Point { position, .. } | Light::Spot { position, .. } => {
@@ -79,7 +167,7 @@ pub fn volume_bounds(
     let mut lo = hlo.max(scene_bounds.min.as_dvec3());
     let mut hi = hhi.min(scene_bounds.max.as_dvec3());
     if lo.cmpgt(hi).any() {
-        return nothing;
+        return None;
     }
     // The light's range: surfaces beyond it are unlit whatever the stencil says.
     if let Light::Point {
@@ -95,7 +183,7 @@ pub fn volume_bounds(
         lo = lo.max(position - DVec3::splat(r));
         hi = hi.min(position + DVec3::splat(r));
         if lo.cmpgt(hi).any() {
-            return nothing;
+            return None;
         }
     }
     // A spot light's cone within its range: surfaces outside it are unlit too.
@@ -125,39 +213,29 @@ pub fn volume_bounds(
                     lo[k] = lo[k].max(position[k] - reach(-axis[k]));
                 }
                 if lo.cmpgt(hi).any() {
-                    return nothing;
+                    return None;
                 }
             }
             Some((position, axis, half))
         }
         _ => None,
     };
-    // Eye-relative from here on (precision far from the origin).
-    let eye = camera.position;
-    let (lo, hi) = (lo - eye, hi - eye);
-    let (blo, bhi) = (blo - eye, bhi - eye);
-    let r = (0..8)
-        .map(|i| corner(lo, hi, i).length())
-        .fold(0.0, f64::max);
-    let m = BOUNDS_MARGIN * DEPTH_ERROR * r;
-    let (lo, hi) = (lo - DVec3::splat(m), hi + DVec3::splat(m));
-    // Early outs: the box wholly behind the near plane or outside a side plane
-    // of the view frustum (side planes pass through the eye: d = 0 here).
-    let frustum = camera.frustum();
-    let outside = |n: DVec3, d: f64| {
-        let far = DVec3::select(n.cmpge(DVec3::ZERO), hi, lo);
-        n.dot(far) + d < 0.0
-    };
-    if outside(camera.forward(), -camera.near)
-        || frustum.planes[..4]
-            .iter()
-            .any(|p| outside(p.normal, m * p.normal.length()))
-    {
-        return nothing;
-    }
+    Some((lo, hi, cone))
+}
 
-    // Half-spaces n·x + d ≥ 0 holding the swept set H, each pushed out by m.
-    let mut planes = [(DVec3::ZERO, 0.0f64); MAX_PLANES];
+/// Writes into `planes` the half-spaces `n·x + d ≥ 0` (eye-relative, each
+/// pushed out by `m`) that hold the swept set of the eye-relative caster box
+/// `(blo, bhi)`: behind every box face that faces the light, through the light
+/// and every box edge with the whole box on one side, and a spot light's cone
+/// pyramid. Returns how many.
+fn swept_half_spaces(
+    light: &Light,
+    eye: DVec3,
+    (blo, bhi): (DVec3, DVec3),
+    cone: Option<Cone>,
+    m: f64,
+    planes: &mut [(DVec3, f64); MAX_PLANES],
+) -> usize {
     let mut np = 0;
     let mut add = |n: DVec3, d: f64| {
         if n != DVec3::ZERO && n.is_finite() && d.is_finite() {
@@ -216,27 +294,18 @@ pub fn volume_bounds(
             add(n, -n.dot(apex));
         }
     }
-    // The near plane: view distance ≥ near.
-    let fwd = camera.forward();
-    let near = camera.near;
-    planes[np] = (fwd, -near);
-    np += 1;
-    // Drop half-spaces that hold the whole box; a box wholly outside one is empty.
-    let mut kept = 0;
-    for i in 0..np {
-        let (n, d) = planes[i];
-        let near_corner = DVec3::select(n.cmpge(DVec3::ZERO), lo, hi);
-        if n.dot(near_corner) + d >= 0.0 {
-            continue;
-        }
-        if outside(n, d) {
-            return nothing;
-        }
-        planes[kept] = planes[i];
-        kept += 1;
-    }
-    let planes = &planes[..kept];
+    np
+}
 
+/// Projects the box `(lo, hi)` (eye-relative) clipped by `planes` with
+/// `camera`: the ranges of x/w, y/w (NDC) and w over its vertices (w at least
+/// the near distance), `None` when the clipped polyhedron is empty.
+fn project_polyhedron(
+    camera: &Camera,
+    (lo, hi): (DVec3, DVec3),
+    planes: &[(DVec3, f64)],
+) -> Option<([f64; 2], [f64; 2], [f64; 2])> {
+    let near = camera.near;
     // The clipped polyhedron's faces lie on the box faces or on the planes:
     // clip the six box faces by every half-space, and for every plane a quad
     // on it covering the box by the box and the other half-spaces. The
@@ -309,28 +378,7 @@ pub fn volume_bounds(
             any = true;
         }
     }
-    if !any {
-        return nothing;
-    }
-    let (w, h) = (width as f64, height as f64);
-    let px = |x: f64| (x + 1.0) * 0.5 * w;
-    let py = |y: f64| (1.0 - y) * 0.5 * h;
-    let clamp = |v: f64, max: f64| v.clamp(0.0, max) as u32;
-    let x0 = clamp((px(xmin)).floor() - 1.0, w);
-    let x1 = clamp((px(xmax)).ceil() + 1.0, w);
-    let y0 = clamp((py(ymax)).floor() - 1.0, h);
-    let y1 = clamp((py(ymin)).ceil() + 1.0, h);
-    let k = BOUNDS_MARGIN * DEPTH_ERROR;
-    // Depth = near / w (reversed Z), rounded outward to f32.
-    let dn = (near / wmin * (1.0 + k)).min(1.0);
-    let df = (near / wmax * (1.0 - k)).max(0.0);
-    let depth_near = round_up(dn).min(1.0);
-    let depth_far = round_down(df).max(0.0);
-    VolumeBounds {
-        scissor: [x0, y0, x1.max(x0), y1.max(y0)],
-        depth_near,
-        depth_far: depth_far.min(depth_near),
-    }
+    any.then_some(([xmin, xmax], [ymin, ymax], [wmin, wmax]))
 }
 
 /// The box faces as corner indices (see [`corner`]).
