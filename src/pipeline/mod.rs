@@ -33,6 +33,7 @@ pub use eye::{
 pub use options::{
     BadOption, ChcppSpec, CoverageSpec, CullingSpec, PipelineOptions, StencilBackend,
 };
+use shadow_options::ShadowInput;
 pub use shadow_options::{Backend, ShadowOptions};
 pub use stencil::{shadow_mask, shadow_mask_for, ShadowFrame, ShadowScratch, TileImage};
 
@@ -480,10 +481,13 @@ impl Pipeline {
             } else {
                 &self.all_casters
             };
-            let volumes = volume::build_for(
+            let input = ShadowInput {
                 scene,
                 camera,
-                &s.light,
+                light: &s.light,
+            };
+            let volumes = volume::build_for(
+                input,
                 casters,
                 &shadow_options,
                 (w, h),
@@ -501,9 +505,7 @@ impl Pipeline {
             s.shadow = match o.stencil {
                 StencilBackend::None => None,
                 _ => Some(stencil::stencil_volumes(
-                    scene,
-                    camera,
-                    &s.light,
+                    input,
                     &eye,
                     &shadow_options,
                     &mut s.scratch,

@@ -3,6 +3,7 @@
 //! maps the job's options onto them.
 
 use raster::{StencilBits, TileSize};
+use scene::{Camera, Light, Scene};
 use shadowgen::MethodChoice;
 
 /// Which stencil backend draws the volumes.
@@ -58,4 +59,15 @@ impl Default for ShadowOptions {
             finite_extrusion: false,
         }
     }
+}
+
+/// What one light's volumes and stencil are computed for.
+#[derive(Clone, Copy)]
+pub(crate) struct ShadowInput<'a> {
+    /// The scene.
+    pub scene: &'a Scene,
+    /// The eye.
+    pub camera: &'a Camera,
+    /// The light.
+    pub light: &'a Light,
 }

@@ -4,6 +4,7 @@
 //! four-class mask ([`crate::mask::assemble`]).
 
 use super::eye::EyePass;
+use super::shadow_options::ShadowInput;
 pub use super::shadow_options::{Backend, ShadowOptions};
 use super::volume::build_for;
 use crate::mask::{assemble_into, Mask, PixelClass};
@@ -127,17 +128,20 @@ pub fn shadow_mask_for(
     casters: &[ObjectId],
 ) -> Result<ShadowFrame> {
     let viewport = (eye.target.width(), eye.target.height());
-    let volumes = build_for(
+    let input = ShadowInput {
         scene,
         camera,
         light,
+    };
+    let volumes = build_for(
+        input,
         casters,
         options,
         viewport,
         &mut scratch.volumes,
         &mut scratch.cache,
     )?;
-    stencil_volumes(scene, camera, light, eye, options, scratch, volumes, None)
+    stencil_volumes(input, eye, options, scratch, volumes, None)
 }
 
 /// The stencil stage alone: draws the volumes already in `scratch` (built by
@@ -147,17 +151,19 @@ pub fn shadow_mask_for(
 ///
 /// # Errors
 /// Rasterizer errors; for the hybrid, an invalid light.
-#[allow(clippy::too_many_arguments)]
 pub(crate) fn stencil_volumes(
-    scene: &Scene,
-    camera: &Camera,
-    light: &Light,
+    input: ShadowInput<'_>,
     eye: &EyePass,
     options: &ShadowOptions,
     scratch: &mut ShadowScratch,
     volumes: VolumeStats,
     previous: Option<ShadowFrame>,
 ) -> Result<ShadowFrame> {
+    let ShadowInput {
+        scene,
+        camera,
+        light,
+    } = input;
     let (w, h) = (eye.target.width(), eye.target.height());
     let t = std::time::Instant::now();
     let mut stats = StencilStats::default();

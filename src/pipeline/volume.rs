@@ -5,10 +5,10 @@
 //! bounds the stencil tests use — into a caller-owned
 //! [`raster::VolumeBuffer`] ([`shadowgen::build_volumes`]).
 
-use super::shadow_options::ShadowOptions;
+use super::shadow_options::{ShadowInput, ShadowOptions};
 use crate::Result;
 use raster::VolumeBuffer;
-use scene::{Camera, Light, ObjectId, Scene};
+use scene::ObjectId;
 use shadowgen::{build_volumes, BuildOptions, SilhouetteCache, VolumeStats};
 
 /// Builds the volumes of `casters` for `light` into `out` (cleared first)
@@ -18,17 +18,19 @@ use shadowgen::{build_volumes, BuildOptions, SilhouetteCache, VolumeStats};
 ///
 /// # Errors
 /// An invalid light or caster id ([`crate::Error::Shadowgen`]).
-#[allow(clippy::too_many_arguments)]
 pub(crate) fn build_for(
-    scene: &Scene,
-    camera: &Camera,
-    light: &Light,
+    input: ShadowInput<'_>,
     casters: &[ObjectId],
     options: &ShadowOptions,
     viewport: (u32, u32),
     out: &mut VolumeBuffer,
     cache: &mut SilhouetteCache,
 ) -> Result<VolumeStats> {
+    let ShadowInput {
+        scene,
+        camera,
+        light,
+    } = input;
     let build = BuildOptions {
         method: options.method,
         two_sided: options.two_sided,
