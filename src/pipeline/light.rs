@@ -6,11 +6,9 @@
 
 use crate::Result;
 use rayon::iter::ParallelIterator;
-use scene::{Camera, Light, Scene};
+use scene::Light;
 use std::time::Instant;
-use visibility::{
-    Hierarchy, LightPass, LightPassOptions, LightPassResult, MeshData, ReceiverPoints,
-};
+use visibility::{LightPass, LightPassOptions, LightPassResult, PassInput};
 
 /// One light's light-pass state and its last result.
 #[derive(Debug, Default)]
@@ -25,18 +23,10 @@ pub(crate) struct LightCulling {
 
 /// What every light's pass of one frame reads.
 pub(crate) struct LightPassInput<'a> {
+    /// The objects, the eye and its visible surface.
+    pub pass: PassInput<'a>,
     /// The host's occlusion backends, if it brings its own.
     pub backends: Option<&'a visibility::BackendFactory>,
-    /// The object hierarchy.
-    pub hierarchy: &'a Hierarchy,
-    /// The scene.
-    pub scene: &'a Scene,
-    /// Meshes in the backends' form.
-    pub meshes: &'a MeshData,
-    /// The eye.
-    pub camera: &'a Camera,
-    /// The eye's visible surface.
-    pub receivers: &'a ReceiverPoints,
     /// Light-pass options.
     pub options: &'a LightPassOptions,
     /// The job frame number.
@@ -58,12 +48,8 @@ pub(crate) fn light_passes<'l>(
             let t = Instant::now();
             c.pass.set_frame(input.frame);
             c.pass.run_into(
-                input.hierarchy,
-                input.scene,
-                input.meshes,
-                input.camera,
+                &input.pass,
                 &light,
-                input.receivers,
                 input.options,
                 input.backends.map(|f| (f, key)),
                 &mut c.result,

@@ -449,12 +449,14 @@ impl Pipeline {
                 .filter_map(|slot| slot.state.as_mut())
                 .map(|state| (state.light, state.id.0, &mut state.culling));
             let input = light::LightPassInput {
+                pass: visibility::PassInput {
+                    hierarchy,
+                    scene,
+                    meshes,
+                    camera,
+                    receivers: &self.receivers,
+                },
                 backends: self.backends.as_deref(),
-                hierarchy,
-                scene,
-                meshes,
-                camera,
-                receivers: &self.receivers,
                 options: &o.light_pass_options(),
                 frame,
             };

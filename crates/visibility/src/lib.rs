@@ -48,7 +48,9 @@ pub use culler::{CullResult, TraversalStats, ViewCuller};
 pub use error::{Error, Result};
 pub use hierarchy::{BvhNodeId, Hierarchy};
 pub use intersection_body::{intersection_body, Face, Polyhedron};
-pub use light_pass::{BackendFactory, LightPass, LightPassOptions, LightPassResult, ViewRole};
+pub use light_pass::{
+    BackendFactory, LightPass, LightPassOptions, LightPassResult, PassInput, ViewRole,
+};
 pub use light_view::{fit_light_views, LightView, LightViewKind, DEFAULT_LIGHT_VIEW_RESOLUTION};
 pub use receivers::{ReceiverPoints, PIECE_STEPS, RECEIVER_PUSH};
 pub use traverse::Culling;

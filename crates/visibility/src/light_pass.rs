@@ -94,6 +94,22 @@ pub struct LightPassOptions {
     pub instruction_set: raster::InstructionSet,
 }
 
+/// What every light's pass of one frame reads: the objects, the eye and the
+/// eye's visible surface.
+#[derive(Clone, Copy)]
+pub struct PassInput<'a> {
+    /// The object hierarchy.
+    pub hierarchy: &'a Hierarchy,
+    /// The scene.
+    pub scene: &'a Scene,
+    /// Meshes in the backends' form.
+    pub meshes: &'a MeshData,
+    /// The eye.
+    pub camera: &'a Camera,
+    /// The eye's visible surface points.
+    pub receivers: &'a ReceiverPoints,
+}
+
 /// What a light pass found.
 #[derive(Clone, Debug, Default)]
 pub struct LightPassResult {
@@ -328,23 +344,18 @@ impl LightPass {
         }
     }
 
-    /// Finds the potential shadow casters of `light` for the receivers
-    /// `receivers` (the eye's visible surface points) seen by `camera`.
+    /// Finds the potential shadow casters of `light` for the receivers of
+    /// `input` (the eye's visible surface points).
     ///
     /// # Errors
     /// Backend errors.
-    #[allow(clippy::too_many_arguments)]
     pub fn run(
         &mut self,
-        h: &Hierarchy,
-        scene: &Scene,
-        meshes: &MeshData,
-        camera: &Camera,
+        input: &PassInput<'_>,
         light: &Light,
-        receivers: &ReceiverPoints,
         options: &LightPassOptions,
     ) -> Result<LightPassResult> {
-        self.run_with(h, scene, meshes, camera, light, receivers, options, None)
+        self.run_with(input, light, options, None)
     }
 
     /// [`LightPass::run`] with the views' draws and queries going to
@@ -353,22 +364,15 @@ impl LightPass {
     ///
     /// # Errors
     /// Backend errors.
-    #[allow(clippy::too_many_arguments)]
     pub fn run_with(
         &mut self,
-        h: &Hierarchy,
-        scene: &Scene,
-        meshes: &MeshData,
-        camera: &Camera,
+        input: &PassInput<'_>,
         light: &Light,
-        receivers: &ReceiverPoints,
         options: &LightPassOptions,
         backends: Option<(&BackendFactory, u32)>,
     ) -> Result<LightPassResult> {
         let mut out = LightPassResult::default();
-        self.run_into(
-            h, scene, meshes, camera, light, receivers, options, backends, &mut out,
-        )?;
+        self.run_into(input, light, options, backends, &mut out)?;
         Ok(out)
     }
 
@@ -377,19 +381,21 @@ impl LightPass {
     ///
     /// # Errors
     /// Backend errors.
-    #[allow(clippy::too_many_arguments)]
     pub fn run_into(
         &mut self,
-        h: &Hierarchy,
-        scene: &Scene,
-        meshes: &MeshData,
-        camera: &Camera,
+        input: &PassInput<'_>,
         light: &Light,
-        receivers: &ReceiverPoints,
         options: &LightPassOptions,
         backends: Option<(&BackendFactory, u32)>,
         out: &mut LightPassResult,
     ) -> Result<()> {
+        let PassInput {
+            hierarchy: h,
+            scene,
+            meshes,
+            camera,
+            receivers,
+        } = *input;
         let bounds = scene.bounds();
         intersection_body_into(
             &camera.frustum(),
