@@ -11,7 +11,8 @@
 //! `occluder_ms` (clear + rasterize, sorting excluded) and `query_ms`, the number of
 //! `visible_boxes` (query passed ≥ 1 sample), `threads`, and counters. Logs go to stderr.
 
-use anyhow::{bail, Context};
+use anyhow::Context;
+use clap::builder::{PossibleValuesParser, TypedValueParser};
 use glam::{DMat4, Vec3, Vec4};
 use raster::{
     aabb_corners, Coverage, CullMode, DepthTarget, DrawItem, QueryMode, QueryOptions, TileSize,
@@ -20,69 +21,84 @@ use raster::{
 use std::path::PathBuf;
 use std::time::Instant;
 
-struct Args {
-    path: PathBuf,
-    camera: String,
-    width: u32,
-    height: u32,
-    threads: usize,
-    reps: usize,
-    mode: QueryMode,
-    tile: TileSize,
-    cull: CullMode,
+// The spellings of the flags that choose among fixed values: the parser, its
+// error message and the JSON name all come from these tables.
+const QUERIES: &[(&str, QueryMode)] = &[("any", QueryMode::Any), ("count", QueryMode::Count)];
+const CULLS: &[(&str, CullMode)] = &[("back", CullMode::Back), ("none", CullMode::None)];
+const TILES: &[(&str, TileSize)] = &[
+    ("4", TileSize::T4),
+    ("8", TileSize::T8),
+    ("16", TileSize::T16),
+];
+
+/// A parser of `table`'s spellings into its values.
+fn one_of<T: Copy + Send + Sync + 'static>(
+    table: &'static [(&'static str, T)],
+) -> impl TypedValueParser<Value = T> {
+    PossibleValuesParser::new(table.iter().map(|(n, _)| *n)).map(move |v| {
+        table
+            .iter()
+            .find(|(n, _)| *n == v)
+            .expect("a listed value")
+            .1
+    })
 }
 
-fn parse() -> anyhow::Result<Args> {
-    let mut it = std::env::args().skip(1);
-    let usage = "usage: raster_bench CITY.txt CAMERA WxH [--threads N] [--reps R] [--query any|count] [--cull back|none] [--tile 4|8|16]";
-    let path = PathBuf::from(it.next().context(usage)?);
-    let camera = it.next().context(usage)?;
-    let res = it.next().context(usage)?;
-    let (w, h) = res
+/// The spelling of `value` in `table`.
+fn name_of<T: PartialEq>(table: &[(&'static str, T)], value: &T) -> &'static str {
+    table
+        .iter()
+        .find(|(_, t)| t == value)
+        .map(|(n, _)| *n)
+        .expect("every value has a spelling")
+}
+
+/// `WxH`, e.g. `1920x1080`.
+fn parse_size(s: &str) -> Result<(u32, u32), String> {
+    let (w, h) = s
         .split_once('x')
-        .context("resolution must look like 1920x1080")?;
-    let mut a = Args {
-        path,
-        camera,
-        width: w.parse().context("width")?,
-        height: h.parse().context("height")?,
-        threads: 1,
-        reps: 31,
-        mode: QueryMode::Any,
-        tile: TileSize::T8,
-        cull: CullMode::Back,
-    };
-    while let Some(flag) = it.next() {
-        let v = it.next().with_context(|| format!("{flag} needs a value"))?;
-        match flag.as_str() {
-            "--threads" => a.threads = v.parse().context("--threads")?,
-            "--reps" => a.reps = v.parse::<usize>().context("--reps")?.max(1),
-            "--query" => {
-                a.mode = match v.as_str() {
-                    "any" => QueryMode::Any,
-                    "count" => QueryMode::Count,
-                    _ => bail!("--query must be any or count"),
-                }
-            }
-            "--cull" => {
-                a.cull = match v.as_str() {
-                    "back" => CullMode::Back,
-                    "none" => CullMode::None,
-                    _ => bail!("--cull must be back or none"),
-                }
-            }
-            "--tile" => {
-                a.tile = match v.as_str() {
-                    "4" => TileSize::T4,
-                    "8" => TileSize::T8,
-                    "16" => TileSize::T16,
-                    _ => bail!("--tile must be 4, 8 or 16"),
-                }
-            }
-            _ => bail!("unknown flag {flag}\n{usage}"),
-        }
-    }
-    Ok(a)
+        .ok_or("resolution must look like 1920x1080")?;
+    Ok((
+        w.parse().map_err(|e| format!("width: {e}"))?,
+        h.parse().map_err(|e| format!("height: {e}"))?,
+    ))
+}
+
+/// A repetition count; 0 counts as 1.
+fn parse_reps(s: &str) -> Result<usize, std::num::ParseIntError> {
+    Ok(s.parse::<usize>()?.max(1))
+}
+
+/// The command line.
+#[derive(clap::Parser)]
+#[command(
+    about = "Box-city occlusion benchmark of the tile rasterizer (one JSON line on stdout)",
+    args_override_self = true
+)]
+struct Args {
+    /// The box-city file (`../shared/data/bench/*.txt`).
+    #[arg(value_name = "CITY.txt")]
+    path: PathBuf,
+    /// One of the city's camera names.
+    camera: String,
+    /// Viewport, WxH.
+    #[arg(value_name = "WxH", value_parser = parse_size)]
+    size: (u32, u32),
+    /// Rasterizer threads.
+    #[arg(long, value_name = "N", default_value_t = 1)]
+    threads: usize,
+    /// Repetitions; the times are their medians.
+    #[arg(long, value_name = "R", value_parser = parse_reps, default_value = "31")]
+    reps: usize,
+    /// What a query returns: any passing sample or the count.
+    #[arg(long = "query", value_parser = one_of(QUERIES), default_value = "any")]
+    mode: QueryMode,
+    /// Tile edge length in pixels.
+    #[arg(long, value_parser = one_of(TILES), default_value = "8")]
+    tile: TileSize,
+    /// Which occluder faces a draw skips.
+    #[arg(long, value_parser = one_of(CULLS), default_value = "back")]
+    cull: CullMode,
 }
 
 fn median(v: &mut [f64]) -> f64 {
@@ -91,7 +107,8 @@ fn median(v: &mut [f64]) -> f64 {
 }
 
 fn main() -> anyhow::Result<()> {
-    let a = parse()?;
+    let a = <Args as clap::Parser>::parse();
+    let (width, height) = a.size;
     let loaded = scene::load::box_city::load_box_city(&a.path)?;
     let look = loaded
         .cameras
@@ -99,7 +116,7 @@ fn main() -> anyhow::Result<()> {
         .find(|(n, _)| *n == a.camera)
         .with_context(|| format!("no camera named {:?} in {}", a.camera, a.path.display()))?
         .1;
-    let cam = look.camera(a.width as f64 / a.height as f64)?;
+    let cam = look.camera(width as f64 / height as f64)?;
     let graph = &loaded.graph;
     // Box k is node k with one mesh in world coordinates; the ground is not an occluder.
     let mut boxes: Vec<(Vec3, Vec3)> = Vec::new();
@@ -133,15 +150,15 @@ fn main() -> anyhow::Result<()> {
         "raster_bench: {} boxes, camera {}, {}x{}, {} thread(s), {} reps",
         boxes.len(),
         a.camera,
-        a.width,
-        a.height,
+        width,
+        height,
         a.threads,
         a.reps
     );
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(a.threads.max(1))
         .build()?;
-    let mut target = DepthTarget::new(a.width, a.height, a.tile, false)?;
+    let mut target = DepthTarget::new(width, height, a.tile, false)?;
     target.set_threads(a.threads.max(1));
     target.set_cull(a.cull);
     if let Some(cap) = shadowcull::raster::InstructionSet::cap_from_env() {
@@ -201,13 +218,13 @@ fn main() -> anyhow::Result<()> {
     let line = serde_json::json!({
         "scene": a.path.display().to_string(),
         "camera": a.camera,
-        "width": a.width,
-        "height": a.height,
+        "width": width,
+        "height": height,
         "threads": a.threads,
         "reps": a.reps,
-        "query": if a.mode == QueryMode::Any { "any" } else { "count" },
+        "query": name_of(QUERIES, &a.mode),
         "tile": target.tile_pixels(),
-        "cull": if a.cull == CullMode::Back { "back" } else { "none" },
+        "cull": name_of(CULLS, &a.cull),
         "boxes": boxes.len(),
         "occluder_ms": occluder_ms,
         "query_ms": query_ms,

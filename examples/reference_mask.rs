@@ -6,11 +6,21 @@
 use glam::{DVec3, Vec3};
 use scene::{Camera, Light, Mesh, Scene, SceneGraph, Transform};
 use shadowcull::reference::{reference_mask, ReferenceOptions, TriangleBvh};
+use std::path::PathBuf;
+
+/// The command line.
+#[derive(clap::Parser)]
+#[command(
+    about = "Computes the exact shadow mask of a small scene built in code and writes it as a PNG"
+)]
+struct Cli {
+    /// Where to write the mask.
+    #[arg(value_name = "OUT.png", default_value = "reference_mask.png")]
+    out: PathBuf,
+}
 
 fn main() -> anyhow::Result<()> {
-    let out = std::env::args()
-        .nth(1)
-        .unwrap_or_else(|| "reference_mask.png".into());
+    let Cli { out } = <Cli as clap::Parser>::parse();
     // A ground quad facing up and a box floating above it.
     let mut graph = SceneGraph::new();
     let ground = Mesh::new(
@@ -61,7 +71,7 @@ fn main() -> anyhow::Result<()> {
         &ReferenceOptions::default(),
         None,
     );
-    r.mask.write_png(std::path::Path::new(&out))?;
-    println!("{out}: {:?}", r.counts);
+    r.mask.write_png(&out)?;
+    println!("{}: {:?}", out.display(), r.counts);
     Ok(())
 }

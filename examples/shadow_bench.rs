@@ -59,6 +59,8 @@
 //! stencil is non-zero on any surface, 0 elsewhere, row 0 at the top. Logs go to stderr.
 
 use anyhow::{bail, Context};
+use clap::builder::{PossibleValuesParser, TypedValueParser};
+use clap::ArgAction;
 use glam::DVec3;
 use raster::StencilBits;
 use scene::load::Loaded;
@@ -71,15 +73,6 @@ use shadowcull::stats::FrameRow;
 use shadowgen::MethodChoice;
 use std::path::PathBuf;
 use std::time::Instant;
-
-const USAGE: &str =
-    "usage: shadow_bench SCENE CAMERA WxH [--stencil bf|db|h|hybrid|none] [--scissor on|off] \
-[--method auto|zpass|zfail|zpplus] [--counters 8|wide] [--tile 4|8|16] [--full-shadow on|off] \
-[--map N] [--culling none|frustum|exact|chc|chcpp] [--coverage conservative|point] \
-[--threshold T] [--light-res N] [--two-sided] [--reference] \
-[--mask OUT.png] [--reps R | --path street|bird|NAME [--frames N]] \
-[--light x,y,z | --sun dx,dy,dz] [--eye x,y,z --target x,y,z] [--fovy DEG] [--near D]\n\
-(with --path, CAMERA is ignored: write -)";
 
 // The spellings of the flags that choose among fixed values: a new mode is one row
 // here (the parser, its error message and the JSON name all come from the table).
@@ -114,6 +107,168 @@ const ON_OFF: &[(&str, bool)] = &[("on", true), ("off", false)];
 /// The default number of frames of `--path` (the default job's).
 const DEFAULT_FRAMES: u32 = 8;
 
+/// A parser of `table`'s spellings into its values.
+fn one_of<T: Copy + Send + Sync + 'static>(
+    table: &'static [(&'static str, T)],
+) -> impl TypedValueParser<Value = T> {
+    PossibleValuesParser::new(table.iter().map(|(n, _)| *n)).map(move |v| {
+        table
+            .iter()
+            .find(|(n, _)| *n == v)
+            .expect("a listed value")
+            .1
+    })
+}
+
+/// The spelling of `value` in `table`.
+fn name_of<T: PartialEq>(table: &[(&'static str, T)], value: &T) -> &'static str {
+    table
+        .iter()
+        .find(|(_, t)| t == value)
+        .map(|(n, _)| *n)
+        .expect("every value has a spelling")
+}
+
+/// `WxH`, e.g. `1280x1024`.
+fn parse_size(s: &str) -> Result<(u32, u32), String> {
+    let (w, h) = s
+        .split_once('x')
+        .ok_or("resolution must look like 1280x1024")?;
+    Ok((
+        w.parse().map_err(|e| format!("width: {e}"))?,
+        h.parse().map_err(|e| format!("height: {e}"))?,
+    ))
+}
+
+/// `x,y,z`.
+fn parse_vec3(s: &str) -> Result<DVec3, String> {
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|c| c.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .map_err(|e| format!("must look like x,y,z: {e}"))?;
+    match v[..] {
+        [x, y, z] => Ok(DVec3::new(x, y, z)),
+        _ => Err("must have three components".into()),
+    }
+}
+
+/// A repetition count; 0 counts as 1.
+fn parse_reps(s: &str) -> Result<usize, std::num::ParseIntError> {
+    Ok(s.parse::<usize>()?.max(1))
+}
+
+/// `--map` and `--light-res`: a side in pixels, at least `min`.
+fn side(min: i64) -> clap::builder::RangedI64ValueParser<u32> {
+    clap::value_parser!(u32).range(min..=i64::from(raster::MAX_TARGET_SIZE))
+}
+
+/// The command line; the pipeline flags' defaults are [`PipelineOptions::default`]'s.
+#[derive(clap::Parser)]
+#[command(
+    about = "One view, or one camera path, through the stencil shadow pipeline, timed per stage \
+             (one JSON line on stdout)",
+    args_override_self = true
+)]
+struct Cli {
+    /// A box-city file (`../shared/data/bench/*.txt`), `city` (the bundled default
+    /// job's procedural city) or any scene file.
+    scene: PathBuf,
+    /// One of the scene's camera names (`-` with --eye/--target, or with --path,
+    /// which ignores it).
+    camera: String,
+    /// Viewport, WxH.
+    #[arg(value_name = "WxH", value_parser = parse_size)]
+    size: (u32, u32),
+    /// Stencil backend.
+    #[arg(long, value_parser = one_of(STENCILS),
+          default_value = name_of(STENCILS, &PipelineOptions::default().stencil))]
+    stencil: StencilBackend,
+    /// Per-volume scissor rectangles.
+    #[arg(long, value_parser = one_of(ON_OFF), action = ArgAction::Set,
+          default_value = name_of(ON_OFF, &PipelineOptions::default().scissor))]
+    scissor: bool,
+    /// Volume method per caster.
+    #[arg(long, value_parser = one_of(METHODS),
+          default_value = name_of(METHODS, &PipelineOptions::default().method))]
+    method: MethodChoice,
+    /// Stencil counter width.
+    #[arg(long, visible_alias = "bits", value_parser = one_of(COUNTERS),
+          default_value = name_of(COUNTERS, &PipelineOptions::default().counters))]
+    counters: StencilBits,
+    /// Tile size of the hierarchical stencil.
+    #[arg(long, value_parser = one_of(TILES),
+          default_value = name_of(TILES, &PipelineOptions::default().tile))]
+    tile: u32,
+    /// The hierarchical stencil's full-shadow bit.
+    #[arg(long = "full-shadow", value_parser = one_of(ON_OFF), action = ArgAction::Set,
+          default_value = name_of(ON_OFF, &PipelineOptions::default().full_shadow))]
+    full_shadow: bool,
+    /// Shadow-map size of the hybrid (texels per side, at least 16).
+    #[arg(long = "map", value_name = "N", value_parser = side(16),
+          default_value_t = PipelineOptions::default().map_size)]
+    map_size: u32,
+    /// Occlusion culling of the eye pass and the light views.
+    #[arg(long, value_parser = one_of(CULLINGS),
+          default_value = name_of(CULLINGS, &PipelineOptions::default().culling))]
+    culling: CullingSpec,
+    /// How culling samples pixels (`point` is aggressive).
+    #[arg(long, value_parser = one_of(COVERAGES),
+          default_value = name_of(COVERAGES, &PipelineOptions::default().coverage))]
+    coverage: CoverageSpec,
+    /// The query threshold in samples (above 0 is aggressive).
+    #[arg(long = "threshold", value_name = "T",
+          default_value_t = PipelineOptions::default().query_threshold)]
+    query_threshold: u32,
+    /// The side in pixels of every light view of the light pass (at least 8).
+    #[arg(long = "light-res", value_name = "N", value_parser = side(8),
+          default_value_t = PipelineOptions::default().light_resolution)]
+    light_resolution: u32,
+    /// Every triangle casts (back-facing ones flipped).
+    #[arg(long = "two-sided")]
+    two_sided: bool,
+    /// Compare with the ray-cast reference (the last frame of one view, every frame of a path).
+    #[arg(long)]
+    reference: bool,
+    /// Write the last frame's raw stencil result here as an 8-bit PNG.
+    #[arg(long, value_name = "OUT.png")]
+    mask: Option<PathBuf>,
+    /// One view: frames rendered (the times are their medians).
+    #[arg(long, value_name = "R", value_parser = parse_reps, default_value = "5",
+          conflicts_with = "path")]
+    reps: usize,
+    /// A camera path of the scene (`street`, `bird`, or one the scene file names)
+    /// instead of one view.
+    #[arg(long, value_name = "NAME")]
+    path: Option<String>,
+    /// Frames 0..N of the camera path.
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..),
+          default_value_t = DEFAULT_FRAMES, requires = "path")]
+    frames: u32,
+    /// A point light at x,y,z (replaces the scene's light).
+    #[arg(long, value_name = "x,y,z", value_parser = parse_vec3, allow_hyphen_values = true,
+          conflicts_with = "sun")]
+    light: Option<DVec3>,
+    /// A directional light travelling along dx,dy,dz (replaces the scene's light).
+    #[arg(long, value_name = "dx,dy,dz", value_parser = parse_vec3, allow_hyphen_values = true)]
+    sun: Option<DVec3>,
+    /// The eye of the view (with --target; instead of CAMERA).
+    #[arg(long, value_name = "x,y,z", value_parser = parse_vec3, allow_hyphen_values = true,
+          requires = "target", conflicts_with = "path")]
+    eye: Option<DVec3>,
+    /// The point the view looks at (with --eye).
+    #[arg(long, value_name = "x,y,z", value_parser = parse_vec3, allow_hyphen_values = true,
+          requires = "eye", conflicts_with = "path")]
+    target: Option<DVec3>,
+    /// Vertical field of view of --eye/--target, in degrees.
+    #[arg(long, value_name = "DEG", default_value_t = 60.0)]
+    fovy: f64,
+    /// Near plane distance of --eye/--target.
+    #[arg(long, value_name = "D", default_value_t = 0.1)]
+    near: f64,
+}
+
+/// What a run does, from the command line.
 struct Args {
     scene: PathBuf,
     camera: String,
@@ -122,12 +277,12 @@ struct Args {
     pipeline: PipelineOptions,
     reference: bool,
     mask: Option<PathBuf>,
-    /// `--reps`, when given (default 5).
-    reps: Option<usize>,
+    /// Frames of one view.
+    reps: usize,
     /// `--path`: a camera path of the scene instead of one view.
     path: Option<String>,
-    /// `--frames`, when given (default [`DEFAULT_FRAMES`]).
-    frames: Option<u32>,
+    /// Frames of `--path`.
+    frames: u32,
     light: Option<Light>,
     eye: Option<DVec3>,
     target: Option<DVec3>,
@@ -135,152 +290,49 @@ struct Args {
     near: f64,
 }
 
-/// `v` as one of `table`'s values, or an error listing the spellings.
-fn choose<T: Copy>(flag: &str, v: &str, table: &[(&str, T)]) -> anyhow::Result<T> {
-    match table.iter().find(|(n, _)| *n == v) {
-        Some(&(_, t)) => Ok(t),
-        None => {
-            let names: Vec<&str> = table.iter().map(|(n, _)| *n).collect();
-            bail!("{flag} must be one of {}, not {v:?}", names.join(", "))
-        }
-    }
-}
-
-/// The spelling of `value` in `table`.
-fn name_of<T: PartialEq + std::fmt::Debug>(table: &[(&'static str, T)], value: &T) -> String {
-    table.iter().find(|(_, t)| t == value).map_or_else(
-        || format!("{value:?}").to_lowercase(),
-        |(n, _)| n.to_string(),
-    )
-}
-
-fn vec3(s: &str, flag: &str) -> anyhow::Result<DVec3> {
-    let v: Vec<f64> = s
-        .split(',')
-        .map(|c| c.trim().parse::<f64>())
-        .collect::<Result<_, _>>()
-        .with_context(|| format!("{flag} must look like x,y,z"))?;
-    match v[..] {
-        [x, y, z] => Ok(DVec3::new(x, y, z)),
-        _ => bail!("{flag} must have three components"),
-    }
-}
-
-fn parse() -> anyhow::Result<Args> {
-    let mut it = std::env::args().skip(1);
-    let scene = PathBuf::from(it.next().context(USAGE)?);
-    let camera = it.next().context(USAGE)?;
-    let res = it.next().context(USAGE)?;
-    let (w, h) = res
-        .split_once('x')
-        .context("resolution must look like 1280x1024")?;
-    let mut a = Args {
-        scene,
-        camera,
-        width: w.parse().context("width")?,
-        height: h.parse().context("height")?,
-        pipeline: PipelineOptions {
-            reference_every: 0,
-            instruction_set: shadowcull::raster::InstructionSet::cap_from_env(),
-            ..Default::default()
-        },
-        reference: false,
-        mask: None,
-        reps: None,
-        path: None,
-        frames: None,
-        light: None,
-        eye: None,
-        target: None,
-        fovy: 60.0,
-        near: 0.1,
-    };
-    while let Some(flag) = it.next() {
-        // Switches without a value.
-        match flag.as_str() {
-            "--reference" => {
-                a.reference = true;
-                continue;
-            }
-            "--two-sided" => {
-                a.pipeline.two_sided = true;
-                continue;
-            }
-            _ => {}
-        }
-        let v = it.next().with_context(|| format!("{flag} needs a value"))?;
-        let p = &mut a.pipeline;
-        match flag.as_str() {
-            // Pipeline options.
-            "--stencil" => p.stencil = choose(&flag, &v, STENCILS)?,
-            "--tile" => p.tile = choose(&flag, &v, TILES)?,
-            "--culling" => p.culling = choose(&flag, &v, CULLINGS)?,
-            "--coverage" => p.coverage = choose(&flag, &v, COVERAGES)?,
-            "--threshold" => p.query_threshold = v.parse().context("--threshold")?,
-            "--full-shadow" => p.full_shadow = choose(&flag, &v, ON_OFF)?,
-            "--scissor" => p.scissor = choose(&flag, &v, ON_OFF)?,
-            "--method" => p.method = choose(&flag, &v, METHODS)?,
-            "--counters" | "--bits" => p.counters = choose(&flag, &v, COUNTERS)?,
-            "--map" => {
-                p.map_size = v.parse().context("--map")?;
-                if !(16..=raster::MAX_TARGET_SIZE).contains(&p.map_size) {
-                    bail!("--map must lie in 16..={}", raster::MAX_TARGET_SIZE);
-                }
-            }
-            "--light-res" => {
-                p.light_resolution = v
-                    .parse()
-                    .with_context(|| format!("--light-res must be a whole number, not {v:?}"))?;
-                if !(8..=raster::MAX_TARGET_SIZE).contains(&p.light_resolution) {
-                    bail!(
-                        "--light-res (the side of each light view in pixels) must lie in \
-                         8..={}, not {}",
-                        raster::MAX_TARGET_SIZE,
-                        p.light_resolution
-                    );
-                }
-            }
-            // What to run and what to write.
-            "--mask" => a.mask = Some(PathBuf::from(v)),
-            "--reps" => a.reps = Some(v.parse::<usize>().context("--reps")?.max(1)),
-            "--path" => a.path = Some(v),
-            "--frames" => {
-                let n: u32 = v.parse().context("--frames")?;
-                if n == 0 {
-                    bail!("--frames must be at least 1");
-                }
-                a.frames = Some(n);
-            }
-            // The view and the light.
-            "--light" => {
-                a.light = Some(Light::Point {
-                    position: vec3(&v, "--light")?,
+impl From<Cli> for Args {
+    fn from(c: Cli) -> Args {
+        Args {
+            scene: c.scene,
+            camera: c.camera,
+            width: c.size.0,
+            height: c.size.1,
+            pipeline: PipelineOptions {
+                stencil: c.stencil,
+                scissor: c.scissor,
+                method: c.method,
+                counters: c.counters,
+                tile: c.tile,
+                full_shadow: c.full_shadow,
+                map_size: c.map_size,
+                culling: c.culling,
+                coverage: c.coverage,
+                query_threshold: c.query_threshold,
+                light_resolution: c.light_resolution,
+                two_sided: c.two_sided,
+                reference_every: 0,
+                instruction_set: shadowcull::raster::InstructionSet::cap_from_env(),
+                ..Default::default()
+            },
+            reference: c.reference,
+            mask: c.mask,
+            reps: c.reps,
+            path: c.path,
+            frames: c.frames,
+            light: match (c.light, c.sun) {
+                (Some(position), _) => Some(Light::Point {
+                    position,
                     range: None,
-                })
-            }
-            "--sun" => {
-                a.light = Some(Light::Directional {
-                    direction: vec3(&v, "--sun")?,
-                })
-            }
-            "--eye" => a.eye = Some(vec3(&v, "--eye")?),
-            "--target" => a.target = Some(vec3(&v, "--target")?),
-            "--fovy" => a.fovy = v.parse().context("--fovy")?,
-            "--near" => a.near = v.parse().context("--near")?,
-            _ => bail!("unknown flag {flag}\n{USAGE}"),
+                }),
+                (None, Some(direction)) => Some(Light::Directional { direction }),
+                (None, None) => None,
+            },
+            eye: c.eye,
+            target: c.target,
+            fovy: c.fovy,
+            near: c.near,
         }
     }
-    if a.path.is_some() {
-        if a.reps.is_some() {
-            bail!("--reps is for one view; with --path give --frames");
-        }
-        if a.eye.is_some() || a.target.is_some() {
-            bail!("--path takes the camera from the path; drop --eye and --target");
-        }
-    } else if a.frames.is_some() {
-        bail!("--frames needs --path");
-    }
-    Ok(a)
 }
 
 /// The upper median (the middle element for odd lengths); `v` is not empty.
@@ -478,7 +530,7 @@ fn one_view(
     camera: &Camera,
     light: Light,
 ) -> anyhow::Result<(Map<String, Value>, LightFrame)> {
-    let reps = a.reps.unwrap_or(5);
+    let reps = a.reps;
     let (samples, lf) = run(a, runner, light, reps as u32, &|_| Ok(*camera), &|f| {
         a.reference && f + 1 == reps as u32
     })?;
@@ -571,7 +623,7 @@ fn along_path(
     path: &CameraPath,
     light: Light,
 ) -> anyhow::Result<(Map<String, Value>, LightFrame)> {
-    let frames = a.frames.unwrap_or(DEFAULT_FRAMES);
+    let frames = a.frames;
     let aspect = a.width as f64 / a.height as f64;
     let camera = |f: u32| -> anyhow::Result<Camera> {
         let pose = path
@@ -604,7 +656,7 @@ fn along_path(
 }
 
 fn main() -> anyhow::Result<()> {
-    let a = parse()?;
+    let a = Args::from(<Cli as clap::Parser>::parse());
     let loaded = if a.scene.as_os_str() == "city" {
         city()?
     } else {
@@ -619,8 +671,8 @@ fn main() -> anyhow::Result<()> {
         a.width,
         a.height,
         match &a.path {
-            Some(p) => format!("path {p}, {} frames", a.frames.unwrap_or(DEFAULT_FRAMES)),
-            None => format!("{} reps", a.reps.unwrap_or(5)),
+            Some(p) => format!("path {p}, {} frames", a.frames),
+            None => format!("{} reps", a.reps),
         }
     );
     // One runner for every frame: per-view state persists as in a running application.
