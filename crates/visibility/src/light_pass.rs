@@ -42,6 +42,7 @@ use raster::{
     Coverage, DepthPick, DepthTarget, OcclusionBackend, QueryBuffers, QueryMode, QueryOptions,
     ReceiverTarget, SyncBackend, TileSize,
 };
+#[cfg(feature = "parallel")]
 use rayon::prelude::*;
 use scene::{faces_light, Camera, Light, ObjectId, Plane, Scene};
 use std::sync::{Arc, OnceLock};
@@ -442,8 +443,11 @@ impl LightPass {
             s.culler.set_frame(frame);
         }
         // The views are independent: each has its own culler and targets.
-        self.slots
-            .par_iter_mut()
+        #[cfg(feature = "parallel")]
+        let slots = self.slots.par_iter_mut();
+        #[cfg(not(feature = "parallel"))]
+        let slots = self.slots.iter_mut();
+        slots
             .zip(views)
             .enumerate()
             .try_for_each(|(k, (slot, view))| {

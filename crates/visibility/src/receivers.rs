@@ -23,6 +23,7 @@
 use crate::light_view::{LightView, LightViewKind};
 use crate::view_setup::Sampling;
 use glam::{DVec3, Vec4};
+#[cfg(feature = "parallel")]
 use rayon::prelude::*;
 use scene::Light;
 
@@ -117,28 +118,44 @@ impl Prepared {
             let n = self.pieces.len();
             self.pushed.resize(2 * n, DVec3::NAN);
             self.segments.resize(n, (Vec4::NAN, Vec4::NAN));
+            let piece = |((&(a, b), w), s): ((&(u32, u32), &mut [DVec3]), &mut (Vec4, Vec4))| {
+                let (pa, la) = place(r.points[a as usize]);
+                let (pb, lb) = place(r.points[b as usize]);
+                (w[0], w[1]) = (pa, pb);
+                *s = (la, lb);
+            };
+            #[cfg(feature = "parallel")]
             self.pieces
                 .par_iter()
                 .zip(self.pushed.par_chunks_mut(2))
                 .zip(self.segments.par_iter_mut())
                 .with_min_len(1024)
-                .for_each(|((&(a, b), w), s)| {
-                    let (pa, la) = place(r.points[a as usize]);
-                    let (pb, lb) = place(r.points[b as usize]);
-                    (w[0], w[1]) = (pa, pb);
-                    *s = (la, lb);
-                });
+                .for_each(piece);
+            #[cfg(not(feature = "parallel"))]
+            self.pieces
+                .iter()
+                .zip(self.pushed.chunks_mut(2))
+                .zip(self.segments.iter_mut())
+                .for_each(piece);
         } else {
             let n = r.points.len();
             self.pushed.resize(n, DVec3::NAN);
             self.local.resize(n, Vec4::NAN);
             // (NaN points, the eye's background pixels, stay NaN: marking skips them.)
+            let point = |((&p, q), l): ((&DVec3, &mut DVec3), &mut Vec4)| (*q, *l) = place(p);
+            #[cfg(feature = "parallel")]
             r.points
                 .par_iter()
                 .zip(self.pushed.par_iter_mut())
                 .zip(self.local.par_iter_mut())
                 .with_min_len(4096)
-                .for_each(|((&p, q), l)| (*q, *l) = place(p));
+                .for_each(point);
+            #[cfg(not(feature = "parallel"))]
+            r.points
+                .iter()
+                .zip(self.pushed.iter_mut())
+                .zip(self.local.iter_mut())
+                .for_each(point);
         }
         let cube_res = views
             .iter()
