@@ -27,6 +27,8 @@ use glam::{DVec3, Vec4};
 use rayon::prelude::*;
 use scene::Light;
 
+/// One receiver piece with its two placed ends and its light-local segment.
+type PieceSlots<'a> = ((&'a (u32, u32), &'a mut [DVec3]), &'a mut (Vec4, Vec4));
 /// Relative push of a receiver point away from the light before marking.
 pub const RECEIVER_PUSH: f64 = 1.0 / 1_048_576.0;
 
@@ -118,7 +120,7 @@ impl Prepared {
             let n = self.pieces.len();
             self.pushed.resize(2 * n, DVec3::NAN);
             self.segments.resize(n, (Vec4::NAN, Vec4::NAN));
-            let piece = |((&(a, b), w), s): ((&(u32, u32), &mut [DVec3]), &mut (Vec4, Vec4))| {
+            let piece = |((&(a, b), w), s): PieceSlots<'_>| {
                 let (pa, la) = place(r.points[a as usize]);
                 let (pb, lb) = place(r.points[b as usize]);
                 (w[0], w[1]) = (pa, pb);
