@@ -375,6 +375,18 @@ pub fn visible_points_into(
         });
 }
 
+/// How the culled eye pass traverses: the algorithm, the query threshold
+/// (0: conservative) and the sampling of queries and occluders.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct EyeTraversal {
+    /// The traversal.
+    pub culling: visibility::Culling,
+    /// Query threshold (0: conservative).
+    pub threshold: u32,
+    /// Conservative or point-sampled.
+    pub sampling: visibility::Sampling,
+}
+
 /// The eye pass with occlusion culling: only the objects `culling` finds
 /// visible (the potentially shadowed receivers, PSR) are drawn, one by one
 /// through an occlusion backend, with the same transform path and coverage as
@@ -384,21 +396,23 @@ pub fn visible_points_into(
 ///
 /// # Errors
 /// As [`eye_pass`].
-#[allow(clippy::too_many_arguments)]
 pub fn eye_pass_culled(
     scene: &Scene,
     meshes: &MeshCache,
     state: &mut EyeCulling,
     camera: &Camera,
-    width: u32,
-    height: u32,
-    culling: visibility::Culling,
-    threshold: u32,
-    sampling: visibility::Sampling,
+    (width, height): (u32, u32),
+    traversal: EyeTraversal,
     previous: Option<EyePass>,
 ) -> Result<(EyePass, visibility::CullResult)> {
     let eye = eye_pass_culled_into(
-        scene, meshes, state, camera, width, height, culling, threshold, sampling, previous,
+        scene,
+        meshes,
+        state,
+        camera,
+        (width, height),
+        traversal,
+        previous,
     )?;
     Ok((eye, state.result.clone()))
 }
@@ -408,19 +422,20 @@ pub fn eye_pass_culled(
 ///
 /// # Errors
 /// As [`eye_pass`].
-#[allow(clippy::too_many_arguments)]
 pub(crate) fn eye_pass_culled_into(
     scene: &Scene,
     meshes: &MeshCache,
     state: &mut EyeCulling,
     camera: &Camera,
-    width: u32,
-    height: u32,
-    culling: visibility::Culling,
-    threshold: u32,
-    sampling: visibility::Sampling,
+    (width, height): (u32, u32),
+    traversal: EyeTraversal,
     previous: Option<EyePass>,
 ) -> Result<EyePass> {
+    let EyeTraversal {
+        culling,
+        threshold,
+        sampling,
+    } = traversal;
     let (target, primitive, depth) = match previous {
         Some(p) if (p.target.width(), p.target.height()) == (width, height) => {
             (p.target, p.primitive, p.depth)

@@ -28,7 +28,7 @@ mod volume;
 
 pub use eye::{
     eye_pass, eye_pass_culled, eye_pass_reusing, visible_points, visible_points_into, EyeCulling,
-    EyePass, MeshCache,
+    EyePass, EyeTraversal, MeshCache,
 };
 pub use options::{
     BadOption, ChcppSpec, CoverageSpec, CullingSpec, PipelineOptions, StencilBackend,
@@ -396,11 +396,12 @@ impl Pipeline {
                     &self.meshes,
                     state,
                     camera,
-                    w,
-                    h,
-                    o.culling(),
-                    o.query_threshold,
-                    o.coverage.sampling(),
+                    (w, h),
+                    EyeTraversal {
+                        culling: o.culling(),
+                        threshold: o.query_threshold,
+                        sampling: o.coverage.sampling(),
+                    },
                     previous,
                 )?,
                 Some(f) => {
