@@ -57,7 +57,7 @@ fn print_counters(id: &str, out: &[LightFrame]) {
         s.psr,
         per_light(out, |l| l.row.shadow.psc),
         per_light(out, |l| l.row.shadow.volume_triangles),
-        per_light(out, |l| l.row.shadow.pixels_processed),
+        per_light(out, |l| l.row.shadow.stencil.pixels_processed),
         per_light(out, |l| l.row.shadow.queries),
         per_light(out, |l| l.row.shadow.waits),
         s.eye_ms,

@@ -433,8 +433,8 @@ const TIMES: [(&str, Get<f64>); 8] = [
     ("wall_ms", |s| s.wall_ms),
     ("eye_ms", |s| s.row.shadow.eye_ms),
     ("light_ms", |s| s.row.shadow.light_ms),
-    ("silhouette_ms", |s| s.row.shadow.silhouette_ms),
-    ("volume_ms", |s| s.row.shadow.volume_ms),
+    ("silhouette_ms", |s| s.row.shadow.volumes.silhouette_ms),
+    ("volume_ms", |s| s.row.shadow.volumes.volume_ms),
     ("stencil_ms", |s| s.row.shadow.stencil_ms),
 ];
 
@@ -444,7 +444,9 @@ const COUNTS: [(&str, Get<u64>); 7] = [
     ("psc", |s| s.row.shadow.psc),
     ("queries", |s| s.row.shadow.queries),
     ("waits", |s| s.row.shadow.waits),
-    ("pixels_processed", |s| s.row.shadow.pixels_processed),
+    ("pixels_processed", |s| {
+        s.row.shadow.stencil.pixels_processed
+    }),
     ("volume_triangles", |s| s.row.shadow.volume_triangles),
     ("shadowed_pixels", |s| s.row.shadow.shadowed_pixels),
 ];
@@ -538,7 +540,7 @@ fn one_view(
         median(
             &samples[1..]
                 .iter()
-                .map(|s| s.row.shadow.silhouette_ms)
+                .map(|s| s.row.shadow.volumes.silhouette_ms)
                 .collect::<Vec<_>>(),
         )
     } else {
@@ -551,7 +553,7 @@ fn one_view(
             &a.pipeline,
             false,
         )?;
-        out[0].row.shadow.silhouette_ms
+        out[0].row.shadow.volumes.silhouette_ms
     };
     let row = &lf.row;
     let s = &row.shadow;
@@ -565,43 +567,13 @@ fn one_view(
     }
     m.insert(
         "silhouette_cold_ms".into(),
-        samples[0].row.shadow.silhouette_ms.into(),
+        samples[0].row.shadow.volumes.silhouette_ms.into(),
     );
     m.insert("silhouette_cached_ms".into(), silhouette_cached_ms.into());
-    // The last frame's counters (`json!` in pieces: one this long exceeds the
-    // macro's recursion limit).
-    let counters = [
-        json!({
-            "volume_triangles": s.volume_triangles,
-            "silhouette_edges": s.silhouette_edges,
-            "zpass_casters": s.zpass_casters,
-            "zfail_casters": s.zfail_casters,
-            "zpplus_casters": s.zpplus_casters,
-            "pixels_processed": s.pixels_processed,
-            "stencil_updates": s.stencil_updates,
-            "pixels_touched": s.pixels_touched,
-            "shadowed_pixels": s.shadowed_pixels,
-        }),
-        json!({
-            "h_fragments": s.h_fragments,
-            "tile_tests": s.tile_tests,
-            "tiles_lit": s.tiles_lit,
-            "tiles_shadow": s.tiles_shadow,
-            "tiles_boundary": s.tiles_boundary,
-            "bandwidth_bytes": s.bandwidth_bytes,
-            "pixel_bytes": s.pixel_bytes,
-            "tile_bytes": s.tile_bytes,
-            "silhouette_pixels": s.silhouette_pixels,
-            "map_ms": s.map_ms,
-            "psr": s.psr,
-            "psc": s.psc,
-            "queries": s.queries,
-            "waits": s.waits,
-        }),
-    ];
-    for c in counters {
-        if let Value::Object(c) = c {
-            m.extend(c);
+    // The last frame's counters: its `stats.csv` columns but the stage times.
+    for (key, cell) in s.columns().iter() {
+        if !TIMES.iter().any(|(time, _)| time == key) {
+            m.insert(key.to_string(), serde_json::to_value(cell)?);
         }
     }
     if a.reference {

@@ -13,10 +13,9 @@ use crate::config::{Job, NamedPipeline};
 use crate::frame::FrameRunner;
 use crate::pipeline::{CoverageSpec, CullingSpec, PipelineOptions, StencilBackend};
 use crate::run::{atomic, frame_camera};
-use crate::stats::median;
-use crate::stats::FrameRow;
+use crate::stats::{cells, from_cells, leaves, median, Cell, FrameRow};
 use crate::{Error, Result};
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
 /// How to run a comparison.
@@ -28,8 +27,11 @@ pub struct CompareOptions {
     pub max_frames: Option<u32>,
 }
 
-/// One variant's row of `compare.csv`.
-#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+/// One variant's row of `compare.csv`: its fields are the columns, in
+/// order. Besides `name`, `rows` and the options (`culling` … `chcpp`), each
+/// is the `stats.csv` column of the same name over the variant's rows: a
+/// time (`*_ms`) their median, a counter their sum.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct VariantRow {
     /// Variant name.
     pub name: String,
@@ -91,8 +93,6 @@ pub struct VariantRow {
     pub waits: u64,
 }
 
-const CSV_HEADER: &str = "name,rows,eye_ms,silhouette_ms,volume_ms,stencil_ms,frame_ms,volume_triangles,pixels_processed,shadowed_pixels,mismatch_pixels,mismatch_off_boundary,ambiguous_pixels,compared_pixels,h_fragments,tile_tests,tiles_boundary,bandwidth_bytes,silhouette_pixels,culling,coverage,query_threshold,light_resolution,chcpp,light_ms,psr,psc,queries,waits";
-
 /// A serde enum's lowercase name (`chcpp`, `point`).
 fn spec_name<T: Serialize>(v: &T) -> String {
     ron::to_string(v).unwrap_or_default().to_lowercase()
@@ -100,79 +100,45 @@ fn spec_name<T: Serialize>(v: &T) -> String {
 
 impl VariantRow {
     fn from_rows(name: &str, p: &PipelineOptions, rows: &[FrameRow]) -> Self {
-        let med = |f: fn(&FrameRow) -> f64| median(&rows.iter().map(f).collect::<Vec<_>>());
-        let sum = |f: fn(&FrameRow) -> u64| rows.iter().map(f).sum::<u64>();
-        VariantRow {
-            name: name.to_string(),
-            rows: rows.len() as u64,
-            eye_ms: med(|r| r.shadow.eye_ms),
-            silhouette_ms: med(|r| r.shadow.silhouette_ms),
-            volume_ms: med(|r| r.shadow.volume_ms),
-            stencil_ms: med(|r| r.shadow.stencil_ms),
-            frame_ms: med(|r| r.frame_ms),
-            volume_triangles: sum(|r| r.shadow.volume_triangles),
-            pixels_processed: sum(|r| r.shadow.pixels_processed),
-            shadowed_pixels: sum(|r| r.shadow.shadowed_pixels),
-            mismatch_pixels: sum(|r| r.check.mismatch_pixels),
-            mismatch_off_boundary: sum(|r| r.check.mismatch_off_boundary),
-            ambiguous_pixels: sum(|r| r.check.ambiguous_pixels),
-            compared_pixels: sum(|r| r.check.compared_pixels),
-            h_fragments: sum(|r| r.shadow.h_fragments),
-            tile_tests: sum(|r| r.shadow.tile_tests),
-            tiles_boundary: sum(|r| r.shadow.tiles_boundary),
-            bandwidth_bytes: sum(|r| r.shadow.bandwidth_bytes),
-            silhouette_pixels: sum(|r| r.shadow.silhouette_pixels),
-            culling: spec_name(&p.culling),
-            coverage: spec_name(&p.coverage),
-            query_threshold: p.query_threshold,
-            light_resolution: p.light_resolution,
-            chcpp: if p.culling == CullingSpec::Chcpp {
-                format!("{}/{}/{}", p.chcpp.batch, p.chcpp.revisit, p.chcpp.seed)
-            } else {
-                String::new()
-            },
-            light_ms: med(|r| r.shadow.light_ms),
-            psr: sum(|r| r.shadow.psr),
-            psc: sum(|r| r.shadow.psc),
-            queries: sum(|r| r.shadow.queries),
-            waits: sum(|r| r.shadow.waits),
-        }
+        let table: Vec<Vec<Cell>> = rows.iter().map(FrameRow::cells).collect();
+        let chcpp = if p.culling == CullingSpec::Chcpp {
+            format!("{}/{}/{}", p.chcpp.batch, p.chcpp.revisit, p.chcpp.seed)
+        } else {
+            String::new()
+        };
+        let cells = leaves(&VariantRow::default())
+            .into_iter()
+            .map(|(column, kind)| match column.as_str() {
+                "name" => Cell::Text(name.to_string()),
+                "rows" => Cell::Count(rows.len() as u64),
+                "culling" => Cell::Text(spec_name(&p.culling)),
+                "coverage" => Cell::Text(spec_name(&p.coverage)),
+                "query_threshold" => Cell::Count(p.query_threshold.into()),
+                "light_resolution" => Cell::Count(p.light_resolution.into()),
+                "chcpp" => Cell::Text(chcpp.clone()),
+                stat => {
+                    let k = FrameRow::column(stat)
+                        .unwrap_or_else(|| panic!("`{stat}` is not a stats.csv column"));
+                    let column = table.iter().map(|r| &r[k]);
+                    match kind {
+                        Cell::Ms(_) => Cell::Ms(median(&column.map(Cell::ms).collect::<Vec<_>>())),
+                        _ => Cell::Count(column.map(Cell::count).sum()),
+                    }
+                }
+            });
+        from_cells(cells).expect("a cell per column of its kind")
     }
+}
 
-    fn csv(&self) -> String {
-        format!(
-            "{},{},{:.3},{:.3},{:.3},{:.3},{:.3},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{:.3},{},{},{},{}",
-            csv_field(&self.name),
-            self.rows,
-            self.eye_ms,
-            self.silhouette_ms,
-            self.volume_ms,
-            self.stencil_ms,
-            self.frame_ms,
-            self.volume_triangles,
-            self.pixels_processed,
-            self.shadowed_pixels,
-            self.mismatch_pixels,
-            self.mismatch_off_boundary,
-            self.ambiguous_pixels,
-            self.compared_pixels,
-            self.h_fragments,
-            self.tile_tests,
-            self.tiles_boundary,
-            self.bandwidth_bytes,
-            self.silhouette_pixels,
-            self.culling,
-            self.coverage,
-            self.query_threshold,
-            self.light_resolution,
-            csv_field(&self.chcpp),
-            self.light_ms,
-            self.psr,
-            self.psc,
-            self.queries,
-            self.waits
-        )
+/// `compare.csv`: a header of [`VariantRow`]'s fields, then one record per
+/// variant.
+fn write_csv(rows: &[VariantRow]) -> std::io::Result<Vec<u8>> {
+    let mut w = csv::Writer::from_writer(Vec::new());
+    w.write_record(leaves(&VariantRow::default()).iter().map(|(name, _)| name))?;
+    for r in rows {
+        w.write_record(cells(r).iter().map(Cell::text))?;
     }
+    w.into_inner().map_err(|e| e.into_error())
 }
 
 /// The variants a job compares: its `pipelines`, or when empty brute force,
@@ -277,13 +243,7 @@ pub fn compare_job(
     }
     let out = &options.out_dir;
     let csv_path = out.join("compare.csv");
-    let mut text = String::from(CSV_HEADER);
-    text.push('\n');
-    for r in &table {
-        text.push_str(&r.csv());
-        text.push('\n');
-    }
-    atomic(&csv_path, |tmp| std::fs::write(tmp, &text))?;
+    atomic(&csv_path, |tmp| std::fs::write(tmp, write_csv(&table)?))?;
     let svg_path = out.join("compare.svg");
     atomic(&svg_path, |tmp| {
         plot(&table, tmp).map_err(|e| std::io::Error::other(e.to_string()))
@@ -329,15 +289,6 @@ fn plot(rows: &[VariantRow], path: &Path) -> std::result::Result<(), Box<dyn std
     Ok(())
 }
 
-/// A CSV field, quoted when it holds a comma, quote or line break.
-fn csv_field(s: &str) -> String {
-    if s.contains([',', '"', '\n', '\r']) {
-        format!("\"{}\"", s.replace('"', "\"\""))
-    } else {
-        s.to_string()
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -347,19 +298,41 @@ mod tests {
         let mut rows = vec![FrameRow::default(); 3];
         for (i, r) in rows.iter_mut().enumerate() {
             r.frame_ms = [5.0, 1.0, 3.0][i];
-            r.shadow.pixels_processed = 10 * (i as u64 + 1);
+            r.shadow.stencil.pixels_processed = 10 * (i as u64 + 1);
+            r.shadow.volumes.silhouette_ms = [0.5, 0.25, 2.0][i];
             r.check.mismatch_pixels = i as u64;
         }
         let v = VariantRow::from_rows("a,b", &PipelineOptions::default(), &rows);
         assert_eq!(v.frame_ms, 3.0);
+        assert_eq!(v.silhouette_ms, 0.5);
         assert_eq!(v.pixels_processed, 60);
         assert_eq!(v.mismatch_pixels, 3);
         assert_eq!(v.rows, 3);
-        let line = v.csv();
-        assert!(line.starts_with("\"a,b\",3,"), "{line}");
+        assert_eq!((v.culling.as_str(), v.chcpp.as_str()), ("none", ""));
+        let text = String::from_utf8(write_csv(&[v]).unwrap()).unwrap();
+        let lines: Vec<&str> = text.lines().collect();
+        assert!(
+            lines[1].starts_with("\"a,b\",3,0.000,0.500,"),
+            "{}",
+            lines[1]
+        );
         assert_eq!(
-            line.matches(',').count() - 1,
-            CSV_HEADER.matches(',').count()
+            lines[1].matches(',').count() - 1,
+            lines[0].matches(',').count()
+        );
+    }
+
+    /// `compare.csv`'s header is a contract: exactly these columns, in this order.
+    #[test]
+    fn compare_csv_header_is_the_contract() {
+        let text = String::from_utf8(write_csv(&[]).unwrap()).unwrap();
+        assert_eq!(
+            text,
+            "name,rows,eye_ms,silhouette_ms,volume_ms,stencil_ms,frame_ms,volume_triangles,\
+             pixels_processed,shadowed_pixels,mismatch_pixels,mismatch_off_boundary,\
+             ambiguous_pixels,compared_pixels,h_fragments,tile_tests,tiles_boundary,\
+             bandwidth_bytes,silhouette_pixels,culling,coverage,query_threshold,\
+             light_resolution,chcpp,light_ms,psr,psc,queries,waits\n"
         );
     }
 }

@@ -149,8 +149,8 @@ impl FrameRunner {
                 let shadow = *l.stats();
                 let frame_ms = shadow.eye_ms
                     + shadow.light_ms
-                    + shadow.silhouette_ms
-                    + shadow.volume_ms
+                    + shadow.volumes.silhouette_ms
+                    + shadow.volumes.volume_ms
                     + shadow.stencil_ms;
                 LightFrame {
                     row: FrameRow {
@@ -277,7 +277,7 @@ mod tests {
                 let raw = |f: &LightFrame| f.shadow.as_ref().unwrap().raw_nonzero.clone();
                 assert_eq!(raw(x), raw(y));
                 assert_eq!(x.row.check, y.row.check);
-                assert_eq!(x.row.shadow.pixels_processed, y.row.shadow.pixels_processed);
+                assert_eq!(x.row.shadow.stencil, y.row.shadow.stencil);
                 assert!(
                     x.row.shadow.shadowed_pixels > 0,
                     "frame {frame}: shadows seen"

@@ -16,7 +16,7 @@
 //!
 //! # Features
 //! - `gltf`, `obj`: the scene loaders (passed to `shadowcull-scene`);
-//! - `jobs`: RON jobs, `run` and `compare` (adds ron, serde_json);
+//! - `jobs`: RON jobs, `run` and `compare` (adds ron, serde_json, csv);
 //! - `images`: PNG masks and the `compare` plot (adds png, plotters);
 //! - `cli`: the `shadowcull` binary (adds clap, indicatif, anyhow,
 //!   tracing-subscriber).

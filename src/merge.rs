@@ -10,7 +10,7 @@
 //!   overlap);
 //! - every `stats.csv` has the same header, and its rows lie in its block.
 //!
-//! Then `stats.csv` is the shards' rows concatenated in frame order (lines
+//! Then `stats.csv` is the shards' rows concatenated in frame order (records
 //! copied as written), `frames/` holds each shard's images of its block, and
 //! `summary.json` is recomputed. Its rule per key:
 //! - `job`, `scene`, `bounds`, `warnings`, `resolution`, `lights`: the first
@@ -38,8 +38,8 @@ struct ShardDir {
     dir: PathBuf,
     manifest: ShardManifest,
     summary: Value,
-    /// `stats.csv` lines after the header, as written.
-    lines: Vec<String>,
+    /// `stats.csv` records after the header, as written.
+    records: Vec<csv::StringRecord>,
     rows: Vec<FrameRow>,
 }
 
@@ -171,17 +171,15 @@ pub fn merge_shards(out: &Path, dirs: &[PathBuf]) -> Result<MergeReport> {
     // Write: stats.csv, frames/, summary.json (into a locked directory,
     // emptied of an earlier run's or merge's outputs).
     let _lock = crate::out_dir::claim_for_run(out)?;
-    let mut text = FrameRow::csv_header();
-    text.push('\n');
-    let mut rows = Vec::new();
-    for s in &shards {
-        for line in &s.lines {
-            text.push_str(line);
-            text.push('\n');
+    let rows: Vec<FrameRow> = shards.iter().flat_map(|s| s.rows.iter().copied()).collect();
+    crate::run::atomic(&out.join("stats.csv"), |tmp| {
+        let mut csv = csv::Writer::from_writer(Vec::new());
+        FrameRow::write_csv_header(&mut csv)?;
+        for record in shards.iter().flat_map(|s| &s.records) {
+            csv.write_record(record)?;
         }
-        rows.extend_from_slice(&s.rows);
-    }
-    crate::run::atomic(&out.join("stats.csv"), |tmp| std::fs::write(tmp, &text))?;
+        std::fs::write(tmp, csv.into_inner().map_err(|e| e.into_error())?)
+    })?;
     let mut images = 0;
     for s in &shards {
         images += copy_images(&s.dir, out, &s.manifest)?;
@@ -233,35 +231,37 @@ fn read_shard(dir: &Path) -> Result<ShardDir> {
         .map_err(|e| bad(format!("summary.json: {e}")))?;
     let cp = dir.join("stats.csv");
     let text = crate::error::read_text(&cp).map_err(io_err(&cp))?;
-    let mut lines = text.lines();
-    let header = lines.next().unwrap_or_default();
-    if header != FrameRow::csv_header() {
+    // Flexible: a record of another length is named by `FrameRow::from_csv`.
+    let mut csv = csv::ReaderBuilder::new()
+        .flexible(true)
+        .from_reader(text.as_bytes());
+    let header = csv.headers().map_err(|e| bad(format!("stats.csv: {e}")))?;
+    if !header.iter().eq(FrameRow::COLUMNS.iter().copied()) {
         return Err(bad(
             "stats.csv has other columns than this version writes".into()
         ));
     }
     let block = manifest.block();
-    let (mut kept, mut rows) = (Vec::new(), Vec::new());
-    for (i, line) in lines.enumerate() {
+    let (mut records, mut rows) = (Vec::new(), Vec::new());
+    for record in csv.records() {
+        let record = record.map_err(|e| bad(format!("stats.csv: {e}")))?;
+        let line = record.position().map_or(0, csv::Position::line);
         let row =
-            FrameRow::from_csv(line).map_err(|e| bad(format!("stats.csv line {}: {e}", i + 2)))?;
+            FrameRow::from_csv(&record).map_err(|e| bad(format!("stats.csv line {line}: {e}")))?;
         if !block.contains(&row.frame) {
             return Err(bad(format!(
-                "stats.csv line {}: frame {} is outside the shard's frames {}..{}",
-                i + 2,
-                row.frame,
-                block.start,
-                block.end
+                "stats.csv line {line}: frame {} is outside the shard's frames {}..{}",
+                row.frame, block.start, block.end
             )));
         }
-        kept.push(line.to_string());
+        records.push(record);
         rows.push(row);
     }
     Ok(ShardDir {
         dir: dir.to_path_buf(),
         manifest,
         summary,
-        lines: kept,
+        records,
         rows,
     })
 }

@@ -15,7 +15,6 @@ use crate::stats::{CheckStats, FrameRow, ReferenceStats, ShadowStats};
 use crate::{Error, Result};
 use scene::{Light, SceneCounts};
 use serde::Serialize;
-use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -95,10 +94,20 @@ pub struct RowSummary {
     pub frame_ms_mean: f64,
     /// Sum of every row's reference counters.
     pub totals: ReferenceStats,
-    /// Sum of every row's pipeline counters (times summed too).
+    /// Sum of every row's pipeline counters (times summed too); written as
+    /// its `stats.csv` columns ([`ShadowStats::columns`]).
+    #[serde(serialize_with = "shadow_columns")]
     pub shadow_totals: ShadowStats,
     /// Sum of every row's comparison counters.
     pub check_totals: CheckStats,
+}
+
+/// `shadow_totals` as its flat `stats.csv` columns.
+fn shadow_columns<S: serde::Serializer>(
+    totals: &ShadowStats,
+    s: S,
+) -> std::result::Result<S::Ok, S::Error> {
+    totals.columns().serialize(s)
 }
 
 impl RowSummary {
@@ -208,8 +217,12 @@ pub fn run_job(
         std::fs::create_dir_all(&frames_dir).map_err(io_err(&frames_dir))?;
     }
     let csv_path = out.join("stats.csv");
-    let mut csv = std::fs::File::create(&csv_path).map_err(io_err(&csv_path))?;
-    writeln!(csv, "{}", FrameRow::csv_header()).map_err(io_err(&csv_path))?;
+    let mut csv =
+        csv::Writer::from_writer(std::fs::File::create(&csv_path).map_err(io_err(&csv_path))?);
+    FrameRow::write_csv_header(&mut csv)
+        .map_err(std::io::Error::from)
+        .and_then(|()| csv.flush())
+        .map_err(io_err(&csv_path))?;
 
     // Warm-up: the pipeline only, to rebuild the history the single run has.
     let t_warm = Instant::now();
@@ -238,10 +251,10 @@ pub fn run_job(
             if frame % job.outputs.image_every == 0 {
                 write_images(job, &frames_dir, frame, li, lf)?;
             }
-            // One write per row: a row is never split.
-            let line = format!("{}\n", row.csv_row());
-            csv.write_all(line.as_bytes())
-                .and_then(|_| csv.flush())
+            // One write per row (a flush per record): a row is never split.
+            row.write_csv(&mut csv)
+                .map_err(std::io::Error::from)
+                .and_then(|()| csv.flush())
                 .map_err(io_err(&csv_path))?;
             row.emit();
             on_frame(row, written);

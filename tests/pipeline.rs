@@ -167,7 +167,7 @@ fn volumes_only_pipeline_gives_the_same_volumes_and_no_mask() -> Result<()> {
             assert_eq!(u.indices, v.indices);
             assert_eq!(u.ranges, v.ranges);
             assert_eq!(x.stats().volume_triangles as usize, u.triangle_count());
-            assert_eq!(x.stats().pixels_processed, 0);
+            assert_eq!(x.stats().stencil.pixels_processed, 0);
         }
     }
     Ok(())

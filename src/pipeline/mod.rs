@@ -47,7 +47,7 @@ use scene::{Camera, Light, ObjectId, Scene};
 use shadowgen::VolumeStats;
 use std::sync::Arc;
 use std::time::Instant;
-use visibility::LightView;
+use visibility::{LightView, TraversalStats};
 
 /// What one frame is computed for: the viewport and the camera. The lights
 /// are the pipeline's own ([`Pipeline::add_light`]).
@@ -516,22 +516,21 @@ impl Pipeline {
                     s.shadow.take(),
                 )?),
             };
-            let (light_queries, light_waits, light_ms) = if culled {
-                let r = &s.culling.result;
-                (r.stats.queries, r.stats.waits, s.culling.ms)
+            let (light, light_ms) = if culled {
+                (s.culling.result.stats, s.culling.ms)
             } else {
-                (0, 0, 0.0)
+                (TraversalStats::default(), 0.0)
             };
             s.stats = light_stats(
                 &volumes,
                 s.shadow.as_ref(),
                 s.scratch.volumes.triangle_count() as u64,
                 eye_ms,
-                light_ms,
+                (light, light_ms),
                 psr,
                 casters.len() as u64,
-                eye_queries + light_queries,
-                eye_waits + light_waits,
+                eye_queries + light.queries,
+                eye_waits + light.waits,
             );
         }
         self.eye = Some(eye);
@@ -783,7 +782,7 @@ fn light_stats(
     shadow: Option<&ShadowFrame>,
     volume_triangles: u64,
     eye_ms: f64,
-    light_ms: f64,
+    (light, light_ms): (TraversalStats, f64),
     psr: u64,
     psc: u64,
     queries: u64,
@@ -791,38 +790,24 @@ fn light_stats(
 ) -> ShadowStats {
     let mut s = ShadowStats {
         eye_ms,
-        silhouette_ms: v.silhouette_ms,
-        volume_ms: v.volume_ms,
         volume_triangles,
-        silhouette_edges: v.silhouette_edges as u64,
-        zpass_casters: v.zpass as u64,
-        zfail_casters: v.zfail as u64,
-        zpplus_casters: v.zpplus as u64,
         psr,
         psc,
         queries,
         waits,
         light_ms,
+        volumes: *v,
+        light,
         ..Default::default()
     };
     if let Some(f) = shadow {
-        let st = &f.stencil;
         s.stencil_ms = f.stencil_ms;
         s.volume_triangles = f.volume_triangles;
-        s.pixels_processed = st.pixels_processed;
-        s.stencil_updates = st.stencil_updates;
-        s.pixels_touched = st.pixels_touched;
         s.shadowed_pixels = f.mask.counts().shadow;
-        s.h_fragments = st.h_fragments;
-        s.tile_tests = st.tile_tests;
-        s.tiles_lit = st.tiles_lit;
-        s.tiles_shadow = st.tiles_shadow;
-        s.tiles_boundary = st.tiles_boundary;
-        s.pixel_bytes = st.pixel_bytes;
-        s.tile_bytes = st.tile_bytes;
-        s.bandwidth_bytes = st.bandwidth_bytes();
+        s.bandwidth_bytes = f.stencil.bandwidth_bytes();
         s.silhouette_pixels = f.silhouette_pixels;
         s.map_ms = f.map_ms;
+        s.stencil = f.stencil;
     }
     s
 }

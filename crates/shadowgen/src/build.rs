@@ -28,7 +28,7 @@ pub struct BuildOptions {
 }
 
 /// Counters and timings of one [`build_volumes`] call.
-#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct VolumeStats {
     /// Casters processed (one range each).
     pub casters: usize,

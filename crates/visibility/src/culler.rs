@@ -17,6 +17,7 @@ use std::time::Instant;
 
 /// Counters of one traversal.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct TraversalStats {
     /// Nodes taken from the traversal queue.
     pub nodes_visited: u64,

@@ -120,7 +120,7 @@ impl Pipeline {
             None => d.set_item("mask", py.None())?,
         }
         d.set_item("views", l.views().len())?;
-        d.set_item("stats", to_json(l.stats())?)?;
+        d.set_item("stats", to_json(&l.stats().columns())?)?;
         d.set_item("volume_stats", to_json(l.volume_stats())?)?;
         Ok(d)
     }
