@@ -521,17 +521,22 @@ impl Pipeline {
             } else {
                 (TraversalStats::default(), 0.0)
             };
-            s.stats = light_stats(
-                &volumes,
-                s.shadow.as_ref(),
-                s.scratch.volumes.triangle_count() as u64,
+            let mut stats = ShadowStats {
                 eye_ms,
-                (light, light_ms),
+                volume_triangles: s.scratch.volumes.triangle_count() as u64,
                 psr,
-                casters.len() as u64,
-                eye_queries + light.queries,
-                eye_waits + light.waits,
-            );
+                psc: casters.len() as u64,
+                queries: eye_queries + light.queries,
+                waits: eye_waits + light.waits,
+                light_ms,
+                volumes,
+                light,
+                ..Default::default()
+            };
+            if let Some(f) = &s.shadow {
+                add_stencil(&mut stats, f);
+            }
+            s.stats = stats;
         }
         self.eye = Some(eye);
         self.camera = Some(*camera);
@@ -776,40 +781,15 @@ impl<'a> LightOutput<'a> {
     }
 }
 
-#[allow(clippy::too_many_arguments)]
-fn light_stats(
-    v: &VolumeStats,
-    shadow: Option<&ShadowFrame>,
-    volume_triangles: u64,
-    eye_ms: f64,
-    (light, light_ms): (TraversalStats, f64),
-    psr: u64,
-    psc: u64,
-    queries: u64,
-    waits: u64,
-) -> ShadowStats {
-    let mut s = ShadowStats {
-        eye_ms,
-        volume_triangles,
-        psr,
-        psc,
-        queries,
-        waits,
-        light_ms,
-        volumes: *v,
-        light,
-        ..Default::default()
-    };
-    if let Some(f) = shadow {
-        s.stencil_ms = f.stencil_ms;
-        s.volume_triangles = f.volume_triangles;
-        s.shadowed_pixels = f.mask.counts().shadow;
-        s.bandwidth_bytes = f.stencil.bandwidth_bytes();
-        s.silhouette_pixels = f.silhouette_pixels;
-        s.map_ms = f.map_ms;
-        s.stencil = f.stencil;
-    }
-    s
+/// The stencil stage's share of a light's stats.
+fn add_stencil(s: &mut ShadowStats, f: &ShadowFrame) {
+    s.stencil_ms = f.stencil_ms;
+    s.volume_triangles = f.volume_triangles;
+    s.shadowed_pixels = f.mask.counts().shadow;
+    s.bandwidth_bytes = f.stencil.bandwidth_bytes();
+    s.silhouette_pixels = f.silhouette_pixels;
+    s.map_ms = f.map_ms;
+    s.stencil = f.stencil;
 }
 
 /// A pool of `threads` workers, `None` for 0 (rayon's global pool).
