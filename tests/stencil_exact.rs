@@ -3,9 +3,7 @@
 //! primitive ids: every compared pixel agrees except ambiguous ones and at
 //! most 0.01% of the image more, each on a reference shadow boundary.
 
-mod common;
-
-use common::{boxes_on_ground, overview_camera};
+use crate::common::{boxes_on_ground, overview_camera};
 use glam::{DMat4, DVec3};
 use scene::{Camera, Light, Scene, Transform};
 use shadowcull::mask::compare;
@@ -285,28 +283,14 @@ fn far_from_the_origin_and_scaled() {
 /// The shared-scene jobs (`data/jobs/shared_*.ron`) whose name contains
 /// `pick`, sorted; none (with a note) when `../shared/data` is absent.
 fn shared_jobs(pick: &str) -> Vec<std::path::PathBuf> {
-    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
-    if !root.join("../shared/data").is_dir() {
-        println!("note: ../shared/data is absent; skipping the shared-scene jobs");
-        return Vec::new();
-    }
-    let mut files: Vec<_> = std::fs::read_dir(root.join("data/jobs"))
-        .unwrap()
-        .map(|e| e.unwrap().path())
-        .filter(|p| {
-            let n = p.file_name().unwrap().to_str().unwrap();
-            n.starts_with("shared_") && n.contains(pick)
-        })
-        .collect();
-    files.sort();
-    files
+    testkit::shared_jobs(pick)
 }
 
 /// Issue 4's exactness matrix on every shared job at the job's resolution
 /// (320×240), with its criterion unchanged: no mismatch off a reference shadow
 /// boundary and at most 0.01% of the image on one; for Auto, forced zfail and
 /// forced zp+ (whose masks must also equal Auto's on every pixel), one- and
-/// two-sided. `cargo test --release --test stencil_exact -- --nocapture
+/// two-sided. `cargo test --release --test main -- --nocapture
 /// shared_jobs` prints the table (about 35 s in release).
 ///
 /// All 64 views pass in all six variants, and the methods agree on every
@@ -436,7 +420,7 @@ fn hierarchical_stencil_matches_brute_force_on_shared_jobs() {
                             if two_sided { " two-sided" } else { "" }
                         );
                         views += 1;
-                        let (c, differing) = match common::check_hierarchical(
+                        let c = match testkit::check_hierarchical(
                             &scene,
                             &cam,
                             &light,
@@ -445,18 +429,19 @@ fn hierarchical_stencil_matches_brute_force_on_shared_jobs() {
                             two_sided,
                             tiles,
                         ) {
-                            Ok(r) => r,
+                            Ok(c) => c,
                             Err(e) => {
                                 failures.push(format!("{what}: {e}"));
                                 continue;
                             }
                         };
                         boundary += c.boundary_tiles;
-                        fs_changed += differing.len() as u64;
-                        if differing.len() as u64 > u64::from(w * h) / 10_000 {
-                            failures.push(format!("{what}: FS changed {} pixels", differing.len()));
+                        fs_changed += c.differing.len() as u64;
+                        if c.differing.len() as u64 > u64::from(w * h) / 10_000 {
+                            failures
+                                .push(format!("{what}: FS changed {} pixels", c.differing.len()));
                         }
-                        if !differing.is_empty() {
+                        if !c.differing.is_empty() {
                             let bvh = bvh.get_or_insert_with(|| TriangleBvh::new(&scene));
                             let ropts = ReferenceOptions {
                                 two_sided,
@@ -471,7 +456,7 @@ fn hierarchical_stencil_matches_brute_force_on_shared_jobs() {
                                 &ropts,
                                 Some(eye.surface()),
                             );
-                            for &i in &differing {
+                            for &i in &c.differing {
                                 if !r.ambiguous[i] {
                                     failures.push(format!(
                                         "{what}: FS changed pixel {i}, not ambiguous in the reference"
