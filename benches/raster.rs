@@ -8,8 +8,7 @@
 use criterion::{criterion_group, criterion_main, Criterion};
 use glam::{DMat4, Mat4, Vec3, Vec4};
 use raster::{Coverage, DepthTarget, DrawItem, QueryMode, QueryOptions, TileSize};
-use scene::procedural::city::{city, CityParams};
-use scene::Scene;
+use testkit::BenchScene;
 
 struct Frame {
     clip_from_world: Mat4,
@@ -20,9 +19,8 @@ struct Frame {
 }
 
 fn bench_city(c: &mut Criterion) {
-    let loaded = city(&CityParams::default()).expect("default city");
-    let cameras = loaded.cameras.clone();
-    let scene = Scene::new(loaded.graph).expect("flatten");
+    let city = BenchScene::default_city();
+    let scene = &city.scene;
     let meshes: Vec<(Vec<Vec4>, Vec<[u32; 3]>)> = scene
         .graph()
         .meshes()
@@ -37,9 +35,7 @@ fn bench_city(c: &mut Criterion) {
     let mut g = c.benchmark_group("city");
     g.sample_size(10);
     for name in ["street", "bird"] {
-        let Some((_, look)) = cameras.iter().find(|(n, _)| n == name) else {
-            continue;
-        };
+        let look = city.look(name);
         for (w, h) in [(800u32, 600u32), (1920, 1080)] {
             let cam = look.camera(w as f64 / h as f64).expect("camera");
             let mut order: Vec<usize> = (0..scene.objects().len()).collect();

@@ -4,25 +4,18 @@
 //! `cargo bench --bench reference`. Full resolution belongs here, not in tests.
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use scene::procedural::city::{city, CityParams};
-use scene::{Light, Scene};
+use scene::Light;
 use shadowcull::reference::{reference_mask, ReferenceOptions, TriangleBvh};
-use std::path::Path;
+use testkit::BenchScene;
 
 fn bench_city(c: &mut Criterion) {
-    let loaded = city(&CityParams::default()).expect("default city");
-    let street = loaded
-        .paths
-        .iter()
-        .find(|(n, _)| n == "street")
-        .expect("street path")
-        .1
-        .clone();
-    let scene = Scene::new(loaded.graph).expect("flatten");
+    let city = BenchScene::default_city();
+    let scene = &city.scene;
+    let street = city.path("street");
     let mut g = c.benchmark_group("city");
     g.sample_size(10);
-    g.bench_function("triangle_bvh", |b| b.iter(|| TriangleBvh::new(&scene)));
-    let bvh = TriangleBvh::new(&scene);
+    g.bench_function("triangle_bvh", |b| b.iter(|| TriangleBvh::new(scene)));
+    let bvh = TriangleBvh::new(scene);
     let cam = street.at(0).unwrap().camera(800.0 / 600.0).unwrap();
     let b = scene.bounds();
     let c0 = b.center();
@@ -47,23 +40,12 @@ fn bench_city(c: &mut Criterion) {
 }
 
 fn bench_box_city(c: &mut Criterion) {
-    let file = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/bench/city_4096.txt");
-    if !file.exists() {
-        println!("note: {} is absent; skipping box_city_4096", file.display());
+    let Some(city) = BenchScene::box_city("city_4096") else {
         return;
-    }
-    let loaded = scene::load::box_city::load_box_city(&file).expect("box city");
-    let cam = loaded
-        .cameras
-        .iter()
-        .find(|(n, _)| n == "bird")
-        .expect("bird")
-        .1
-        .camera(800.0 / 600.0)
-        .unwrap();
-    let light = loaded.lights[0].1;
-    let scene = Scene::new(loaded.graph).expect("flatten");
-    let bvh = TriangleBvh::new(&scene);
+    };
+    let cam = city.look("bird").camera(800.0 / 600.0).unwrap();
+    let light = city.first_light();
+    let bvh = TriangleBvh::new(&city.scene);
     let mut g = c.benchmark_group("box_city_4096");
     g.sample_size(10);
     g.bench_function("reference_800x600_bird", |bn| {

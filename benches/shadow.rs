@@ -5,11 +5,11 @@
 #![allow(missing_docs)] // criterion_group!/criterion_main! generate undocumented items
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use scene::procedural::city::{city, CityParams};
 use scene::{Camera, Light, Scene};
 use shadowcull::frame::FrameRunner;
 use shadowcull::pipeline::{PipelineOptions, StencilBackend};
 use std::path::Path;
+use testkit::BenchScene;
 
 const RES: (u32, u32) = (1280, 1024);
 
@@ -70,41 +70,32 @@ fn bench_view(
 }
 
 fn bench_city(c: &mut Criterion) {
-    let loaded = city(&CityParams::default()).expect("default city");
-    let scene = std::sync::Arc::new(Scene::new(loaded.graph.clone()).expect("flatten"));
+    let city = BenchScene::default_city();
+    let scene = &city.scene;
     // The default job's first light: 1.5 scene heights above the centre.
     let light = shadowcull::config::LightSpec::AboveScene(1.5)
-        .resolve(&loaded, &scene.bounds(), 0, std::path::Path::new("<bench>"))
+        .resolve(&city.loaded, &scene.bounds(), 0, Path::new("<bench>"))
         .expect("light");
     for cam in ["street", "bird"] {
-        let path = &loaded.paths.iter().find(|(n, _)| n == cam).expect(cam).1;
-        let camera = path
+        let camera = city
+            .path(cam)
             .at(0)
             .expect("pose")
             .camera(RES.0 as f64 / RES.1 as f64)
             .expect("camera");
-        bench_view(c, &format!("city/{cam}"), &scene, &camera, light);
+        bench_view(c, &format!("city/{cam}"), scene, &camera, light);
     }
 }
 
 fn bench_box_city(c: &mut Criterion) {
-    let file = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/bench/city_16384.txt");
-    if !file.exists() {
-        println!("note: {} is absent; skipping city_16384", file.display());
+    let Some(city) = BenchScene::box_city("city_16384") else {
         return;
-    }
-    let loaded = scene::load::box_city::load_box_city(&file).expect("box city");
-    let camera = loaded
-        .cameras
-        .iter()
-        .find(|(n, _)| n == "street")
-        .expect("street")
-        .1
+    };
+    let camera = (city.look("street"))
         .camera(RES.0 as f64 / RES.1 as f64)
         .expect("camera");
-    let light = loaded.lights[0].1;
-    let scene = std::sync::Arc::new(Scene::new(loaded.graph).expect("flatten"));
-    bench_view(c, "city_16384/street", &scene, &camera, light);
+    let light = city.first_light();
+    bench_view(c, "city_16384/street", &city.scene, &camera, light);
 }
 
 criterion_group!(benches, bench_city, bench_box_city);

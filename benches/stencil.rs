@@ -15,12 +15,12 @@
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use raster::{StencilBits, TileSize};
-use scene::procedural::city::{city, CityParams};
 use scene::{Camera, Light, Scene};
 use shadowcull::pipeline::{
     eye_pass, shadow_mask, Backend, MeshCache, ShadowOptions, ShadowScratch,
 };
 use std::path::Path;
+use testkit::BenchScene;
 
 const RESOLUTIONS: [(u32, u32); 2] = [(1280, 1024), (2048, 1536)];
 
@@ -73,33 +73,28 @@ fn bench_view(
 }
 
 fn bench_city(c: &mut Criterion) {
-    let loaded = city(&CityParams::default()).expect("default city");
-    let scene = Scene::new(loaded.graph.clone()).expect("flatten");
+    let city = BenchScene::default_city();
+    let scene = &city.scene;
     // The default job's first light: 1.5 scene heights above the centre.
     let light = shadowcull::config::LightSpec::AboveScene(1.5)
-        .resolve(&loaded, &scene.bounds(), 0, std::path::Path::new("<bench>"))
+        .resolve(&city.loaded, &scene.bounds(), 0, Path::new("<bench>"))
         .expect("light");
     for cam in ["street", "bird"] {
-        let path = &loaded.paths.iter().find(|(n, _)| n == cam).expect(cam).1;
-        let pose = path.at(0).expect("pose");
+        let pose = city.path(cam).at(0).expect("pose");
         let camera = |w: u32, h: u32| pose.camera(w as f64 / h as f64).expect("camera");
-        bench_view(c, &format!("city/{cam}"), &scene, &camera, light);
+        bench_view(c, &format!("city/{cam}"), scene, &camera, light);
     }
 }
 
 fn bench_box_city(c: &mut Criterion) {
-    let file = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/bench/city_16384.txt");
-    if !file.exists() {
-        println!("note: {} is absent; skipping city_16384", file.display());
+    let Some(city) = BenchScene::box_city("city_16384") else {
         return;
-    }
-    let loaded = scene::load::box_city::load_box_city(&file).expect("box city");
-    let light = loaded.lights[0].1;
-    let scene = Scene::new(loaded.graph.clone()).expect("flatten");
+    };
+    let light = city.first_light();
     for cam in ["street", "bird"] {
-        let look = &loaded.cameras.iter().find(|(n, _)| n == cam).expect(cam).1;
+        let look = city.look(cam);
         let camera = |w: u32, h: u32| look.camera(w as f64 / h as f64).expect("camera");
-        bench_view(c, &format!("city_16384/{cam}"), &scene, &camera, light);
+        bench_view(c, &format!("city_16384/{cam}"), &city.scene, &camera, light);
     }
 }
 

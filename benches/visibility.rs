@@ -19,13 +19,13 @@
 #![allow(missing_docs)] // criterion_group!/criterion_main! generate undocumented items
 
 use criterion::{criterion_group, criterion_main, Criterion, SamplingMode};
-use scene::procedural::city::{city, CityParams};
 use scene::{Camera, Light, Scene};
 use shadowcull::config::default_job;
 use shadowcull::frame::{FrameRunner, LightFrame};
 use shadowcull::pipeline::{CullingSpec, PipelineOptions};
 use std::path::Path;
 use std::time::Duration;
+use testkit::BenchScene;
 
 /// The culling modes compared; one more is one more row.
 const MODES: &[(&str, CullingSpec)] = &[
@@ -97,48 +97,39 @@ fn bench_view(
 
 fn bench_city(c: &mut Criterion) {
     let job = default_job();
-    let loaded = city(&CityParams::default()).expect("default city");
-    let scene = std::sync::Arc::new(Scene::new(loaded.graph.clone()).expect("flatten"));
+    let city = BenchScene::default_city();
+    let scene = &city.scene;
     let lights: Vec<Light> = job
         .lights
         .iter()
         .enumerate()
         .map(|(i, l)| {
-            l.resolve(&loaded, &scene.bounds(), i, Path::new("<bench>"))
+            l.resolve(&city.loaded, &scene.bounds(), i, Path::new("<bench>"))
                 .expect("light")
         })
         .collect();
     let res = job.resolution;
     for cam in ["street", "bird"] {
-        let path = &loaded.paths.iter().find(|(n, _)| n == cam).expect(cam).1;
-        let camera = path
+        let camera = city
+            .path(cam)
             .at(0)
             .expect("pose")
             .camera(res.0 as f64 / res.1 as f64)
             .expect("camera");
-        bench_view(c, &format!("city/{cam}"), &scene, &camera, &lights, res);
+        bench_view(c, &format!("city/{cam}"), scene, &camera, &lights, res);
     }
 }
 
 fn bench_box_city(c: &mut Criterion) {
-    let file = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/bench/city_16384.txt");
-    if !file.exists() {
-        println!("note: {} is absent; skipping city_16384", file.display());
+    let Some(city) = BenchScene::box_city("city_16384") else {
         return;
-    }
+    };
     let res = (1280, 1024);
-    let loaded = scene::load::box_city::load_box_city(&file).expect("box city");
-    let camera = loaded
-        .cameras
-        .iter()
-        .find(|(n, _)| n == "street")
-        .expect("street")
-        .1
+    let camera = (city.look("street"))
         .camera(res.0 as f64 / res.1 as f64)
         .expect("camera");
-    let light = loaded.lights[0].1;
-    let scene = std::sync::Arc::new(Scene::new(loaded.graph).expect("flatten"));
-    bench_view(c, "city_16384/street", &scene, &camera, &[light], res);
+    let light = city.first_light();
+    bench_view(c, "city_16384/street", &city.scene, &camera, &[light], res);
 }
 
 criterion_group!(benches, bench_city, bench_box_city);

@@ -26,6 +26,7 @@ use shadowcull::scene::{Camera, Light};
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::Arc;
+use testkit::median;
 
 /// The host's thread pool, shared with its pipelines.
 type Pool = Arc<rayon::ThreadPool>;
@@ -338,11 +339,6 @@ fn host_matrices(f: u32, n: u32, (w, h): (u32, u32)) -> (DMat4, DMat4) {
     (view, projection)
 }
 
-fn median(v: &mut [f64]) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v.get(v.len() / 2).copied().unwrap_or(0.0)
-}
-
 /// Counts heap allocations while [`COUNTING`] is set: the allocations made
 /// inside `Pipeline::frame` calls (the pool's threads included: they only
 /// work inside a call).
@@ -605,9 +601,9 @@ fn run(world: &HostWorld, pool: &Pool, args: &Args) -> anyhow::Result<()> {
         "width": size.0,
         "height": size.1,
         "lights": world.lights.len(),
-        "psr_median": median(&mut psr),
-        "psc_median": median(&mut psc),
-        "frame_ms_median": median(&mut ms),
+        "psr_median": median(&psr).unwrap_or(0.0),
+        "psc_median": median(&psc).unwrap_or(0.0),
+        "frame_ms_median": median(&ms).unwrap_or(0.0),
         "volume_triangles_total": volume_triangles,
         "non_zpass_ranges_total": zfail_ranges,
         "reference_frames": checked,

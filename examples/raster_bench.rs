@@ -20,6 +20,7 @@ use raster::{
 };
 use std::path::PathBuf;
 use std::time::Instant;
+use testkit::median;
 
 // The spellings of the flags that choose among fixed values: the parser, its
 // error message and the JSON name all come from these tables.
@@ -99,11 +100,6 @@ struct Args {
     /// Which occluder faces a draw skips.
     #[arg(long, value_parser = one_of(CULLS), default_value = "back")]
     cull: CullMode,
-}
-
-fn median(v: &mut [f64]) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
 }
 
 fn main() -> anyhow::Result<()> {
@@ -207,10 +203,11 @@ fn main() -> anyhow::Result<()> {
     };
     let depth_hash = fnv(&mut target.depth_rows().into_iter().map(f32::to_bits));
     let query_hash = fnv(&mut results.iter().copied());
-    let occluder_ms = median(&mut occ);
-    let query_ms = median(&mut qry);
+    // reps >= 1: the medians exist.
+    let (occluder_ms, query_ms) = (median(&occ).unwrap(), median(&qry).unwrap());
     // Minimums too: on a shared machine they show the undisturbed cost.
-    let (occluder_min_ms, query_min_ms) = (occ[0], qry[0]);
+    let min = |v: &[f64]| v.iter().copied().fold(f64::INFINITY, f64::min);
+    let (occluder_min_ms, query_min_ms) = (min(&occ), min(&qry));
     let decided = |s: &raster::RasterStats| {
         let whole = s.tiles_rejected_edges + s.tiles_rejected_hiz + s.tiles_query_accepted_whole;
         whole as f64 / s.tiles_touched.max(1) as f64

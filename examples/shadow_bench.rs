@@ -73,6 +73,7 @@ use shadowcull::stats::FrameRow;
 use shadowgen::MethodChoice;
 use std::path::PathBuf;
 use std::time::Instant;
+use testkit::median;
 
 // The spellings of the flags that choose among fixed values: a new mode is one row
 // here (the parser, its error message and the JSON name all come from the table).
@@ -335,13 +336,6 @@ impl From<Cli> for Args {
     }
 }
 
-/// The upper median (the middle element for odd lengths); `v` is not empty.
-fn median<T: Copy + PartialOrd>(v: &[T]) -> T {
-    let mut s = v.to_vec();
-    s.sort_by(|a, b| a.partial_cmp(b).unwrap_or(std::cmp::Ordering::Equal));
-    s[s.len() / 2]
-}
-
 /// The view from the flags when given, else the scene's named camera.
 fn look(a: &Args, loaded: &Loaded) -> anyhow::Result<LookAt> {
     Ok(match (a.eye, a.target) {
@@ -543,6 +537,7 @@ fn one_view(
                 .map(|s| s.row.shadow.volumes.silhouette_ms)
                 .collect::<Vec<_>>(),
         )
+        .expect("samples")
     } else {
         // One more frame for the warm cache; not part of the reported counters.
         let out = runner.frame(
@@ -562,7 +557,9 @@ fn one_view(
     for (key, get) in TIMES {
         m.insert(
             key.into(),
-            median(&samples.iter().map(get).collect::<Vec<_>>()).into(),
+            median(&samples.iter().map(get).collect::<Vec<_>>())
+                .expect("samples")
+                .into(),
         );
     }
     m.insert(
@@ -614,13 +611,13 @@ fn along_path(
     };
     for &(key, get) in TIMES.iter().chain(ref_times) {
         let v: Vec<f64> = samples.iter().map(get).collect();
-        m.insert(format!("{key}_median"), median(&v).into());
+        m.insert(format!("{key}_median"), median(&v).expect("frames").into());
         m.insert(format!("{key}_total"), v.iter().sum::<f64>().into());
         m.insert(key.into(), v.into());
     }
     for &(key, get) in COUNTS.iter().chain(ref_counts) {
         let v: Vec<u64> = samples.iter().map(get).collect();
-        m.insert(format!("{key}_median"), median(&v).into());
+        m.insert(format!("{key}_median"), median(&v).expect("frames").into());
         m.insert(format!("{key}_total"), v.iter().sum::<u64>().into());
         m.insert(key.into(), v.into());
     }

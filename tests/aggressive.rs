@@ -12,8 +12,6 @@
 //! stays a small fraction of the image (a budget of 0.5 % of the shaded
 //! surface pixels; the numbers are printed so a change shows).
 
-mod common;
-
 use shadowcull::frame::FrameRunner;
 use shadowcull::mask::PixelClass;
 use shadowcull::pipeline::{CoverageSpec, CullingSpec, PipelineOptions, StencilBackend};
@@ -31,8 +29,8 @@ struct Tally {
 
 #[test]
 fn aggressive_options_are_measured_against_the_exact_mask() {
-    let (scene, path) = common::street_city();
-    let lights = common::city_lights(&scene);
+    let (scene, path) = crate::common::street_city();
+    let lights = crate::common::city_lights(&scene);
     let res = (160, 120);
     let frames = 20;
     let reference_every = 5;

@@ -8,21 +8,9 @@ fn bin() -> Command {
     Command::new(env!("CARGO_BIN_EXE_shadowcull"))
 }
 
-fn shared_data() -> Option<PathBuf> {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data");
-    if p.is_dir() {
-        Some(p)
-    } else {
-        println!("note: {} is absent; skipping", p.display());
-        None
-    }
-}
-
+/// A fresh scratch directory for one test.
 fn tmp_dir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("shadowcull-cli-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
+    testkit::scratch_dir(&format!("cli-{name}"))
 }
 
 fn inspect_json(path: &Path) -> serde_json::Value {
@@ -43,7 +31,9 @@ fn inspect_json(path: &Path) -> serde_json::Value {
 
 #[test]
 fn inspect_reports_the_done_when_counts() {
-    let Some(data) = shared_data() else { return };
+    let Some(data) = testkit::shared_data() else {
+        return;
+    };
     let engine = inspect_json(&data.join("scenes/engine_2cylinder/2CylinderEngine.glb"));
     assert_eq!(engine["triangles"], 121_496, "every instance counted");
     for key in [
@@ -96,7 +86,9 @@ fn inspect_errors_exit_1_with_one_line_naming_the_file() {
 
 #[test]
 fn inspect_missing_bin_names_both_files() {
-    let Some(data) = shared_data() else { return };
+    let Some(data) = testkit::shared_data() else {
+        return;
+    };
     let p = data.join("edge_gltf/assimp/glTF2/MissingBin/BoxTextured.gltf");
     let out = bin().arg("inspect").arg(&p).output().unwrap();
     assert_eq!(out.status.code(), Some(1));
@@ -109,7 +101,9 @@ fn inspect_missing_bin_names_both_files() {
 
 #[test]
 fn inspect_never_panics_on_the_edge_corpus() {
-    let Some(data) = shared_data() else { return };
+    let Some(data) = testkit::shared_data() else {
+        return;
+    };
     let mut files = Vec::new();
     let mut stack = vec![data.join("edge_gltf"), data.join("edge_obj")];
     while let Some(d) = stack.pop() {

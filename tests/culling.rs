@@ -4,15 +4,13 @@
 //! light by light, while far fewer objects are drawn and cast; CHC issues
 //! fewer queries than stop-and-wait.
 
-mod common;
-
 use shadowcull::frame::FrameRunner;
 use shadowcull::pipeline::{CullingSpec, PipelineOptions, StencilBackend};
 
 #[test]
 fn culled_eye_pass_keeps_every_mask_along_the_street_path() {
-    let (scene, path) = common::street_city();
-    let lights = common::city_lights(&scene);
+    let (scene, path) = crate::common::street_city();
+    let lights = crate::common::city_lights(&scene);
     let res = (160, 120);
     let base = PipelineOptions {
         stencil: StencilBackend::H,

@@ -17,8 +17,6 @@
 //! per test binary ([`OnceLock`]); silhouette caches live in each runner's
 //! per-light scratch and are reused along a runner's frames.
 
-mod common;
-
 use glam::{DMat4, DQuat, DVec3, Vec3};
 use scene::procedural::analytic;
 use scene::{Camera, Light, Mesh, Scene, SceneGraph, Transform};
@@ -373,12 +371,8 @@ fn shared_cornell() -> Option<&'static Job> {
     use shadowcull::config::{load_scene_for_job, resolve_lights};
     static F: OnceLock<Option<Job>> = OnceLock::new();
     F.get_or_init(|| {
-        let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
-        if !root.join("../shared/data").is_dir() {
-            eprintln!("note: ../shared/data is absent; skipping the shared Cornell box job");
-            return None;
-        }
-        let file = root.join("data/jobs/shared_cornell_box_multifile.ron");
+        testkit::shared_data()?;
+        let file = testkit::workspace_root().join("data/jobs/shared_cornell_box_multifile.ron");
         let job = shadowcull::config::Job::from_file(&file).unwrap();
         let (w, h) = job.resolution;
         let (loaded, scene, path) = load_scene_for_job(&job, Some(&file)).unwrap();
@@ -578,7 +572,7 @@ fn cornell_box_with_light_above_ceiling_culling_keeps_mask() {
 fn closed_box() -> &'static Fixture {
     static F: OnceLock<Fixture> = OnceLock::new();
     F.get_or_init(|| {
-        Fixture::new(common::scene_of(
+        Fixture::new(crate::common::scene_of(
             vec![
                 analytic::horizontal_quad("ground", [-10.0, 10.0], [-10.0, 10.0], 0.0, true)
                     .unwrap(),
@@ -674,7 +668,7 @@ fn light_inside_closed_box_culling_keeps_mask() {
 fn street_city() -> &'static (Fixture, scene::CameraPath) {
     static F: OnceLock<(Fixture, scene::CameraPath)> = OnceLock::new();
     F.get_or_init(|| {
-        let (scene, path) = common::street_city();
+        let (scene, path) = crate::common::street_city();
         (Fixture::new(scene), path)
     })
 }
@@ -684,7 +678,7 @@ fn street_path_100_frames_culling_keeps_mask() {
     let t = Instant::now();
     let (fx, path) = street_city();
     let res = (160u32, 120u32);
-    let [above, sun] = common::city_lights(&fx.scene);
+    let [above, sun] = crate::common::city_lights(&fx.scene);
     let lights = vec![
         ("point above the city".to_string(), above),
         ("sun".to_string(), sun),

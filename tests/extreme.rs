@@ -4,9 +4,7 @@
 //! most 0.01% of the image more, each on a reference shadow boundary; where
 //! several counting methods are legal they give the same mask.
 
-mod common;
-
-use common::{boxes_on_ground, scene_of};
+use crate::common::{boxes_on_ground, scene_of};
 use glam::{DMat4, DQuat, DVec3, Vec3};
 use raster::TileSize;
 use scene::procedural::analytic;
@@ -134,10 +132,10 @@ fn try_run(
     // The hierarchical stencil reproduces brute force here too (tiles 4, 8, 16);
     // where its FS bit changes a pixel, the reference calls the pixel ambiguous.
     let tiles = [TileSize::T4, TileSize::T8, TileSize::T16];
-    let (_, differing) =
-        common::check_hierarchical(scene, cam, light, &eye.target, method, two_sided, &tiles)
+    let checked =
+        testkit::check_hierarchical(scene, cam, light, &eye.target, method, two_sided, &tiles)
             .unwrap_or_else(|e| panic!("hierarchical stencil: {e}"));
-    for i in differing {
+    for i in checked.differing {
         assert!(
             reference.ambiguous[i],
             "FS changed pixel {i}, which the reference does not call ambiguous"

@@ -3,9 +3,7 @@
 //! missing — measured against the ray-cast reference and against the exact
 //! hierarchical stencil on the same eye pass.
 
-mod common;
-
-use common::{overview_camera, scene_of};
+use crate::common::{overview_camera, scene_of};
 use glam::{DVec3, Vec3};
 use scene::procedural::analytic;
 use scene::{Light, Transform};

@@ -41,12 +41,7 @@ fn default_job_file_matches_the_built_in_default() {
 
 #[test]
 fn shared_scene_views_show_their_scenes_and_shadows() {
-    let shared = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data");
-    if !shared.is_dir() {
-        println!(
-            "note: {} is absent; skipping the shared-scene jobs",
-            shared.display()
-        );
+    if testkit::shared_data().is_none() {
         return;
     }
     let (w, h) = (96u32, 72u32);

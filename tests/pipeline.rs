@@ -2,8 +2,6 @@
 //! frame, outputs read from the borrowed `FrameOutput`; masks checked
 //! against the ray-cast reference and against the unculled pipeline.
 
-mod common;
-
 use glam::DVec3;
 use scene::{Camera, CameraPath, Light, ObjectFlags, ObjectId, Scene};
 use shadowcull::mask::compare;
@@ -16,7 +14,7 @@ const W: u32 = 160;
 const H: u32 = 120;
 
 fn city() -> (Arc<Scene>, CameraPath) {
-    common::city_with_street(3)
+    testkit::street_city(3)
 }
 
 /// The city's point light and sun, and a spot light over the street the
@@ -25,7 +23,7 @@ fn lights(scene: &Scene, path: &CameraPath) -> Vec<Light> {
     let b = scene.bounds();
     let pose = path.at(0).unwrap();
     let ahead = pose.eye + (pose.target - pose.eye).normalize() * 15.0;
-    let mut l = common::city_lights(scene).to_vec();
+    let mut l = crate::common::city_lights(scene).to_vec();
     l.push(Light::Spot {
         position: DVec3::new(ahead.x + 3.0, f64::from(b.max.y) * 1.2, ahead.z - 2.0),
         direction: DVec3::new(-0.1, -1.0, 0.1),

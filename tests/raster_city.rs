@@ -8,13 +8,12 @@ use raster::{
     aabb_corners, facing, meets_apex_region, setup_triangle, Coverage, CullMode, DepthTarget,
     DrawItem, Facing, QueryMode, QueryOptions, SnappedVertex, TileSize, AABB_TRIANGLES,
 };
-use std::path::PathBuf;
 
 type Boxes = Vec<(Vec3, Vec3)>;
 type Cameras = Vec<(String, scene::LookAt)>;
 
-fn city_boxes(path: &std::path::Path) -> (Boxes, Cameras) {
-    let loaded = scene::load::box_city::load_box_city(path).expect("load city");
+/// The buildings' boxes (not the ground) and the cameras of a box city.
+fn city_boxes(loaded: &scene::load::Loaded) -> (Boxes, Cameras) {
     let g = &loaded.graph;
     let mut boxes = Vec::new();
     for node in g.nodes() {
@@ -26,7 +25,7 @@ fn city_boxes(path: &std::path::Path) -> (Boxes, Cameras) {
             boxes.push((b.min, b.max));
         }
     }
-    (boxes, loaded.cameras)
+    (boxes, loaded.cameras.clone())
 }
 
 /// The fan triangles of a snapped polygon, oriented, in the rasterizer's order.
@@ -85,12 +84,10 @@ fn brute_force(t: &[SnappedVertex; 3], w: u32, h: u32, mut f: impl FnMut(u32, u3
 
 #[test]
 fn visible_boxes_match_brute_force_on_city_4096() {
-    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/data/bench/city_4096.txt");
-    if !path.exists() {
-        eprintln!("note: {} is absent; skipping", path.display());
+    let Some(city) = testkit::BenchScene::box_city("city_4096") else {
         return;
-    }
-    let (mut boxes, cameras) = city_boxes(&path);
+    };
+    let (mut boxes, cameras) = city_boxes(&city.loaded);
     // visible_boxes without culling, per view, to compare with back-face culling.
     let mut unculled = std::collections::HashMap::new();
     for (name, look) in &cameras {

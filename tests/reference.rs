@@ -1,8 +1,6 @@
 //! End-to-end tests of the ray-cast reference on analytic scenes.
 
-mod common;
-
-use common::scene_of;
+use crate::common::scene_of;
 use glam::{DMat4, DVec3, Vec3};
 use scene::procedural::analytic;
 use scene::{Camera, Light, Mesh, ObjectId, Scene, Transform};

@@ -3,9 +3,7 @@
 //! as 0 (lit) and wide counters as 256 (shadow); every count 1..255 is shadow
 //! in both, and the count 0 lit in both.
 
-mod common;
-
-use common::scene_of;
+use crate::common::scene_of;
 use glam::DVec3;
 use scene::procedural::analytic;
 use scene::{Camera, Light, Mesh, Scene, Transform};

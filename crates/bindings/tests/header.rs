@@ -1,5 +1,5 @@
 //! The checked-in header is what cbindgen generates from this crate now.
-//! `UPDATE_HEADER=1 cargo test -p shadowcull-bindings --test header` rewrites it.
+//! `UPDATE_HEADER=1 cargo test -p shadowcull-bindings --test main header` rewrites it.
 
 #[test]
 fn checked_in_header_is_current() {
@@ -22,6 +22,6 @@ fn checked_in_header_is_current() {
     assert!(
         checked_in == fresh,
         "{path} differs from a fresh generation: run \
-         `UPDATE_HEADER=1 cargo test -p shadowcull-bindings --test header` and commit it"
+         `UPDATE_HEADER=1 cargo test -p shadowcull-bindings --test main header` and commit it"
     );
 }

@@ -1,21 +1,11 @@
 //! Integration tests of the rasterizer against brute-force f64 references on the
 //! rasterizer's own snapped post-clip vertices (DESIGN.md "Tests").
 
+use crate::perspective;
 use glam::{Mat4, Vec3, Vec4};
 use proptest::prelude::*;
 use raster::*;
 use std::sync::Arc;
-
-/// Reversed-Z infinite perspective as in the scene crate: clip = (x·f/a, y·f, near, −z).
-fn perspective(fov_y: f32, aspect: f32, near: f32) -> Mat4 {
-    let f = 1.0 / (0.5 * fov_y).tan();
-    Mat4::from_cols(
-        Vec4::new(f / aspect, 0.0, 0.0, 0.0),
-        Vec4::new(0.0, f, 0.0, 0.0),
-        Vec4::new(0.0, 0.0, 0.0, -1.0),
-        Vec4::new(0.0, 0.0, near, 0.0),
-    )
-}
 
 /// One fan triangle of a snapped polygon, as the f64 reference sees it.
 struct RefTri {

@@ -3,19 +3,9 @@
 //! expected hashes were computed by the build before the traversal was optimised;
 //! any change to depth, ids or query counts changes them.
 
+use crate::perspective;
 use glam::{Mat4, Vec3, Vec4};
 use raster::*;
-
-/// Reversed-Z infinite perspective as in the scene crate.
-fn perspective(fov_y: f32, aspect: f32, near: f32) -> Mat4 {
-    let f = 1.0 / (0.5 * fov_y).tan();
-    Mat4::from_cols(
-        Vec4::new(f / aspect, 0.0, 0.0, 0.0),
-        Vec4::new(0.0, f, 0.0, 0.0),
-        Vec4::new(0.0, 0.0, 0.0, -1.0),
-        Vec4::new(0.0, 0.0, near, 0.0),
-    )
-}
 
 /// A deterministic city: a grid of boxes of pseudo-random heights, some straddling
 /// the near plane and the guard band, seen from above at an angle.

@@ -2,22 +2,12 @@
 //! wrapping, background pixels, infinite volumes; per-volume scissor and depth
 //! bounds against the untested pass; zp+ against zfail and legal zpass.
 
+use crate::perspective;
 use glam::{DMat4, DVec3, DVec4, Mat4, Vec3, Vec4};
 use proptest::prelude::*;
 use proptest::strategy::ValueTree;
 use proptest::test_runner::TestRunner;
 use raster::*;
-
-/// Reversed-Z infinite perspective as in the scene crate: clip = (x·f/a, y·f, near, −z).
-fn perspective(fov_y: f32, aspect: f32, near: f32) -> Mat4 {
-    let f = 1.0 / (0.5 * fov_y).tan();
-    Mat4::from_cols(
-        Vec4::new(f / aspect, 0.0, 0.0, 0.0),
-        Vec4::new(0.0, f, 0.0, 0.0),
-        Vec4::new(0.0, 0.0, 0.0, -1.0),
-        Vec4::new(0.0, 0.0, near, 0.0),
-    )
-}
 
 const W: u32 = 64;
 const H: u32 = 48;
@@ -1130,15 +1120,16 @@ struct HSeen {
 }
 
 /// The hierarchical stencil against brute force on the same depth buffer, volumes
-/// and tests: wide counters without the FS bit give the same value at every written
-/// pixel (tiles 4, 8, 16), 8-bit counters too; with the FS bit the mask differs only
-/// where some volume's own count is negative.
+/// and tests ([`testkit::hierarchical_matches_brute_force`], tiles 4, 8 and 16),
+/// for every volume method and with scissor and depth bounds off and on: wide
+/// and 8-bit counters without the FS bit give the same value at every written
+/// pixel; with the FS bit the mask differs only where some volume's own count
+/// is negative (or, 8-bit, the wide count wraps).
 fn check_hierarchical(sc: &SceneSpec, seen: &mut HSeen) -> std::result::Result<(), TestCaseError> {
     let b = build_scene(sc);
     if b.volumes.is_empty() {
         return Ok(());
     }
-    let written = |x: u32, y: u32| b.eye.depth_at(x, y).is_some();
     // zpass is checked even where it is illegal: the hierarchy must reproduce the
     // brute-force count, right or wrong.
     for method in [
@@ -1155,93 +1146,15 @@ fn check_hierarchical(sc: &SceneSpec, seen: &mut HSeen) -> std::result::Result<(
                 depth_bounds: true,
             },
         ] {
-            let brute = |bits| {
-                let mut s = StencilTarget::new(W, H, bits).unwrap();
-                let mut st = StencilStats::default();
-                s.draw_volumes(&b.eye, &ranges, &buf, tests, &mut st)
-                    .unwrap();
-                (s, st)
-            };
-            let hier = |tile, bits, full_shadow| {
-                let options = HierarchicalOptions {
-                    tile,
-                    bits,
-                    full_shadow,
-                };
-                let mut s = HierarchicalStencil::new(W, H, options).unwrap();
-                let mut st = StencilStats::default();
-                s.draw_volumes(&b.eye, &ranges, &buf, tests, &mut st)
-                    .unwrap();
-                (s, st)
-            };
-            for bits in [StencilBits::Wide, StencilBits::Eight] {
-                let (bf, bst) = brute(bits);
-                for tile in [TileSize::T4, TileSize::T8, TileSize::T16] {
-                    let (h, st) = hier(tile, bits, false);
-                    for y in 0..H {
-                        for x in 0..W {
-                            if written(x, y) {
-                                prop_assert_eq!(
-                                    h.value(x, y),
-                                    bf.value(x, y),
-                                    "{:?} {:?} {:?} {:?} pixel ({}, {})",
-                                    method,
-                                    tests,
-                                    bits,
-                                    tile,
-                                    x,
-                                    y
-                                );
-                            }
-                        }
-                    }
-                    let (mut hm, mut bm) = (Vec::new(), Vec::new());
-                    h.resolve(&b.eye, &mut hm, &mut StencilStats::default())
-                        .unwrap();
-                    bf.resolve(&b.eye, &mut bm, &mut StencilStats::default())
-                        .unwrap();
-                    prop_assert!(hm == bm, "{:?} {:?} {:?} resolve", method, tests, tile);
-                    prop_assert!(st.h_fragments <= bst.pixels_processed);
-                    prop_assert_eq!(st.triangles, bst.triangles);
-                    seen.draws += 1;
-                    seen.boundary += st.tiles_boundary;
-                    seen.shadow += st.tiles_shadow;
-                    seen.lit += st.tiles_lit;
-                    seen.saved += bst.pixels_processed - st.h_fragments;
-                }
-            }
-            // FS on: differences only where some volume's own count is negative.
-            let (bf, _) = brute(StencilBits::Wide);
-            let (h, _) = hier(TileSize::T8, StencilBits::Wide, true);
-            let (mut hm, mut bm) = (Vec::new(), Vec::new());
-            h.resolve(&b.eye, &mut hm, &mut StencilStats::default())
-                .unwrap();
-            bf.resolve(&b.eye, &mut bm, &mut StencilStats::default())
-                .unwrap();
-            let diff: Vec<usize> = (0..hm.len()).filter(|&i| hm[i] != bm[i]).collect();
-            if !diff.is_empty() {
-                let singles: Vec<StencilTarget> = ranges
-                    .iter()
-                    .map(|&(m, r)| {
-                        let mut s = StencilTarget::new(W, H, StencilBits::Wide).unwrap();
-                        s.draw_volume(&b.eye, m, &buf, r, tests, &mut StencilStats::default())
-                            .unwrap();
-                        s
-                    })
-                    .collect();
-                for &i in &diff {
-                    let (x, y) = ((i as u32) % W, (i as u32) / W);
-                    prop_assert!(
-                        hm[i] && singles.iter().any(|s| s.value(x, y) < 0),
-                        "{:?} {:?}: FS differs at ({}, {}) without a negative count",
-                        method,
-                        tests,
-                        x,
-                        y
-                    );
-                }
-                seen.fs_differences += diff.len() as u64;
-            }
+            let tiles = [TileSize::T4, TileSize::T8, TileSize::T16];
+            let c = testkit::hierarchical_matches_brute_force(&b.eye, &ranges, &buf, tests, &tiles)
+                .map_err(|e| TestCaseError::fail(format!("{method:?} {tests:?}: {e}")))?;
+            seen.draws += c.draws;
+            seen.boundary += c.boundary_tiles;
+            seen.shadow += c.shadow_tiles;
+            seen.lit += c.lit_tiles;
+            seen.saved += c.saved_fragments;
+            seen.fs_differences += c.fs_wide_differences;
         }
     }
     Ok(())

@@ -9,17 +9,6 @@ use raster::{VolumeBuffer, VolumeMethod};
 use scene::{Light, ObjectId, Scene};
 use shadowgen::{build_volumes, BuildOptions, MethodChoice, SilhouetteCache};
 use std::collections::HashMap;
-use std::path::PathBuf;
-
-fn shared() -> Option<PathBuf> {
-    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data");
-    if p.is_dir() {
-        Some(p)
-    } else {
-        eprintln!("note: {} absent, test skipped", p.display());
-        None
-    }
-}
 
 fn closed(buf: &VolumeBuffer, r: &raster::VolumeRange) -> bool {
     let mut m: HashMap<(u32, u32), i32> = HashMap::new();
@@ -86,7 +75,9 @@ fn check_scene(name: &str, scene: &Scene, lights: &[Light]) {
 
 #[test]
 fn shared_meshes_and_city_build_closed_volumes() {
-    let Some(root) = shared() else { return };
+    let Some(root) = testkit::shared_data() else {
+        return;
+    };
     let city = scene::load::load_path(&root.join("bench/city_4096.txt")).unwrap();
     let mut lights: Vec<Light> = city.lights.iter().map(|(_, l)| *l).collect();
     lights.push(Light::Directional {

@@ -8,7 +8,6 @@ use glam::DMat4;
 use raster::{
     DepthTarget, Latency, OcclusionBackend, ReadTarget, SimulatedBackend, SyncBackend, TileSize,
 };
-use scene::procedural::city::{city, CityParams};
 use scene::{Camera, Scene};
 use visibility::{ChcppOptions, CullResult, Culling, Hierarchy, MeshData, ViewCuller, ViewSetup};
 
@@ -55,27 +54,9 @@ fn run(
         .unwrap()
 }
 
-fn median(v: &mut [u64]) -> u64 {
-    v.sort_unstable();
-    v[v.len() / 2]
-}
-
 #[test]
 fn culled_eye_pass_equals_unculled_and_chc_saves_queries() {
-    let loaded = city(&CityParams {
-        blocks_x: 6,
-        blocks_z: 6,
-        ..Default::default()
-    })
-    .unwrap();
-    let path = loaded
-        .paths
-        .iter()
-        .find(|(n, _)| n == "street")
-        .unwrap()
-        .1
-        .clone();
-    let scene = Scene::new(loaded.graph).unwrap();
+    let (scene, path) = testkit::street_city(6);
     let h = Hierarchy::from_scene(&scene);
     let meshes = MeshData::from_scene(&scene);
     // Query results arrive K commands after their query in the latency runs.
@@ -139,7 +120,9 @@ fn culled_eye_pass_equals_unculled_and_chc_saves_queries() {
             assert_eq!(diff, 0, "frame {f}: {:?} differs from no culling", kinds[k]);
         }
     }
-    let medians: Vec<u64> = per_frame.iter_mut().map(|v| median(v)).collect();
+    let medians: Vec<u64> = (per_frame.iter())
+        .map(|v| testkit::median(v).unwrap())
+        .collect();
     println!(
         "{:?}\nqueries {queries:?}\nmedian queries per frame {medians:?}\n\
          waits {waits:?}\nrendered {rendered:?}",
@@ -175,22 +158,10 @@ fn culled_eye_pass_equals_unculled_and_chc_saves_queries() {
 /// image is unchanged.
 #[test]
 fn frustum_culling_keeps_the_image() {
-    let loaded = city(&CityParams {
-        blocks_x: 4,
-        blocks_z: 4,
-        ..Default::default()
-    })
-    .unwrap();
-    let pose = loaded
-        .paths
-        .iter()
-        .find(|(n, _)| n == "bird")
-        .unwrap()
-        .1
-        .at(0)
-        .unwrap();
+    let city = testkit::BenchScene::city_blocks(4);
+    let pose = city.path("bird").at(0).unwrap();
     let cam = pose.camera(f64::from(W) / f64::from(H)).unwrap();
-    let scene = Scene::new(loaded.graph).unwrap();
+    let scene = city.scene.clone();
     let h = Hierarchy::from_scene(&scene);
     let meshes = MeshData::from_scene(&scene);
     let mut a = SyncBackend::new(target());

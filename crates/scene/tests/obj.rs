@@ -8,7 +8,7 @@ use scene::{Error, Scene, SceneCounts, SceneGraph};
 use std::path::{Path, PathBuf};
 
 fn data(rel: &str) -> Option<PathBuf> {
-    Some(crate::shared_data()?.join(rel))
+    Some(testkit::shared_data()?.join(rel))
 }
 
 fn scene(graph: SceneGraph) -> Scene {

@@ -13,7 +13,7 @@ use std::time::{Duration, Instant};
 // ---------------------------------------------------------------- helpers
 
 fn edge(rel: &str) -> Option<PathBuf> {
-    Some(crate::shared_data()?.join("edge_gltf").join(rel))
+    Some(testkit::shared_data()?.join("edge_gltf").join(rel))
 }
 
 fn assimp(rel: &str) -> Option<PathBuf> {
@@ -182,7 +182,7 @@ const REAL_SCENES: [Expected; 3] = [
 
 #[test]
 fn gltf_real_scenes_have_the_expected_counts() {
-    let Some(data) = crate::shared_data() else {
+    let Some(data) = testkit::shared_data() else {
         return;
     };
     for x in REAL_SCENES {
@@ -241,7 +241,7 @@ fn gltf_real_scenes_have_the_expected_counts() {
 
 #[test]
 fn gltf_engine_instances_share_meshes() {
-    let Some(data) = crate::shared_data() else {
+    let Some(data) = testkit::shared_data() else {
         return;
     };
     let graph = load_gltf(&data.join("scenes/engine_2cylinder/2CylinderEngine.glb")).unwrap();

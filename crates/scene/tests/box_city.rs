@@ -9,7 +9,7 @@ use scene::{CameraPath, Error, Light, ObjectId, Scene};
 use std::path::{Path, PathBuf};
 
 fn bench(name: &str) -> Option<PathBuf> {
-    Some(crate::shared_data()?.join("bench").join(name))
+    Some(testkit::shared_data()?.join("bench").join(name))
 }
 
 fn path<'a>(l: &'a Loaded, name: &str) -> &'a CameraPath {
@@ -334,8 +334,7 @@ fn box_city_malformed_input_names_the_line() {
 fn box_city_unreadable_or_binary_files_are_errors() {
     let missing = Path::new("/nonexistent/city.txt");
     assert!(matches!(load_box_city(missing), Err(Error::Io { .. })));
-    let dir = std::env::temp_dir().join(format!("shadowcull-box-city-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = testkit::scratch_dir("box-city");
     let file = dir.join("binary.txt");
     std::fs::write(&file, b"citysc 1\nseed 7\n\xff\xfe\n").unwrap();
     let result = load_box_city(&file);

@@ -1,0 +1,47 @@
+//! Helpers shared by shadowcull's integration tests, benches and examples. A
+//! dev-dependency only (`publish = false`): no library crate depends on it.
+//!
+//! - [`shared_data`], [`shared_file`], [`shared_jobs`]: the shared corpus
+//!   (`../shared/data` beside the workspace root), `None` or empty with a
+//!   printed note when it is absent, as in a user's clone;
+//! - [`BenchScene`], [`street_city`]: the bench scenes (the procedural city, the
+//!   box cities of `../shared/data/bench`) with their cameras, paths and lights;
+//! - [`median`];
+//! - [`hierarchical_matches_brute_force`], [`check_hierarchical`]: the
+//!   hierarchical stencil (H) against brute force (BF) on one view;
+//! - [`scratch_dir`]: a fresh temporary directory per process and name.
+
+mod data;
+mod scenes;
+mod stencil;
+
+pub use data::{scratch_dir, shared_data, shared_file, shared_jobs, workspace_root};
+pub use scenes::{street_city, BenchScene};
+pub use stencil::{check_hierarchical, hierarchical_matches_brute_force, HierarchyCheck};
+
+/// The upper median of `values` (the middle element of an odd count, the
+/// upper of the two middle ones of an even count); `None` when empty.
+///
+/// # Panics
+/// When two values are incomparable (a NaN).
+pub fn median<T: Copy + PartialOrd>(values: &[T]) -> Option<T> {
+    let mut v = values.to_vec();
+    v.sort_by(|a, b| {
+        a.partial_cmp(b)
+            .expect("median of incomparable values (NaN)")
+    });
+    v.get(v.len() / 2).copied()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::median;
+
+    #[test]
+    fn median_is_the_upper_middle() {
+        assert_eq!(median::<f64>(&[]), None);
+        assert_eq!(median(&[3.0]), Some(3.0));
+        assert_eq!(median(&[4u64, 1, 3, 2]), Some(3));
+        assert_eq!(median(&[5u64, 1, 3]), Some(3));
+    }
+}
