@@ -212,8 +212,10 @@ impl TriangleBvh {
     }
 
     /// Triangle `prim` relative to the centre.
+    #[inline]
     fn rel(&self, prim: usize) -> [DVec3; 3] {
-        self.tris[prim].map(|p| p - self.center)
+        let ([a, b, c], o) = (self.tris[prim], self.center);
+        [a - o, b - o, c - o]
     }
 
     fn ray(&self, origin: DVec3, dir: DVec3, tmax: f64) -> Ray {
@@ -259,8 +261,9 @@ impl TriangleBvh {
         best
     }
 
-    /// True when some caster blocks the centre-relative shadow ray.
-    fn blocked(&self, ray: &ShadowRay, light: &Light, two_sided: bool) -> bool {
+    /// True when some caster (`casters[prim]`: see [`caster_flags`]) blocks
+    /// the centre-relative shadow ray.
+    fn blocked(&self, ray: &ShadowRay, casters: &[bool]) -> bool {
         let ShadowRay {
             origin,
             dir,
@@ -272,13 +275,12 @@ impl TriangleBvh {
             .bvh
             .ray_traverse_miss(self.ray(origin, dir, tmax), |_, i| {
                 let prim = self.bvh.primitive_indices[i] as usize;
-                if prim == skip || !self.flags[prim].casts {
+                // Only casters count: light-facing triangles, or all when two-sided.
+                if prim == skip || !casters[prim] {
                     return f32::INFINITY;
                 }
-                // Only casters count: light-facing triangles, or all when two-sided.
-                let caster = || two_sided || faces_light(&self.tris[prim], light);
                 match intersect(&self.rel(prim), origin, dir) {
-                    Some(t) if t > tmin && t < tmax && caster() => 0.0,
+                    Some(t) if t > tmin && t < tmax => 0.0,
                     _ => f32::INFINITY,
                 }
             })
@@ -304,7 +306,19 @@ fn tri_box(t: &[DVec3; 3], pad: f32) -> obvhs::aabb::Aabb {
     )
 }
 
+/// Per triangle of `bvh`, whether it can block a shadow ray of `light`: its
+/// object casts, and it faces the light ([`faces_light`]) or every triangle
+/// casts (`two_sided`). Decided once per mask rather than at every hit.
+fn caster_flags(bvh: &TriangleBvh, light: &Light, two_sided: bool) -> Result<Vec<bool>> {
+    let mut casters = try_filled(bvh.tris.len(), false, "the reference's caster flags")?;
+    casters.par_iter_mut().enumerate().for_each(|(k, c)| {
+        *c = bvh.flags[k].casts && (two_sided || faces_light(&bvh.tris[k], light));
+    });
+    Ok(casters)
+}
+
 /// Ray–triangle distance in f64 (Möller–Trumbore), both faces, edges inclusive.
+#[inline]
 fn intersect(tri: &[DVec3; 3], o: DVec3, d: DVec3) -> Option<f64> {
     let e1 = tri[1] - tri[0];
     let e2 = tri[2] - tri[0];
@@ -457,6 +471,7 @@ pub fn try_reference_mask(
     let mut ambiguous = try_filled(n, false, "the reference's ambiguity flags")?;
     let mut primitive = try_filled(n, None, "the reference's primitive ids")?;
     let mut lambert = try_filled(n, 0.0, "the reference's cosines")?;
+    let casters = caster_flags(bvh, light, options.two_sided)?;
     out.par_chunks_mut(width.max(1) as usize)
         .enumerate()
         .for_each(|(y, row)| {
@@ -495,6 +510,7 @@ pub fn try_reference_mask(
                 let classify_at = |q: DVec3, behind_rule: bool| {
                     classify(
                         bvh,
+                        &casters,
                         k,
                         eye,
                         q,
@@ -596,10 +612,12 @@ fn plane_distance(tri: &[DVec3; 3], o: DVec3, d: DVec3) -> f64 {
 }
 
 /// Class of surface point `q` on triangle `k`; `eye` and `q` centre-relative,
-/// `light_rel` the light moved by the same offset, `light` in world space.
+/// `light_rel` the light moved by the same offset, `light` in world space,
+/// `casters` the triangles that can block its shadow ray ([`caster_flags`]).
 #[allow(clippy::too_many_arguments)]
 fn classify(
     bvh: &TriangleBvh,
+    casters: &[bool],
     k: usize,
     eye: DVec3,
     q: DVec3,
@@ -652,7 +670,7 @@ fn classify(
         tmax,
         skip: k,
     };
-    if bvh.blocked(&ray, light, two_sided) {
+    if bvh.blocked(&ray, casters) {
         PixelClass::Shadow
     } else {
         PixelClass::Lit

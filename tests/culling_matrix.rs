@@ -18,6 +18,7 @@
 //! per-light scratch and are reused along a runner's frames.
 
 use glam::{DMat4, DQuat, DVec3, Vec3};
+use rayon::prelude::*;
 use scene::procedural::analytic;
 use scene::{Camera, Light, Mesh, Scene, SceneGraph, Transform};
 use shadowcull::frame::{FrameRunner, LightFrame};
@@ -186,34 +187,67 @@ fn run_case(case: &Case, two_sided: bool) -> Outcome {
                 side(two_sided)
             )
         };
-        let a = plain
-            .frame(frame, cam, &lights, (w, h), &base, false)
-            .unwrap();
+        // The unculled frame, the reference (every n-th frame) and every
+        // culled runner's frame are independent: all in parallel, then the
+        // checks in order.
+        let with_reference = case.reference_every > 0 && frame.is_multiple_of(case.reference_every);
+        let ((a, references), culled_frames) = rayon::join(
+            || {
+                rayon::join(
+                    || {
+                        plain
+                            .frame(frame, cam, &lights, (w, h), &base, false)
+                            .unwrap()
+                    },
+                    || {
+                        with_reference.then(|| {
+                            let eye = eye_pass(&fx.scene, &fx.meshes, cam, w, h).unwrap();
+                            (lights.iter())
+                                .map(|light| {
+                                    reference_mask(
+                                        &fx.bvh,
+                                        cam,
+                                        light,
+                                        w,
+                                        h,
+                                        &ropts,
+                                        Some(eye.surface()),
+                                    )
+                                })
+                                .collect::<Vec<_>>()
+                        })
+                    },
+                )
+            },
+            || {
+                (culled.par_iter_mut())
+                    .map(|((mode, light_resolution), runner)| {
+                        let opts = PipelineOptions {
+                            culling: *mode,
+                            light_resolution: *light_resolution,
+                            ..base
+                        };
+                        runner
+                            .frame(frame, cam, &lights, (w, h), &opts, false)
+                            .unwrap()
+                    })
+                    .collect::<Vec<Vec<LightFrame>>>()
+            },
+        );
         out.totals[0].1.add(&a);
         out.counts
             .push(a.iter().map(|l| l.mask().counts()).collect());
-        if case.reference_every > 0 && frame.is_multiple_of(case.reference_every) {
-            let eye = eye_pass(&fx.scene, &fx.meshes, cam, w, h).unwrap();
-            for (li, (light, lf)) in lights.iter().zip(&a).enumerate() {
-                let r = reference_mask(&fx.bvh, cam, light, w, h, &ropts, Some(eye.surface()));
-                out.references += 1;
-                match reference_rule(&r, lf.mask()) {
-                    Ok(n) => out.compared += n,
-                    Err(e) => out.failures.push(format!("{}: {e}", what(li))),
-                }
+        for (li, (r, lf)) in references.iter().flatten().zip(&a).enumerate() {
+            out.references += 1;
+            match reference_rule(r, lf.mask()) {
+                Ok(n) => out.compared += n,
+                Err(e) => out.failures.push(format!("{}: {e}", what(li))),
             }
         }
-        for (k, ((mode, light_resolution), runner)) in culled.iter_mut().enumerate() {
-            let opts = PipelineOptions {
-                culling: *mode,
-                light_resolution: *light_resolution,
-                ..base
-            };
-            let b = runner
-                .frame(frame, cam, &lights, (w, h), &opts, false)
-                .unwrap();
-            out.totals[k + 1].1.add(&b);
-            for (li, (x, y)) in a.iter().zip(&b).enumerate() {
+        for (k, (((mode, light_resolution), _), b)) in culled.iter().zip(&culled_frames).enumerate()
+        {
+            out.totals[k + 1].1.add(b);
+            for (li, (x, y)) in a.iter().zip(b).enumerate() {
                 let (p, q) = (&x.mask().pixels, &y.mask().pixels);
                 let differ: Vec<(u32, u32, String)> = (0..p.len())
                     .filter(|&i| p[i] != q[i])

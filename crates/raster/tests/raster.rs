@@ -145,7 +145,7 @@ fn draw_one(t: &mut DepthTarget, m: Mat4, tri: [Vec4; 3], object: u32, cov: Cove
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(300))]
+    #![proptest_config(testkit::proptest_config(300))]
 
     /// Coverage equals the f64 reference on the snapped post-clip vertices, and depth
     /// lies within DEPTH_ERROR of the plane through them.

@@ -805,7 +805,7 @@ fn check_bounds(sc: &SceneSpec) -> std::result::Result<u64, TestCaseError> {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(200))]
+    #![proptest_config(testkit::proptest_config(200))]
 
     #[test]
     fn zp_plus_equals_zfail_and_legal_zpass(sc in scene_strategy()) {
@@ -1161,7 +1161,7 @@ fn check_hierarchical(sc: &SceneSpec, seen: &mut HSeen) -> std::result::Result<(
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(100))]
+    #![proptest_config(testkit::proptest_config(100))]
 
     #[test]
     fn hierarchical_equals_brute_force(sc in scene_strategy()) {

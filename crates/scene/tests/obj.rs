@@ -958,7 +958,7 @@ mod fuzz {
     }
 
     proptest! {
-        #![proptest_config(ProptestConfig::with_cases(512))]
+        #![proptest_config(testkit::proptest_config(512))]
 
         /// Random OBJ-like text: loads (and flattens) or fails with an error
         /// naming the file and a line that exists; never panics.

@@ -125,7 +125,7 @@ fn light() -> impl Strategy<Value = Light> {
 // ---------------------------------------------------------------- silhouettes
 
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(96))]
+    #![proptest_config(testkit::proptest_config(96))]
 
     /// Closed consistently wound meshes: silhouette edges have multiplicity 1
     /// and form closed loops (equal in- and out-degree at every vertex).
@@ -613,7 +613,7 @@ fn blockers(s: &Scene, p: DVec3, l: &Light, two_sided: bool) -> Option<i32> {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(512))]
+    #![proptest_config(testkit::proptest_config(512))]
 
     /// The closed volume's signed crossings along a segment e → q equal the
     /// change in the number of casting triangles between each end and the
@@ -686,7 +686,7 @@ proptest! {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(512))]
+    #![proptest_config(testkit::proptest_config(512))]
 
     /// zpass is only chosen when no point of the near rectangle lies in the
     /// caster's shadow (sampled on a grid over the rectangle, both sides of
@@ -724,7 +724,7 @@ proptest! {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(2048))]
+    #![proptest_config(testkit::proptest_config(2048))]
 
     /// Every point in a caster's shadow, inside the scene bounds and in front
     /// of the near plane, projects into the volume's scissor rectangle and
@@ -950,7 +950,7 @@ fn ranged_light() -> impl Strategy<Value = (DVec3, Option<(DVec3, f64)>)> {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(512))]
+    #![proptest_config(testkit::proptest_config(512))]
 
     /// Finite extrusion changes nothing within range: for any mesh, transform,
     /// ranged point or spot light and method, the finite volume's signed

@@ -9,7 +9,9 @@
 //! - [`median`];
 //! - [`hierarchical_matches_brute_force`], [`check_hierarchical`]: the
 //!   hierarchical stencil (H) against brute force (BF) on one view;
-//! - [`scratch_dir`]: a fresh temporary directory per process and name.
+//! - [`scratch_dir`]: a fresh temporary directory per process and name;
+//! - [`proptest_config`]: proptest's configuration with the regressions
+//!   beside each test module (`tests/<module>.proptest-regressions`).
 
 mod data;
 mod scenes;
@@ -18,6 +20,23 @@ mod stencil;
 pub use data::{scratch_dir, shared_data, shared_file, shared_jobs, workspace_root};
 pub use scenes::{street_city, BenchScene};
 pub use stencil::{check_hierarchical, hierarchical_matches_brute_force, HierarchyCheck};
+
+/// Proptest's configuration with `cases` cases (the `PROPTEST_*` environment
+/// otherwise), its failures persisted beside the test's source file:
+/// `tests/shadowgen.rs` keeps its seeds in `tests/shadowgen.proptest-regressions`.
+///
+/// Proptest's default (`SourceParallel`) puts them under a
+/// `proptest-regressions/` directory beside the nearest directory holding a
+/// `lib.rs` or `main.rs`, which, since every crate's integration tests are one
+/// `tests/main.rs` binary, is `<crate>/proptest-regressions/<module>.txt`.
+pub fn proptest_config(cases: u32) -> proptest::test_runner::Config {
+    proptest::test_runner::Config {
+        failure_persistence: Some(Box::new(
+            proptest::test_runner::FileFailurePersistence::WithSource("proptest-regressions"),
+        )),
+        ..proptest::test_runner::Config::with_cases(cases)
+    }
+}
 
 /// The upper median of `values` (the middle element of an odd count, the
 /// upper of the two middle ones of an even count); `None` when empty.
