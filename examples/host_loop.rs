@@ -26,6 +26,7 @@ use shadowcull::scene::{Camera, Light};
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::Arc;
+use testkit::cli::parse_size;
 use testkit::median;
 
 /// The host's thread pool, shared with its pipelines.
@@ -394,15 +395,6 @@ fn counted<T>(f: impl FnOnce() -> T) -> (T, [u64; 3]) {
     COUNTING.store(false, Ordering::SeqCst);
     let counts = [&ALLOCATIONS, &BYTES, &FREED].map(|c| c.load(Ordering::SeqCst));
     (r, counts)
-}
-
-/// `WxH`, e.g. `320x240`.
-fn parse_size(s: &str) -> Result<(u32, u32), String> {
-    let (w, h) = s.split_once('x').ok_or("--size WxH")?;
-    Ok((
-        w.parse().map_err(|e| format!("width: {e}"))?,
-        h.parse().map_err(|e| format!("height: {e}"))?,
-    ))
 }
 
 /// `on` or `off`.

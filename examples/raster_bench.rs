@@ -12,7 +12,6 @@
 //! `visible_boxes` (query passed ≥ 1 sample), `threads`, and counters. Logs go to stderr.
 
 use anyhow::Context;
-use clap::builder::{PossibleValuesParser, TypedValueParser};
 use glam::{DMat4, Vec3, Vec4};
 use raster::{
     aabb_corners, Coverage, CullMode, DepthTarget, DrawItem, QueryMode, QueryOptions, TileSize,
@@ -20,6 +19,7 @@ use raster::{
 };
 use std::path::PathBuf;
 use std::time::Instant;
+use testkit::cli::{name_of, one_of, parse_size};
 use testkit::median;
 
 // The spellings of the flags that choose among fixed values: the parser, its
@@ -31,39 +31,6 @@ const TILES: &[(&str, TileSize)] = &[
     ("8", TileSize::T8),
     ("16", TileSize::T16),
 ];
-
-/// A parser of `table`'s spellings into its values.
-fn one_of<T: Copy + Send + Sync + 'static>(
-    table: &'static [(&'static str, T)],
-) -> impl TypedValueParser<Value = T> {
-    PossibleValuesParser::new(table.iter().map(|(n, _)| *n)).map(move |v| {
-        table
-            .iter()
-            .find(|(n, _)| *n == v)
-            .expect("a listed value")
-            .1
-    })
-}
-
-/// The spelling of `value` in `table`.
-fn name_of<T: PartialEq>(table: &[(&'static str, T)], value: &T) -> &'static str {
-    table
-        .iter()
-        .find(|(_, t)| t == value)
-        .map(|(n, _)| *n)
-        .expect("every value has a spelling")
-}
-
-/// `WxH`, e.g. `1920x1080`.
-fn parse_size(s: &str) -> Result<(u32, u32), String> {
-    let (w, h) = s
-        .split_once('x')
-        .ok_or("resolution must look like 1920x1080")?;
-    Ok((
-        w.parse().map_err(|e| format!("width: {e}"))?,
-        h.parse().map_err(|e| format!("height: {e}"))?,
-    ))
-}
 
 /// A repetition count; 0 counts as 1.
 fn parse_reps(s: &str) -> Result<usize, std::num::ParseIntError> {

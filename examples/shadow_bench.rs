@@ -59,7 +59,6 @@
 //! stencil is non-zero on any surface, 0 elsewhere, row 0 at the top. Logs go to stderr.
 
 use anyhow::{bail, Context};
-use clap::builder::{PossibleValuesParser, TypedValueParser};
 use clap::ArgAction;
 use glam::DVec3;
 use raster::StencilBits;
@@ -73,6 +72,7 @@ use shadowcull::stats::FrameRow;
 use shadowgen::MethodChoice;
 use std::path::PathBuf;
 use std::time::Instant;
+use testkit::cli::{name_of, one_of, parse_size};
 use testkit::median;
 
 // The spellings of the flags that choose among fixed values: a new mode is one row
@@ -107,39 +107,6 @@ const ON_OFF: &[(&str, bool)] = &[("on", true), ("off", false)];
 
 /// The default number of frames of `--path` (the default job's).
 const DEFAULT_FRAMES: u32 = 8;
-
-/// A parser of `table`'s spellings into its values.
-fn one_of<T: Copy + Send + Sync + 'static>(
-    table: &'static [(&'static str, T)],
-) -> impl TypedValueParser<Value = T> {
-    PossibleValuesParser::new(table.iter().map(|(n, _)| *n)).map(move |v| {
-        table
-            .iter()
-            .find(|(n, _)| *n == v)
-            .expect("a listed value")
-            .1
-    })
-}
-
-/// The spelling of `value` in `table`.
-fn name_of<T: PartialEq>(table: &[(&'static str, T)], value: &T) -> &'static str {
-    table
-        .iter()
-        .find(|(_, t)| t == value)
-        .map(|(n, _)| *n)
-        .expect("every value has a spelling")
-}
-
-/// `WxH`, e.g. `1280x1024`.
-fn parse_size(s: &str) -> Result<(u32, u32), String> {
-    let (w, h) = s
-        .split_once('x')
-        .ok_or("resolution must look like 1280x1024")?;
-    Ok((
-        w.parse().map_err(|e| format!("width: {e}"))?,
-        h.parse().map_err(|e| format!("height: {e}"))?,
-    ))
-}
 
 /// `x,y,z`.
 fn parse_vec3(s: &str) -> Result<DVec3, String> {

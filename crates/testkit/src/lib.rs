@@ -10,9 +10,12 @@
 //! - [`hierarchical_matches_brute_force`], [`check_hierarchical`]: the
 //!   hierarchical stencil (H) against brute force (BF) on one view;
 //! - [`scratch_dir`]: a fresh temporary directory per process and name;
+//! - `cli` (feature `cli`): the examples' option tables and `WxH` parser;
 //! - [`proptest_config`]: proptest's configuration with the regressions
 //!   beside each test module (`tests/<module>.proptest-regressions`).
 
+#[cfg(feature = "cli")]
+pub mod cli;
 mod data;
 mod scenes;
 mod stencil;
