@@ -19,6 +19,16 @@ pub enum Error {
     /// Build fewer casters per buffer.
     #[error("volume buffer overflow: more than u32::MAX vertices or indices")]
     BufferOverflow,
+    /// A sweep-and-prune update named more boxes than its keys can hold
+    /// ([`crate::MAX_BOX_ID`]). Split the set over several states.
+    #[error(
+        "sweep-and-prune over {boxes} boxes: ids past {} do not fit its keys",
+        crate::MAX_BOX_ID
+    )]
+    TooManyBoxes {
+        /// The number of boxes passed.
+        boxes: usize,
+    },
 }
 
 /// Result with the crate's [`Error`].

@@ -23,6 +23,8 @@
 //!   or finite extrusion for ranged lights.
 //! - [`MethodChoice`], [`zpass_is_safe`]: near-plane/light pyramid test \[EK\].
 //! - [`volume_bounds`]: per-volume scissor and depth bounds [EK "Exploit Bounds"].
+//! - [`SweepPrune`]: overlapping light-space boxes, kept across frames
+//!   [Steiner §4.4.1], with [`sweep_pairs`] as its from-scratch baseline.
 //! - [`build_volumes`]: all of the above for one light, with [`VolumeStats`].
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
@@ -33,6 +35,7 @@ mod error;
 mod method;
 mod silhouette;
 mod silhouette_cache;
+mod sweep_prune;
 mod volume;
 
 pub use bounds::{volume_bounds, VolumeBounds, BOUNDS_MARGIN};
@@ -41,3 +44,6 @@ pub use error::{Error, Result};
 pub use method::{choose_method, zpass_is_safe, MethodChoice, NearLightHull, ZPASS_MARGIN};
 pub use silhouette::{silhouette, Silhouette, SilhouetteEdge};
 pub use silhouette_cache::SilhouetteCache;
+pub use sweep_prune::{
+    sweep_pairs, ImageRect, SapStats, SweepPrune, DEFAULT_SWAPS_PER_BOX, MAX_BOX_ID,
+};

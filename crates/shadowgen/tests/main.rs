@@ -4,3 +4,4 @@
 
 mod shadowgen;
 mod shared_data;
+mod sweep_prune;

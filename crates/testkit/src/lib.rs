@@ -7,6 +7,7 @@
 //! - [`BenchScene`], [`street_city`]: the bench scenes (the procedural city, the
 //!   box cities of `../shared/data/bench`) with their cameras, paths and lights;
 //! - [`median`];
+//! - [`brute_pairs`], [`bvh_pairs`]: baselines of sweep-and-prune;
 //! - [`hierarchical_matches_brute_force`], [`check_hierarchical`]: the
 //!   hierarchical stencil (H) against brute force (BF) on one view;
 //! - [`scratch_dir`]: a fresh temporary directory per process and name;
@@ -17,10 +18,12 @@
 #[cfg(feature = "cli")]
 pub mod cli;
 mod data;
+mod pairs;
 mod scenes;
 mod stencil;
 
 pub use data::{scratch_dir, shared_data, shared_file, shared_jobs, workspace_root};
+pub use pairs::{brute_pairs, bvh_pairs};
 pub use scenes::{street_city, BenchScene};
 pub use stencil::{check_hierarchical, hierarchical_matches_brute_force, HierarchyCheck};
 
