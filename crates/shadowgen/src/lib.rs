@@ -25,12 +25,15 @@
 //! - [`volume_bounds`]: per-volume scissor and depth bounds [EK "Exploit Bounds"].
 //! - [`SweepPrune`]: overlapping light-space boxes, kept across frames
 //!   [Steiner §4.4.1], with [`sweep_pairs`] as its from-scratch baseline.
+//! - [`occupied_intervals`], [`GapCost`]: the depth intervals a caster's
+//!   volume must cover [Steiner §4.4.1, Listing 4.2].
 //! - [`build_volumes`]: all of the above for one light, with [`VolumeStats`].
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
 mod bounds;
 mod build;
+mod clamp_intervals;
 mod error;
 mod method;
 mod silhouette;
@@ -40,6 +43,7 @@ mod volume;
 
 pub use bounds::{volume_bounds, VolumeBounds, BOUNDS_MARGIN};
 pub use build::{build_volumes, BuildOptions, VolumeStats};
+pub use clamp_intervals::{occupied_intervals, GapArea, GapCost};
 pub use error::{Error, Result};
 pub use method::{choose_method, zpass_is_safe, MethodChoice, NearLightHull, ZPASS_MARGIN};
 pub use silhouette::{silhouette, Silhouette, SilhouetteEdge};
