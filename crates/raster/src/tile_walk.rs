@@ -66,11 +66,8 @@ fn tiles_of(l: &Layout, p: Rect) -> (u32, u32, u32, u32) {
 /// Largest tile edge, in pixels.
 const MAX_TILE: usize = 16;
 
-/// One triangle set up for traversal: the triangle, its coverage rule and the
-/// constants derived from them once per triangle rather than per tile or row.
-struct Prep<'t> {
-    tri: &'t Tri,
-    cov: Coverage,
+/// Per-triangle constants of traversal.
+struct Prep {
     pb: Rect,
     off: [i64; 3],
     step_x: [i64; 3],
@@ -91,14 +88,12 @@ struct Prep<'t> {
 }
 
 #[inline(always)]
-fn prep<'t>(tri: &'t Tri, pb: Rect, cov: Coverage, l: &Layout) -> Prep<'t> {
+fn prep(tri: &Tri, pb: Rect, cov: Coverage, l: &Layout) -> Prep {
     let off = edge_offsets(tri, cov);
     let step_x = tri.e.map(|e| e.a * SUBPIXEL);
     let step_y = tri.e.map(|e| e.b * SUBPIXEL);
     let tiles = tiles_of(l, pb);
     Prep {
-        tri,
-        cov,
         pb,
         off,
         step_x,
@@ -147,8 +142,7 @@ impl RowSamples {
 
 /// Coverage mask and depth of the `n ≤ N` pixels of `row` into `out`.
 #[inline(always)]
-fn eval_row_n<const N: usize>(p: &Prep, row: RowSpan, out: &mut RowSamples) {
-    let tri = p.tri;
+fn eval_row_n<const N: usize>(tri: &Tri, p: &Prep, row: RowSpan, out: &mut RowSamples) {
     let RowSpan { e, n, full } = row;
     let (zs, mask) = (&mut out.zs, &mut out.mask);
     let (z0, z1, z2, inv) = (tri.z[0], tri.z[1], tri.z[2], tri.inv_area);
@@ -177,22 +171,22 @@ fn eval_row_n<const N: usize>(p: &Prep, row: RowSpan, out: &mut RowSamples) {
 
 /// Coverage mask and depth of the pixels of `row` (see [`eval_row_n`]).
 #[inline(always)]
-fn eval_row(p: &Prep, row: RowSpan, out: &mut RowSamples) {
+fn eval_row(tri: &Tri, cov: Coverage, p: &Prep, row: RowSpan, out: &mut RowSamples) {
     let n = row.n;
-    if p.cov == Coverage::Standard {
+    if cov == Coverage::Standard {
         if n <= 4 {
-            eval_row_n::<4>(p, row, out)
+            eval_row_n::<4>(tri, p, row, out)
         } else if n <= 8 {
-            eval_row_n::<8>(p, row, out)
+            eval_row_n::<8>(tri, p, row, out)
         } else {
-            eval_row_n::<16>(p, row, out)
+            eval_row_n::<16>(tri, p, row, out)
         }
     } else if n <= 4 {
-        eval_row_cons_n::<4>(p, row, out)
+        eval_row_cons_n::<4>(tri, cov, p, row, out)
     } else if n <= 8 {
-        eval_row_cons_n::<8>(p, row, out)
+        eval_row_cons_n::<8>(tri, cov, p, row, out)
     } else {
-        eval_row_cons_n::<16>(p, row, out)
+        eval_row_cons_n::<16>(tri, cov, p, row, out)
     }
 }
 
@@ -202,8 +196,13 @@ fn eval_row(p: &Prep, row: RowSpan, out: &mut RowSamples) {
 /// edge values, so bit-identical — in fixed-width loops the compiler can
 /// vectorize (the per-pixel scalar form cost ~20 ns a pixel).
 #[inline(always)]
-fn eval_row_cons_n<const N: usize>(p: &Prep, row: RowSpan, out: &mut RowSamples) {
-    let (tri, cov) = (p.tri, p.cov);
+fn eval_row_cons_n<const N: usize>(
+    tri: &Tri,
+    cov: Coverage,
+    p: &Prep,
+    row: RowSpan,
+    out: &mut RowSamples,
+) {
     let RowSpan { e, n, full } = row;
     let (zs, mask) = (&mut out.zs, &mut out.mask);
     let (z0, z1, z2, inv) = (tri.z[0], tri.z[1], tri.z[2], tri.inv_area);
@@ -231,10 +230,10 @@ fn eval_row_cons_n<const N: usize>(p: &Prep, row: RowSpan, out: &mut RowSamples)
 /// Per-lane edge steps `k·step` of a tile row ([`Prep::kstep`]), and whether lane
 /// `k` of a row of width `T` lies in `lanes.0..=lanes.1`.
 #[inline(always)]
-fn lane_setup<'p, const T: usize>(
-    p: &'p Prep<'_>,
+fn lane_setup<const T: usize>(
+    p: &Prep,
     lanes: (usize, usize),
-) -> (&'p [[f64; MAX_TILE]; 3], [u32; T]) {
+) -> (&[[f64; MAX_TILE]; 3], [u32; T]) {
     // One bit per lane, spread by shifts (no per-lane compare-and-convert).
     let bits = ((2u32 << lanes.1) - 1) & !((1u32 << lanes.0) - 1);
     (&p.kstep, std::array::from_fn(|k| (bits >> k) & 1))
@@ -271,6 +270,7 @@ struct RowAcc {
 /// The arithmetic is that of [`eval_row_n`], so results are bit-identical.
 #[inline(always)]
 fn rows_std<const T: usize>(
+    tri: &Tri,
     p: &Prep,
     span: TileSpan,
     no_test: bool,
@@ -278,7 +278,6 @@ fn rows_std<const T: usize>(
     zmin: f32,
     acc: &mut RowAcc,
 ) {
-    let tri = p.tri;
     let TileSpan { mut e, lanes, full } = span;
     let stepy = p.stepyf;
     let (z0, z1, z2, inv) = (tri.z[0], tri.z[1], tri.z[2], tri.inv_area);
@@ -351,8 +350,12 @@ fn rows_std<const T: usize>(
 /// [`rows_std`], bit for bit, without tests; returns their minimum and maximum.
 /// `e` holds the raw edge values at the tile's first pixel.
 #[inline(always)]
-fn rows_fill<const T: usize>(p: &Prep, mut e: [f64; 3], depth: &mut [f32]) -> (f32, f32) {
-    let tri = p.tri;
+fn rows_fill<const T: usize>(
+    tri: &Tri,
+    p: &Prep,
+    mut e: [f64; 3],
+    depth: &mut [f32],
+) -> (f32, f32) {
     let stepy = p.stepyf;
     let (z0, z1, z2, inv) = (tri.z[0], tri.z[1], tri.z[2], tri.inv_area);
     let (kstep, _) = lane_setup::<T>(p, (0, T - 1));
@@ -386,13 +389,13 @@ fn rows_fill<const T: usize>(p: &Prep, mut e: [f64; 3], depth: &mut [f32]) -> (f
 /// the samples tested to `tested`.
 #[inline(always)]
 fn rows_query<const T: usize>(
+    tri: &Tri,
     p: &Prep,
     span: TileSpan,
     depth: &[f32],
     receivers: Option<&[f32]>,
     tested: &mut u64,
 ) -> u64 {
-    let tri = p.tri;
     let TileSpan { mut e, lanes, full } = span;
     let stepy = p.stepyf;
     let (z0, z1, z2, inv) = (tri.z[0], tri.z[1], tri.z[2], tri.inv_area);
@@ -523,9 +526,9 @@ fn draw_tri_as<const FAST: bool>(
                 let tw = 1usize << l.shift;
                 let depth = &mut band.depth[tile_base..tile_base + (py1 - py0 + 1) as usize * tw];
                 let (zmin, zmax) = match l.shift {
-                    2 => rows_fill::<4>(&p, e0, depth),
-                    3 => rows_fill::<8>(&p, e0, depth),
-                    _ => rows_fill::<16>(&p, e0, depth),
+                    2 => rows_fill::<4>(tri, &p, e0, depth),
+                    3 => rows_fill::<8>(tri, &p, e0, depth),
+                    _ => rows_fill::<16>(tri, &p, e0, depth),
                 };
                 let n = u64::from((px1 - px0 + 1) * (py1 - py0 + 1));
                 st.pixels_tested += n;
@@ -556,9 +559,9 @@ fn draw_tri_as<const FAST: bool>(
                 let start = tile_base + (py0 - rect.2) as usize * tw;
                 let depth = &mut band.depth[start..start + (py1 - py0 + 1) as usize * tw];
                 match l.shift {
-                    2 => rows_std::<4>(&p, span, no_test, depth, tb.zmin, &mut acc),
-                    3 => rows_std::<8>(&p, span, no_test, depth, tb.zmin, &mut acc),
-                    _ => rows_std::<16>(&p, span, no_test, depth, tb.zmin, &mut acc),
+                    2 => rows_std::<4>(tri, &p, span, no_test, depth, tb.zmin, &mut acc),
+                    3 => rows_std::<8>(tri, &p, span, no_test, depth, tb.zmin, &mut acc),
+                    _ => rows_std::<16>(tri, &p, span, no_test, depth, tb.zmin, &mut acc),
                 }
                 tested = u64::from(acc.tested);
                 written = u64::from(acc.written);
@@ -573,7 +576,7 @@ fn draw_tri_as<const FAST: bool>(
                         n,
                         full: c.full,
                     };
-                    eval_row(&p, span, &mut samples);
+                    eval_row(tri, cov, &p, span, &mut samples);
                     let (zs, mask) = (&samples.zs, &samples.mask);
                     let row = tile_base + (((y - rect.2) << l.shift) + (px0 - rect.0)) as usize;
                     let depth = &mut band.depth[row..row + n];
@@ -781,9 +784,9 @@ fn query_tri_as<const STANDARD: bool>(
                 let rec = v.receivers.map(|r| &r[start..end]);
                 let mut tested = 0u64;
                 let pass = match l.shift {
-                    2 => rows_query::<4>(&p, span, depth, rec, &mut tested),
-                    3 => rows_query::<8>(&p, span, depth, rec, &mut tested),
-                    _ => rows_query::<16>(&p, span, depth, rec, &mut tested),
+                    2 => rows_query::<4>(tri, &p, span, depth, rec, &mut tested),
+                    3 => rows_query::<8>(tri, &p, span, depth, rec, &mut tested),
+                    _ => rows_query::<16>(tri, &p, span, depth, rec, &mut tested),
                 };
                 st.pixels_tested += tested;
                 if pass > 0 {
@@ -800,7 +803,7 @@ fn query_tri_as<const STANDARD: bool>(
                     n,
                     full: c.full,
                 };
-                eval_row(&p, span, &mut samples);
+                eval_row(tri, cov, &p, span, &mut samples);
                 let (zs, mask) = (&samples.zs, &samples.mask);
                 let row = tile_base + (((y - rect.2) << l.shift) + (px0 - rect.0)) as usize;
                 let depth = &v.depth[row..row + n];
@@ -887,7 +890,7 @@ mod tests {
                         n: 16,
                         full: false,
                     };
-                    eval_row(&p, span, &mut samples);
+                    eval_row(&tri, cov, &p, span, &mut samples);
                     let (zs, mask) = (samples.zs, samples.mask);
                     for k in 0..16 {
                         let ek = [0, 1, 2].map(|i| e[i] + k as i64 * p.step_x[i]);
