@@ -84,31 +84,41 @@ fn unlit_by_facing(tri: &[DVec3; 3], eye: DVec3, light: &Light, two_sided: bool)
     }
 }
 
+/// The view a mask is assembled for: the camera and the image it renders,
+/// `width × height` pixels, row 0 at the top, pixel centres at +0.5.
+#[derive(Clone, Copy, Debug)]
+pub struct View<'a> {
+    /// The eye.
+    pub camera: &'a Camera,
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+}
+
 /// Assembles the four-class mask from the raw stencil and the eye pass's
-/// primitive ids (DESIGN.md "Masks"): background where no primitive; unlit
-/// where [`is_unlit`] says so for the visible triangle (world space, from
-/// [`Scene::world_triangle`]) at the pixel's surface point (the pixel-centre
-/// eye ray meeting that triangle's plane, in f64); otherwise shadow where
-/// `shadowed(pixel)` (stencil ≠ 0) and the object receives shadows
-/// ([`scene::ObjectFlags::receives`]), else lit.
+/// primitive ids (DESIGN.md "Masks") for `view`: background where no
+/// primitive; unlit where [`is_unlit`] says so for the visible triangle (world
+/// space, from [`Scene::world_triangle`]) at the pixel's surface point (the
+/// pixel-centre eye ray meeting that triangle's plane, in f64); otherwise
+/// shadow where `shadowed(pixel)` (stencil ≠ 0) and the object receives shadows
+/// ([`scene::ObjectFlags::receives`]), else lit. `two_sided`: every triangle
+/// casts, as in [`is_unlit`].
 ///
 /// # Panics
-/// If `primitive` is not `width × height` long or names an object or
-/// triangle not in `scene`.
-#[allow(clippy::too_many_arguments)]
+/// If `primitive` is not `view.width × view.height` long or names an object
+/// or triangle not in `scene`.
 pub fn assemble(
     scene: &Scene,
-    camera: &Camera,
+    view: View<'_>,
     light: &Light,
-    width: u32,
-    height: u32,
     primitive: &[Option<(ObjectId, u32)>],
     shadowed: impl Fn(usize) -> bool + Sync,
     two_sided: bool,
 ) -> Mask {
     let mut mask = Mask::filled(0, 0, PixelClass::Background);
     assemble_into(
-        scene, camera, light, width, height, primitive, shadowed, two_sided, &mut mask,
+        scene, view, light, primitive, shadowed, two_sided, &mut mask,
     );
     mask
 }
@@ -117,18 +127,20 @@ pub fn assemble(
 ///
 /// # Panics
 /// As [`assemble`].
-#[allow(clippy::too_many_arguments)]
 pub fn assemble_into(
     scene: &Scene,
-    camera: &Camera,
+    view: View<'_>,
     light: &Light,
-    width: u32,
-    height: u32,
     primitive: &[Option<(ObjectId, u32)>],
     shadowed: impl Fn(usize) -> bool + Sync,
     two_sided: bool,
     mask: &mut Mask,
 ) {
+    let View {
+        camera,
+        width,
+        height,
+    } = view;
     assert_eq!(
         primitive.len(),
         width as usize * height as usize,

@@ -409,7 +409,6 @@ fn try_filled<T: Clone>(n: usize, value: T, what: &str) -> Result<Vec<T>> {
 /// # Panics
 /// If `surface` has a size other than `width × height`, or names a primitive
 /// that is not in the scene.
-#[allow(clippy::too_many_arguments)]
 pub fn try_reference_mask(
     bvh: &TriangleBvh,
     camera: &Camera,
@@ -472,6 +471,14 @@ pub fn try_reference_mask(
     let mut primitive = try_filled(n, None, "the reference's primitive ids")?;
     let mut lambert = try_filled(n, 0.0, "the reference's cosines")?;
     let casters = caster_flags(bvh, light, options.two_sided)?;
+    let shadow_rays = ShadowRays {
+        bvh,
+        casters: &casters,
+        eye,
+        light,
+        light_rel: &light_rel,
+        two_sided: options.two_sided,
+    };
     out.par_chunks_mut(width.max(1) as usize)
         .enumerate()
         .for_each(|(y, row)| {
@@ -507,20 +514,8 @@ pub fn try_reference_mask(
                     (db - depth).abs() / dir.dot(forward)
                 });
                 let window = delta.max(2.0 * buffer_error);
-                let classify_at = |q: DVec3, behind_rule: bool| {
-                    classify(
-                        bvh,
-                        &casters,
-                        k,
-                        eye,
-                        q,
-                        delta,
-                        light,
-                        &light_rel,
-                        options.two_sided,
-                        behind_rule,
-                    )
-                };
+                let classify_at =
+                    |q: DVec3, behind_rule: bool| shadow_rays.classify(k, q, delta, behind_rule);
                 let c = classify_at(p, true);
                 // Probes ask what the class would be were the surface there: only
                 // the surface's own triangle and hits within δ are ignored.
@@ -611,69 +606,84 @@ fn plane_distance(tri: &[DVec3; 3], o: DVec3, d: DVec3) -> f64 {
         .unwrap_or(f64::INFINITY)
 }
 
-/// Class of surface point `q` on triangle `k`; `eye` and `q` centre-relative,
-/// `light_rel` the light moved by the same offset, `light` in world space,
-/// `casters` the triangles that can block its shadow ray ([`caster_flags`]).
-#[allow(clippy::too_many_arguments)]
-fn classify(
-    bvh: &TriangleBvh,
-    casters: &[bool],
-    k: usize,
+/// What every shadow ray of one reference mask shares: the scene, the
+/// triangles that can block the light, the eye and the light.
+struct ShadowRays<'a> {
+    bvh: &'a TriangleBvh,
+    /// Per triangle of `bvh`, whether it can block a shadow ray ([`caster_flags`]).
+    casters: &'a [bool],
+    /// The eye, centre-relative (as the BVH's triangles are).
     eye: DVec3,
-    q: DVec3,
-    delta: f64,
-    light: &Light,
-    light_rel: &Light,
+    /// The light in world space.
+    light: &'a Light,
+    /// The light moved by the same offset as `eye`.
+    light_rel: &'a Light,
+    /// Every triangle casts, not only light-facing ones.
     two_sided: bool,
-    behind_rule: bool,
-) -> PixelClass {
-    let c = bvh.center;
-    if is_unlit(&bvh.tris[k], eye + c, light, q + c, two_sided) {
-        return PixelClass::Unlit;
-    }
-    if !bvh.flags[k].receives {
-        return PixelClass::Lit;
-    }
-    let tri = bvh.rel(k);
-    let (dir, tmax) = match light_rel.position() {
-        Some(l) => {
-            let v = l - q;
-            let len = v.length();
-            if len == 0.0 {
-                return PixelClass::Lit;
-            }
-            (v / len, len)
+}
+
+impl ShadowRays<'_> {
+    /// Class of surface point `q` (centre-relative) on triangle `k`; `delta` is
+    /// the distance a shadow ray starts away from `q`; `behind_rule`: a point
+    /// behind the visible side of its triangle is shadowed from where its ray
+    /// leaves the triangle's plane.
+    fn classify(&self, k: usize, q: DVec3, delta: f64, behind_rule: bool) -> PixelClass {
+        let ShadowRays {
+            bvh,
+            casters,
+            eye,
+            light,
+            light_rel,
+            two_sided,
+        } = *self;
+        let c = bvh.center;
+        if is_unlit(&bvh.tris[k], eye + c, light, q + c, two_sided) {
+            return PixelClass::Unlit;
         }
-        None => (light_rel.toward_light(q).normalize(), f64::INFINITY),
-    };
-    // Where the shadow ray leaves the surface's plane (when q is behind it).
-    let n = (tri[1] - tri[0]).cross(tri[2] - tri[0]);
-    let side_eye = n.dot(eye - tri[0]).signum();
-    let behind = n.dot(q - tri[0]) * side_eye; // < 0: q behind the visible side
-    let mut tmin = delta;
-    if behind_rule && behind < 0.0 {
-        let den = n.dot(dir);
-        if den != 0.0 {
-            let t_plane = n.dot(tri[0] - q) / den;
-            if t_plane > 0.0 {
-                tmin = t_plane + delta;
+        if !bvh.flags[k].receives {
+            return PixelClass::Lit;
+        }
+        let tri = bvh.rel(k);
+        let (dir, tmax) = match light_rel.position() {
+            Some(l) => {
+                let v = l - q;
+                let len = v.length();
+                if len == 0.0 {
+                    return PixelClass::Lit;
+                }
+                (v / len, len)
+            }
+            None => (light_rel.toward_light(q).normalize(), f64::INFINITY),
+        };
+        // Where the shadow ray leaves the surface's plane (when q is behind it).
+        let n = (tri[1] - tri[0]).cross(tri[2] - tri[0]);
+        let side_eye = n.dot(eye - tri[0]).signum();
+        let behind = n.dot(q - tri[0]) * side_eye; // < 0: q behind the visible side
+        let mut tmin = delta;
+        if behind_rule && behind < 0.0 {
+            let den = n.dot(dir);
+            if den != 0.0 {
+                let t_plane = n.dot(tri[0] - q) / den;
+                if t_plane > 0.0 {
+                    tmin = t_plane + delta;
+                }
             }
         }
-    }
-    if tmin >= tmax {
-        return PixelClass::Lit;
-    }
-    let ray = ShadowRay {
-        origin: q,
-        dir,
-        tmin,
-        tmax,
-        skip: k,
-    };
-    if bvh.blocked(&ray, casters) {
-        PixelClass::Shadow
-    } else {
-        PixelClass::Lit
+        if tmin >= tmax {
+            return PixelClass::Lit;
+        }
+        let ray = ShadowRay {
+            origin: q,
+            dir,
+            tmin,
+            tmax,
+            skip: k,
+        };
+        if bvh.blocked(&ray, casters) {
+            PixelClass::Shadow
+        } else {
+            PixelClass::Lit
+        }
     }
 }
 

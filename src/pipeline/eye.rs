@@ -450,15 +450,10 @@ pub(crate) fn eye_pass_culled_into(
     let mut backend = raster::SyncBackend::reusing(target, queries);
     let clip = |w: &glam::DMat4| scene::transform::clip_from_local(camera, w);
     let view = visibility::ViewSetup::eye_sampled(camera, &clip, threshold, sampling);
-    state.culler.cull_into(
-        &state.hierarchy,
-        scene,
-        &state.meshes,
-        &view,
-        culling,
-        &mut backend,
-        &mut state.result,
-    )?;
+    let objects = visibility::Objects::new(&state.hierarchy, scene, &state.meshes);
+    state
+        .culler
+        .cull_into(objects, &view, culling, &mut backend, &mut state.result)?;
     let (mut target, queries) = backend.into_parts();
     state.queries = queries;
     // Visible objects that may not occlude were left out of the traversal's
@@ -491,10 +486,9 @@ pub(crate) fn cull_with(
         options.query_threshold,
         options.coverage.sampling(),
     );
+    let objects = visibility::Objects::new(&state.hierarchy, scene, &state.meshes);
     Ok(state.culler.cull_into(
-        &state.hierarchy,
-        scene,
-        &state.meshes,
+        objects,
         &view,
         options.culling(),
         backend,

@@ -7,7 +7,7 @@ use super::eye::EyePass;
 use super::shadow_options::ShadowInput;
 pub use super::shadow_options::{Backend, ShadowOptions};
 use super::volume::build_for;
-use crate::mask::{assemble_into, Mask, PixelClass};
+use crate::mask::{assemble_into, Mask, PixelClass, View};
 use crate::Result;
 use raster::{
     HierarchicalOptions, HierarchicalStencil, StencilStats, StencilTarget, TileClass, TileSize,
@@ -274,12 +274,15 @@ pub(crate) fn stencil_volumes(
     scratch.ranges = recycle(ranges);
     let volume_triangles = stats.triangles;
     let shadowed = |i: usize| raw_nonzero[i];
+    let view = View {
+        camera,
+        width: w,
+        height: h,
+    };
     assemble_into(
         scene,
-        camera,
+        view,
         light,
-        w,
-        h,
         &eye.primitive,
         shadowed,
         options.two_sided,

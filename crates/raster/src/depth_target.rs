@@ -6,6 +6,14 @@
 //! Background (never written) pixels hold [`BACKGROUND`] (−1, below every
 //! legal depth), so the GREATER write test and the GEQUAL query test treat them
 //! as "no surface" without a branch; tile bounds ignore them.
+//!
+//! `impl DepthTarget` is spread over three files, one per concern: this one
+//! holds the storage and its accessors (size, settings, clearing, reading
+//! pixels and tile bounds), `draw.rs` the drawing of occluders and
+//! `query.rs` the occlusion queries. Each of those two files is one
+//! algorithm built on the storage, so each imports `depth_target` and this
+//! module imports neither: the dependency runs one way, and a change to the
+//! drawing or the queries never touches the storage's file.
 
 use crate::hiz::RowSkip;
 use crate::isa::InstructionSet;

@@ -19,7 +19,7 @@ use crate::hiz::{hidden, project, project_lanes, project_wide, Projected, RowSki
 use crate::isa::InstructionSet;
 use crate::item::{setup_item, DrawItem, TriSink};
 use crate::layout::TileRows;
-use crate::query_options::{meets_apex_region, APEX_EPS, VISIBLE};
+use crate::query_options::{meets_apex_region, QueryMode, QueryOptions, APEX_EPS, VISIBLE};
 use crate::setup::{widen, VertexCache, Viewport, CACHE_VERTICES};
 use crate::stats::RasterStats;
 use crate::tile_walk::{draw_tri, probe_passes, query_tri, QueryView};
@@ -44,26 +44,26 @@ fn screen_bounds(vp: &Viewport, item: &DrawItem, cache: &mut VertexCache) -> Pro
 /// compiled once per level. (The `multiversion` crate was evaluated instead:
 /// its dispatch picks the best detected level by itself and cannot run a level
 /// the caller chooses, which the cap and the bit-for-bit test need.)
+///
+/// The functions take at most six arguments besides `isa` (clippy's limit is
+/// seven): what belongs together travels as one struct ([`BandTarget`],
+/// [`DrawMode`], [`QueryOptions`]).
 macro_rules! multiversioned {
     ($(
         $(#[$m:meta])*
         fn $name:ident ($($a:ident : $t:ty),* $(,)?) -> $r:ty $body:block
     )*) => {$(
         $(#[$m])*
-        #[allow(clippy::too_many_arguments)]
         pub(crate) fn $name(isa: InstructionSet, $($a: $t),*) -> $r {
             #[inline(always)]
-            #[allow(clippy::too_many_arguments)]
             fn imp($($a: $t),*) -> $r $body
             #[cfg(target_arch = "x86_64")]
             {
                 #[target_feature(enable = "avx2")]
-                #[allow(clippy::too_many_arguments)]
                 fn avx2($($a: $t),*) -> $r {
                     imp($($a),*)
                 }
                 #[target_feature(enable = "avx512f,avx512vl,avx512bw,avx512dq,avx2")]
-                #[allow(clippy::too_many_arguments)]
                 fn avx512($($a: $t),*) -> $r {
                     imp($($a),*)
                 }
@@ -83,21 +83,42 @@ macro_rules! multiversioned {
     )*};
 }
 
+/// Where [`draw_mesh`] draws: a band of tile rows with the band's own
+/// hierarchical-z row skip (scratch, recomputed per mesh) and traversal
+/// counters. A parallel draw has one per band.
+pub(crate) struct BandTarget<'a, 'b> {
+    /// The band's tile rows.
+    pub rows: &'a mut TileRows<'b>,
+    /// The band's rows a mesh's bounds show hidden.
+    pub skip: &'a mut RowSkip,
+    /// Traversal counters (tiles and pixels) of the band.
+    pub st: &'a mut RasterStats,
+}
+
+/// How [`draw_mesh`] rasterizes a mesh: the coverage rule and which faces it
+/// skips.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct DrawMode {
+    pub cov: Coverage,
+    pub cull: CullMode,
+}
+
 multiversioned! {
-    /// Draws one mesh into the rows of `band`: vertex stage, screen bounds
+    /// Draws one mesh into the rows of `target`: vertex stage, screen bounds
     /// (`projected`, or computed here), hierarchical-z skip of its hidden tile rows
-    /// (false: skipped whole, nothing counted), then setup and traversal.
+    /// (false: skipped whole, nothing counted), then setup and traversal. Setup
+    /// counters (triangles in, clipped, culled) go to `st_setup`, apart from the
+    /// band's traversal counters: a parallel draw reports each item's setup once.
     fn draw_mesh(
         vp: &Viewport,
-        band: &mut TileRows,
+        target: BandTarget,
         item: &DrawItem,
-        cov: Coverage,
-        cull: CullMode,
-        skip: &mut RowSkip,
+        mode: DrawMode,
         projected: Option<&Projected>,
         st_setup: &mut RasterStats,
-        st: &mut RasterStats,
     ) -> Result<bool> {
+        let BandTarget { rows: band, skip, st } = target;
+        let DrawMode { cov, cull } = mode;
         // The cache is filled in place (moving it costs a copy per mesh).
         let small = item.positions.len() <= CACHE_VERTICES;
         let mut cache = VertexCache::empty();
@@ -157,16 +178,18 @@ multiversioned! {
         }
     }
 
-    /// Counts the samples of `item` passing the query test (1 at the first with `any`).
+    /// Counts the samples of `item` passing the query test (1 at the first with
+    /// [`QueryMode::Any`]). Setup counters go to `st_setup`, traversal counters
+    /// to `st`.
     fn query_mesh(
         vp: &Viewport,
         view: &QueryView,
         item: &DrawItem,
-        cov: Coverage,
-        any: bool,
+        opts: QueryOptions,
         st_setup: &mut RasterStats,
         st: &mut RasterStats,
     ) -> Result<u64> {
+        let (cov, any) = (opts.coverage, opts.mode == QueryMode::Any);
         let small = item.positions.len() <= CACHE_VERTICES;
         let mut cache = VertexCache::empty();
         if small {
@@ -194,10 +217,10 @@ multiversioned! {
         view: &QueryView,
         clip_from_local: &Mat4,
         bounds: (Vec3, Vec3),
-        cov: Coverage,
-        any: bool,
+        opts: QueryOptions,
         st: &mut RasterStats,
     ) -> u32 {
+        let (cov, any) = (opts.coverage, opts.mode == QueryMode::Any);
         let (min, max) = bounds;
         use crate::item::{AABB_TRIANGLES, aabb_corners};
         st.queries += 1;
@@ -385,6 +408,7 @@ mod tests {
     }
 
     fn compare(level: InstructionSet, ids: bool, tile: TileSize, cull: CullMode) {
+        use InstructionSet::Portable;
         let (w, h) = (77u32, 53u32);
         let vp = Viewport::new(w, h);
         let mut a = DepthTarget::new(w, h, tile, ids).unwrap();
@@ -433,61 +457,34 @@ mod tests {
                 triangles: &crate::item::AABB_TRIANGLES,
                 object: 1000 + k,
             };
+            let mode = DrawMode { cov, cull };
             for it in [&item, &boxed] {
                 let (mut ra, mut rb) = (RowSkip::new(), RowSkip::new());
-                let da = draw_mesh(
-                    level,
-                    &vp,
-                    &mut band(&mut a),
-                    it,
-                    cov,
-                    cull,
-                    &mut ra,
-                    None,
-                    &mut sa,
-                    &mut ta,
-                )
-                .unwrap();
-                let db = draw_mesh(
-                    InstructionSet::Portable,
-                    &vp,
-                    &mut band(&mut b),
-                    it,
-                    cov,
-                    cull,
-                    &mut rb,
-                    None,
-                    &mut sb,
-                    &mut tb,
-                )
-                .unwrap();
+                let target_a = BandTarget {
+                    rows: &mut band(&mut a),
+                    skip: &mut ra,
+                    st: &mut ta,
+                };
+                let da = draw_mesh(level, &vp, target_a, it, mode, None, &mut sa).unwrap();
+                let target_b = BandTarget {
+                    rows: &mut band(&mut b),
+                    skip: &mut rb,
+                    st: &mut tb,
+                };
+                let db = draw_mesh(Portable, &vp, target_b, it, mode, None, &mut sb).unwrap();
                 assert_eq!(da, db);
             }
             let view = a.query_view(None);
-            for any in [false, true] {
-                let qa = query_mesh(level, &vp, &view, &item, cov, any, &mut sa, &mut ta);
-                let qb = query_mesh(
-                    InstructionSet::Portable,
-                    &vp,
-                    &view,
-                    &item,
-                    cov,
-                    any,
-                    &mut sb,
-                    &mut tb,
-                );
+            for mode in [QueryMode::Count, QueryMode::Any] {
+                let opts = QueryOptions {
+                    coverage: cov,
+                    mode,
+                };
+                let qa = query_mesh(level, &vp, &view, &item, opts, &mut sa, &mut ta);
+                let qb = query_mesh(Portable, &vp, &view, &item, opts, &mut sb, &mut tb);
                 assert_eq!(qa.unwrap(), qb.unwrap());
-                let ba = query_box(level, &vp, &view, &m, (lo, hi), cov, any, &mut sa);
-                let bb = query_box(
-                    InstructionSet::Portable,
-                    &vp,
-                    &view,
-                    &m,
-                    (lo, hi),
-                    cov,
-                    any,
-                    &mut sb,
-                );
+                let ba = query_box(level, &vp, &view, &m, (lo, hi), opts, &mut sa);
+                let bb = query_box(Portable, &vp, &view, &m, (lo, hi), opts, &mut sb);
                 assert_eq!(ba, bb);
             }
         }

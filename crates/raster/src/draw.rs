@@ -5,9 +5,9 @@
 
 use crate::coverage::Coverage;
 use crate::depth_target::DepthTarget;
-use crate::dispatch::draw_mesh;
 #[cfg(feature = "parallel")]
 use crate::dispatch::project_items;
+use crate::dispatch::{draw_mesh, BandTarget, DrawMode};
 #[cfg(feature = "parallel")]
 use crate::hiz::{hidden, Projected, RowSkip};
 use crate::item::{aabb_corners, check_indices, DrawItem, AABB_TRIANGLES};
@@ -115,18 +115,16 @@ impl DepthTarget {
                 tiles: &mut self.tiles[t0..t1],
             };
             let mut st2 = RasterStats::default();
-            match draw_mesh(
-                self.isa,
-                &vp,
-                &mut band,
-                item,
+            let target = BandTarget {
+                rows: &mut band,
+                skip: &mut self.skip,
+                st: &mut st2,
+            };
+            let mode = DrawMode {
                 cov,
-                self.cull,
-                &mut self.skip,
-                None,
-                &mut st,
-                &mut st2,
-            ) {
+                cull: self.cull,
+            };
+            match draw_mesh(self.isa, &vp, target, item, mode, None, &mut st) {
                 Ok(d) => drawn = d,
                 Err(e) => {
                     drawn = true;
@@ -226,7 +224,11 @@ impl DepthTarget {
         use rayon::prelude::*;
         let vp = self.vp;
         let l = self.layout;
-        let (cull, isa) = (self.cull, self.isa);
+        let isa = self.isa;
+        let mode = DrawMode {
+            cov,
+            cull: self.cull,
+        };
         // (Indices were checked by `draw_batch`.)
         // Screen bounds of every item (in parallel, order kept).
         let mut projected = vec![Projected::Offscreen; items.len()];
@@ -286,19 +288,13 @@ impl DepthTarget {
                         }
                     }
                     let mut sst = RasterStats::default();
+                    let target = BandTarget {
+                        rows: &mut band,
+                        skip: &mut skip,
+                        st: &mut st,
+                    };
                     // Indices were checked above.
-                    let drawn = draw_mesh(
-                        isa,
-                        &vp,
-                        &mut band,
-                        it,
-                        cov,
-                        cull,
-                        &mut skip,
-                        Some(p),
-                        &mut sst,
-                        &mut st,
-                    );
+                    let drawn = draw_mesh(isa, &vp, target, it, mode, Some(p), &mut sst);
                     if !matches!(drawn, Ok(true)) {
                         continue;
                     }

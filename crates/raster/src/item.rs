@@ -126,7 +126,6 @@ pub(crate) fn setup_item(
 
 /// [`setup_item`]; `CACHED`: `cache` is `Some`.
 #[inline(always)]
-#[allow(clippy::too_many_arguments)]
 fn setup_item_as<const CACHED: bool>(
     vp: &Viewport,
     item: &DrawItem,

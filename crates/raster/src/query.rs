@@ -60,18 +60,8 @@ impl DepthTarget {
         st: &mut RasterStats,
     ) -> Result<u32> {
         let view = self.query_view(receivers);
-        let any = opts.mode == QueryMode::Any;
         let mut st2 = RasterStats::default();
-        let count = query_mesh(
-            self.isa,
-            &self.vp,
-            &view,
-            item,
-            opts.coverage,
-            any,
-            st,
-            &mut st2,
-        )?;
+        let count = query_mesh(self.isa, &self.vp, &view, item, *opts, st, &mut st2)?;
         st.add(&st2);
         st.queries += 1;
         Ok(count.min(u64::from(VISIBLE - 1)) as u32)
@@ -127,15 +117,14 @@ impl DepthTarget {
         st: &mut RasterStats,
     ) -> Result<u32> {
         let view = self.query_view(receivers);
-        let any = opts.mode == QueryMode::Any;
+        let bounds = (min, max);
         Ok(query_box(
             self.isa,
             &self.vp,
             &view,
             &clip_from_local,
-            (min, max),
-            opts.coverage,
-            any,
+            bounds,
+            *opts,
             st,
         ))
     }

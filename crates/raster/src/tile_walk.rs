@@ -111,18 +111,40 @@ fn prep(tri: &Tri, pb: Rect, cov: Coverage, l: &Layout) -> Prep {
     }
 }
 
-/// Coverage mask and depth of `n ≤ N` pixels of a row whose first pixel has raw
-/// edge values `e` (exact integers held in f64: all below 2⁵³).
-#[inline(always)]
-fn eval_row_n<const N: usize>(
-    tri: &Tri,
-    p: &Prep,
-    full: bool,
+/// The first `n` pixels of one row of a tile, as the per-pixel row loops see
+/// them.
+#[derive(Clone, Copy)]
+struct RowSpan {
+    /// Raw edge values at the first pixel (exact integers held in f64: all
+    /// below 2⁵³).
     e: [f64; 3],
+    /// Pixels in the row, at most [`MAX_TILE`].
     n: usize,
-    zs: &mut [f32; MAX_TILE],
-    mask: &mut [bool; MAX_TILE],
-) {
+    /// Every in-target pixel of the tile is covered ([`TileClass::full`]).
+    full: bool,
+}
+
+/// Per pixel of a [`RowSpan`]: its depth and whether it is covered.
+struct RowSamples {
+    zs: [f32; MAX_TILE],
+    mask: [bool; MAX_TILE],
+}
+
+impl RowSamples {
+    #[inline(always)]
+    fn new() -> Self {
+        RowSamples {
+            zs: [0.0; MAX_TILE],
+            mask: [false; MAX_TILE],
+        }
+    }
+}
+
+/// Coverage mask and depth of the `n ≤ N` pixels of `row` into `out`.
+#[inline(always)]
+fn eval_row_n<const N: usize>(tri: &Tri, p: &Prep, row: RowSpan, out: &mut RowSamples) {
+    let RowSpan { e, n, full } = row;
+    let (zs, mask) = (&mut out.zs, &mut out.mask);
     let (z0, z1, z2, inv) = (tri.z[0], tri.z[1], tri.z[2], tri.inv_area);
     if full {
         // Every pixel of the tile is covered: depth only.
@@ -147,33 +169,24 @@ fn eval_row_n<const N: usize>(
     }
 }
 
-/// Coverage mask and depth of the `n` pixels of a row (see [`eval_row_n`]).
+/// Coverage mask and depth of the pixels of `row` (see [`eval_row_n`]).
 #[inline(always)]
-#[allow(clippy::too_many_arguments)]
-fn eval_row(
-    tri: &Tri,
-    cov: Coverage,
-    p: &Prep,
-    full: bool,
-    e: [f64; 3],
-    n: usize,
-    zs: &mut [f32; MAX_TILE],
-    mask: &mut [bool; MAX_TILE],
-) {
+fn eval_row(tri: &Tri, cov: Coverage, p: &Prep, row: RowSpan, out: &mut RowSamples) {
+    let n = row.n;
     if cov == Coverage::Standard {
         if n <= 4 {
-            eval_row_n::<4>(tri, p, full, e, n, zs, mask)
+            eval_row_n::<4>(tri, p, row, out)
         } else if n <= 8 {
-            eval_row_n::<8>(tri, p, full, e, n, zs, mask)
+            eval_row_n::<8>(tri, p, row, out)
         } else {
-            eval_row_n::<16>(tri, p, full, e, n, zs, mask)
+            eval_row_n::<16>(tri, p, row, out)
         }
     } else if n <= 4 {
-        eval_row_cons_n::<4>(tri, cov, p, full, e, n, zs, mask)
+        eval_row_cons_n::<4>(tri, cov, p, row, out)
     } else if n <= 8 {
-        eval_row_cons_n::<8>(tri, cov, p, full, e, n, zs, mask)
+        eval_row_cons_n::<8>(tri, cov, p, row, out)
     } else {
-        eval_row_cons_n::<16>(tri, cov, p, full, e, n, zs, mask)
+        eval_row_cons_n::<16>(tri, cov, p, row, out)
     }
 }
 
@@ -183,17 +196,15 @@ fn eval_row(
 /// edge values, so bit-identical — in fixed-width loops the compiler can
 /// vectorize (the per-pixel scalar form cost ~20 ns a pixel).
 #[inline(always)]
-#[allow(clippy::too_many_arguments)]
 fn eval_row_cons_n<const N: usize>(
     tri: &Tri,
     cov: Coverage,
     p: &Prep,
-    full: bool,
-    e: [f64; 3],
-    n: usize,
-    zs: &mut [f32; MAX_TILE],
-    mask: &mut [bool; MAX_TILE],
+    row: RowSpan,
+    out: &mut RowSamples,
 ) {
+    let RowSpan { e, n, full } = row;
+    let (zs, mask) = (&mut out.zs, &mut out.mask);
     let (z0, z1, z2, inv) = (tri.z[0], tri.z[1], tri.z[2], tri.inv_area);
     let half = 0.5 * (tri.dzdx.abs() + tri.dzdy.abs()) * (1.0 + PLANE_EPS);
     let nearest = matches!(
@@ -228,6 +239,19 @@ fn lane_setup<const T: usize>(
     (&p.kstep, std::array::from_fn(|k| (bits >> k) & 1))
 }
 
+/// Whole rows of one tile for the fixed-width row loops ([`rows_std`],
+/// [`rows_query`]).
+#[derive(Clone, Copy)]
+struct TileSpan {
+    /// Raw edge values at lane 0 of the first row.
+    e: [f64; 3],
+    /// The lanes (pixel columns of the tile) inside the triangle's pixel
+    /// bounds, `lanes.0..=lanes.1`.
+    lanes: (usize, usize),
+    /// Every in-target pixel of the tile is covered ([`TileClass::full`]).
+    full: bool,
+}
+
 /// Accumulated results of [`rows_std`].
 #[derive(Default)]
 struct RowAcc {
@@ -239,24 +263,23 @@ struct RowAcc {
     hit_min: bool,
 }
 
-/// Standard-coverage GREATER writes (no id target) of `rows` whole tile rows of
-/// width `T`, lanes `lane0..=lane1` eligible: fixed-width, branch-free loops the
-/// compiler vectorizes. `e` holds the raw edge values at the row's first pixel;
-/// the arithmetic is that of [`eval_row_n`], so results are bit-identical.
-#[allow(clippy::too_many_arguments)]
+/// Standard-coverage GREATER writes (no id target) of the whole tile rows of
+/// width `T` in `depth` over `span`: fixed-width, branch-free loops the
+/// compiler vectorizes. `no_test`: every covered pixel wins; `zmin`: the
+/// tile's minimum depth before the draw (overwriting it asks for a rescan).
+/// The arithmetic is that of [`eval_row_n`], so results are bit-identical.
 #[inline(always)]
 fn rows_std<const T: usize>(
     tri: &Tri,
     p: &Prep,
-    full: bool,
+    span: TileSpan,
     no_test: bool,
-    mut e: [f64; 3],
-    stepy: [f64; 3],
-    lanes: (usize, usize),
     depth: &mut [f32],
     zmin: f32,
     acc: &mut RowAcc,
 ) {
+    let TileSpan { mut e, lanes, full } = span;
+    let stepy = p.stepyf;
     let (z0, z1, z2, inv) = (tri.z[0], tri.z[1], tri.z[2], tri.inv_area);
     let (kstep, eligible) = lane_setup::<T>(p, lanes);
     let fullm = full as u32;
@@ -325,14 +348,15 @@ fn rows_std<const T: usize>(
 /// Standard-coverage writes over whole tile rows, every lane covered and
 /// winning (a full-width tile nearer than all it holds): the depths of
 /// [`rows_std`], bit for bit, without tests; returns their minimum and maximum.
+/// `e` holds the raw edge values at the tile's first pixel.
 #[inline(always)]
 fn rows_fill<const T: usize>(
     tri: &Tri,
     p: &Prep,
     mut e: [f64; 3],
-    stepy: [f64; 3],
     depth: &mut [f32],
 ) -> (f32, f32) {
+    let stepy = p.stepyf;
     let (z0, z1, z2, inv) = (tri.z[0], tri.z[1], tri.z[2], tri.inv_area);
     let (kstep, _) = lane_setup::<T>(p, (0, T - 1));
     let mut vmin = [f32::INFINITY; T];
@@ -360,21 +384,20 @@ fn rows_fill<const T: usize>(
     (zmin, zmax)
 }
 
-/// Standard-coverage GEQUAL sample count over `rows` whole tile rows (see
-/// [`rows_std`]), restricted by receivers when given.
-#[allow(clippy::too_many_arguments)]
+/// Standard-coverage GEQUAL sample count over the whole tile rows in `depth`
+/// (see [`rows_std`]), restricted by `receivers` (same rows) when given; adds
+/// the samples tested to `tested`.
 #[inline(always)]
 fn rows_query<const T: usize>(
     tri: &Tri,
     p: &Prep,
-    full: bool,
-    mut e: [f64; 3],
-    stepy: [f64; 3],
-    lanes: (usize, usize),
+    span: TileSpan,
     depth: &[f32],
     receivers: Option<&[f32]>,
     tested: &mut u64,
 ) -> u64 {
+    let TileSpan { mut e, lanes, full } = span;
+    let stepy = p.stepyf;
     let (z0, z1, z2, inv) = (tri.z[0], tri.z[1], tri.z[2], tri.inv_area);
     let (kstep, eligible) = lane_setup::<T>(p, lanes);
     let mut pass = 0u32;
@@ -442,8 +465,7 @@ fn draw_tri_as<const FAST: bool>(
     let p = prep(tri, pb, cov, &l);
     let (tx0, tx1, ty0, ty1) = p.tiles;
     let base_tile = band.tile_base();
-    let mut zs = [0f32; MAX_TILE];
-    let mut mask = [false; MAX_TILE];
+    let mut samples = RowSamples::new();
     for ty in ty0.max(band.ty0)..ty1.min(band.ty1 - 1) + 1 {
         if skip.hides(ty) {
             continue;
@@ -504,9 +526,9 @@ fn draw_tri_as<const FAST: bool>(
                 let tw = 1usize << l.shift;
                 let depth = &mut band.depth[tile_base..tile_base + (py1 - py0 + 1) as usize * tw];
                 let (zmin, zmax) = match l.shift {
-                    2 => rows_fill::<4>(tri, &p, e0, stepyf, depth),
-                    3 => rows_fill::<8>(tri, &p, e0, stepyf, depth),
-                    _ => rows_fill::<16>(tri, &p, e0, stepyf, depth),
+                    2 => rows_fill::<4>(tri, &p, e0, depth),
+                    3 => rows_fill::<8>(tri, &p, e0, depth),
+                    _ => rows_fill::<16>(tri, &p, e0, depth),
                 };
                 let n = u64::from((px1 - px0 + 1) * (py1 - py0 + 1));
                 st.pixels_tested += n;
@@ -528,20 +550,18 @@ fn draw_tri_as<const FAST: bool>(
                 let e0: [f64; 3] = std::array::from_fn(|i| {
                     (c.e00[i] + p.step_y[i] * (py0 - rect.2) as i64) as f64
                 });
-                let lanes = ((px0 - rect.0) as usize, (px1 - rect.0) as usize);
+                let span = TileSpan {
+                    e: e0,
+                    lanes: ((px0 - rect.0) as usize, (px1 - rect.0) as usize),
+                    full: c.full,
+                };
                 let tw = 1usize << l.shift;
                 let start = tile_base + (py0 - rect.2) as usize * tw;
                 let depth = &mut band.depth[start..start + (py1 - py0 + 1) as usize * tw];
                 match l.shift {
-                    2 => rows_std::<4>(
-                        tri, &p, c.full, no_test, e0, stepyf, lanes, depth, tb.zmin, &mut acc,
-                    ),
-                    3 => rows_std::<8>(
-                        tri, &p, c.full, no_test, e0, stepyf, lanes, depth, tb.zmin, &mut acc,
-                    ),
-                    _ => rows_std::<16>(
-                        tri, &p, c.full, no_test, e0, stepyf, lanes, depth, tb.zmin, &mut acc,
-                    ),
+                    2 => rows_std::<4>(tri, &p, span, no_test, depth, tb.zmin, &mut acc),
+                    3 => rows_std::<8>(tri, &p, span, no_test, depth, tb.zmin, &mut acc),
+                    _ => rows_std::<16>(tri, &p, span, no_test, depth, tb.zmin, &mut acc),
                 }
                 tested = u64::from(acc.tested);
                 written = u64::from(acc.written);
@@ -551,7 +571,13 @@ fn draw_tri_as<const FAST: bool>(
                 rescan = acc.hit_min;
             } else {
                 for y in py0..py1 + 1 {
-                    eval_row(tri, cov, &p, c.full, erow, n, &mut zs, &mut mask);
+                    let span = RowSpan {
+                        e: erow,
+                        n,
+                        full: c.full,
+                    };
+                    eval_row(tri, cov, &p, span, &mut samples);
+                    let (zs, mask) = (&samples.zs, &samples.mask);
                     let row = tile_base + (((y - rect.2) << l.shift) + (px0 - rect.0)) as usize;
                     let depth = &mut band.depth[row..row + n];
                     match band.ids.as_deref_mut() {
@@ -689,8 +715,7 @@ fn query_tri_as<const STANDARD: bool>(
     let p = prep(tri, pb, cov, &l);
     let (tx0, tx1, ty0, ty1) = p.tiles;
     let mut count = 0u64;
-    let mut zs = [0f32; MAX_TILE];
-    let mut mask = [false; MAX_TILE];
+    let mut samples = RowSamples::new();
     for ty in ty0..ty1 + 1 {
         for tx in tx0..tx1 + 1 {
             st.tiles_touched += 1;
@@ -747,7 +772,11 @@ fn query_tri_as<const STANDARD: bool>(
                 let e0: [f64; 3] = std::array::from_fn(|i| {
                     (c.e00[i] + p.step_y[i] * (py0 - rect.2) as i64) as f64
                 });
-                let lanes = ((px0 - rect.0) as usize, (px1 - rect.0) as usize);
+                let span = TileSpan {
+                    e: e0,
+                    lanes: ((px0 - rect.0) as usize, (px1 - rect.0) as usize),
+                    full: c.full,
+                };
                 let tw = 1usize << l.shift;
                 let start = tile_base + (py0 - rect.2) as usize * tw;
                 let end = start + (py1 - py0 + 1) as usize * tw;
@@ -755,23 +784,9 @@ fn query_tri_as<const STANDARD: bool>(
                 let rec = v.receivers.map(|r| &r[start..end]);
                 let mut tested = 0u64;
                 let pass = match l.shift {
-                    2 => {
-                        rows_query::<4>(tri, &p, c.full, e0, stepyf, lanes, depth, rec, &mut tested)
-                    }
-                    3 => {
-                        rows_query::<8>(tri, &p, c.full, e0, stepyf, lanes, depth, rec, &mut tested)
-                    }
-                    _ => rows_query::<16>(
-                        tri,
-                        &p,
-                        c.full,
-                        e0,
-                        stepyf,
-                        lanes,
-                        depth,
-                        rec,
-                        &mut tested,
-                    ),
+                    2 => rows_query::<4>(tri, &p, span, depth, rec, &mut tested),
+                    3 => rows_query::<8>(tri, &p, span, depth, rec, &mut tested),
+                    _ => rows_query::<16>(tri, &p, span, depth, rec, &mut tested),
                 };
                 st.pixels_tested += tested;
                 if pass > 0 {
@@ -783,7 +798,13 @@ fn query_tri_as<const STANDARD: bool>(
                 continue;
             }
             for y in py0..py1 + 1 {
-                eval_row(tri, cov, &p, c.full, erow, n, &mut zs, &mut mask);
+                let span = RowSpan {
+                    e: erow,
+                    n,
+                    full: c.full,
+                };
+                eval_row(tri, cov, &p, span, &mut samples);
+                let (zs, mask) = (&samples.zs, &samples.mask);
                 let row = tile_base + (((y - rect.2) << l.shift) + (px0 - rect.0)) as usize;
                 let depth = &v.depth[row..row + n];
                 let mut pass = 0u64;
@@ -863,9 +884,14 @@ mod tests {
                 let p = prep(&tri, pb, cov, &l);
                 for y in 0..64i64 {
                     let e = tri.e.map(|ed| ed.at_pixel(0, y));
-                    let (mut zs, mut mask) = ([0f32; MAX_TILE], [false; MAX_TILE]);
-                    let ef = e.map(|v| v as f64);
-                    eval_row(&tri, cov, &p, false, ef, 16, &mut zs, &mut mask);
+                    let mut samples = RowSamples::new();
+                    let span = RowSpan {
+                        e: e.map(|v| v as f64),
+                        n: 16,
+                        full: false,
+                    };
+                    eval_row(&tri, cov, &p, span, &mut samples);
+                    let (zs, mask) = (samples.zs, samples.mask);
                     for k in 0..16 {
                         let ek = [0, 1, 2].map(|i| e[i] + k as i64 * p.step_x[i]);
                         let inside = (0..3).all(|i| ek[i] + p.off[i] >= 0);

@@ -2,7 +2,7 @@
 //! method choice and volume construction into a caller-owned
 //! [`raster::VolumeBuffer`] (DESIGN.md "One frame, per light", steps 5 and 7).
 
-use crate::volume::{append_volume, LocalLight};
+use crate::volume::{append_volume, CasterGeometry, LocalLight};
 use crate::{Error, MethodChoice, NearLightHull, Result, SilhouetteCache};
 use raster::{VolumeBuffer, VolumeMethod};
 use scene::{Camera, Light, ObjectId, Scene};
@@ -94,17 +94,14 @@ pub fn build_volumes(
 
     let t1 = Instant::now();
     let mut scratch = std::mem::take(&mut cache.scratch);
-    let result = append_all(
-        out,
+    let request = Request {
         scene,
         camera,
         light,
         casters,
         options,
-        cache,
-        &mut scratch,
-        &mut stats,
-    );
+    };
+    let result = append_all(out, &request, cache, &mut scratch, &mut stats);
     cache.scratch = scratch;
     result?;
     stats.volume_ms = t1.elapsed().as_secs_f64() * 1e3;
@@ -112,18 +109,33 @@ pub fn build_volumes(
     Ok(stats)
 }
 
-#[allow(clippy::too_many_arguments)]
+/// What [`build_volumes`] is asked for: the volumes of `casters` in `scene`
+/// for `light`, seen by `camera`, built with `options`.
+struct Request<'a> {
+    scene: &'a Scene,
+    camera: &'a Camera,
+    light: &'a Light,
+    casters: &'a [ObjectId],
+    options: BuildOptions,
+}
+
+/// The volume construction of [`build_volumes`] (its silhouettes already in
+/// `cache`): every caster's volume appended to `out`, then the ranges'
+/// scissor and depth bounds when `options.viewport` asks for them.
 fn append_all(
     out: &mut VolumeBuffer,
-    scene: &Scene,
-    camera: &Camera,
-    light: &Light,
-    casters: &[ObjectId],
-    options: BuildOptions,
+    request: &Request<'_>,
     cache: &SilhouetteCache,
     scratch: &mut crate::volume::VolumeScratch,
     stats: &mut VolumeStats,
 ) -> Result<()> {
+    let Request {
+        scene,
+        camera,
+        light,
+        casters,
+        options,
+    } = *request;
     let hull = NearLightHull::new(camera, light);
     for &id in casters {
         let sil = cache.get(id, light).expect("update() cached every caster");
@@ -156,16 +168,13 @@ fn append_all(
         } else {
             LocalLight::new(light, &object.world_from_local)
         };
-        let c = append_volume(
-            out,
-            scratch,
-            id.0,
-            mesh.positions(),
-            &object.world_from_local,
-            sil,
-            &local,
-            method,
-        );
+        let caster = CasterGeometry {
+            object: id.0,
+            positions: mesh.positions(),
+            world_from_local: &object.world_from_local,
+            silhouette: sil,
+        };
+        let c = append_volume(out, scratch, caster, &local, method);
         stats.silhouette_edges += sil.edge_count();
         stats.cap_source_triangles += sil.caps.len();
         stats.volume_triangles += c.side_triangles + c.cap_triangles;

@@ -171,26 +171,39 @@ enum Extrusion {
 
 const UNSET: u32 = u32::MAX;
 
+/// One caster as [`append_volume`] reads it.
+#[derive(Clone, Copy)]
+pub struct CasterGeometry<'a> {
+    /// The caster's object id (the range's `object`).
+    pub object: u32,
+    /// The caster mesh's welded local positions.
+    pub positions: &'a [Vec3],
+    /// The caster's transform.
+    pub world_from_local: &'a DMat4,
+    /// The caster's silhouette for the light.
+    pub silhouette: &'a Silhouette,
+}
+
 /// Appends the volume of one caster to `out` as one range (segment 0, full
 /// scissor and depth bounds).
 ///
-/// `positions` are the caster mesh's welded local positions, `silhouette` its
-/// silhouette for the light, `world_from_local` its transform. Caps are emitted
-/// for [`VolumeMethod::ZFail`] and [`VolumeMethod::ZpPlus`] (the dark cap only
-/// for positional lights); [`VolumeMethod::ZPass`] gets sides only — plus the
-/// dark cap when the volume is extruded finitely (a `light` from
-/// [`LocalLight::finite`]; module docs, "Finite extrusion").
-#[allow(clippy::too_many_arguments)]
+/// Caps are emitted for [`VolumeMethod::ZFail`] and [`VolumeMethod::ZpPlus`]
+/// (the dark cap only for positional lights); [`VolumeMethod::ZPass`] gets
+/// sides only — plus the dark cap when the volume is extruded finitely (a
+/// `light` from [`LocalLight::finite`]; module docs, "Finite extrusion").
 pub fn append_volume(
     out: &mut VolumeBuffer,
     scratch: &mut VolumeScratch,
-    object: u32,
-    positions: &[Vec3],
-    world_from_local: &DMat4,
-    silhouette: &Silhouette,
+    caster: CasterGeometry<'_>,
     light: &LocalLight,
     method: VolumeMethod,
 ) -> VolumeCounts {
+    let CasterGeometry {
+        object,
+        positions,
+        world_from_local,
+        silhouette,
+    } = caster;
     let first_vertex = out.positions.len() as u32;
     let first_index = out.indices.len() as u32;
     scratch.finite.clear();

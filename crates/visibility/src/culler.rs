@@ -222,6 +222,30 @@ fn local_box(n: &Node, o: DVec3) -> (Vec3, Vec3) {
     )
 }
 
+/// The objects a view culls, in the three forms a traversal reads: their
+/// hierarchy (what it walks), the scene (flags and bounds) and the meshes in
+/// the backends' form (what it draws). All three describe the same objects.
+#[derive(Clone, Copy)]
+pub struct Objects<'a> {
+    /// The object hierarchy.
+    pub hierarchy: &'a Hierarchy,
+    /// The scene.
+    pub scene: &'a Scene,
+    /// Meshes in the backends' form.
+    pub meshes: &'a MeshData,
+}
+
+impl<'a> Objects<'a> {
+    /// The objects of `scene`, with their `hierarchy` and `meshes`.
+    pub fn new(hierarchy: &'a Hierarchy, scene: &'a Scene, meshes: &'a MeshData) -> Self {
+        Objects {
+            hierarchy,
+            scene,
+            meshes,
+        }
+    }
+}
+
 /// The traversal of one frame: the view, the backend, what was rendered.
 pub(crate) struct Run<'a, 'b> {
     pub h: &'a Hierarchy,

@@ -44,7 +44,7 @@ mod traverse;
 mod view_setup;
 
 pub use chcpp::ChcppOptions;
-pub use culler::{CullResult, TraversalStats, ViewCuller};
+pub use culler::{CullResult, Objects, TraversalStats, ViewCuller};
 pub use error::{Error, Result};
 pub use hierarchy::{BvhNodeId, Hierarchy};
 pub use intersection_body::{intersection_body, Face, Polyhedron};

@@ -29,7 +29,7 @@
 //! every pixel within [`raster::RECEIVER_EPS_PX`] of its projection — through
 //! the segments of `receivers.rs`, which mark a superset.
 
-use crate::culler::{CullResult, TraversalStats, ViewCuller};
+use crate::culler::{CullResult, Objects, TraversalStats, ViewCuller};
 use crate::hierarchy::Hierarchy;
 use crate::intersection_body::{intersection_body_into, BodyScratch, Polyhedron};
 use crate::light_view::{fit_light_views_into, FitScratch, LightView};
@@ -437,6 +437,14 @@ impl LightPass {
             cache.get(scene, meshes, light, options.two_sided, id)
         };
         let prepared = &self.receivers;
+        let shared = ViewsInput {
+            objects: Objects::new(h, scene, meshes),
+            light,
+            origin,
+            diameter,
+            casting: &casting,
+            options,
+        };
         let frame = self.frame;
         self.frame = frame.saturating_add(1);
         for s in &mut self.slots {
@@ -459,10 +467,7 @@ impl LightPass {
                         size: view.resolution,
                     })
                 });
-                slot.run(
-                    h, scene, meshes, light, view, origin, diameter, receivers, &casting, options,
-                    backend,
-                )
+                slot.run(&shared, view, receivers, backend)
             })?;
         out.psc.clear();
         out.psc.reserve(scene.objects().len());
@@ -485,22 +490,38 @@ impl LightPass {
     }
 }
 
+/// What every light view of one light's pass shares.
+struct ViewsInput<'a> {
+    objects: Objects<'a>,
+    light: &'a Light,
+    /// Where the views' cones start: the light's position, or for a
+    /// directional light the scene's centre.
+    origin: DVec3,
+    /// The diameter of the scene's bounds.
+    diameter: f64,
+    /// The casting triangles of an object drawn as an occluder.
+    casting: &'a (dyn Fn(ObjectId) -> Arc<[[u32; 3]]> + Sync),
+    options: &'a LightPassOptions,
+}
+
 impl ViewSlot {
-    #[allow(clippy::too_many_arguments)]
+    /// Culls one light view: marks its `receivers`, then finds the casters
+    /// in front of them, in `host` when given, else in the slot's own target.
     fn run(
         &mut self,
-        h: &Hierarchy,
-        scene: &Scene,
-        meshes: &MeshData,
-        light: &Light,
+        input: &ViewsInput<'_>,
         view: &LightView,
-        origin: DVec3,
-        diameter: f64,
         receivers: Marks<'_>,
-        casting: &(dyn Fn(ObjectId) -> Arc<[[u32; 3]]> + Sync),
-        options: &LightPassOptions,
         host: Option<Box<dyn OcclusionBackend + Send>>,
     ) -> Result<()> {
+        let ViewsInput {
+            objects,
+            light,
+            origin,
+            diameter,
+            casting,
+            options,
+        } = *input;
         let m = view.clip_from_world;
         let clip_from_origin = (m * DMat4::from_translation(origin)).as_mat4();
         let size = (view.resolution, view.resolution);
@@ -583,15 +604,9 @@ impl ViewSlot {
             triangles: Some(casting),
             occluder: ViewSetup::light_occluder,
         };
-        let r = self.culler.cull_into(
-            h,
-            scene,
-            meshes,
-            &setup,
-            options.culling,
-            backend,
-            &mut self.result,
-        );
+        let r = self
+            .culler
+            .cull_into(objects, &setup, options.culling, backend, &mut self.result);
         backend.set_receivers(None)?;
         self.target = match (bundled, target) {
             (Some(b), _) => {

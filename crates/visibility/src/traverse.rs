@@ -20,12 +20,11 @@
 //! CHC++ (batched and multi-queries, revisits) is in `chcpp.rs`.
 
 use crate::chcpp::ChcppOptions;
-use crate::culler::{in_planes, CullResult, NodeState, Queued, Run, Scratch, ViewCuller};
-use crate::hierarchy::Hierarchy;
-use crate::view_setup::{MeshData, ViewSetup};
+use crate::culler::{in_planes, CullResult, NodeState, Objects, Queued, Run, Scratch, ViewCuller};
+use crate::view_setup::ViewSetup;
 use crate::Result;
 use raster::OcclusionBackend;
-use scene::{ObjectId, Scene};
+use scene::ObjectId;
 
 /// Which traversal a view runs.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
@@ -63,15 +62,13 @@ impl ViewCuller {
     /// Backend errors (a bad mesh index).
     pub fn cull(
         &mut self,
-        h: &Hierarchy,
-        scene: &Scene,
-        meshes: &MeshData,
+        objects: Objects<'_>,
         view: &ViewSetup<'_>,
         culling: Culling,
         backend: &mut dyn OcclusionBackend,
     ) -> Result<CullResult> {
         let mut out = CullResult::default();
-        self.cull_into(h, scene, meshes, view, culling, backend, &mut out)?;
+        self.cull_into(objects, view, culling, backend, &mut out)?;
         Ok(out)
     }
 
@@ -81,17 +78,19 @@ impl ViewCuller {
     ///
     /// # Errors
     /// As [`ViewCuller::cull`].
-    #[allow(clippy::too_many_arguments)]
     pub fn cull_into(
         &mut self,
-        h: &Hierarchy,
-        scene: &Scene,
-        meshes: &MeshData,
+        objects: Objects<'_>,
         view: &ViewSetup<'_>,
         culling: Culling,
         backend: &mut dyn OcclusionBackend,
         out: &mut CullResult,
     ) -> Result<()> {
+        let Objects {
+            hierarchy: h,
+            scene,
+            meshes,
+        } = objects;
         self.frame = match self.next.take() {
             Some(f) => f.saturating_add(1),
             None => self.frame.saturating_add(1),
@@ -259,10 +258,12 @@ impl ViewCuller {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::hierarchy::{Node, NONE};
+    use crate::hierarchy::{Hierarchy, Node, NONE};
+    use crate::view_setup::MeshData;
     use glam::DMat4;
     use raster::{DepthTarget, SyncBackend, TileSize};
     use scene::procedural::city::{city, CityParams};
+    use scene::Scene;
 
     /// `h` renumbered breadth-first with every node's children swapped: the
     /// same tree over the same objects, as a rebuild might number it.
@@ -323,7 +324,7 @@ mod tests {
             let view = ViewSetup::eye(&cam, &clip, 0);
             let mut b = SyncBackend::new(DepthTarget::new(160, 120, TileSize::T8, true).unwrap());
             let mut r = culler
-                .cull(h, &scene, &meshes, &view, culling, &mut b)
+                .cull(Objects::new(h, &scene, &meshes), &view, culling, &mut b)
                 .unwrap();
             r.visible.sort_unstable();
             r
@@ -404,7 +405,7 @@ mod tests {
                     let mut b =
                         SyncBackend::new(DepthTarget::new(160, 120, TileSize::T8, true).unwrap());
                     let mut r = culler
-                        .cull(&h, &scene, &meshes, &view, culling, &mut b)
+                        .cull(Objects::new(&h, &scene, &meshes), &view, culling, &mut b)
                         .unwrap();
                     r.visible.sort_unstable();
                     (r.stats.queries, r.visible)
@@ -438,7 +439,7 @@ mod tests {
         let visible = |culler: &mut ViewCuller, culling: Culling| {
             let mut b = SyncBackend::new(DepthTarget::new(160, 120, TileSize::T8, true).unwrap());
             let mut r = culler
-                .cull(&h, &scene, &meshes, &view, culling, &mut b)
+                .cull(Objects::new(&h, &scene, &meshes), &view, culling, &mut b)
                 .unwrap();
             r.visible.sort_unstable();
             r.visible

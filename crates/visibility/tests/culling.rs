@@ -9,7 +9,9 @@ use raster::{
     DepthTarget, Latency, OcclusionBackend, ReadTarget, SimulatedBackend, SyncBackend, TileSize,
 };
 use scene::{Camera, Scene};
-use visibility::{ChcppOptions, CullResult, Culling, Hierarchy, MeshData, ViewCuller, ViewSetup};
+use visibility::{
+    ChcppOptions, CullResult, Culling, Hierarchy, MeshData, Objects, ViewCuller, ViewSetup,
+};
 
 const W: u32 = 160;
 const H: u32 = 120;
@@ -50,7 +52,7 @@ fn run(
     let clip = |w: &DMat4| scene::transform::clip_from_local(cam, w);
     let view = ViewSetup::eye(cam, &clip, 0);
     culler
-        .cull(h, scene, meshes, &view, culling, backend)
+        .cull(Objects::new(h, scene, meshes), &view, culling, backend)
         .unwrap()
 }
 

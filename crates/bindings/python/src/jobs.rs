@@ -13,6 +13,7 @@ use std::path::PathBuf;
 /// returns `summary.json`'s content.
 #[pyfunction]
 #[pyo3(signature = (path, out, frames=None, shard=None, warmup=None, keyframe=None, max_memory=None))]
+// Each parameter is a Python keyword argument of `run_job`: a struct would change the Python API.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn run_job(
     py: Python<'_>,

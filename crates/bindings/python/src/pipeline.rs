@@ -237,7 +237,6 @@ impl Pipeline {
     }
 
     /// Adds an object drawing `mesh` with the 4×4 `transform` (numpy layout).
-    #[allow(clippy::too_many_arguments)]
     fn add_object(
         &mut self,
         mesh: u32,
@@ -364,6 +363,7 @@ impl Pipeline {
     /// Runs one frame (the GIL released) and returns its outputs as a dict
     /// of arrays: `psr`, `stats` (JSON), `lights` (one dict per light).
     #[pyo3(signature = (width, height, camera=None, view=None, projection=None, clip_depth="negative_one_to_one"))]
+    // Each parameter is a Python keyword argument of `frame`: a struct would change the Python API.
     #[allow(clippy::too_many_arguments)]
     fn frame<'py>(
         &mut self,

@@ -288,7 +288,7 @@ impl StencilTarget {
                 for p in pieces.iter() {
                     if p.y1 >= band.y0 && p.y0 <= band.y1 {
                         let win = &jobs[p.job as usize].2;
-                        band.fill_tri(eye, &p.tri, win, p.zfail, p.increment, &mut bst);
+                        band.fill_piece(eye, p, win, &mut bst);
                     }
                 }
                 bst

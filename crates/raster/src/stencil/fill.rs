@@ -4,7 +4,7 @@
 //! bands in parallel.
 
 use super::counters::{tiled_index, Counter, CountersMut, StencilStats};
-use super::pieces::Window;
+use super::pieces::{Piece, Window};
 use super::run::{run_masks, RunPlane};
 use super::span::{band_extent, SpanWalker};
 use crate::coverage::{edge_offsets, pixel_bounds, Coverage, Rect};
@@ -30,34 +30,36 @@ pub(crate) struct CounterRows<'a> {
 pub(crate) const BAND_TILE_ROWS: usize = 8;
 
 impl CounterRows<'_> {
-    /// Increments (or decrements, `!increment`) every covered non-background pixel of
-    /// `tri` inside `win` whose fragment passes (zpass) or fails (zfail) the strict
-    /// depth test. Each row walks only its covered span ([`crate::span`]).
-    pub(crate) fn fill_tri(
+    /// Increments (or decrements, `!piece.increment`) every covered
+    /// non-background pixel of `piece` inside `win` whose fragment passes (zpass)
+    /// or fails (`piece.zfail`) the strict depth test. Each row walks only its
+    /// covered span ([`crate::span`]).
+    pub(crate) fn fill_piece(
         &mut self,
         eye: &DepthTarget,
-        tri: &Tri,
+        piece: &Piece,
         win: &Window,
-        zfail: bool,
-        increment: bool,
         st: &mut StencilStats,
     ) {
-        self.fill_tri_within(eye, tri, win, zfail, increment, Rect::ALL, st);
+        self.fill_piece_within(eye, piece, win, Rect::ALL, st);
     }
 
-    /// [`CounterRows::fill_tri`] restricted to the pixels of `clip` (the hierarchical
-    /// stencil's boundary tiles).
-    #[allow(clippy::too_many_arguments)]
-    pub(crate) fn fill_tri_within(
+    /// [`CounterRows::fill_piece`] restricted to the pixels of `clip` (the
+    /// hierarchical stencil's boundary tiles).
+    pub(crate) fn fill_piece_within(
         &mut self,
         eye: &DepthTarget,
-        tri: &Tri,
+        piece: &Piece,
         win: &Window,
-        zfail: bool,
-        increment: bool,
         clip: Rect,
         st: &mut StencilStats,
     ) {
+        let Piece {
+            ref tri,
+            zfail,
+            increment,
+            ..
+        } = *piece;
         let (w, h) = (self.width, self.height);
         let Some(covered) = pixel_bounds(tri, Coverage::Standard, w, h) else {
             return;
@@ -158,7 +160,7 @@ unsafe fn fill_rows_avx2<C: Counter>(f: Fill<'_, C>, st: &mut StencilStats) {
     fill_rows(f, st);
 }
 
-/// The per-pixel loop of [`CounterRows::fill_tri`], monomorphized per counter type:
+/// The per-pixel loop of [`CounterRows::fill_piece`], monomorphized per counter type:
 /// adds `delta` (wrapping) to each covered pixel of `rect` that is not background,
 /// lies within the depth window and passes (zpass) or fails (zfail) the strict test.
 ///

@@ -652,8 +652,13 @@ impl HierarchicalStencil {
                 // This band's pieces and open edges of the volume (ascending indices).
                 let np = bp.partition_point(|&i| (i as usize) < v.pieces.end);
                 let no = bo.partition_point(|&i| (i as usize) < v.open.end);
-                let (vp, vo) = ((&bp[..np], pieces), (&bo[..no], open));
-                band.volume(eye, v, win, vp, vo, scratch, bst);
+                let share = BandShare {
+                    piece_ids: &bp[..np],
+                    pieces,
+                    open_ids: &bo[..no],
+                    open,
+                };
+                band.volume(eye, v, win, share, scratch, bst);
                 (bp, bo) = (&bp[np..], &bo[no..]);
             }
         };
@@ -889,6 +894,16 @@ struct HBand<'a, 'g> {
     geo: &'g Geometry,
 }
 
+/// One volume's share of a band: the indices (ascending) of its pieces and
+/// open edges that reach the band's rows, into the batch's `pieces` and `open`.
+#[derive(Clone, Copy)]
+struct BandShare<'a, 'p> {
+    piece_ids: &'a [u32],
+    pieces: &'a [&'p Piece],
+    open_ids: &'a [u32],
+    open: &'a [&'p Segment],
+}
+
 /// What every stage of one volume in one band reads.
 struct VolumeWindow<'w> {
     /// The volume's window.
@@ -917,18 +932,22 @@ fn tile_rect(g: &Geometry, idx: usize) -> Rect {
 }
 
 impl HBand<'_, '_> {
-    /// Both stages of one volume on this band's rows.
-    #[allow(clippy::too_many_arguments)]
+    /// Both stages of one volume (`v`, in its window `win`) on this band's rows.
     fn volume(
         &mut self,
         eye: &DepthTarget,
         v: &VolumeJob,
         win: &Window,
-        (piece_ids, pieces): (&[u32], &[&Piece]),
-        (open_ids, open): (&[u32], &[&Segment]),
+        share: BandShare<'_, '_>,
         sc: &mut Scratch,
         st: &mut StencilStats,
     ) {
+        let BandShare {
+            piece_ids,
+            pieces,
+            open_ids,
+            open,
+        } = share;
         let (ya, yb) = (self.px.y0.max(win.y0), self.px.y1.min(win.y1));
         if ya > yb {
             return;
@@ -1261,8 +1280,7 @@ impl HBand<'_, '_> {
             }
             let p = pieces[pi as usize];
             let r = tile_rect(g, li as usize + self.tile0);
-            self.px
-                .fill_tri_within(eye, &p.tri, win, p.zfail, p.increment, r, &mut frag);
+            self.px.fill_piece_within(eye, p, win, r, &mut frag);
         }
         st.h_fragments += frag.pixels_processed;
         st.stencil_updates += frag.stencil_updates;

@@ -82,7 +82,6 @@ pub(super) fn read_positions(
         index,
         referrer,
         Type::Vec3,
-        3,
         ctx,
         |ct, normalized| match ct {
             ComponentType::F32 if normalized => {
@@ -148,7 +147,6 @@ pub(super) fn read_indices(
         index,
         referrer,
         Type::Scalar,
-        1,
         ctx,
         |ct, normalized| match ct {
             _ if normalized => Err("indices must not be normalized".into()),
@@ -222,17 +220,20 @@ fn span(offset: u64, stride: u64, count: u64, size: u64) -> Option<u64> {
         .checked_add(size)
 }
 
-#[allow(clippy::too_many_arguments)]
+/// Reads accessor `index` (named by `referrer`) as [`Dense`] bytes: its type
+/// must be `expected`, and `allowed` judges its componentType and
+/// normalization (an error message when the role cannot use them).
 fn read_dense(
     doc: &Document,
     bufs: &mut Buffers<'_, '_>,
     index: usize,
     referrer: &str,
     expected: Type,
-    components: usize,
     ctx: &Ctx<'_>,
     allowed: impl Fn(ComponentType, bool) -> std::result::Result<(), String>,
 ) -> Result<Dense> {
+    // Components per element: 3 for VEC3, 1 for SCALAR, ...
+    let components = expected.multiplicity();
     let element = format!("accessor {index}");
     let raw = doc.raw("accessors", "accessor", index, referrer, ctx)?;
     for path in [
