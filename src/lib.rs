@@ -66,8 +66,8 @@ mod surface;
 pub use error::{Error, Result};
 pub use pipeline::memory;
 pub use pipeline::{
-    CoverageSpec, CullingSpec, FrameInput, FrameOutput, LightId, LightOutput, Pipeline,
-    PipelineOptions, StencilBackend,
+    ClampReceiversSpec, ClampingSpec, CoverageSpec, CullingSpec, FrameInput, FrameOutput, LightId,
+    LightOutput, Pipeline, PipelineOptions, StencilBackend,
 };
 pub use raster;
 pub use scene;

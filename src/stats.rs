@@ -255,6 +255,11 @@ impl FrameRow {
         "compared_pixels",
         "frame_ms",
         "pipeline_frame_ms",
+        "clamp_ms",
+        "sap_pairs",
+        "sap_swaps",
+        "segments",
+        "segment_triangles",
     ];
 
     /// The row's cells in [`FrameRow::COLUMNS`] order.
@@ -484,7 +489,7 @@ mod tests {
              tiles_boundary,pixel_bytes,tile_bytes,bandwidth_bytes,silhouette_pixels,\
              map_ms,psr,psc,queries,waits,light_ms,mismatch_pixels,\
              mismatch_off_boundary,ambiguous_pixels,compared_pixels,frame_ms,\
-             pipeline_frame_ms"
+             pipeline_frame_ms,clamp_ms,sap_pairs,sap_swaps,segments,segment_triangles"
         );
     }
 
@@ -519,6 +524,7 @@ mod tests {
                 "shadow.volumes.cap_source_triangles",
                 "shadow.volumes.volume_triangles",
                 "shadow.volumes.finite_volumes",
+                "shadow.volumes.clamped_casters",
                 "shadow.stencil.triangles",
                 "shadow.light.nodes_visited",
                 "shadow.light.queries",
@@ -571,6 +577,11 @@ mod tests {
                 "queries",
                 "waits",
                 "light_ms",
+                "clamp_ms",
+                "sap_pairs",
+                "sap_swaps",
+                "segments",
+                "segment_triangles",
             ]
         );
         assert_eq!(c.get("zfail_casters"), Some(&Cell::Count(4)));

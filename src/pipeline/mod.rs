@@ -31,10 +31,11 @@ pub use eye::{
     EyePass, EyeTraversal, MeshCache,
 };
 pub use options::{
-    BadOption, ChcppSpec, CoverageSpec, CullingSpec, PipelineOptions, StencilBackend,
+    BadOption, ChcppSpec, ClampReceiversSpec, ClampingSpec, CoverageSpec, CullingSpec,
+    PipelineOptions, StencilBackend, DEFAULT_CLAMP_PIXEL_COST, DEFAULT_CLAMP_VERTEX_COST,
 };
 use shadow_options::ShadowInput;
-pub use shadow_options::{Backend, ShadowOptions};
+pub use shadow_options::{Backend, ClampOptions, ShadowOptions};
 pub use stencil::{shadow_mask, shadow_mask_for, ShadowFrame, ShadowScratch, TileImage};
 
 use crate::mask::Mask;
@@ -466,6 +467,21 @@ impl Pipeline {
 
         // 3.–4. Per light: volumes, then the stencil and mask.
         let shadow_options = o.shadow_options();
+        // Clamping's receivers under `psr`: the receiving objects the eye
+        // pass drew (every receiving object without culling).
+        let psr_model = shadow_options
+            .clamping
+            .is_some_and(|c| c.receivers == options::ClampReceiversSpec::Psr);
+        let receives = match (&self.culling, culled && psr_model) {
+            (Some(state), true) => {
+                let mut r = vec![false; scene.objects().len()];
+                for id in &state.result.rendered {
+                    r[id.0 as usize] = scene.object(*id).flags.receives;
+                }
+                Some(r)
+            }
+            _ => None,
+        };
         let psr = self.psr.len() as u64;
         let mut n = 0;
         for s in self.lights.iter_mut().filter_map(|s| s.state.as_mut()) {
@@ -494,8 +510,8 @@ impl Pipeline {
                 casters,
                 &shadow_options,
                 (w, h),
-                &mut s.scratch.volumes,
-                &mut s.scratch.cache,
+                receives.as_deref(),
+                &mut s.scratch,
             )?;
             s.volume_stats = volumes;
             // Public ids (slot and generation) in the outputs.

@@ -66,6 +66,31 @@ impl CoverageSpec {
     }
 }
 
+/// Shadow-volume clamping (`clamping: continuous`) [Steiner §4.4].
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ClampingSpec {
+    /// Volumes extrude to infinity (or to the finite-extrusion distance).
+    #[default]
+    None,
+    /// Continuous clamping: each caster's volume is cut into segments over
+    /// the depth intervals its receivers occupy in the light's view
+    /// (sweep-and-prune, [`shadowgen::LightClamp`]). The mask is unchanged.
+    Continuous,
+}
+
+/// Which objects count as receivers for clamping (`clamping_receivers: all`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ClampReceiversSpec {
+    /// Every receiving object: the thesis's setting, independent of the view.
+    #[default]
+    All,
+    /// The eye pass's potentially visible receivers (PSR): tighter, but
+    /// view-dependent. Without culling every receiving object counts.
+    Psr,
+}
+
 /// CHC++ parameters (`chcpp: (batch: 50, revisit: 5, seed: 1)`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize, Serialize)]
 #[serde(default, deny_unknown_fields)]
@@ -88,6 +113,15 @@ impl Default for ChcppSpec {
         }
     }
 }
+
+/// Default [`PipelineOptions::clamp_vertex_cost`]: nanoseconds per volume
+/// vertex of the CPU stencil (clip, setup and bin), an estimate for this
+/// machine kind.
+pub const DEFAULT_CLAMP_VERTEX_COST: f64 = 40.0;
+
+/// Default [`PipelineOptions::clamp_pixel_cost`]: nanoseconds per brute-force
+/// stencil pixel, an estimate for this machine kind.
+pub const DEFAULT_CLAMP_PIXEL_COST: f64 = 1.0;
 
 /// Pipeline options: how shadows are computed and how often the reference checks them.
 #[derive(Clone, Copy, Debug, PartialEq, Deserialize, Serialize)]
@@ -126,6 +160,16 @@ pub struct PipelineOptions {
     pub two_sided: bool,
     /// Lights with a range extrude their shadow volumes finitely (always closed).
     pub finite_extrusion: bool,
+    /// Shadow-volume clamping (`none` or `continuous`).
+    pub clamping: ClampingSpec,
+    /// The receivers clamping fits volumes to (`all` or `psr`).
+    pub clamping_receivers: ClampReceiversSpec,
+    /// Clamping's cost per volume vertex, v in V = (2C + 2S)·v
+    /// [Steiner eq. 4.2]: a gap between occupied intervals becomes a break
+    /// between segments when V < R. Same unit as `clamp_pixel_cost`.
+    pub clamp_vertex_cost: f64,
+    /// Clamping's cost per stencil pixel, r in R = A·r [Steiner eq. 4.3].
+    pub clamp_pixel_cost: f64,
     /// Worker threads of the pipeline's own rayon pool; 0 (the default) runs
     /// on rayon's global pool, or on the pool given to
     /// [`super::Pipeline::set_thread_pool`]. Results are identical for any count.
@@ -166,6 +210,10 @@ impl Default for PipelineOptions {
             light_resolution: 1024,
             two_sided: false,
             finite_extrusion: false,
+            clamping: ClampingSpec::None,
+            clamping_receivers: ClampReceiversSpec::All,
+            clamp_vertex_cost: DEFAULT_CLAMP_VERTEX_COST,
+            clamp_pixel_cost: DEFAULT_CLAMP_PIXEL_COST,
             threads: 0,
             reference_every: 1,
             reference: Default::default(),
@@ -216,6 +264,13 @@ impl PipelineOptions {
             scissor: self.scissor,
             depth_bounds: self.depth_bounds || self.stencil == StencilBackend::Db,
             finite_extrusion: self.finite_extrusion,
+            clamping: (self.clamping == ClampingSpec::Continuous).then_some(
+                super::shadow_options::ClampOptions {
+                    receivers: self.clamping_receivers,
+                    vertex_cost: self.clamp_vertex_cost,
+                    pixel_cost: self.clamp_pixel_cost,
+                },
+            ),
         }
     }
 

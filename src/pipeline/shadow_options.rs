@@ -45,6 +45,19 @@ pub struct ShadowOptions {
     /// Point and spot lights with a range extrude their volumes finitely
     /// ([`shadowgen::BuildOptions::finite_extrusion`]).
     pub finite_extrusion: bool,
+    /// Continuous clamping [Steiner §4.4]; `None`: off.
+    pub clamping: Option<ClampOptions>,
+}
+
+/// Options of continuous clamping in the shadow stage.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ClampOptions {
+    /// Which objects count as receivers.
+    pub receivers: super::options::ClampReceiversSpec,
+    /// v of the gap cost model ([`shadowgen::GapCost`]).
+    pub vertex_cost: f64,
+    /// r of the gap cost model.
+    pub pixel_cost: f64,
 }
 
 impl Default for ShadowOptions {
@@ -57,6 +70,7 @@ impl Default for ShadowOptions {
             scissor: false,
             depth_bounds: false,
             finite_extrusion: false,
+            clamping: None,
         }
     }
 }

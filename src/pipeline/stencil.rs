@@ -80,6 +80,9 @@ pub struct ShadowFrame {
 pub struct ShadowScratch {
     pub(crate) cache: SilhouetteCache,
     pub(crate) volumes: VolumeBuffer,
+    /// Continuous clamping's sweep state for this light, and its plan.
+    pub(crate) clamp: shadowgen::LightClamp,
+    pub(crate) plan: shadowgen::ClampPlan,
     stencil: Option<StencilTarget>,
     hierarchical: Option<HierarchicalStencil>,
     /// Per volume range its clip matrix, and the (matrix, range) list the
@@ -133,14 +136,7 @@ pub fn shadow_mask_for(
         camera,
         light,
     };
-    let volumes = build_for(
-        input,
-        casters,
-        options,
-        viewport,
-        &mut scratch.volumes,
-        &mut scratch.cache,
-    )?;
+    let volumes = build_for(input, casters, options, viewport, None, scratch)?;
     stencil_volumes(input, eye, options, scratch, volumes, None)
 }
 

@@ -1,20 +1,27 @@
 //! The volume stage: one light's shadow volumes for its casters —
 //! silhouettes by signed edge counters, cached while caster and light are
 //! static [AW §2.4, Steiner §4.2], the per-caster zpass/zfail/zp+ choice
-//! [EK, Steiner §3.2.1], w = 0 extrusion, and the scissor rectangles and depth
-//! bounds the stencil tests use — into a caller-owned
-//! [`raster::VolumeBuffer`] ([`shadowgen::build_volumes`]).
+//! [EK, Steiner §3.2.1], w = 0 extrusion, continuous clamping into segments
+//! when asked [Steiner §4.4], and the scissor rectangles and depth bounds the
+//! stencil tests use — into a caller-owned [`raster::VolumeBuffer`]
+//! ([`shadowgen::build_volumes`], [`shadowgen::build_clamped_volumes`]).
 
-use super::shadow_options::{ShadowInput, ShadowOptions};
+use super::shadow_options::{ClampOptions, ShadowInput, ShadowOptions};
+use super::stencil::ShadowScratch;
 use crate::Result;
-use raster::VolumeBuffer;
-use scene::ObjectId;
-use shadowgen::{build_volumes, BuildOptions, SilhouetteCache, VolumeStats};
+use scene::{Aabb, Camera, ObjectId, Scene};
+use shadowgen::{
+    build_clamped_volumes, build_volumes, BuildOptions, ClampInput, GapCost, GapModel, SegmentAxis,
+    VolumeStats,
+};
+use std::time::Instant;
 
-/// Builds the volumes of `casters` for `light` into `out` (cleared first)
-/// with the shadow stage's method and extrusion options; scissor rectangles
-/// and depth bounds are computed only when a stencil test uses them (they cost
-/// time), for a `viewport` of `(width, height)` pixels.
+/// Builds the volumes of `casters` for `light` into `scratch.volumes`
+/// (cleared first) with the shadow stage's method, extrusion and clamping
+/// options; scissor rectangles and depth bounds are computed only when a
+/// stencil test uses them (they cost time), for a `viewport` of `(width,
+/// height)` pixels. `receives[id]` (internal ids) is clamping's receiver set;
+/// `None`: every receiving object.
 ///
 /// # Errors
 /// An invalid light or caster id ([`crate::Error::Shadowgen`]).
@@ -23,8 +30,8 @@ pub(crate) fn build_for(
     casters: &[ObjectId],
     options: &ShadowOptions,
     viewport: (u32, u32),
-    out: &mut VolumeBuffer,
-    cache: &mut SilhouetteCache,
+    receives: Option<&[bool]>,
+    scratch: &mut ShadowScratch,
 ) -> Result<VolumeStats> {
     let ShadowInput {
         scene,
@@ -37,7 +44,94 @@ pub(crate) fn build_for(
         viewport: (options.scissor || options.depth_bounds).then_some(viewport),
         finite_extrusion: options.finite_extrusion,
     };
-    let stats = build_volumes(out, scene, camera, light, casters, build, cache)?;
-    out.reserve_headroom();
+    let out = &mut scratch.volumes;
+    let cache = &mut scratch.cache;
+    let stats = match &options.clamping {
+        None => build_volumes(out, scene, camera, light, casters, build, cache)?,
+        Some(clamp) => {
+            let t = Instant::now();
+            let all: Vec<bool>;
+            let receives = match receives {
+                Some(r) => r,
+                None => {
+                    all = scene.objects().iter().map(|o| o.flags.receives).collect();
+                    &all
+                }
+            };
+            let model = ScreenGaps {
+                scene,
+                camera,
+                viewport,
+                clamp,
+            };
+            let clamp_input = ClampInput {
+                scene,
+                light,
+                casters,
+                receives,
+                cost: Some(&model),
+            };
+            let cs = scratch.clamp.plan(&clamp_input, &mut scratch.plan)?;
+            let clamp_ms = t.elapsed().as_secs_f64() * 1e3;
+            let plan = &scratch.plan;
+            let mut stats =
+                build_clamped_volumes(out, scene, camera, light, casters, build, cache, plan)?;
+            stats.clamp_ms = clamp_ms;
+            stats.sap_pairs = cs.sap_pairs as usize;
+            stats.sap_swaps = cs.sap_swaps as usize;
+            stats
+        }
+    };
+    scratch.volumes.reserve_headroom();
     Ok(stats)
+}
+
+/// The gap cost model on the eye's image: a caster's segments cost its
+/// mesh's vertex count for both the cap and the silhouette (an upper bound
+/// known before the silhouette), a gap its screen rectangle.
+struct ScreenGaps<'a> {
+    scene: &'a Scene,
+    camera: &'a Camera,
+    viewport: (u32, u32),
+    clamp: &'a ClampOptions,
+}
+
+impl GapModel for ScreenGaps<'_> {
+    fn cost(&self, caster: ObjectId) -> GapCost {
+        let n = u32::try_from(self.scene.object_mesh(caster).positions().len()).unwrap_or(u32::MAX);
+        GapCost {
+            per_vertex: self.clamp.vertex_cost,
+            per_pixel: self.clamp.pixel_cost,
+            cap_vertices: n,
+            silhouette_vertices: n,
+        }
+    }
+
+    /// The pixels of the screen rectangle around the gap's bounds (the
+    /// caster's corners projected onto both planes), the whole viewport when
+    /// a corner lies behind the eye.
+    fn area(&self, bounds: &Aabb, axis: &SegmentAxis, near: f64, far: f64) -> f64 {
+        let b = axis.segment_bounds(bounds, Some(near), far);
+        let (w, h) = (f64::from(self.viewport.0), f64::from(self.viewport.1));
+        let clip = self.camera.clip_from_eye_relative();
+        let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+        for k in 0..8 {
+            let pick = |bit: usize, a: f32, b: f32| f64::from(if k & bit != 0 { b } else { a });
+            let p = glam::DVec3::new(
+                pick(1, b.min.x, b.max.x),
+                pick(2, b.min.y, b.max.y),
+                pick(4, b.min.z, b.max.z),
+            );
+            let c = clip * (p - self.camera.position).extend(1.0);
+            if c.w <= 0.0 || !c.w.is_finite() {
+                return w * h;
+            }
+            for i in 0..2 {
+                let ndc = (c[i] / c.w).clamp(-1.0, 1.0);
+                lo[i] = lo[i].min(ndc);
+                hi[i] = hi[i].max(ndc);
+            }
+        }
+        0.25 * (hi[0] - lo[0]) * w * (hi[1] - lo[1]) * h
+    }
 }

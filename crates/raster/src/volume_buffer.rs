@@ -81,6 +81,13 @@ pub struct VolumeRange {
     /// be inside. [`VolumeRange::FULL_SCISSOR`] when unbounded (the consumer
     /// clamps it to its viewport).
     pub scissor: [u32; 4],
+    /// Clamped volumes [Steiner §4.4.3]: the segment's bounding planes in
+    /// world space as `[a, b, c, d]`, `a·x + b·y + c·z + d = 0`, `(a, b, c)`
+    /// a unit normal towards greater light depth. The near plane is `None` for
+    /// segment 0 (it starts at the caster's own light cap), the far plane
+    /// `None` for a volume that extrudes to infinity (or to the finite
+    /// extrusion distance). `[None, None]` for an unclamped volume.
+    pub planes: [Option<[f64; 4]>; 2],
 }
 
 impl VolumeRange {
@@ -223,6 +230,7 @@ mod tests {
             depth_near: 1.0,
             depth_far: 0.0,
             scissor: VolumeRange::FULL_SCISSOR,
+            planes: [None, None],
         });
         assert!(b.check().is_ok());
         b.ranges[0].dark_cap = 3..6;

@@ -49,6 +49,7 @@ fn volume(
         depth_near: 1.0,
         depth_far: 0.0,
         scissor: VolumeRange::FULL_SCISSOR,
+        planes: [None, None],
     };
     buf.ranges.push(range.clone());
     assert_eq!(buf.check(), Ok(()));

@@ -2,6 +2,7 @@
 //! method choice and volume construction into a caller-owned
 //! [`raster::VolumeBuffer`] (DESIGN.md "One frame, per light", steps 5 and 7).
 
+use crate::segments::{append_segments, ClampPlan, SegmentScratch};
 use crate::volume::{append_volume, CasterGeometry, LocalLight};
 use crate::{Error, MethodChoice, NearLightHull, Result, SilhouetteCache};
 use raster::{VolumeBuffer, VolumeMethod};
@@ -44,11 +45,24 @@ pub struct VolumeStats {
     pub volume_triangles: usize,
     /// Casters whose volume was extruded finitely ([`BuildOptions::finite_extrusion`]).
     pub finite_volumes: usize,
-    /// Casters drawn with zpass.
+    /// Casters clamped into segments ([`build_clamped_volumes`]).
+    pub clamped_casters: usize,
+    /// Segments of the clamped casters (ranges).
+    pub segments: usize,
+    /// Triangles of the clamped casters' segments (within `volume_triangles`).
+    pub segment_triangles: usize,
+    /// Wall time of continuous clamping (the sweeps and the occupied
+    /// intervals; set by the caller that plans it), ms.
+    pub clamp_ms: f64,
+    /// Overlapping pairs of clamping's sweeps (set by the caller).
+    pub sap_pairs: usize,
+    /// Endpoint swaps of clamping's sweeps (set by the caller).
+    pub sap_swaps: usize,
+    /// Ranges drawn with zpass (casters, or segments of clamped ones).
     pub zpass: usize,
-    /// Casters drawn with zfail.
+    /// Ranges drawn with zfail.
     pub zfail: usize,
-    /// Casters drawn with zp+.
+    /// Ranges drawn with zp+.
     pub zpplus: usize,
     /// Wall time of silhouette extraction (cache lookups and recomputation), ms.
     pub silhouette_ms: f64,
@@ -74,6 +88,60 @@ pub fn build_volumes(
     options: BuildOptions,
     cache: &mut SilhouetteCache,
 ) -> Result<VolumeStats> {
+    let request = Request {
+        scene,
+        camera,
+        light,
+        casters,
+        options,
+        clamp: None,
+    };
+    build(out, &request, cache)
+}
+
+/// [`build_volumes`] with continuous clamping [Steiner §4.4]: a caster that
+/// `plan` clamps gets one range per occupied interval (segments `0..k`, each
+/// a closed volume with its planes, its method chosen by the same rule on the
+/// segment's own bounds; see `segments.rs`); the others are built as by
+/// `build_volumes`. A finite extrusion never applies to a clamped caster:
+/// its last segment ends at its last interval.
+///
+/// # Errors
+/// As [`build_volumes`].
+#[allow(clippy::too_many_arguments)] // build_volumes' arguments and the plan
+pub fn build_clamped_volumes(
+    out: &mut VolumeBuffer,
+    scene: &Scene,
+    camera: &Camera,
+    light: &Light,
+    casters: &[ObjectId],
+    options: BuildOptions,
+    cache: &mut SilhouetteCache,
+    plan: &ClampPlan,
+) -> Result<VolumeStats> {
+    let request = Request {
+        scene,
+        camera,
+        light,
+        casters,
+        options,
+        clamp: Some(plan),
+    };
+    build(out, &request, cache)
+}
+
+fn build(
+    out: &mut VolumeBuffer,
+    request: &Request<'_>,
+    cache: &mut SilhouetteCache,
+) -> Result<VolumeStats> {
+    let Request {
+        scene,
+        light,
+        casters,
+        options,
+        ..
+    } = *request;
     out.clear();
     light.validate()?;
     let objects = scene.objects().len();
@@ -93,16 +161,12 @@ pub fn build_volumes(
     stats.silhouette_ms = t0.elapsed().as_secs_f64() * 1e3;
 
     let t1 = Instant::now();
-    let mut scratch = std::mem::take(&mut cache.scratch);
-    let request = Request {
-        scene,
-        camera,
-        light,
-        casters,
-        options,
+    let mut scratch = BuildScratch {
+        volume: std::mem::take(&mut cache.scratch),
+        segments: std::mem::take(&mut cache.segment_scratch),
     };
-    let result = append_all(out, &request, cache, &mut scratch, &mut stats);
-    cache.scratch = scratch;
+    let result = append_all(out, request, cache, &mut scratch, &mut stats);
+    (cache.scratch, cache.segment_scratch) = (scratch.volume, scratch.segments);
     result?;
     stats.volume_ms = t1.elapsed().as_secs_f64() * 1e3;
     debug_assert_eq!(stats.volume_triangles, out.triangle_count());
@@ -117,6 +181,8 @@ struct Request<'a> {
     light: &'a Light,
     casters: &'a [ObjectId],
     options: BuildOptions,
+    /// Continuous clamping: the casters to segment and where.
+    clamp: Option<&'a ClampPlan>,
 }
 
 /// The volume construction of [`build_volumes`] (its silhouettes already in
@@ -126,7 +192,7 @@ fn append_all(
     out: &mut VolumeBuffer,
     request: &Request<'_>,
     cache: &SilhouetteCache,
-    scratch: &mut crate::volume::VolumeScratch,
+    scratch: &mut BuildScratch,
     stats: &mut VolumeStats,
 ) -> Result<()> {
     let Request {
@@ -135,48 +201,70 @@ fn append_all(
         light,
         casters,
         options,
+        clamp,
     } = *request;
     let hull = NearLightHull::new(camera, light);
     for &id in casters {
         let sil = cache.get(id, light).expect("update() cached every caster");
         let object = scene.object(id);
         let mesh = scene.object_mesh(id);
-        // Worst case per caster: 2 vertices per mesh vertex, 3·(2·caps + 2·edges) indices.
-        let need_v = out.positions.len() + 2 * mesh.positions().len() + 1;
-        let need_i = out.indices.len() + 6 * (sil.caps.len() + sil.edge_count());
+        let segments = clamp.and_then(|p| p.get(id));
+        // Worst case per caster and segment: 2 vertices per mesh vertex,
+        // 3·(2·caps + 2·edges) indices.
+        let k = segments.map_or(1, |(_, i)| i.len());
+        let need_v = out.positions.len() + k * (2 * mesh.positions().len() + 1);
+        let need_i = out.indices.len() + k * 6 * (sil.caps.len() + sil.edge_count());
         if need_v > u32::MAX as usize || need_i > u32::MAX as usize {
             return Err(Error::BufferOverflow);
         }
-        let mut method = hull.choose(options.method, &object.world_bounds);
-        // zpass leaves the light cap out: right only while the eye sees the
-        // caster's own light-facing surface wherever that cap lies. The eye
-        // sees through an invisible caster (a shadow proxy): zfail, whose
-        // closed volume needs no such help.
-        if method == VolumeMethod::ZPass
-            && options.method == MethodChoice::Auto
-            && !object.flags.visible
-        {
-            method = VolumeMethod::ZFail;
-        }
-        match method {
-            VolumeMethod::ZPass => stats.zpass += 1,
-            VolumeMethod::ZFail => stats.zfail += 1,
-            VolumeMethod::ZpPlus => stats.zpplus += 1,
-        }
-        let local = if options.finite_extrusion {
-            LocalLight::finite(light, &object.world_from_local)
-        } else {
-            LocalLight::new(light, &object.world_from_local)
-        };
         let caster = CasterGeometry {
             object: id.0,
             positions: mesh.positions(),
             world_from_local: &object.world_from_local,
             silhouette: sil,
         };
-        let c = append_volume(out, scratch, caster, &local, method);
+        // The method rule, on the volume's or segment's own bounds.
+        let choose = |bounds: &scene::Aabb| {
+            let method = hull.choose(options.method, bounds);
+            // zpass leaves the light cap out: right only while the eye sees
+            // the caster's own light-facing surface wherever that cap lies.
+            // The eye sees through an invisible caster (a shadow proxy):
+            // zfail, whose closed volume needs no such help.
+            if method == VolumeMethod::ZPass
+                && options.method == MethodChoice::Auto
+                && !object.flags.visible
+            {
+                VolumeMethod::ZFail
+            } else {
+                method
+            }
+        };
         stats.silhouette_edges += sil.edge_count();
         stats.cap_source_triangles += sil.caps.len();
+        if let Some((axis, intervals)) = segments {
+            let seg_scratch = &mut scratch.segments;
+            let before = out.ranges.len();
+            let c = append_segments(out, seg_scratch, caster, axis, intervals, |k, near, far| {
+                let near = (k > 0).then_some(near);
+                choose(&axis.segment_bounds(&object.world_bounds, near, far))
+            });
+            for r in &out.ranges[before..] {
+                count_method(stats, r.method);
+            }
+            stats.clamped_casters += 1;
+            stats.segments += c.segments;
+            stats.segment_triangles += c.triangles;
+            stats.volume_triangles += c.triangles;
+            continue;
+        }
+        let method = choose(&object.world_bounds);
+        count_method(stats, method);
+        let local = if options.finite_extrusion {
+            LocalLight::finite(light, &object.world_from_local)
+        } else {
+            LocalLight::new(light, &object.world_from_local)
+        };
+        let c = append_volume(out, &mut scratch.volume, caster, &local, method);
         stats.volume_triangles += c.side_triangles + c.cap_triangles;
         stats.finite_volumes += usize::from(c.finite);
     }
@@ -198,4 +286,18 @@ fn append_all(
         out.ranges.iter_mut().for_each(bound);
     }
     Ok(())
+}
+
+fn count_method(stats: &mut VolumeStats, method: VolumeMethod) {
+    match method {
+        VolumeMethod::ZPass => stats.zpass += 1,
+        VolumeMethod::ZFail => stats.zfail += 1,
+        VolumeMethod::ZpPlus => stats.zpplus += 1,
+    }
+}
+
+/// Construction scratch, kept in the [`SilhouetteCache`] between frames.
+struct BuildScratch {
+    volume: crate::volume::VolumeScratch,
+    segments: SegmentScratch,
 }

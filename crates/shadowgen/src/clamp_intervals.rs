@@ -48,7 +48,7 @@ impl GapCost {
 }
 
 /// Estimates the pixels a caster's volume covers between two depths.
-pub type GapArea<'a> = &'a dyn Fn(f32, f32) -> f64;
+pub type GapArea<'a> = &'a dyn Fn(f64, f64) -> f64;
 
 /// The occupied intervals of caster depth `caster` given the depth
 /// intervals of the receivers whose rectangles overlap it, sorted, disjoint
@@ -60,10 +60,10 @@ pub type GapArea<'a> = &'a dyn Fn(f32, f32) -> f64;
 /// Non-finite or inverted depths are read conservatively: NaN bounds widen to
 /// ±∞, inverted ones swap.
 pub fn occupied_intervals(
-    caster: [f32; 2],
-    receivers: impl IntoIterator<Item = [f32; 2]>,
+    caster: [f64; 2],
+    receivers: impl IntoIterator<Item = [f64; 2]>,
     cost: Option<(&GapCost, GapArea<'_>)>,
-    out: &mut Vec<[f32; 2]>,
+    out: &mut Vec<[f64; 2]>,
 ) {
     out.clear();
     let c = sanitized(caster);
@@ -92,9 +92,9 @@ pub fn occupied_intervals(
     out.truncate(kept + 1);
 }
 
-fn sanitized([lo, hi]: [f32; 2]) -> [f32; 2] {
-    let lo = if lo.is_nan() { f32::NEG_INFINITY } else { lo };
-    let hi = if hi.is_nan() { f32::INFINITY } else { hi };
+fn sanitized([lo, hi]: [f64; 2]) -> [f64; 2] {
+    let lo = if lo.is_nan() { f64::NEG_INFINITY } else { lo };
+    let hi = if hi.is_nan() { f64::INFINITY } else { hi };
     if lo <= hi {
         [lo, hi]
     } else {
@@ -107,7 +107,7 @@ mod tests {
     use super::*;
     use proptest::prelude::*;
 
-    fn intervals(c: [f32; 2], r: &[[f32; 2]]) -> Vec<[f32; 2]> {
+    fn intervals(c: [f64; 2], r: &[[f64; 2]]) -> Vec<[f64; 2]> {
         let mut out = Vec::new();
         occupied_intervals(c, r.iter().copied(), None, &mut out);
         out
@@ -144,7 +144,7 @@ mod tests {
             silhouette_vertices: 15,
         };
         // V = 50: a gap of 40 pixels is filled, one of 60 kept.
-        let area = |a: f32, b: f32| f64::from(b - a) * 10.0;
+        let area = |a: f64, b: f64| (b - a) * 10.0;
         let mut out = Vec::new();
         occupied_intervals(
             [0.0, 1.0],
@@ -163,15 +163,15 @@ mod tests {
         /// grows the covered set.
         #[test]
         fn intervals_cover_every_shadowed_receiver_depth(
-            c in (0.0f32..100.0, 0.0f32..20.0),
-            rs in prop::collection::vec((0.0f32..150.0, 0.0f32..20.0, 0.0f32..=1.0), 0..20),
+            c in (0.0f64..100.0, 0.0f64..20.0),
+            rs in prop::collection::vec((0.0f64..150.0, 0.0f64..20.0, 0.0f64..=1.0), 0..20),
             per_pixel in 0.0f64..2.0,
         ) {
             let caster = [c.0, c.0 + c.1];
-            let recv: Vec<[f32; 2]> = rs.iter().map(|&(a, l, _)| [a, a + l]).collect();
+            let recv: Vec<[f64; 2]> = rs.iter().map(|&(a, l, _)| [a, a + l]).collect();
             let open = intervals(caster, &recv);
             let m = GapCost { per_vertex: 1.0, per_pixel, cap_vertices: 4, silhouette_vertices: 8 };
-            let area = |a: f32, b: f32| f64::from(b - a) * 3.0;
+            let area = |a: f64, b: f64| (b - a) * 3.0;
             let mut merged = Vec::new();
             occupied_intervals(caster, recv.iter().copied(), Some((&m, &area)), &mut merged);
             for out in [&open, &merged] {
@@ -179,7 +179,7 @@ mod tests {
                 prop_assert!(out.windows(2).all(|w| w[0][1] < w[1][0] && w[0][0] <= w[0][1]));
                 let far = recv.iter().filter(|r| r[1] >= caster[0]).fold(caster[1], |f, r| f.max(r[1]));
                 prop_assert_eq!(out.last().unwrap()[1], far);
-                let inside = |z: f32| out.iter().any(|i| i[0] <= z && z <= i[1]);
+                let inside = |z: f64| out.iter().any(|i| i[0] <= z && z <= i[1]);
                 for (r, &(_, _, t)) in recv.iter().zip(&rs) {
                     let z = (r[0] + (r[1] - r[0]) * t).clamp(r[0], r[1]);
                     if z >= caster[0] {

@@ -20,11 +20,8 @@ pub enum Error {
     #[error("volume buffer overflow: more than u32::MAX vertices or indices")]
     BufferOverflow,
     /// A sweep-and-prune update named more boxes than its keys can hold
-    /// ([`crate::MAX_BOX_ID`]). Split the set over several states.
-    #[error(
-        "sweep-and-prune over {boxes} boxes: ids past {} do not fit its keys",
-        crate::MAX_BOX_ID
-    )]
+    /// (ids up to `MAX_BOX_ID`, 2³¹ − 1). Split the set over several states.
+    #[error("sweep-and-prune over {boxes} boxes: ids past 2^31 - 1 do not fit its keys")]
     TooManyBoxes {
         /// The number of boxes passed.
         boxes: usize,

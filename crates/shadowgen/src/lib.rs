@@ -25,27 +25,36 @@
 //! - [`volume_bounds`]: per-volume scissor and depth bounds [EK "Exploit Bounds"].
 //! - [`SweepPrune`]: overlapping light-space boxes, kept across frames
 //!   [Steiner §4.4.1], with [`sweep_pairs`] as its from-scratch baseline.
+//! - [`LightClamp`]: continuous clamping for one light: sweep-and-prune on
+//!   fixed image planes, then each caster's occupied intervals as a
+//!   [`ClampPlan`] [Steiner §4.4.1].
 //! - [`occupied_intervals`], [`GapCost`]: the depth intervals a caster's
 //!   volume must cover [Steiner §4.4.1, Listing 4.2].
+//! - [`ClampPlan`], [`SegmentAxis`], `segments.rs`: a caster's volume cut to
+//!   its occupied intervals, one closed segment each [Steiner §4.4.3].
 //! - [`build_volumes`]: all of the above for one light, with [`VolumeStats`].
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
 mod bounds;
 mod build;
+mod clamp;
 mod clamp_intervals;
 mod error;
 mod method;
+mod segments;
 mod silhouette;
 mod silhouette_cache;
 mod sweep_prune;
 mod volume;
 
 pub use bounds::{volume_bounds, VolumeBounds, BOUNDS_MARGIN};
-pub use build::{build_volumes, BuildOptions, VolumeStats};
+pub use build::{build_clamped_volumes, build_volumes, BuildOptions, VolumeStats};
+pub use clamp::{ClampInput, ClampStats, GapModel, LightClamp};
 pub use clamp_intervals::{occupied_intervals, GapArea, GapCost};
 pub use error::{Error, Result};
 pub use method::{choose_method, zpass_is_safe, MethodChoice, NearLightHull, ZPASS_MARGIN};
+pub use segments::{ClampPlan, SegmentAxis, SEGMENT_MARGIN};
 pub use silhouette::{silhouette, Silhouette, SilhouetteEdge};
 pub use silhouette_cache::SilhouetteCache;
 pub use sweep_prune::{

@@ -2,6 +2,7 @@
 //! caster–light pairs keep their silhouette], with the reusable scratch of
 //! volume construction, so a steady frame recomputes and allocates nothing.
 
+use crate::segments::SegmentScratch;
 use crate::silhouette::{silhouette_with, Silhouette};
 use crate::volume::VolumeScratch;
 use glam::DMat4;
@@ -44,6 +45,7 @@ pub struct SilhouetteCache {
     /// Per entry of `stale` its edge counters, kept between updates.
     counters: Vec<Vec<i32>>,
     pub(crate) scratch: VolumeScratch,
+    pub(crate) segment_scratch: SegmentScratch,
 }
 
 impl std::fmt::Debug for SilhouetteCache {

@@ -1018,3 +1018,103 @@ proptest! {
         prop_assert_eq!(ci, cf);
     }
 }
+
+// ---------------------------------------------------------------- segmented volumes
+
+/// Signed crossings of `e → q` with every range of `buf`.
+fn buffer_crossings(buf: &VolumeBuffer, e: DVec3, q: DVec3) -> Option<i32> {
+    buf.ranges
+        .iter()
+        .try_fold(0, |n, r| Some(n + range_crossings(buf, r, e, q)?))
+}
+
+proptest! {
+    #![proptest_config(testkit::proptest_config(384))]
+
+    /// Continuous clamping [Steiner §4.4.3]: inside a segment's slab the
+    /// segments count as the unclamped volume does, in a gap between slabs
+    /// (and beyond the last) they count nothing, so every segment lies inside
+    /// the unclamped volume and every shadowed point of an occupied interval
+    /// lies in a segment. Any mesh, transform, light and intervals; zfail,
+    /// so that every range is closed.
+    #[test]
+    fn segments_count_as_the_unclamped_volume_within_their_slabs(
+        radii in prop::collection::vec(0.5f32..1.5, 7..20),
+        w in transform(),
+        l in light(),
+        gaps in prop::collection::vec((0.05f64..1.0, 0.05f64..1.0), 0..4),
+        first in 0.0f64..1.0,
+        q in prop::array::uniform3(-0.4f64..0.4),
+        which in 0usize..6,
+        frac in 0.0f64..1.0,
+    ) {
+        let s = scene_with(star_sphere(&radii, 4, 5), w);
+        let bounds = s.object(ObjectId(0)).world_bounds;
+        let Some(axis) = shadowgen::SegmentAxis::new(&l, &bounds) else { return Ok(()) };
+        // Intervals in units of the caster's depth extent beyond its far end.
+        let [c0, c1] = axis.box_depths(&bounds);
+        let unit = (c1 - c0).max(1e-3);
+        let mut intervals = vec![[c0, c1 + first * unit]];
+        for (gap, len) in &gaps {
+            let a = intervals.last().unwrap()[1] + gap * unit;
+            intervals.push([a, a + len * unit]);
+        }
+        let mut plan = shadowgen::ClampPlan::new();
+        plan.set(ObjectId(0), axis, &intervals);
+        let opts = BuildOptions { method: MethodChoice::ZFail, ..Default::default() };
+        let (mut unclamped, mut clamped) = (VolumeBuffer::new(), VolumeBuffer::new());
+        let mut cache = SilhouetteCache::new();
+        build_volumes(&mut unclamped, &s, &camera(), &l, &[ObjectId(0)], opts, &mut cache).unwrap();
+        let st = shadowgen::build_clamped_volumes(
+            &mut clamped, &s, &camera(), &l, &[ObjectId(0)], opts, &mut cache, &plan,
+        ).unwrap();
+        clamped.check().unwrap();
+        let widened = plan.get(ObjectId(0)).unwrap().1.to_vec();
+        prop_assert_eq!(st.segments, widened.len());
+        prop_assert_eq!(st.volume_triangles, clamped.triangle_count());
+        for (k, r) in clamped.ranges.iter().enumerate() {
+            prop_assert_eq!(r.segment as usize, k);
+            prop_assert!(boundary(&clamped, r).is_empty(), "segment {} is not closed", k);
+        }
+        // e: nearer the light than the caster, outside every volume.
+        let e = match l {
+            Light::Directional { direction } => axis.origin - direction.normalize() * (2.0 * axis.size + 1.0),
+            _ => axis.origin + axis.axis * (0.5 * c0),
+        };
+        // q: a point inside the caster (its radii are at least 0.5), so
+        // usually in its shadow once moved along its light ray to a depth in
+        // an interval (`which` < their count) or in a gap or beyond them.
+        let p = w.transform_point3(DVec3::from(q));
+        let target = match widened.get(which) {
+            Some(i) => i[0] + frac * (i[1] - i[0]),
+            None => {
+                let last = widened.len() - 1;
+                let k = which % widened.len();
+                let (a, b) = if k == last {
+                    (widened[last][1], widened[last][1] + 2.0 * unit)
+                } else {
+                    (widened[k][1], widened[k + 1][0])
+                };
+                a + frac * (b - a)
+            }
+        };
+        if axis.depth(p) >= target || (axis.positional && axis.depth(p) <= 0.0) {
+            return Ok(());
+        }
+        let q = axis.project(p, target);
+        let d = axis.depth(q);
+        // Points within rounding of a plane decide nothing.
+        let tol = 1e-6 * (d.abs() + axis.size);
+        if widened.iter().any(|i| (d - i[0]).abs() < tol || (d - i[1]).abs() < tol) {
+            return Ok(());
+        }
+        let (Some(u), Some(c)) = (buffer_crossings(&unclamped, e, q), buffer_crossings(&clamped, e, q)) else {
+            return Ok(());
+        };
+        if widened.iter().any(|i| i[0] < d && d < i[1]) {
+            prop_assert_eq!(c, u, "depth {} in {:?}", d, widened);
+        } else if d > c1 {
+            prop_assert_eq!(c, 0, "depth {} outside {:?}", d, widened);
+        }
+    }
+}

@@ -493,6 +493,7 @@ mod tests {
                     depth_near: 1.0,
                     depth_far: 0.0,
                     scissor: VolumeRange::FULL_SCISSOR,
+                    planes: [None, None],
                 });
             }
         }

@@ -1,0 +1,344 @@
+//! Segmented shadow volumes [Steiner §4.4.3, Listing 4.4, A.4]: a caster's
+//! volume cut to the depth intervals where receivers may be
+//! ([`crate::occupied_intervals`]), one closed volume per interval.
+//!
+//! # Geometry
+//! Depth is measured along a [`SegmentAxis`]: for a point or spot light, the
+//! distance from the light along the unit axis from the light towards the
+//! caster; for a directional light, the distance along its travel direction.
+//! The planes of constant depth bound the segments. A casting (light-cap)
+//! vertex `v` projects onto the plane of depth `P` along its light ray:
+//! `l + (v − l)·P/depth(v)` for a point light (all caster vertices have
+//! positive depth: [`SegmentAxis::new`] refuses a caster the light's plane
+//! cuts), `v + d·(P − depth(v))` for a directional one.
+//!
+//! Each casting triangle's shadow is the prism of light rays beyond it; the
+//! unclamped volume is their sum [EK]. Between two planes beyond the caster,
+//! the prism is bounded by the triangle projected onto each plane and by the
+//! planes through the light and each edge, so segment `k ≥ 1` over `[a, b]`
+//! is: near cap (the light cap projected onto `a`, light-facing winding), far
+//! cap (projected onto `b`, reversed), and per silhouette edge `p → q` the
+//! side quad `(q_a, p_a, p_b, q_b)`: the unclamped side quad's plane, cut.
+//! Segment 0 starts at the caster and keeps the real light cap, as an
+//! unclamped volume does; its far cap closes it (zpass included, as with
+//! finite extrusion). Inside its slab a segment counts exactly as the
+//! unclamped volume does; outside every slab it counts nothing.
+//!
+//! # Margins
+//! Interval ends come from receiver bounds, and a receiver's face can lie
+//! exactly on one. A cap there would meet the surface within the rounding of
+//! f32 vertices and eye depths, so each interval is widened by
+//! `2⁻¹⁰·(|P| + size)` at both ends (`size` the caster's bounding diagonal)
+//! before segments are built, and intervals that then overlap are merged.
+
+use crate::volume::CasterGeometry;
+use glam::{DMat4, DVec3};
+use raster::{VolumeBuffer, VolumeMethod, VolumeRange};
+use scene::{Aabb, Light, ObjectId};
+
+/// The depth axis of one caster's segments, in world space.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SegmentAxis {
+    /// Depth 0: the light's position (point and spot lights) or the caster's
+    /// centre (directional lights).
+    pub origin: DVec3,
+    /// Unit direction of increasing depth.
+    pub axis: DVec3,
+    /// Whether projection goes through `origin` (a positional light) or along
+    /// `axis` (a directional one).
+    pub positional: bool,
+    /// The caster's bounding diagonal, for the margins.
+    pub size: f64,
+}
+
+/// Relative margin of the segment planes (module docs, "Margins").
+pub const SEGMENT_MARGIN: f64 = 1.0 / 1024.0;
+
+impl SegmentAxis {
+    /// The axis for a caster with world bounds `caster`: `None` when the
+    /// caster cannot be segmented (a positional light on or inside the
+    /// caster's box, or within `SEGMENT_MARGIN` of its plane, or non-finite
+    /// geometry).
+    pub fn new(light: &Light, caster: &Aabb) -> Option<SegmentAxis> {
+        if caster.is_empty() {
+            return None;
+        }
+        let (lo, hi) = (caster.min.as_dvec3(), caster.max.as_dvec3());
+        let centre = (lo + hi) * 0.5;
+        let size = (hi - lo).length();
+        let s = match *light {
+            Light::Directional { direction } => SegmentAxis {
+                origin: centre,
+                axis: direction.normalize(),
+                positional: false,
+                size,
+            },
+            Light::Point { position, .. } | Light::Spot { position, .. } => SegmentAxis {
+                origin: position,
+                axis: (centre - position).normalize(),
+                positional: true,
+                size,
+            },
+        };
+        if !(s.axis.is_finite() && s.origin.is_finite() && size.is_finite()) {
+            return None;
+        }
+        let [near, _] = s.box_depths(caster);
+        (!s.positional || near > SEGMENT_MARGIN * size).then_some(s)
+    }
+
+    /// Depth of world point `p`.
+    pub fn depth(&self, p: DVec3) -> f64 {
+        self.axis.dot(p - self.origin)
+    }
+
+    /// The depth interval of world box `b` (its corners' extremes).
+    pub fn box_depths(&self, b: &Aabb) -> [f64; 2] {
+        let (lo, hi) = (b.min.as_dvec3(), b.max.as_dvec3());
+        // The axis's sign per coordinate picks the nearest and farthest corner.
+        let near = DVec3::select(self.axis.cmpge(DVec3::ZERO), lo, hi);
+        let far = DVec3::select(self.axis.cmpge(DVec3::ZERO), hi, lo);
+        [self.depth(near), self.depth(far)]
+    }
+
+    /// World point `v` moved along its light ray to depth `plane`.
+    pub fn project(&self, v: DVec3, plane: f64) -> DVec3 {
+        if self.positional {
+            self.origin + (v - self.origin) * (plane / self.depth(v))
+        } else {
+            v + self.axis * (plane - self.depth(v))
+        }
+    }
+
+    /// The world bounds of the segment between `near` (`None`: the caster's
+    /// own bounds `caster`) and depth `far`: the caster's corners projected
+    /// onto both planes. For a positional light every caster corner has
+    /// positive depth ([`Self::new`]), so the projections bound the light's
+    /// rays through the caster between the planes.
+    pub fn segment_bounds(&self, caster: &Aabb, near: Option<f64>, far: f64) -> Aabb {
+        let (lo, hi) = (caster.min.as_dvec3(), caster.max.as_dvec3());
+        let mut b = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
+        let mut add = |p: DVec3| b = (b.0.min(p), b.1.max(p));
+        for k in 0..8 {
+            let c = DVec3::select(glam::BVec3::new(k & 1 != 0, k & 2 != 0, k & 4 != 0), hi, lo);
+            match near {
+                None => add(c),
+                Some(n) => add(self.project(c, n)),
+            }
+            add(self.project(c, far));
+        }
+        // f32 bounds rounded outward.
+        let down = |v: f64| {
+            let f = v as f32;
+            if f64::from(f) > v {
+                f.next_down()
+            } else {
+                f
+            }
+        };
+        let up = |v: f64| {
+            let f = v as f32;
+            if f64::from(f) < v {
+                f.next_up()
+            } else {
+                f
+            }
+        };
+        Aabb {
+            min: glam::Vec3::new(down(b.0.x), down(b.0.y), down(b.0.z)),
+            max: glam::Vec3::new(up(b.1.x), up(b.1.y), up(b.1.z)),
+        }
+    }
+
+    /// The world plane `(n, d)` (`n·x + d = 0`, `n` pointing to greater
+    /// depth) of depth `plane`.
+    pub fn plane(&self, plane: f64) -> [f64; 4] {
+        let d = -(self.axis.dot(self.origin) + plane);
+        [self.axis.x, self.axis.y, self.axis.z, d]
+    }
+
+    /// `intervals` (sorted, disjoint; the first starting at the caster)
+    /// widened by the margins and merged where they then meet.
+    pub fn widened(&self, intervals: &[[f64; 2]], out: &mut Vec<[f64; 2]>) {
+        out.clear();
+        let pad = |p: f64| SEGMENT_MARGIN * (p.abs() + self.size);
+        for (k, &[a, b]) in intervals.iter().enumerate() {
+            // Segment 0 starts at the caster itself: no plane there.
+            let a = if k == 0 { a } else { a - pad(a) };
+            let b = b + pad(b);
+            match out.last_mut() {
+                Some(last) if a <= last[1] => last[1] = last[1].max(b),
+                _ => out.push([a, b]),
+            }
+        }
+    }
+}
+
+/// Where each caster's volume is clamped [Steiner §4.4]: its depth axis and
+/// its occupied intervals, widened by the margins. Casters without an entry
+/// are built unclamped. Filled per light and frame by the clamping stage, read
+/// by [`crate::build_clamped_volumes`].
+#[derive(Clone, Debug, Default)]
+pub struct ClampPlan {
+    entries: std::collections::HashMap<u32, (SegmentAxis, Vec<[f64; 2]>)>,
+    widened: Vec<[f64; 2]>,
+}
+
+impl ClampPlan {
+    /// An empty plan: every caster unclamped.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Forgets every entry.
+    pub fn clear(&mut self) {
+        self.entries.clear();
+    }
+
+    /// Clamps `caster` along `axis` to `intervals` (sorted and disjoint, the
+    /// first starting at or before the caster's nearest depth; see
+    /// [`crate::occupied_intervals`]), widened by the margins. An empty list
+    /// removes the entry.
+    pub fn set(&mut self, caster: ObjectId, axis: SegmentAxis, intervals: &[[f64; 2]]) {
+        if intervals.is_empty() {
+            self.entries.remove(&caster.0);
+            return;
+        }
+        axis.widened(intervals, &mut self.widened);
+        let e = self.entries.entry(caster.0).or_insert((axis, Vec::new()));
+        e.0 = axis;
+        e.1.clone_from(&self.widened);
+    }
+
+    /// The axis and widened intervals of `caster`, if it is clamped.
+    pub fn get(&self, caster: ObjectId) -> Option<(&SegmentAxis, &[[f64; 2]])> {
+        self.entries.get(&caster.0).map(|(a, i)| (a, i.as_slice()))
+    }
+
+    /// Number of clamped casters.
+    pub fn len(&self) -> usize {
+        self.entries.len()
+    }
+
+    /// True when no caster is clamped.
+    pub fn is_empty(&self) -> bool {
+        self.entries.is_empty()
+    }
+}
+
+/// Counts of [`append_segments`].
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct SegmentCounts {
+    /// Segments appended (ranges).
+    pub segments: usize,
+    /// Triangles appended.
+    pub triangles: usize,
+}
+
+/// Reusable scratch of [`append_segments`]: per mesh vertex, its slot on the
+/// current plane.
+#[derive(Clone, Debug, Default)]
+pub struct SegmentScratch {
+    near: Vec<u32>,
+    far: Vec<u32>,
+}
+
+const UNSET: u32 = u32::MAX;
+
+/// Appends `caster`'s segments over `intervals` (after
+/// [`SegmentAxis::widened`]; depths along `axis`, sorted and disjoint, the
+/// first starting at or before the caster's nearest depth) to `out`, one
+/// range per interval numbered `0..k` in [`VolumeRange::segment`], each with
+/// its planes and the method `method(segment, near, far)` chooses.
+pub(crate) fn append_segments(
+    out: &mut VolumeBuffer,
+    scratch: &mut SegmentScratch,
+    caster: CasterGeometry<'_>,
+    axis: &SegmentAxis,
+    intervals: &[[f64; 2]],
+    mut method: impl FnMut(u32, f64, f64) -> VolumeMethod,
+) -> SegmentCounts {
+    let CasterGeometry {
+        object,
+        positions,
+        world_from_local,
+        silhouette,
+    } = caster;
+    let local_from_world = world_from_local.inverse();
+    let world = |v: u32| scene::transform::world_point(world_from_local, positions[v as usize]);
+    let mut counts = SegmentCounts::default();
+    for (k, &[near, far]) in intervals.iter().enumerate() {
+        let k = k as u32;
+        let method = method(k, near, far);
+        let first_vertex = out.positions.len() as u32;
+        let first_index = out.indices.len() as u32;
+        for table in [&mut scratch.near, &mut scratch.far] {
+            table.clear();
+            table.resize(positions.len(), UNSET);
+        }
+        let slot = |out: &mut VolumeBuffer, table: &mut Vec<u32>, v: u32, plane: Option<f64>| {
+            let s = &mut table[v as usize];
+            if *s == UNSET {
+                let p = match plane {
+                    None => positions[v as usize],
+                    Some(p) => to_local(&local_from_world, axis.project(world(v), p)),
+                };
+                out.positions.push([p.x, p.y, p.z, 1.0]);
+                *s = out.positions.len() as u32 - 1;
+            }
+            *s
+        };
+        // Segment 0's near end is the caster (the light cap itself).
+        let near_plane = (k > 0).then_some(near);
+        let light_start = out.indices.len() as u32;
+        if k > 0 || method != VolumeMethod::ZPass {
+            for c in &silhouette.caps {
+                let t = c.map(|v| slot(out, &mut scratch.near, v, near_plane));
+                out.indices.extend_from_slice(&t);
+            }
+        }
+        let light_cap = light_start..out.indices.len() as u32;
+        for c in &silhouette.caps {
+            let [a, b, c] = c.map(|v| slot(out, &mut scratch.far, v, Some(far)));
+            out.indices.extend_from_slice(&[a, c, b]);
+        }
+        let dark_cap = light_cap.end..out.indices.len() as u32;
+        for e in &silhouette.edges {
+            let (a, b) = (
+                slot(out, &mut scratch.near, e.from, near_plane),
+                slot(out, &mut scratch.near, e.to, near_plane),
+            );
+            let (af, bf) = (
+                slot(out, &mut scratch.far, e.from, Some(far)),
+                slot(out, &mut scratch.far, e.to, Some(far)),
+            );
+            for _ in 0..e.multiplicity {
+                out.indices.extend_from_slice(&[b, a, af, b, af, bf]);
+            }
+        }
+        let index_count = out.indices.len() as u32 - first_index;
+        counts.segments += 1;
+        counts.triangles += index_count as usize / 3;
+        out.ranges.push(VolumeRange {
+            object,
+            segment: k,
+            world_from_local: *world_from_local,
+            method,
+            first_vertex,
+            vertex_count: out.positions.len() as u32 - first_vertex,
+            first_index,
+            index_count,
+            light_cap,
+            dark_cap,
+            depth_near: 1.0,
+            depth_far: 0.0,
+            scissor: VolumeRange::FULL_SCISSOR,
+            planes: [near_plane.map(|p| axis.plane(p)), Some(axis.plane(far))],
+        });
+    }
+    counts
+}
+
+fn to_local(local_from_world: &DMat4, p: DVec3) -> glam::Vec3 {
+    local_from_world.transform_point3(p).as_vec3()
+}
