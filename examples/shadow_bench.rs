@@ -4,6 +4,7 @@
 //! [--scissor on|off] [--method auto|zpass|zfail|zpplus] [--counters 8|wide] [--tile 4|8|16]
 //! [--full-shadow on|off] [--map N] [--culling none|frustum|exact|chc|chcpp]
 //! [--coverage conservative|point] [--threshold T] [--light-res N]
+//! [--clamping none|continuous] [--clamping-receivers all|psr]
 //! [--two-sided] [--reference] [--mask OUT.png] [--reps R | --path NAME [--frames N]]`
 //! (defaults `--tile 8 --counters 8 --map 2048 --full-shadow on --culling none
 //! --coverage conservative --threshold 0 --light-res 1024 --reps 5`; `--threshold` is the
@@ -67,7 +68,9 @@ use scene::{Camera, CameraPath, Light, LookAt, Scene};
 use serde_json::{json, Map, Value};
 use shadowcull::config::LightSpec;
 use shadowcull::frame::{FrameRunner, LightFrame};
-use shadowcull::pipeline::{CoverageSpec, CullingSpec, PipelineOptions, StencilBackend};
+use shadowcull::pipeline::{
+    ClampReceiversSpec, ClampingSpec, CoverageSpec, CullingSpec, PipelineOptions, StencilBackend,
+};
 use shadowcull::stats::FrameRow;
 use shadowgen::MethodChoice;
 use std::path::PathBuf;
@@ -98,6 +101,14 @@ const METHODS: &[(&str, MethodChoice)] = &[
     ("zpplus", MethodChoice::ZpPlus),
 ];
 const COUNTERS: &[(&str, StencilBits)] = &[("8", StencilBits::Eight), ("wide", StencilBits::Wide)];
+const CLAMPINGS: &[(&str, ClampingSpec)] = &[
+    ("none", ClampingSpec::None),
+    ("continuous", ClampingSpec::Continuous),
+];
+const CLAMP_RECEIVERS: &[(&str, ClampReceiversSpec)] = &[
+    ("all", ClampReceiversSpec::All),
+    ("psr", ClampReceiversSpec::Psr),
+];
 const COVERAGES: &[(&str, CoverageSpec)] = &[
     ("conservative", CoverageSpec::Conservative),
     ("point", CoverageSpec::Point),
@@ -180,6 +191,14 @@ struct Cli {
     #[arg(long, value_parser = one_of(CULLINGS),
           default_value = name_of(CULLINGS, &PipelineOptions::default().culling))]
     culling: CullingSpec,
+    /// Shadow-volume clamping.
+    #[arg(long, value_parser = one_of(CLAMPINGS),
+          default_value = name_of(CLAMPINGS, &PipelineOptions::default().clamping))]
+    clamping: ClampingSpec,
+    /// The receivers clamping fits volumes to.
+    #[arg(long = "clamping-receivers", value_parser = one_of(CLAMP_RECEIVERS),
+          default_value = name_of(CLAMP_RECEIVERS, &PipelineOptions::default().clamping_receivers))]
+    clamping_receivers: ClampReceiversSpec,
     /// How culling samples pixels (`point` is aggressive).
     #[arg(long, value_parser = one_of(COVERAGES),
           default_value = name_of(COVERAGES, &PipelineOptions::default().coverage))]
@@ -274,6 +293,8 @@ impl From<Cli> for Args {
                 full_shadow: c.full_shadow,
                 map_size: c.map_size,
                 culling: c.culling,
+                clamping: c.clamping,
+                clamping_receivers: c.clamping_receivers,
                 coverage: c.coverage,
                 query_threshold: c.query_threshold,
                 light_resolution: c.light_resolution,
@@ -400,7 +421,7 @@ const TIMES: [(&str, Get<f64>); 8] = [
 ];
 
 /// Per-frame counters reported as series along a path.
-const COUNTS: [(&str, Get<u64>); 7] = [
+const COUNTS: [(&str, Get<u64>); 9] = [
     ("psr", |s| s.row.shadow.psr),
     ("psc", |s| s.row.shadow.psc),
     ("queries", |s| s.row.shadow.queries),
@@ -410,6 +431,8 @@ const COUNTS: [(&str, Get<u64>); 7] = [
     }),
     ("volume_triangles", |s| s.row.shadow.volume_triangles),
     ("shadowed_pixels", |s| s.row.shadow.shadowed_pixels),
+    ("segments", |s| s.row.shadow.volumes.segments as u64),
+    ("sap_pairs", |s| s.row.shadow.volumes.sap_pairs as u64),
 ];
 
 /// Series along a path with `--reference`.
@@ -475,6 +498,8 @@ fn settings(a: &Args, row: &FrameRow) -> Map<String, Value> {
         "method": name_of(METHODS, &p.method),
         "culling": name_of(CULLINGS, &p.culling),
         "coverage": name_of(COVERAGES, &p.coverage),
+        "clamping": name_of(CLAMPINGS, &p.clamping),
+        "clamping_receivers": name_of(CLAMP_RECEIVERS, &p.clamping_receivers),
         "query_threshold": p.query_threshold,
         "light_resolution": p.light_resolution,
         "objects": row.scene.objects,
