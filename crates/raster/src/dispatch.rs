@@ -179,8 +179,7 @@ multiversioned! {
     }
 
     /// Counts the samples of `item` passing the query test (1 at the first with
-    /// [`QueryMode::Any`]). Setup counters go to `st_setup`, traversal counters
-    /// to `st`.
+    /// `any`). Setup counters go to `st_setup`, traversal counters to `st`.
     fn query_mesh(
         view: &QueryView,
         item: &DrawItem,
