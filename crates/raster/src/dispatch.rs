@@ -19,7 +19,7 @@ use crate::hiz::{hidden, project, project_lanes, project_wide, Projected, RowSki
 use crate::isa::InstructionSet;
 use crate::item::{setup_item, DrawItem, TriSink};
 use crate::layout::TileRows;
-use crate::query_options::{meets_apex_region, QueryMode, QueryOptions, APEX_EPS, VISIBLE};
+use crate::query_options::{meets_apex_region, APEX_EPS, VISIBLE};
 use crate::setup::{widen, VertexCache, Viewport, CACHE_VERTICES};
 use crate::stats::RasterStats;
 use crate::tile_walk::{draw_tri, probe_passes, query_tri, QueryView};
@@ -47,7 +47,7 @@ fn screen_bounds(vp: &Viewport, item: &DrawItem, cache: &mut VertexCache) -> Pro
 ///
 /// The functions take at most six arguments besides `isa` (clippy's limit is
 /// seven): what belongs together travels as one struct ([`BandTarget`],
-/// [`DrawMode`], [`QueryOptions`]).
+/// [`DrawMode`]; a query's viewport comes with its [`QueryView`]).
 macro_rules! multiversioned {
     ($(
         $(#[$m:meta])*
@@ -179,17 +179,16 @@ multiversioned! {
     }
 
     /// Counts the samples of `item` passing the query test (1 at the first with
-    /// [`QueryMode::Any`]). Setup counters go to `st_setup`, traversal counters
-    /// to `st`.
+    /// `any`). Setup counters go to `st_setup`, traversal counters to `st`.
     fn query_mesh(
-        vp: &Viewport,
         view: &QueryView,
         item: &DrawItem,
-        opts: QueryOptions,
+        cov: Coverage,
+        any: bool,
         st_setup: &mut RasterStats,
         st: &mut RasterStats,
     ) -> Result<u64> {
-        let (cov, any) = (opts.coverage, opts.mode == QueryMode::Any);
+        let vp = view.vp;
         let small = item.positions.len() <= CACHE_VERTICES;
         let mut cache = VertexCache::empty();
         if small {
@@ -213,14 +212,14 @@ multiversioned! {
     /// region, 0 when hierarchical z hides its screen rectangle, else the count of
     /// its 12 triangles (at most `VISIBLE − 1`). Counts the query in `st`.
     fn query_box(
-        vp: &Viewport,
         view: &QueryView,
         clip_from_local: &Mat4,
         bounds: (Vec3, Vec3),
-        opts: QueryOptions,
+        cov: Coverage,
+        any: bool,
         st: &mut RasterStats,
     ) -> u32 {
-        let (cov, any) = (opts.coverage, opts.mode == QueryMode::Any);
+        let vp = view.vp;
         let (min, max) = bounds;
         use crate::item::{AABB_TRIANGLES, aabb_corners};
         st.queries += 1;
@@ -475,16 +474,12 @@ mod tests {
                 assert_eq!(da, db);
             }
             let view = a.query_view(None);
-            for mode in [QueryMode::Count, QueryMode::Any] {
-                let opts = QueryOptions {
-                    coverage: cov,
-                    mode,
-                };
-                let qa = query_mesh(level, &vp, &view, &item, opts, &mut sa, &mut ta);
-                let qb = query_mesh(Portable, &vp, &view, &item, opts, &mut sb, &mut tb);
+            for any in [false, true] {
+                let qa = query_mesh(level, &view, &item, cov, any, &mut sa, &mut ta);
+                let qb = query_mesh(Portable, &view, &item, cov, any, &mut sb, &mut tb);
                 assert_eq!(qa.unwrap(), qb.unwrap());
-                let ba = query_box(level, &vp, &view, &m, (lo, hi), opts, &mut sa);
-                let bb = query_box(Portable, &vp, &view, &m, (lo, hi), opts, &mut sb);
+                let ba = query_box(level, &view, &m, (lo, hi), cov, any, &mut sa);
+                let bb = query_box(Portable, &view, &m, (lo, hi), cov, any, &mut sb);
                 assert_eq!(ba, bb);
             }
         }

@@ -35,6 +35,7 @@ fn check_receivers(t: &DepthTarget, r: Option<&ReceiverTarget>) -> Result<()> {
 impl DepthTarget {
     pub(crate) fn query_view<'a>(&'a self, receivers: Option<&'a ReceiverTarget>) -> QueryView<'a> {
         QueryView {
+            vp: &self.vp,
             layout: self.layout,
             depth: &self.depth,
             tiles: &self.tiles,
@@ -61,7 +62,8 @@ impl DepthTarget {
     ) -> Result<u32> {
         let view = self.query_view(receivers);
         let mut st2 = RasterStats::default();
-        let count = query_mesh(self.isa, &self.vp, &view, item, *opts, st, &mut st2)?;
+        let (cov, any) = (opts.coverage, opts.mode == QueryMode::Any);
+        let count = query_mesh(self.isa, &view, item, cov, any, st, &mut st2)?;
         st.add(&st2);
         st.queries += 1;
         Ok(count.min(u64::from(VISIBLE - 1)) as u32)
@@ -117,14 +119,15 @@ impl DepthTarget {
         st: &mut RasterStats,
     ) -> Result<u32> {
         let view = self.query_view(receivers);
+        let (cov, any) = (opts.coverage, opts.mode == QueryMode::Any);
         let bounds = (min, max);
         Ok(query_box(
             self.isa,
-            &self.vp,
             &view,
             &clip_from_local,
             bounds,
-            *opts,
+            cov,
+            any,
             st,
         ))
     }

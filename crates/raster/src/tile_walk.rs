@@ -10,7 +10,7 @@ use crate::coverage::{
 use crate::edge::Tri;
 use crate::hiz::RowSkip;
 use crate::layout::{Layout, TileBounds, TileRows, BACKGROUND};
-use crate::setup::SUBPIXEL;
+use crate::setup::{Viewport, SUBPIXEL};
 use crate::stats::RasterStats;
 
 /// Tile classification against the triangle's edges.
@@ -647,6 +647,8 @@ fn draw_tri_as<const FAST: bool>(
 
 /// Read-only view of a target for queries.
 pub(crate) struct QueryView<'a> {
+    /// The target's viewport (setup of the query geometry).
+    pub vp: &'a Viewport,
     pub layout: Layout,
     pub depth: &'a [f32],
     pub tiles: &'a [TileBounds],
