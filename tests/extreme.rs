@@ -11,7 +11,8 @@ use scene::procedural::analytic;
 use scene::{Camera, Light, Mesh, ObjectId, Scene, SceneGraph, Transform};
 use shadowcull::mask::{compare, Comparison, Mask, PixelClass};
 use shadowcull::pipeline::{
-    eye_pass, shadow_mask, EyePass, MeshCache, ShadowOptions, ShadowScratch,
+    eye_pass, shadow_mask, ClampOptions, ClampReceiversSpec, EyePass, MeshCache, ShadowOptions,
+    ShadowScratch, DEFAULT_CLAMP_PIXEL_COST, DEFAULT_CLAMP_VERTEX_COST,
 };
 use shadowcull::reference::{reference_mask, ReferenceMask, ReferenceOptions, TriangleBvh};
 use shadowgen::{MethodChoice, VolumeStats};
@@ -139,6 +140,48 @@ fn try_run(
         assert!(
             reference.ambiguous[i],
             "FS changed pixel {i}, which the reference does not call ambiguous"
+        );
+    }
+    // On clamped volumes too: H equals BF with FS off, FS changes only
+    // ambiguous pixels.
+    let checked = testkit::check_hierarchical_clamped(
+        scene,
+        cam,
+        light,
+        &eye.target,
+        method,
+        two_sided,
+        &tiles,
+    )
+    .unwrap_or_else(|e| panic!("hierarchical stencil, clamped: {e}"));
+    for i in checked.differing {
+        assert!(
+            reference.ambiguous[i],
+            "FS changed pixel {i} of the clamped volumes, which the reference does not call ambiguous"
+        );
+    }
+    // Continuous clamping keeps the mask but for pixels the reference calls
+    // ambiguous (a segment's new vertices snap on their own).
+    let clamped = ShadowOptions {
+        clamping: Some(ClampOptions {
+            receivers: ClampReceiversSpec::All,
+            vertex_cost: DEFAULT_CLAMP_VERTEX_COST,
+            pixel_cost: DEFAULT_CLAMP_PIXEL_COST,
+        }),
+        ..opts
+    };
+    let c = shadow_mask(
+        scene,
+        cam,
+        light,
+        &eye,
+        &clamped,
+        &mut ShadowScratch::default(),
+    )?;
+    for (i, (a, b)) in frame.mask.pixels.iter().zip(&c.mask.pixels).enumerate() {
+        assert!(
+            a == b || reference.ambiguous[i],
+            "clamping changed pixel {i} ({a:?} to {b:?}), which the reference does not call ambiguous"
         );
     }
     Ok(Run {

@@ -199,7 +199,7 @@ impl Pipeline {
     /// Drops every light's cached silhouette of the object in `id`'s slot.
     fn invalidate_silhouettes(&mut self, id: ObjectId) {
         for s in self.lights.iter_mut().filter_map(|s| s.state.as_mut()) {
-            s.scratch.cache.invalidate(ObjectId(id.slot()));
+            s.scratch.volume.cache.invalidate(ObjectId(id.slot()));
         }
     }
 

@@ -331,7 +331,7 @@ impl Pipeline {
         }
         for s in self.lights.iter_mut().filter_map(|s| s.state.as_mut()) {
             s.culling.pass.reset_history();
-            s.scratch.cache.clear();
+            s.scratch.volume.cache.clear();
         }
     }
 
@@ -511,14 +511,14 @@ impl Pipeline {
                 &shadow_options,
                 (w, h),
                 receives.as_deref(),
-                &mut s.scratch,
+                &mut s.scratch.volume,
             )?;
             s.volume_stats = volumes;
             // Public ids (slot and generation) in the outputs.
             s.psc.clear();
             s.psc.reserve(scene.objects().len());
             s.psc.extend(casters.iter().map(|id| scene.id_of(id.0)));
-            for r in &mut s.scratch.volumes.ranges {
+            for r in &mut s.scratch.volume.buffer.ranges {
                 r.object = scene.id_of(r.object).0;
             }
             s.shadow = match o.stencil {
@@ -539,7 +539,7 @@ impl Pipeline {
             };
             let mut stats = ShadowStats {
                 eye_ms,
-                volume_triangles: s.scratch.volumes.triangle_count() as u64,
+                volume_triangles: s.scratch.volume.buffer.triangle_count() as u64,
                 psr,
                 psc: casters.len() as u64,
                 queries: eye_queries + light.queries,
@@ -767,7 +767,7 @@ impl<'a> LightOutput<'a> {
     /// (object, segment, `world_from_local`, method, cap ranges, scissor,
     /// depth bounds). See `docs/host.md` for drawing them on a GPU.
     pub fn volumes(&self) -> &'a VolumeBuffer {
-        &self.state.scratch.volumes
+        &self.state.scratch.volume.buffer
     }
 
     /// The light views the light pass used (empty without culling).

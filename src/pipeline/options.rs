@@ -8,6 +8,8 @@ use raster::StencilBits;
 use serde::{Deserialize, Serialize};
 use shadowgen::MethodChoice;
 
+pub use super::shadow_options::ClampReceiversSpec;
+
 /// Stencil backend (`stencil: bf`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize, Serialize)]
 #[serde(rename_all = "lowercase")]
@@ -77,18 +79,6 @@ pub enum ClampingSpec {
     /// the depth intervals its receivers occupy in the light's view
     /// (sweep-and-prune, [`shadowgen::LightClamp`]). The mask is unchanged.
     Continuous,
-}
-
-/// Which objects count as receivers for clamping (`clamping_receivers: all`).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize, Serialize)]
-#[serde(rename_all = "lowercase")]
-pub enum ClampReceiversSpec {
-    /// Every receiving object: the thesis's setting, independent of the view.
-    #[default]
-    All,
-    /// The eye pass's potentially visible receivers (PSR): tighter, but
-    /// view-dependent. Without culling every receiving object counts.
-    Psr,
 }
 
 /// CHC++ parameters (`chcpp: (batch: 50, revisit: 5, seed: 1)`).

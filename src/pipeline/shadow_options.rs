@@ -4,6 +4,7 @@
 
 use raster::{StencilBits, TileSize};
 use scene::{Camera, Light, Scene};
+use serde::{Deserialize, Serialize};
 use shadowgen::MethodChoice;
 
 /// Which stencil backend draws the volumes.
@@ -49,11 +50,23 @@ pub struct ShadowOptions {
     pub clamping: Option<ClampOptions>,
 }
 
+/// Which objects count as receivers for clamping (`clamping_receivers: all`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ClampReceiversSpec {
+    /// Every receiving object: the thesis's setting, independent of the view.
+    #[default]
+    All,
+    /// The eye pass's potentially visible receivers (PSR): tighter, but
+    /// view-dependent. Without culling every receiving object counts.
+    Psr,
+}
+
 /// Options of continuous clamping in the shadow stage.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ClampOptions {
     /// Which objects count as receivers.
-    pub receivers: super::options::ClampReceiversSpec,
+    pub receivers: ClampReceiversSpec,
     /// v of the gap cost model ([`shadowgen::GapCost`]).
     pub vertex_cost: f64,
     /// r of the gap cost model.

@@ -6,15 +6,14 @@
 use super::eye::EyePass;
 use super::shadow_options::ShadowInput;
 pub use super::shadow_options::{Backend, ShadowOptions};
-use super::volume::build_for;
+use super::volume::{build_for, VolumeScratch};
 use crate::mask::{assemble_into, Mask, PixelClass, View};
 use crate::Result;
 use raster::{
     HierarchicalOptions, HierarchicalStencil, StencilStats, StencilTarget, TileClass, TileSize,
-    VolumeBuffer,
 };
 use scene::{Camera, Light, ObjectId, Scene};
-use shadowgen::{SilhouetteCache, VolumeStats};
+use shadowgen::VolumeStats;
 
 /// The tile classification of a hierarchical frame ([Aila04 Fig. 1]).
 #[derive(Clone, Debug, PartialEq)]
@@ -75,14 +74,11 @@ pub struct ShadowFrame {
     pub map_ms: f64,
 }
 
-/// Scratch kept across frames: the silhouette cache and the volume buffer.
+/// Scratch kept across frames: the volume stage's (silhouette cache, volume
+/// buffer, clamping state) and the stencil targets.
 #[derive(Default)]
 pub struct ShadowScratch {
-    pub(crate) cache: SilhouetteCache,
-    pub(crate) volumes: VolumeBuffer,
-    /// Continuous clamping's sweep state for this light, and its plan.
-    pub(crate) clamp: shadowgen::LightClamp,
-    pub(crate) plan: shadowgen::ClampPlan,
+    pub(crate) volume: VolumeScratch,
     stencil: Option<StencilTarget>,
     hierarchical: Option<HierarchicalStencil>,
     /// Per volume range its clip matrix, and the (matrix, range) list the
@@ -94,7 +90,7 @@ pub struct ShadowScratch {
 impl std::fmt::Debug for ShadowScratch {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("ShadowScratch")
-            .field("volume_ranges", &self.volumes.ranges.len())
+            .field("volume_ranges", &self.volume.buffer.ranges.len())
             .finish_non_exhaustive()
     }
 }
@@ -136,7 +132,7 @@ pub fn shadow_mask_for(
         camera,
         light,
     };
-    let volumes = build_for(input, casters, options, viewport, None, scratch)?;
+    let volumes = build_for(input, casters, options, viewport, None, &mut scratch.volume)?;
     stencil_volumes(input, eye, options, scratch, volumes, None)
 }
 
@@ -168,12 +164,13 @@ pub(crate) fn stencil_volumes(
         depth_bounds: options.depth_bounds,
     };
     // As long as the volume buffer's range list (no growth of their own).
-    let n = scratch.volumes.ranges.capacity();
+    let n = scratch.volume.buffer.ranges.capacity();
     scratch.clip.clear();
     scratch.clip.reserve(n);
     scratch.clip.extend(
         scratch
-            .volumes
+            .volume
+            .buffer
             .ranges
             .iter()
             .map(|r| scene::transform::clip_from_local(camera, &r.world_from_local)),
@@ -181,7 +178,13 @@ pub(crate) fn stencil_volumes(
     let mut ranges: Vec<(glam::Mat4, &raster::VolumeRange)> =
         recycle(std::mem::take(&mut scratch.ranges));
     ranges.reserve(n);
-    ranges.extend(scratch.clip.iter().copied().zip(&scratch.volumes.ranges));
+    ranges.extend(
+        scratch
+            .clip
+            .iter()
+            .copied()
+            .zip(&scratch.volume.buffer.ranges),
+    );
     let (mut mask, mut raw_nonzero, mut tiles) = match previous {
         Some(p) => (p.mask, p.raw_nonzero, p.tiles),
         None => (Mask::filled(0, 0, PixelClass::Background), Vec::new(), None),
@@ -197,7 +200,13 @@ pub(crate) fn stencil_volumes(
                 }
                 _ => StencilTarget::new(w, h, options.bits)?,
             };
-            stencil.draw_volumes(&eye.target, &ranges, &scratch.volumes, tests, &mut stats)?;
+            stencil.draw_volumes(
+                &eye.target,
+                &ranges,
+                &scratch.volume.buffer,
+                tests,
+                &mut stats,
+            )?;
             stencil.resolve(&eye.target, &mut raw_nonzero, &mut stats)?;
             scratch.stencil = Some(stencil);
         }
@@ -214,7 +223,13 @@ pub(crate) fn stencil_volumes(
                 }
                 _ => HierarchicalStencil::new(w, h, want)?,
             };
-            stencil.draw_volumes(&eye.target, &ranges, &scratch.volumes, tests, &mut stats)?;
+            stencil.draw_volumes(
+                &eye.target,
+                &ranges,
+                &scratch.volume.buffer,
+                tests,
+                &mut stats,
+            )?;
             stencil.resolve(&eye.target, &mut raw_nonzero, &mut stats)?;
             let (tiles_x, tiles_y) = stencil.tile_counts();
             let mut classes = tiles.take().map(|t| t.classes).unwrap_or_default();
@@ -255,7 +270,7 @@ pub(crate) fn stencil_volumes(
                 }
                 _ => HierarchicalStencil::new(w, h, want)?,
             };
-            stencil.draw_volumes(&masked, &ranges, &scratch.volumes, tests, &mut stats)?;
+            stencil.draw_volumes(&masked, &ranges, &scratch.volume.buffer, tests, &mut stats)?;
             stencil.resolve(&masked, &mut raw_nonzero, &mut stats)?;
             for (i, r) in raw_nonzero.iter_mut().enumerate() {
                 if !class.silhouette[i] {

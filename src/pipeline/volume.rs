@@ -7,16 +7,28 @@
 //! ([`shadowgen::build_volumes`], [`shadowgen::build_clamped_volumes`]).
 
 use super::shadow_options::{ClampOptions, ShadowInput, ShadowOptions};
-use super::stencil::ShadowScratch;
 use crate::Result;
+use raster::VolumeBuffer;
 use scene::{Aabb, Camera, ObjectId, Scene};
 use shadowgen::{
-    build_clamped_volumes, build_volumes, BuildOptions, ClampInput, GapCost, GapModel, SegmentAxis,
-    VolumeStats,
+    build_clamped_volumes, build_volumes, BuildOptions, ClampInput, ClampPlan, GapCost, GapModel,
+    LightClamp, SegmentAxis, SilhouetteCache, VolumeStats,
 };
 use std::time::Instant;
 
-/// Builds the volumes of `casters` for `light` into `scratch.volumes`
+/// The volume stage's state kept per light between frames.
+#[derive(Default)]
+pub(crate) struct VolumeScratch {
+    /// Silhouettes while caster and light are static.
+    pub(crate) cache: SilhouetteCache,
+    /// The light's volumes of the last frame.
+    pub(crate) buffer: VolumeBuffer,
+    /// Continuous clamping's sweep state for this light, and its plan.
+    pub(crate) clamp: LightClamp,
+    pub(crate) plan: ClampPlan,
+}
+
+/// Builds the volumes of `casters` for `light` into `scratch.buffer`
 /// (cleared first) with the shadow stage's method, extrusion and clamping
 /// options; scissor rectangles and depth bounds are computed only when a
 /// stencil test uses them (they cost time), for a `viewport` of `(width,
@@ -31,7 +43,7 @@ pub(crate) fn build_for(
     options: &ShadowOptions,
     viewport: (u32, u32),
     receives: Option<&[bool]>,
-    scratch: &mut ShadowScratch,
+    scratch: &mut VolumeScratch,
 ) -> Result<VolumeStats> {
     let ShadowInput {
         scene,
@@ -44,7 +56,7 @@ pub(crate) fn build_for(
         viewport: (options.scissor || options.depth_bounds).then_some(viewport),
         finite_extrusion: options.finite_extrusion,
     };
-    let out = &mut scratch.volumes;
+    let out = &mut scratch.buffer;
     let cache = &mut scratch.cache;
     let stats = match &options.clamping {
         None => build_volumes(out, scene, camera, light, casters, build, cache)?,
@@ -82,7 +94,7 @@ pub(crate) fn build_for(
             stats
         }
     };
-    scratch.volumes.reserve_headroom();
+    scratch.buffer.reserve_headroom();
     Ok(stats)
 }
 

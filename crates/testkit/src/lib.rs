@@ -25,7 +25,10 @@ mod stencil;
 pub use data::{scratch_dir, shared_data, shared_file, shared_jobs, workspace_root};
 pub use pairs::{brute_pairs, bvh_pairs};
 pub use scenes::{street_city, BenchScene};
-pub use stencil::{check_hierarchical, hierarchical_matches_brute_force, HierarchyCheck};
+pub use stencil::{
+    check_hierarchical, check_hierarchical_clamped, hierarchical_matches_brute_force,
+    HierarchyCheck,
+};
 
 /// Proptest's configuration with `cases` cases (the `PROPTEST_*` environment
 /// otherwise), its failures persisted beside the test's source file:

@@ -208,6 +208,37 @@ pub fn check_hierarchical(
     two_sided: bool,
     tiles: &[TileSize],
 ) -> Result<HierarchyCheck, String> {
+    check_with(scene, cam, light, eye, method, two_sided, tiles, false)
+}
+
+/// [`check_hierarchical`] on continuously clamped volumes (every receiving
+/// object a receiver, every gap kept): H's open-edge rule holds on segments
+/// too. ///
+/// # Errors
+/// As [`check_hierarchical`].
+pub fn check_hierarchical_clamped(
+    scene: &Scene,
+    cam: &Camera,
+    light: &Light,
+    eye: &DepthTarget,
+    method: shadowgen::MethodChoice,
+    two_sided: bool,
+    tiles: &[TileSize],
+) -> Result<HierarchyCheck, String> {
+    check_with(scene, cam, light, eye, method, two_sided, tiles, true)
+}
+
+#[allow(clippy::too_many_arguments)] // the two public checks' arguments and the switch
+fn check_with(
+    scene: &Scene,
+    cam: &Camera,
+    light: &Light,
+    eye: &DepthTarget,
+    method: shadowgen::MethodChoice,
+    two_sided: bool,
+    tiles: &[TileSize],
+    clamped: bool,
+) -> Result<HierarchyCheck, String> {
     let mut buf = VolumeBuffer::new();
     let casters: Vec<ObjectId> = (0..scene.objects().len() as u32).map(ObjectId).collect();
     let options = shadowgen::BuildOptions {
@@ -216,8 +247,28 @@ pub fn check_hierarchical(
         ..Default::default()
     };
     let mut cache = shadowgen::SilhouetteCache::default();
-    shadowgen::build_volumes(&mut buf, scene, cam, light, &casters, options, &mut cache)
-        .map_err(|e| e.to_string())?;
+    let err = |e: shadowgen::Error| e.to_string();
+    if clamped {
+        let receives: Vec<bool> = scene.objects().iter().map(|o| o.flags.receives).collect();
+        let input = shadowgen::ClampInput {
+            scene,
+            light,
+            casters: &casters,
+            receives: &receives,
+            cost: None,
+        };
+        let mut plan = shadowgen::ClampPlan::new();
+        shadowgen::LightClamp::new()
+            .plan(&input, &mut plan)
+            .map_err(err)?;
+        shadowgen::build_clamped_volumes(
+            &mut buf, scene, cam, light, &casters, options, &mut cache, &plan,
+        )
+        .map_err(err)?;
+    } else {
+        shadowgen::build_volumes(&mut buf, scene, cam, light, &casters, options, &mut cache)
+            .map_err(err)?;
+    }
     let clip: Vec<Mat4> = buf
         .ranges
         .iter()
