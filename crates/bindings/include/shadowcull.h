@@ -140,6 +140,20 @@
 // Pixel-centre sampling: faster, aggressive (its mismatch is measured).
 #define SC_COVERAGE_POINT 1
 
+// No clamping (`sc_pipeline_options.clamping`, the default): volumes
+// extrude to infinity.
+#define SC_CLAMPING_NONE 0
+
+// Continuous clamping: each caster's volume cut into segments over the
+// depths its receivers occupy; `sc_volume_range.segment` numbers them.
+#define SC_CLAMPING_CONTINUOUS 1
+
+// Every receiving object is a receiver for clamping (the default).
+#define SC_CLAMP_RECEIVERS_ALL 0
+
+// The eye pass's potentially visible receivers (with culling).
+#define SC_CLAMP_RECEIVERS_PSR 1
+
 // `float` elements.
 #define SC_F32 0
 
@@ -208,6 +222,16 @@ typedef struct sc_pipeline_options {
   // of the machine's memory. (Added in version 0.1 of this struct's
   // 40-byte layout; a 32-byte struct from an older host means 0.)
   uint64_t max_memory;
+  // `SC_CLAMPING_*`: shadow-volume clamping [Steiner §4.4]. (Added with
+  // the 64-byte layout, as the three fields after it; an older host's
+  // struct means none.)
+  uint32_t clamping;
+  // `SC_CLAMP_RECEIVERS_*`: the receivers clamping fits volumes to.
+  uint32_t clamping_receivers;
+  // Clamping's cost per volume vertex (v); 0: the library's default.
+  double clamp_vertex_cost;
+  // Clamping's cost per stencil pixel (r); 0: the library's default.
+  double clamp_pixel_cost;
 } sc_pipeline_options;
 
 // A pipeline: 0 is the null handle.
@@ -307,8 +331,15 @@ typedef struct sc_volume_range {
   float depth_far;
   // Local → world of the positions, column-major.
   double world_from_local[16];
-  // Zero; room for fields clamping will add.
-  uint32_t reserved[8];
+  // A clamped volume's segment planes in world space, `(a, b, c, d)`
+  // with `a·x + b·y + c·z + d = 0` and `(a, b, c)` a unit normal towards
+  // greater light depth: the near plane (all zero for segment 0, which
+  // starts at the caster) and the far plane (all zero for an unclamped
+  // volume). The segment's geometry already lies between them; a host may
+  // use them as clip planes or ignore them.
+  float near_plane[4];
+  // See `near_plane`.
+  float far_plane[4];
 } sc_volume_range;
 
 // One light's counters of a frame.
@@ -335,8 +366,18 @@ typedef struct sc_light_stats {
   uint64_t queries;
   // Waits for query results.
   uint64_t waits;
+  // Continuous clamping (sweeps and intervals), ms.
+  double clamp_ms;
+  // Overlapping pairs of clamping's sweeps.
+  uint64_t sap_pairs;
+  // Endpoint swaps of clamping's sweeps.
+  uint64_t sap_swaps;
+  // Segments of the clamped casters.
+  uint64_t segments;
+  // Triangles of those segments.
+  uint64_t segment_triangles;
   // Zero; room for fields to come.
-  uint64_t reserved[8];
+  uint64_t reserved[3];
 } sc_light_stats;
 
 // One light's output.

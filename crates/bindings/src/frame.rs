@@ -56,8 +56,15 @@ pub struct sc_volume_range {
     pub depth_far: f32,
     /// Local → world of the positions, column-major.
     pub world_from_local: [f64; 16],
-    /// Zero; room for fields clamping will add.
-    pub reserved: [u32; 8],
+    /// A clamped volume's segment planes in world space, `(a, b, c, d)`
+    /// with `a·x + b·y + c·z + d = 0` and `(a, b, c)` a unit normal towards
+    /// greater light depth: the near plane (all zero for segment 0, which
+    /// starts at the caster) and the far plane (all zero for an unclamped
+    /// volume). The segment's geometry already lies between them; a host may
+    /// use them as clip planes or ignore them.
+    pub near_plane: [f32; 4],
+    /// See `near_plane`.
+    pub far_plane: [f32; 4],
 }
 
 /// One light's counters of a frame.
@@ -87,8 +94,18 @@ pub struct sc_light_stats {
     pub queries: u64,
     /// Waits for query results.
     pub waits: u64,
+    /// Continuous clamping (sweeps and intervals), ms.
+    pub clamp_ms: f64,
+    /// Overlapping pairs of clamping's sweeps.
+    pub sap_pairs: u64,
+    /// Endpoint swaps of clamping's sweeps.
+    pub sap_swaps: u64,
+    /// Segments of the clamped casters.
+    pub segments: u64,
+    /// Triangles of those segments.
+    pub segment_triangles: u64,
     /// Zero; room for fields to come.
-    pub reserved: [u64; 8],
+    pub reserved: [u64; 3],
 }
 
 /// One light's output.
@@ -209,8 +226,14 @@ fn range_of(r: &VolumeRange) -> sc_volume_range {
         depth_near: r.depth_near,
         depth_far: r.depth_far,
         world_from_local: r.world_from_local.to_cols_array(),
-        reserved: [0; 8],
+        near_plane: plane_of(r.planes[0]),
+        far_plane: plane_of(r.planes[1]),
     }
+}
+
+/// A segment plane as the C struct holds it: zeros for none.
+fn plane_of(p: Option<[f64; 4]>) -> [f32; 4] {
+    p.map_or([0.0; 4], |p| p.map(|v| v as f32))
 }
 
 impl Outputs {
@@ -262,7 +285,12 @@ impl Outputs {
                     zpplus_casters: s.volumes.zpplus as u64,
                     queries: s.queries,
                     waits: s.waits,
-                    reserved: [0; 8],
+                    clamp_ms: s.volumes.clamp_ms,
+                    sap_pairs: s.volumes.sap_pairs as u64,
+                    sap_swaps: s.volumes.sap_swaps as u64,
+                    segments: s.volumes.segments as u64,
+                    segment_triangles: s.volumes.segment_triangles as u64,
+                    reserved: [0; 3],
                 },
             });
         }

@@ -5,7 +5,9 @@
 
 use crate::error::{Failure, Result};
 use shadowcull::scene::{ClipDepth, Light, ObjectFlags};
-use shadowcull::{CoverageSpec, CullingSpec, PipelineOptions, StencilBackend};
+use shadowcull::{
+    ClampReceiversSpec, ClampingSpec, CoverageSpec, CullingSpec, PipelineOptions, StencilBackend,
+};
 use std::ffi::c_void;
 
 /// The object takes part in shadow casting (its volumes are built).
@@ -42,6 +44,18 @@ pub const SC_STENCIL_H: u32 = 2;
 pub const SC_COVERAGE_CONSERVATIVE: u32 = 0;
 /// Pixel-centre sampling: faster, aggressive (its mismatch is measured).
 pub const SC_COVERAGE_POINT: u32 = 1;
+
+/// No clamping (`sc_pipeline_options.clamping`, the default): volumes
+/// extrude to infinity.
+pub const SC_CLAMPING_NONE: u32 = 0;
+/// Continuous clamping: each caster's volume cut into segments over the
+/// depths its receivers occupy; `sc_volume_range.segment` numbers them.
+pub const SC_CLAMPING_CONTINUOUS: u32 = 1;
+
+/// Every receiving object is a receiver for clamping (the default).
+pub const SC_CLAMP_RECEIVERS_ALL: u32 = 0;
+/// The eye pass's potentially visible receivers (with culling).
+pub const SC_CLAMP_RECEIVERS_PSR: u32 = 1;
 
 /// `float` elements.
 pub const SC_F32: u32 = 0;
@@ -93,6 +107,16 @@ pub struct sc_pipeline_options {
     /// of the machine's memory. (Added in version 0.1 of this struct's
     /// 40-byte layout; a 32-byte struct from an older host means 0.)
     pub max_memory: u64,
+    /// `SC_CLAMPING_*`: shadow-volume clamping [Steiner §4.4]. (Added with
+    /// the 64-byte layout, as the three fields after it; an older host's
+    /// struct means none.)
+    pub clamping: u32,
+    /// `SC_CLAMP_RECEIVERS_*`: the receivers clamping fits volumes to.
+    pub clamping_receivers: u32,
+    /// Clamping's cost per volume vertex (v); 0: the library's default.
+    pub clamp_vertex_cost: f64,
+    /// Clamping's cost per stencil pixel (r); 0: the library's default.
+    pub clamp_pixel_cost: f64,
 }
 
 /// A mesh in the host's memory: positions `vertex_count` times, `stride`
@@ -217,6 +241,10 @@ impl Versioned for sc_pipeline_options {
             threads: 0,
             two_sided: 0,
             max_memory: 0,
+            clamping: SC_CLAMPING_NONE,
+            clamping_receivers: SC_CLAMP_RECEIVERS_ALL,
+            clamp_vertex_cost: 0.0,
+            clamp_pixel_cost: 0.0,
         }
     }
 }
@@ -296,10 +324,52 @@ impl sc_pipeline_options {
                 )))
             }
         };
+        let clamping = match self.clamping {
+            SC_CLAMPING_NONE => ClampingSpec::None,
+            SC_CLAMPING_CONTINUOUS => ClampingSpec::Continuous,
+            v => {
+                return Err(Failure::invalid(format!(
+                    "options.clamping: {v} is no SC_CLAMPING_*"
+                )))
+            }
+        };
+        let clamping_receivers = match self.clamping_receivers {
+            SC_CLAMP_RECEIVERS_ALL => ClampReceiversSpec::All,
+            SC_CLAMP_RECEIVERS_PSR => ClampReceiversSpec::Psr,
+            v => {
+                return Err(Failure::invalid(format!(
+                    "options.clamping_receivers: {v} is no SC_CLAMP_RECEIVERS_*"
+                )))
+            }
+        };
+        let cost = |v: f64, name: &str, default: f64| {
+            if v == 0.0 {
+                Ok(default)
+            } else if v.is_finite() && v > 0.0 {
+                Ok(v)
+            } else {
+                Err(Failure::invalid(format!(
+                    "options.{name}: {v} is not a positive finite cost (0 for the default)"
+                )))
+            }
+        };
+        let defaults = PipelineOptions::default();
         Ok(PipelineOptions {
             culling,
             stencil,
             coverage,
+            clamping,
+            clamping_receivers,
+            clamp_vertex_cost: cost(
+                self.clamp_vertex_cost,
+                "clamp_vertex_cost",
+                defaults.clamp_vertex_cost,
+            )?,
+            clamp_pixel_cost: cost(
+                self.clamp_pixel_cost,
+                "clamp_pixel_cost",
+                defaults.clamp_pixel_cost,
+            )?,
             query_threshold: self.query_threshold,
             light_resolution: self.light_resolution,
             threads: self.threads,
