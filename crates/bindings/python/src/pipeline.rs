@@ -176,6 +176,11 @@ fn ranges<'py>(py: Python<'py>, v: &VolumeBuffer) -> PyResult<Bound<'py, PyDict>
     )?;
     let m = Array3::from_shape_fn((n, 4, 4), |(i, row, c)| r[i].world_from_local.col(c)[row]);
     d.set_item("world_from_local", m.into_pyarray(py))?;
+    // A clamped segment's planes; NaN where there is none.
+    for (k, name) in ["near_plane", "far_plane"].into_iter().enumerate() {
+        let planes = r.iter().flat_map(|r| r.planes[k].unwrap_or([f64::NAN; 4]));
+        d.set_item(name, vec2(py, planes.collect(), n, 4)?)?;
+    }
     Ok(d)
 }
 

@@ -309,3 +309,23 @@ def test_lights_before_the_first_frame():
         p.add_light("point", position=(float("nan"), 1.0, 1.0))
     with pytest.raises(ValueError, match="clip_depth"):
         p.frame(64, 48, camera=CAMERA, clip_depth="sideways")
+
+
+@pytest.mark.parametrize("receivers", ["all", "psr"])
+def test_clamping_keeps_the_mask_and_numbers_segments(receivers):
+    plain, cubes, lamp, sun = box_scene(stencil="bf", culling="chcpp")
+    clamped, _, _, _ = box_scene(
+        stencil="bf", culling="chcpp", clamping="continuous", clamping_receivers=receivers
+    )
+    a = plain.frame(320, 240, camera=CAMERA)
+    b = clamped.frame(320, 240, camera=CAMERA)
+    for light in (lamp, sun):
+        differ = int((a.mask[light] != b.mask[light]).sum())
+        assert differ <= 320 * 240 // 10_000, f"{differ} pixels differ"
+        assert clamped.reference_mask(light).mismatches(b.mask[light]) == 0
+        r = b.volumes[light].ranges
+        assert b.light_stats[light]["segments"] == len(r) > 0
+        assert np.isfinite(r["far_plane"]).all()
+        assert (np.isnan(r["near_plane"]).all(axis=1) == (r["segment"] == 0)).all()
+        assert np.isnan(a.volumes[light].ranges["far_plane"]).all()
+

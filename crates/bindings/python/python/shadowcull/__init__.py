@@ -80,7 +80,10 @@ ZPASS, ZFAIL, ZPPLUS = 0, 1, 2
 #: ``raster::VolumeRange``. ``first_index``/``index_count`` select the range's
 #: triangles in ``Volumes.indices``; ``light_cap``/``dark_cap`` are ``[begin,
 #: end)`` index ranges; ``scissor`` is ``[x0, y0, x1, y1)`` in pixels;
-#: ``world_from_local`` places the range's local-space positions.
+#: ``world_from_local`` places the range's local-space positions;
+#: ``near_plane``/``far_plane`` are a clamped segment's bounding planes
+#: ``(a, b, c, d)`` in world space (NaN where there is none: the near plane
+#: of segment 0, both planes of an unclamped volume).
 RANGE_DTYPE = np.dtype(
     [
         ("object", np.uint32),
@@ -96,6 +99,8 @@ RANGE_DTYPE = np.dtype(
         ("depth_near", np.float32),
         ("depth_far", np.float32),
         ("world_from_local", np.float64, (4, 4)),
+        ("near_plane", np.float64, (4,)),
+        ("far_plane", np.float64, (4,)),
     ]
 )
 
