@@ -32,6 +32,11 @@ pub struct ClampStats {
     pub sap_pairs: u64,
     /// Endpoint swaps of the sweeps.
     pub sap_swaps: u64,
+    /// Whether the sweeps were skipped (light, receivers and every
+    /// object's bounds unchanged since the last plan).
+    pub cached: bool,
+    /// Casters whose raw intervals came from an earlier plan.
+    pub cached_casters: u32,
     /// Sweeps that sorted from scratch.
     pub sap_rebuilds: u32,
     /// Casters the plan clamps.
@@ -47,10 +52,30 @@ pub struct LightClamp {
     light: Option<Light>,
     planes: Vec<SweepPrune>,
     rects: Vec<Option<ImageRect>>,
-    /// Per object: the last caster whose receivers it was counted for (+1).
+    /// Per object: the stamp of the last caster whose receivers it was
+    /// counted for; `stamp` is the last one handed out.
     seen: Vec<u32>,
+    stamp: u32,
     depths: Vec<[f64; 2]>,
     intervals: Vec<[f64; 2]>,
+    /// What the sweeps last saw, to skip them while nothing moved.
+    key: Option<CacheKey>,
+    /// Per caster: its axis and raw occupied intervals (no gap merged: the
+    /// cost model's areas depend on the view), valid while `key` holds.
+    raw: std::collections::HashMap<u32, (SegmentAxis, Vec<[f64; 2]>)>,
+}
+
+/// What the sweeps and the raw intervals depend on: the light, the receiver
+/// set, the casters that are not receivers (the swept boxes are the
+/// receivers and the casters: a caster that receives is swept anyway, so a
+/// changing caster set among receivers, as the PSC of a culled frame, keeps
+/// the cache) and every object's world bounds.
+#[derive(Clone, Debug, PartialEq)]
+struct CacheKey {
+    light: Light,
+    receives: Vec<bool>,
+    other_casters: Vec<ObjectId>,
+    bounds: Vec<Aabb>,
 }
 
 /// What [`LightClamp::plan`] reads.
@@ -97,6 +122,116 @@ impl LightClamp {
             receives,
             cost,
         } = *input;
+        let objects = scene.objects();
+        let receiving = |c: &ObjectId| receives.get(c.0 as usize).copied().unwrap_or(false);
+        let mut other_casters: Vec<ObjectId> =
+            casters.iter().copied().filter(|c| !receiving(c)).collect();
+        other_casters.sort_unstable();
+        let unchanged = self.key.as_ref().is_some_and(|k| {
+            k.light == *light
+                && k.receives == receives
+                && k.other_casters == other_casters
+                && k.bounds.len() == objects.len()
+                && k.bounds
+                    .iter()
+                    .zip(objects)
+                    .all(|(b, o)| *b == o.world_bounds)
+        });
+        let mut stats = ClampStats {
+            cached: unchanged,
+            ..ClampStats::default()
+        };
+        if !unchanged {
+            self.sweep(input, &mut stats)?;
+            self.raw.clear();
+            self.key = Some(CacheKey {
+                light: *light,
+                receives: receives.to_vec(),
+                other_casters,
+                bounds: objects.iter().map(|o| o.world_bounds).collect(),
+            });
+        }
+        for &c in casters {
+            let Some(bounds) = objects.get(c.0 as usize).map(|o| o.world_bounds) else {
+                continue;
+            };
+            if self.raw.contains_key(&c.0) {
+                stats.cached_casters += 1;
+            } else {
+                let Some(axis) = SegmentAxis::new(light, &bounds) else {
+                    continue;
+                };
+                let raw = self.raw_intervals(input, c, &axis, &bounds);
+                self.raw.insert(c.0, (axis, raw));
+            }
+            let (axis, raw) = &self.raw[&c.0];
+            let [first, rest @ ..] = raw.as_slice() else {
+                continue;
+            };
+            // The gap model, every frame (its areas are the view's).
+            let model = cost.map(|m| (m.cost(c), m));
+            let area = |a: f64, b: f64| model.map_or(0.0, |(_, m)| m.area(&bounds, axis, a, b));
+            let area: GapArea<'_> = &area;
+            occupied_intervals(
+                *first,
+                rest.iter().copied(),
+                model.as_ref().map(|(m, _)| (m, area)),
+                &mut self.intervals,
+            );
+            stats.clamped += 1;
+            stats.intervals += self.intervals.len() as u64;
+            plan.set(c, *axis, &self.intervals);
+        }
+        Ok(stats)
+    }
+
+    /// Caster `c`'s raw occupied intervals along `axis` from the receivers
+    /// the sweeps pair it with (each counted once: a fresh stamp marks them).
+    fn raw_intervals(
+        &mut self,
+        input: &ClampInput<'_>,
+        c: ObjectId,
+        axis: &SegmentAxis,
+        bounds: &Aabb,
+    ) -> Vec<[f64; 2]> {
+        let objects = input.scene.objects();
+        self.seen.resize(objects.len(), 0);
+        self.stamp = self.stamp.wrapping_add(1);
+        if self.stamp == 0 {
+            self.seen.iter_mut().for_each(|s| *s = 0);
+            self.stamp = 1;
+        }
+        let stamp = self.stamp;
+        self.depths.clear();
+        for sap in &self.planes {
+            for &r in sap.neighbours(c.0) {
+                let seen = &mut self.seen[r as usize];
+                if *seen != stamp && input.receives.get(r as usize).copied().unwrap_or(false) {
+                    *seen = stamp;
+                    self.depths
+                        .push(axis.box_depths(&objects[r as usize].world_bounds));
+                }
+            }
+        }
+        let mut raw = Vec::new();
+        occupied_intervals(
+            axis.box_depths(bounds),
+            self.depths.iter().copied(),
+            None,
+            &mut raw,
+        );
+        raw
+    }
+
+    /// The sweeps on every image plane.
+    fn sweep(&mut self, input: &ClampInput<'_>, stats: &mut ClampStats) -> Result<()> {
+        let ClampInput {
+            scene,
+            light,
+            casters,
+            receives,
+            ..
+        } = *input;
         let n = scene.objects().len();
         if self.light.as_ref() != Some(light) {
             // A moved light moves every box: keep the states (the sweeps
@@ -112,14 +247,13 @@ impl LightClamp {
         }
         let faces = if light.position().is_some() { 6 } else { 1 };
         self.planes.resize_with(faces, SweepPrune::new);
+        let objects = scene.objects();
         let mut is_caster = vec![false; n];
         for c in casters {
             if let Some(f) = is_caster.get_mut(c.0 as usize) {
                 *f = true;
             }
         }
-        let mut stats = ClampStats::default();
-        let objects = scene.objects();
         for (face, sap) in self.planes.iter_mut().enumerate() {
             self.rects.clear();
             self.rects.extend((0..n).map(|k| {
@@ -132,42 +266,7 @@ impl LightClamp {
             stats.sap_swaps += s.swaps;
             stats.sap_rebuilds += u32::from(s.rebuilt);
         }
-        self.seen.clear();
-        self.seen.resize(n, 0);
-        for (k, &c) in casters.iter().enumerate() {
-            let Some(bounds) = objects.get(c.0 as usize).map(|o| o.world_bounds) else {
-                continue;
-            };
-            let Some(axis) = SegmentAxis::new(light, &bounds) else {
-                continue;
-            };
-            let stamp = k as u32 + 1;
-            self.depths.clear();
-            for sap in &self.planes {
-                for &r in sap.neighbours(c.0) {
-                    let seen = &mut self.seen[r as usize];
-                    if *seen != stamp && receives.get(r as usize).copied().unwrap_or(false) {
-                        *seen = stamp;
-                        self.depths
-                            .push(axis.box_depths(&objects[r as usize].world_bounds));
-                    }
-                }
-            }
-            let caster_depths = axis.box_depths(&bounds);
-            let model = cost.map(|m| (m.cost(c), m));
-            let area = |a: f64, b: f64| model.map_or(0.0, |(_, m)| m.area(&bounds, &axis, a, b));
-            let area: GapArea<'_> = &area;
-            occupied_intervals(
-                caster_depths,
-                self.depths.iter().copied(),
-                model.as_ref().map(|(m, _)| (m, area)),
-                &mut self.intervals,
-            );
-            stats.clamped += 1;
-            stats.intervals += self.intervals.len() as u64;
-            plan.set(c, axis, &self.intervals);
-        }
-        Ok(stats)
+        Ok(())
     }
 }
 

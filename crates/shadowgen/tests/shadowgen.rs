@@ -1118,3 +1118,83 @@ proptest! {
         }
     }
 }
+
+/// Clamping's plan for a row of boxes under a point light: a caster's
+/// intervals cover the boxes behind it; the plan is reused (no sweep) while
+/// nothing moves and recomputed when a box moves or the receivers change.
+#[test]
+fn clamp_plans_are_reused_until_something_moves() {
+    let build = |offset: f64| {
+        let mut g = SceneGraph::new();
+        let m = g.add_mesh(unit_box());
+        // Boxes along −y below the light at x = 0, 0, 0 (one straight
+        // under the other) and one off to the side.
+        for (k, p) in [(0.0, -2.0), (0.0, -6.0 - offset), (0.0, -12.0), (9.0, -6.0)]
+            .iter()
+            .enumerate()
+        {
+            let t = DMat4::from_translation(DVec3::new(p.0, p.1, 0.0));
+            g.add_instance(&format!("b{k}"), m, Transform::Matrix(t));
+        }
+        Scene::new(g).unwrap()
+    };
+    let l = point(DVec3::new(0.0, 5.0, 0.0));
+    let casters = [ObjectId(0)];
+    let receives = [true; 4];
+    let mut clamp = shadowgen::LightClamp::new();
+    let mut plan = shadowgen::ClampPlan::new();
+    let s = build(0.0);
+    let input = shadowgen::ClampInput {
+        scene: &s,
+        light: &l,
+        casters: &casters,
+        receives: &receives,
+        cost: None,
+    };
+    let first = clamp.plan(&input, &mut plan).unwrap();
+    assert!(!first.cached && first.sap_pairs > 0);
+    let (axis, intervals) = plan.get(ObjectId(0)).unwrap();
+    let intervals = intervals.to_vec();
+    // The caster itself and the two boxes below it: three intervals (the
+    // side box is not in its shadow).
+    assert_eq!(intervals.len(), 3, "{intervals:?}");
+    let depth = |y: f64| axis.depth(DVec3::new(0.0, y, 0.0));
+    for y in [-2.0, -6.0, -12.0] {
+        assert!(
+            intervals
+                .iter()
+                .any(|i| i[0] <= depth(y) && depth(y) <= i[1]),
+            "{y}"
+        );
+    }
+    assert!(!intervals
+        .iter()
+        .any(|i| i[0] <= depth(-9.0) && depth(-9.0) <= i[1]));
+    let again = clamp.plan(&input, &mut plan).unwrap();
+    assert!(again.cached && again.sap_pairs == 0);
+    assert_eq!(plan.get(ObjectId(0)).unwrap().1, &intervals[..]);
+    // A box moves: recomputed, and the interval follows it.
+    let moved = build(1.0);
+    let input = shadowgen::ClampInput {
+        scene: &moved,
+        ..input
+    };
+    let after = clamp.plan(&input, &mut plan).unwrap();
+    assert!(!after.cached);
+    let (axis, now) = plan.get(ObjectId(0)).unwrap();
+    let d = axis.depth(DVec3::new(0.0, -7.0, 0.0));
+    assert!(now.iter().any(|i| i[0] <= d && d <= i[1]) && now != &intervals[..]);
+    // Fewer receivers: recomputed; the caster alone keeps its own interval.
+    let none = [true, false, false, false];
+    let alone = clamp
+        .plan(
+            &shadowgen::ClampInput {
+                receives: &none,
+                ..input
+            },
+            &mut plan,
+        )
+        .unwrap();
+    assert!(!alone.cached);
+    assert_eq!(plan.get(ObjectId(0)).unwrap().1.len(), 1);
+}
