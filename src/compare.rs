@@ -11,7 +11,9 @@
 use crate::config::{load_scene_for_job, resolve_lights};
 use crate::config::{Job, NamedPipeline};
 use crate::frame::FrameRunner;
-use crate::pipeline::{CoverageSpec, CullingSpec, PipelineOptions, StencilBackend};
+use crate::pipeline::{
+    ClampReceiversSpec, ClampingSpec, CoverageSpec, CullingSpec, PipelineOptions, StencilBackend,
+};
 use crate::run::{atomic, frame_camera};
 use crate::stats::{cells, from_cells, leaves, median, Cell, FrameRow};
 use crate::{Error, Result};
@@ -91,6 +93,20 @@ pub struct VariantRow {
     pub queries: u64,
     /// Waits for query results, summed.
     pub waits: u64,
+    /// Shadow-volume clamping (`none`, `continuous`).
+    pub clamping: String,
+    /// Clamping's receivers (`all`, `psr`).
+    pub clamping_receivers: String,
+    /// Median clamping time (ms).
+    pub clamp_ms: f64,
+    /// Clamping's overlapping pairs, summed.
+    pub sap_pairs: u64,
+    /// Clamping's endpoint swaps, summed.
+    pub sap_swaps: u64,
+    /// Segments of clamped casters, summed.
+    pub segments: u64,
+    /// Triangles of those segments, summed.
+    pub segment_triangles: u64,
 }
 
 /// A serde enum's lowercase name (`chcpp`, `point`).
@@ -116,6 +132,8 @@ impl VariantRow {
                 "query_threshold" => Cell::Count(p.query_threshold.into()),
                 "light_resolution" => Cell::Count(p.light_resolution.into()),
                 "chcpp" => Cell::Text(chcpp.clone()),
+                "clamping" => Cell::Text(spec_name(&p.clamping)),
+                "clamping_receivers" => Cell::Text(spec_name(&p.clamping_receivers)),
                 stat => {
                     let k = FrameRow::column(stat)
                         .unwrap_or_else(|| panic!("`{stat}` is not a stats.csv column"));
@@ -144,8 +162,9 @@ fn write_csv(rows: &[VariantRow]) -> std::io::Result<Vec<u8>> {
 /// The variants a job compares: its `pipelines`, or when empty brute force,
 /// depth bounds, scissor with depth bounds, the hierarchical stencil with
 /// tiles 4, 8 and 16, the shadow-map hybrid, and the hierarchical stencil
-/// with CHC, CHC++ and point-sampled (aggressive) CHC++ culling, each
-/// otherwise like `pipeline`.
+/// with CHC, CHC++ and point-sampled (aggressive) CHC++ culling, and brute
+/// force with continuous clamping (receivers `all`, `psr`), each otherwise
+/// like `pipeline`.
 pub fn variants(job: &Job) -> Vec<NamedPipeline> {
     if !job.pipelines.is_empty() {
         return job.pipelines.clone();
@@ -170,6 +189,15 @@ pub fn variants(job: &Job) -> Vec<NamedPipeline> {
             ..base
         },
     };
+    let clamped = |name: &str, clamping_receivers| NamedPipeline {
+        name: name.into(),
+        pipeline: PipelineOptions {
+            stencil: StencilBackend::Bf,
+            clamping: ClampingSpec::Continuous,
+            clamping_receivers,
+            ..base
+        },
+    };
     vec![
         with("bf", StencilBackend::Bf, false, 8),
         with("db", StencilBackend::Db, false, 8),
@@ -181,6 +209,8 @@ pub fn variants(job: &Job) -> Vec<NamedPipeline> {
         culled("h_chc", CullingSpec::Chc, CoverageSpec::Conservative),
         culled("h_chcpp", CullingSpec::Chcpp, CoverageSpec::Conservative),
         culled("h_chcpp_point", CullingSpec::Chcpp, CoverageSpec::Point),
+        clamped("bf_clamp", ClampReceiversSpec::All),
+        clamped("bf_clamp_psr", ClampReceiversSpec::Psr),
     ]
 }
 
@@ -322,7 +352,8 @@ mod tests {
         );
     }
 
-    /// `compare.csv`'s header is a contract: exactly these columns, in this order.
+    /// `compare.csv`'s header is a contract: exactly these columns, in this
+    /// order (new columns go at the end).
     #[test]
     fn compare_csv_header_is_the_contract() {
         let text = String::from_utf8(write_csv(&[]).unwrap()).unwrap();
@@ -332,7 +363,8 @@ mod tests {
              pixels_processed,shadowed_pixels,mismatch_pixels,mismatch_off_boundary,\
              ambiguous_pixels,compared_pixels,h_fragments,tile_tests,tiles_boundary,\
              bandwidth_bytes,silhouette_pixels,culling,coverage,query_threshold,\
-             light_resolution,chcpp,light_ms,psr,psc,queries,waits\n"
+             light_resolution,chcpp,light_ms,psr,psc,queries,waits,clamping,\
+             clamping_receivers,clamp_ms,sap_pairs,sap_swaps,segments,segment_triangles\n"
         );
     }
 }
