@@ -41,6 +41,8 @@
 
 pub mod byte_size;
 #[cfg(feature = "jobs")]
+pub mod calibrate;
+#[cfg(feature = "jobs")]
 pub mod compare;
 #[cfg(feature = "jobs")]
 pub mod config;

@@ -971,3 +971,67 @@ fn merge_refuses_a_fifo_in_a_shard() {
     ]);
     assert!(e.contains("stats.csv") && e.contains("a FIFO"), "{e}");
 }
+
+/// `calibrate` prints clamping's two cost constants as RON fields that a job's
+/// `pipeline` takes as they are; clamping with them keeps the job exact.
+#[test]
+fn calibrate_prints_costs_a_job_takes() {
+    let dir = tmp_dir("calibrate");
+    let job = dir.join("job.ron");
+    std::fs::write(&job, SMALL_JOB).unwrap();
+    let o = bin()
+        .arg("calibrate")
+        .arg(&job)
+        .args(["--reps", "1"])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let fields = String::from_utf8(o.stdout).unwrap();
+    let lines: Vec<&str> = fields.lines().collect();
+    assert_eq!(lines.len(), 2, "{fields}");
+    for (line, key) in lines
+        .iter()
+        .zip(["clamp_vertex_cost: ", "clamp_pixel_cost: "])
+    {
+        let v: f64 = line
+            .strip_prefix(key)
+            .and_then(|r| r.strip_suffix(','))
+            .unwrap_or_else(|| panic!("{line}"))
+            .parse()
+            .unwrap();
+        assert!(v.is_finite() && v > 0.0, "{line}");
+    }
+    // Pasted into the job's pipeline, with clamping on: a valid, exact job.
+    let text = SMALL_JOB.replace(
+        "outputs: (masks: true, shaded: true),",
+        &format!(
+            "outputs: (masks: true, shaded: true),\n    pipeline: (clamping: continuous, {}),",
+            fields.replace('\n', " ")
+        ),
+    );
+    assert_ne!(text, SMALL_JOB);
+    std::fs::write(&job, &text).unwrap();
+    let out = dir.join("out");
+    let o = bin()
+        .arg("run")
+        .arg(&job)
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let stats = std::fs::read_to_string(out.join("stats.csv")).unwrap();
+    let cols: Vec<&str> = stats.lines().next().unwrap().split(',').collect();
+    let off = cols
+        .iter()
+        .position(|c| *c == "mismatch_off_boundary")
+        .unwrap();
+    let segments = cols.iter().position(|c| *c == "segments").unwrap();
+    let rows: Vec<Vec<&str>> = stats
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').collect())
+        .collect();
+    assert!(rows.iter().all(|r| r[off] == "0"), "{stats}");
+    assert!(rows.iter().any(|r| r[segments] != "0"), "{stats}");
+}

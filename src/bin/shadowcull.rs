@@ -129,6 +129,16 @@ enum Command {
         #[arg(long)]
         frames: Option<u32>,
     },
+    /// Measure clamping's cost model on this machine (brute-force stencil:
+    /// ns per volume vertex and per pixel) on a job's first frame, and print
+    /// `clamp_vertex_cost` and `clamp_pixel_cost` for the job's `pipeline`.
+    Calibrate {
+        /// The job file; omitted: the bundled default.
+        job: Option<PathBuf>,
+        /// Frames measured per resolution (their median counts).
+        #[arg(long, default_value_t = 5)]
+        reps: u32,
+    },
     /// Print a scene's objects, meshes, triangles, bounds, topology and load warnings.
     Inspect {
         /// A .gltf, .glb, .obj, directory of .obj, or box-city .txt file.
@@ -226,6 +236,28 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
             Ok(())
         }
         Command::Compare { job, out, frames } => compare(&job, out, frames, overrides),
+        Command::Calibrate { job, reps } => {
+            let mut j = match &job {
+                Some(p) => Job::from_file(p)?,
+                None => default_job(),
+            };
+            overrides.apply(&mut j);
+            let c = shadowcull::calibrate::calibrate(&j, job.as_deref(), reps)?;
+            eprintln!(
+                "shadowcull: {} volume vertices, {} pixels processed; stencil {:.3} ms at {}x{}, {:.3} ms at {}x{}",
+                c.vertices,
+                c.pixels,
+                c.stencil_ms[0],
+                shadowcull::calibrate::VERTEX_BOUND_SIZE.0,
+                shadowcull::calibrate::VERTEX_BOUND_SIZE.1,
+                c.stencil_ms[1],
+                j.resolution.0,
+                j.resolution.1
+            );
+            println!("clamp_vertex_cost: {:.4},", c.vertex_cost);
+            println!("clamp_pixel_cost: {:.4},", c.pixel_cost);
+            Ok(())
+        }
         Command::Inspect {
             scene,
             json,
