@@ -16,8 +16,9 @@
 //! - `--motion objects`: every frame, 5 % of the boxes (a different 5 % each
 //!   frame) step by up to `--step` metres per axis (default 0.25 m: 15 m/s
 //!   at 60 frames per second).
-//! - `--motion light`: the point light circles above the scene (one degree
-//!   per frame): every box moves on the image plane.
+//! - `--motion light`: the point light circles above the scene
+//!   (`--light-speed` degrees per frame, default 1): every box moves on the
+//!   image plane.
 //!
 //! Every frame checks that the incremental pairs equal the sort's; the first
 //! `--check-frames` frames also time the BVH and brute force and check them.
@@ -64,6 +65,9 @@ struct Args {
     /// The largest step per axis and frame of `--motion objects`, in metres.
     #[arg(long, default_value_t = 0.25)]
     step: f32,
+    /// Degrees per frame of `--motion light`.
+    #[arg(long, default_value_t = 1.0)]
+    light_speed: f64,
     /// The swap budget per box before a frame sorts from scratch.
     #[arg(long, default_value_t = DEFAULT_SWAPS_PER_BOX)]
     swaps_per_box: u32,
@@ -187,7 +191,10 @@ fn main() -> anyhow::Result<()> {
     let static_light = light_clip_from_world(boxes.lo, boxes.hi, 0.0)?;
     for f in 0..a.frames {
         let clip_from_world = match a.motion {
-            Motion::Light => light_clip_from_world(boxes.lo, boxes.hi, f64::from(f).to_radians())?,
+            Motion::Light => {
+                let angle = (a.light_speed * f64::from(f)).to_radians();
+                light_clip_from_world(boxes.lo, boxes.hi, angle)?
+            }
             _ => static_light,
         };
         if a.motion == Motion::Objects && f > 0 {
@@ -271,6 +278,7 @@ fn main() -> anyhow::Result<()> {
             "rebuilt_frames": rebuilt,
             "swaps_per_box": a.swaps_per_box,
             "step": a.step,
+            "light_speed": a.light_speed,
             "sap_ms_median": steady(&sap_ms),
             "sap_ms_first": sap_ms.first(),
             "sort_ms_median": med(&sort_ms),

@@ -133,7 +133,7 @@ const MAX_BIT: u64 = 1 << 31;
 const RETRY_EVERY: u32 = 8;
 
 /// The default swap budget per box ([`SweepPrune::budget`]).
-pub const DEFAULT_SWAPS_PER_BOX: u32 = 8;
+pub const DEFAULT_SWAPS_PER_BOX: u32 = 32;
 
 /// Incremental sweep-and-prune state for one light view: the boxes, their
 /// endpoints sorted per axis, and the overlapping pairs as neighbour lists.
