@@ -12,7 +12,7 @@ use raster::VolumeBuffer;
 use scene::{Aabb, Camera, ObjectId, Scene};
 use shadowgen::{
     build_clamped_volumes, build_volumes, BuildOptions, ClampInput, ClampPlan, GapCost, GapModel,
-    LightClamp, SegmentAxis, SilhouetteCache, VolumeStats,
+    LightClamp, SegmentAxis, SilhouetteCache, VolumeRequest, VolumeStats,
 };
 use std::time::Instant;
 
@@ -86,8 +86,14 @@ pub(crate) fn build_for(
             let cs = scratch.clamp.plan(&clamp_input, &mut scratch.plan)?;
             let clamp_ms = t.elapsed().as_secs_f64() * 1e3;
             let plan = &scratch.plan;
-            let mut stats =
-                build_clamped_volumes(out, scene, camera, light, casters, build, cache, plan)?;
+            let request = VolumeRequest {
+                scene,
+                camera,
+                light,
+                casters,
+                options: build,
+            };
+            let mut stats = build_clamped_volumes(out, &request, cache, plan)?;
             stats.clamp_ms = clamp_ms;
             stats.sap_pairs = cs.sap_pairs as usize;
             stats.sap_swaps = cs.sap_swaps as usize;

@@ -88,15 +88,21 @@ pub fn build_volumes(
     options: BuildOptions,
     cache: &mut SilhouetteCache,
 ) -> Result<VolumeStats> {
-    let request = Request {
+    let request = VolumeRequest {
         scene,
         camera,
         light,
         casters,
         options,
-        clamp: None,
     };
-    build(out, &request, cache)
+    build(
+        out,
+        &Request {
+            request,
+            clamp: None,
+        },
+        cache,
+    )
 }
 
 /// [`build_volumes`] with continuous clamping [Steiner §4.4]: a caster that
@@ -108,26 +114,20 @@ pub fn build_volumes(
 ///
 /// # Errors
 /// As [`build_volumes`].
-#[allow(clippy::too_many_arguments)] // build_volumes' arguments and the plan
 pub fn build_clamped_volumes(
     out: &mut VolumeBuffer,
-    scene: &Scene,
-    camera: &Camera,
-    light: &Light,
-    casters: &[ObjectId],
-    options: BuildOptions,
+    request: &VolumeRequest<'_>,
     cache: &mut SilhouetteCache,
     plan: &ClampPlan,
 ) -> Result<VolumeStats> {
-    let request = Request {
-        scene,
-        camera,
-        light,
-        casters,
-        options,
-        clamp: Some(plan),
-    };
-    build(out, &request, cache)
+    build(
+        out,
+        &Request {
+            request: *request,
+            clamp: Some(plan),
+        },
+        cache,
+    )
 }
 
 fn build(
@@ -135,13 +135,13 @@ fn build(
     request: &Request<'_>,
     cache: &mut SilhouetteCache,
 ) -> Result<VolumeStats> {
-    let Request {
+    let VolumeRequest {
         scene,
         light,
         casters,
         options,
         ..
-    } = *request;
+    } = request.request;
     out.clear();
     light.validate()?;
     let objects = scene.objects().len();
@@ -175,13 +175,23 @@ fn build(
 
 /// What [`build_volumes`] is asked for: the volumes of `casters` in `scene`
 /// for `light`, seen by `camera`, built with `options`.
+#[derive(Clone, Copy)]
+pub struct VolumeRequest<'a> {
+    /// The scene.
+    pub scene: &'a Scene,
+    /// The eye (method choice, scissor and depth bounds).
+    pub camera: &'a Camera,
+    /// The light.
+    pub light: &'a Light,
+    /// The casters, one range (or one per segment) each, in this order.
+    pub casters: &'a [ObjectId],
+    /// How to build.
+    pub options: BuildOptions,
+}
+
+/// A request and, for continuous clamping, the casters to segment and where.
 struct Request<'a> {
-    scene: &'a Scene,
-    camera: &'a Camera,
-    light: &'a Light,
-    casters: &'a [ObjectId],
-    options: BuildOptions,
-    /// Continuous clamping: the casters to segment and where.
+    request: VolumeRequest<'a>,
     clamp: Option<&'a ClampPlan>,
 }
 
@@ -195,14 +205,14 @@ fn append_all(
     scratch: &mut BuildScratch,
     stats: &mut VolumeStats,
 ) -> Result<()> {
-    let Request {
+    let VolumeRequest {
         scene,
         camera,
         light,
         casters,
         options,
-        clamp,
-    } = *request;
+    } = request.request;
+    let clamp = request.clamp;
     let hull = NearLightHull::new(camera, light);
     for &id in casters {
         let sil = cache.get(id, light).expect("update() cached every caster");

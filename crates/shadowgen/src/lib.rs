@@ -49,7 +49,7 @@ mod sweep_prune;
 mod volume;
 
 pub use bounds::{volume_bounds, VolumeBounds, BOUNDS_MARGIN};
-pub use build::{build_clamped_volumes, build_volumes, BuildOptions, VolumeStats};
+pub use build::{build_clamped_volumes, build_volumes, BuildOptions, VolumeRequest, VolumeStats};
 pub use clamp::{ClampInput, ClampStats, GapModel, LightClamp};
 pub use clamp_intervals::{occupied_intervals, GapArea, GapCost};
 pub use error::{Error, Result};

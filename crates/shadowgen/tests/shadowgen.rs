@@ -1065,9 +1065,11 @@ proptest! {
         let (mut unclamped, mut clamped) = (VolumeBuffer::new(), VolumeBuffer::new());
         let mut cache = SilhouetteCache::new();
         build_volumes(&mut unclamped, &s, &camera(), &l, &[ObjectId(0)], opts, &mut cache).unwrap();
-        let st = shadowgen::build_clamped_volumes(
-            &mut clamped, &s, &camera(), &l, &[ObjectId(0)], opts, &mut cache, &plan,
-        ).unwrap();
+        let cam = camera();
+        let request = shadowgen::VolumeRequest {
+            scene: &s, camera: &cam, light: &l, casters: &[ObjectId(0)], options: opts,
+        };
+        let st = shadowgen::build_clamped_volumes(&mut clamped, &request, &mut cache, &plan).unwrap();
         clamped.check().unwrap();
         let widened = plan.get(ObjectId(0)).unwrap().1.to_vec();
         prop_assert_eq!(st.segments, widened.len());

@@ -208,12 +208,19 @@ pub fn check_hierarchical(
     two_sided: bool,
     tiles: &[TileSize],
 ) -> Result<HierarchyCheck, String> {
-    check_with(scene, cam, light, eye, method, two_sided, tiles, false)
+    let options = shadowgen::BuildOptions {
+        method,
+        two_sided,
+        ..Default::default()
+    };
+    let buf = volumes(scene, cam, light, options, false)?;
+    check_buffer(cam, eye, &buf, tiles)
 }
 
 /// [`check_hierarchical`] on continuously clamped volumes (every receiving
 /// object a receiver, every gap kept): H's open-edge rule holds on segments
-/// too. ///
+/// too.
+///
 /// # Errors
 /// As [`check_hierarchical`].
 pub fn check_hierarchical_clamped(
@@ -225,29 +232,35 @@ pub fn check_hierarchical_clamped(
     two_sided: bool,
     tiles: &[TileSize],
 ) -> Result<HierarchyCheck, String> {
-    check_with(scene, cam, light, eye, method, two_sided, tiles, true)
-}
-
-#[allow(clippy::too_many_arguments)] // the two public checks' arguments and the switch
-fn check_with(
-    scene: &Scene,
-    cam: &Camera,
-    light: &Light,
-    eye: &DepthTarget,
-    method: shadowgen::MethodChoice,
-    two_sided: bool,
-    tiles: &[TileSize],
-    clamped: bool,
-) -> Result<HierarchyCheck, String> {
-    let mut buf = VolumeBuffer::new();
-    let casters: Vec<ObjectId> = (0..scene.objects().len() as u32).map(ObjectId).collect();
     let options = shadowgen::BuildOptions {
         method,
         two_sided,
         ..Default::default()
     };
+    let buf = volumes(scene, cam, light, options, true)?;
+    check_buffer(cam, eye, &buf, tiles)
+}
+
+/// Every object's volume for `light`, clamped (receivers: every receiving
+/// object, no gap model) or not.
+fn volumes(
+    scene: &Scene,
+    cam: &Camera,
+    light: &Light,
+    options: shadowgen::BuildOptions,
+    clamped: bool,
+) -> Result<VolumeBuffer, String> {
+    let mut buf = VolumeBuffer::new();
+    let casters: Vec<ObjectId> = (0..scene.objects().len() as u32).map(ObjectId).collect();
     let mut cache = shadowgen::SilhouetteCache::default();
     let err = |e: shadowgen::Error| e.to_string();
+    let request = shadowgen::VolumeRequest {
+        scene,
+        camera: cam,
+        light,
+        casters: &casters,
+        options,
+    };
     if clamped {
         let receives: Vec<bool> = scene.objects().iter().map(|o| o.flags.receives).collect();
         let input = shadowgen::ClampInput {
@@ -261,19 +274,26 @@ fn check_with(
         shadowgen::LightClamp::new()
             .plan(&input, &mut plan)
             .map_err(err)?;
-        shadowgen::build_clamped_volumes(
-            &mut buf, scene, cam, light, &casters, options, &mut cache, &plan,
-        )
-        .map_err(err)?;
+        shadowgen::build_clamped_volumes(&mut buf, &request, &mut cache, &plan).map_err(err)?;
     } else {
         shadowgen::build_volumes(&mut buf, scene, cam, light, &casters, options, &mut cache)
             .map_err(err)?;
     }
+    Ok(buf)
+}
+
+/// [`hierarchical_matches_brute_force`] on every range of `buf` seen by `cam`.
+fn check_buffer(
+    cam: &Camera,
+    eye: &DepthTarget,
+    buf: &VolumeBuffer,
+    tiles: &[TileSize],
+) -> Result<HierarchyCheck, String> {
     let clip: Vec<Mat4> = buf
         .ranges
         .iter()
         .map(|r| scene::transform::clip_from_local(cam, &r.world_from_local))
         .collect();
     let volumes: Vec<(Mat4, &VolumeRange)> = clip.iter().copied().zip(&buf.ranges).collect();
-    hierarchical_matches_brute_force(eye, &volumes, &buf, StencilTests::default(), tiles)
+    hierarchical_matches_brute_force(eye, &volumes, buf, StencilTests::default(), tiles)
 }
