@@ -254,9 +254,16 @@ fn append_all(
         if let Some((axis, intervals)) = segments {
             let seg_scratch = &mut scratch.segments;
             let before = out.ranges.len();
+            // The rule on the segment's own bounds; but a segment lies in the
+            // caster's shadow, so where the caster's rule allows zpass (the
+            // near rectangle is not in its shadow) every segment may use it.
+            let whole = choose(&object.world_bounds);
             let c = append_segments(out, seg_scratch, caster, axis, intervals, |k, near, far| {
                 let near = (k > 0).then_some(near);
-                choose(&axis.segment_bounds(&object.world_bounds, near, far))
+                match choose(&axis.segment_bounds(&object.world_bounds, near, far)) {
+                    _ if whole == VolumeMethod::ZPass => VolumeMethod::ZPass,
+                    own => own,
+                }
             });
             for r in &out.ranges[before..] {
                 count_method(stats, r.method);
