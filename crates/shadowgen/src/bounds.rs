@@ -442,7 +442,7 @@ impl Poly {
     }
 }
 
-fn corner(lo: DVec3, hi: DVec3, i: usize) -> DVec3 {
+pub(crate) fn corner(lo: DVec3, hi: DVec3, i: usize) -> DVec3 {
     DVec3::new(
         if i & 1 != 0 { hi.x } else { lo.x },
         if i & 2 != 0 { hi.y } else { lo.y },
@@ -450,7 +450,8 @@ fn corner(lo: DVec3, hi: DVec3, i: usize) -> DVec3 {
     )
 }
 
-fn round_up(v: f64) -> f32 {
+/// `v` rounded to the nearest f32 at or above it.
+pub(crate) fn round_up(v: f64) -> f32 {
     let f = v as f32;
     if (f as f64) < v {
         f.next_up()
@@ -459,7 +460,8 @@ fn round_up(v: f64) -> f32 {
     }
 }
 
-fn round_down(v: f64) -> f32 {
+/// `v` rounded to the nearest f32 at or below it.
+pub(crate) fn round_down(v: f64) -> f32 {
     let f = v as f32;
     if (f as f64) > v {
         f.next_down()

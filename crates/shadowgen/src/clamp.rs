@@ -19,6 +19,7 @@
 //! A caster the light is on or in ([`SegmentAxis::new`] refuses it) stays
 //! unclamped.
 
+use crate::bounds::{corner, round_down, round_up};
 use crate::{occupied_intervals, ClampPlan, GapArea, GapCost, Result, SegmentAxis, SweepPrune};
 use crate::{ImageRect, SapStats};
 use glam::DVec3;
@@ -287,8 +288,6 @@ fn face_rect(light: &Light, face: usize, b: &Aabb) -> Option<ImageRect> {
         return None;
     }
     let (lo, hi) = (b.min.as_dvec3(), b.max.as_dvec3());
-    let corner =
-        |k: usize| DVec3::select(glam::BVec3::new(k & 1 != 0, k & 2 != 0, k & 4 != 0), hi, lo);
     match *light {
         Light::Directional { direction } => {
             let d = direction.normalize();
@@ -299,7 +298,7 @@ fn face_rect(light: &Light, face: usize, b: &Aabb) -> Option<ImageRect> {
                 max: [f32::NEG_INFINITY; 2],
             };
             for k in 0..8 {
-                let p = corner(k);
+                let p = corner(lo, hi, k);
                 widen(&mut r, [u.dot(p), v.dot(p)]);
             }
             Some(r)
@@ -307,7 +306,7 @@ fn face_rect(light: &Light, face: usize, b: &Aabb) -> Option<ImageRect> {
         Light::Point { position, .. } | Light::Spot { position, .. } => {
             let [axis, u, v] = FACES[face];
             let c: [[f64; 3]; 8] = std::array::from_fn(|k| {
-                let p = corner(k) - position;
+                let p = corner(lo, hi, k) - position;
                 [axis.dot(p), u.dot(p), v.dot(p)]
             });
             // Outside one of the pyramid's planes (w ≤ 0, |s| ≤ w, |t| ≤ w).
@@ -346,15 +345,7 @@ fn face_rect(light: &Light, face: usize, b: &Aabb) -> Option<ImageRect> {
 /// Grows `r` to hold `p`, rounding outward to f32.
 fn widen(r: &mut ImageRect, p: [f64; 2]) {
     for (k, v) in p.into_iter().enumerate() {
-        let f = v as f32;
-        let (down, up) = if f64::from(f) > v {
-            (f.next_down(), f)
-        } else if f64::from(f) < v {
-            (f, f.next_up())
-        } else {
-            (f, f)
-        };
-        r.min[k] = r.min[k].min(down);
-        r.max[k] = r.max[k].max(up);
+        r.min[k] = r.min[k].min(round_down(v));
+        r.max[k] = r.max[k].max(round_up(v));
     }
 }

@@ -31,6 +31,7 @@
 //! `2⁻¹⁰·(|P| + size)` at both ends (`size` the caster's bounding diagonal)
 //! before segments are built, and intervals that then overlap are merged.
 
+use crate::bounds::{corner, round_down, round_up};
 use crate::volume::CasterGeometry;
 use glam::{DMat4, DVec3};
 use raster::{VolumeBuffer, VolumeMethod, VolumeRange};
@@ -120,7 +121,7 @@ impl SegmentAxis {
         let mut b = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
         let mut add = |p: DVec3| b = (b.0.min(p), b.1.max(p));
         for k in 0..8 {
-            let c = DVec3::select(glam::BVec3::new(k & 1 != 0, k & 2 != 0, k & 4 != 0), hi, lo);
+            let c = corner(lo, hi, k);
             match near {
                 None => add(c),
                 Some(n) => add(self.project(c, n)),
@@ -128,25 +129,9 @@ impl SegmentAxis {
             add(self.project(c, far));
         }
         // f32 bounds rounded outward.
-        let down = |v: f64| {
-            let f = v as f32;
-            if f64::from(f) > v {
-                f.next_down()
-            } else {
-                f
-            }
-        };
-        let up = |v: f64| {
-            let f = v as f32;
-            if f64::from(f) < v {
-                f.next_up()
-            } else {
-                f
-            }
-        };
         Aabb {
-            min: glam::Vec3::new(down(b.0.x), down(b.0.y), down(b.0.z)),
-            max: glam::Vec3::new(up(b.1.x), up(b.1.y), up(b.1.z)),
+            min: b.0.to_array().map(round_down).into(),
+            max: b.1.to_array().map(round_up).into(),
         }
     }
 

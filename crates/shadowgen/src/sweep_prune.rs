@@ -27,8 +27,9 @@
 //! `a.min <= b.max`. NaN bounds widen to ±∞ (a box of unknown extent overlaps
 //! everything), and −0 is read as +0.
 
+use crate::bounds::corner;
 use crate::{Error, Result};
-use glam::{BVec3, DMat4, DVec3};
+use glam::DMat4;
 use scene::Aabb;
 use serde::Serialize;
 
@@ -67,7 +68,7 @@ impl ImageRect {
             max: [f32::NEG_INFINITY; 2],
         };
         for k in 0..8 {
-            let p = DVec3::select(BVec3::new(k & 1 != 0, k & 2 != 0, k & 4 != 0), hi, lo);
+            let p = corner(lo, hi, k);
             let c = *clip_from_world * p.extend(1.0);
             if c.w.is_nan() || c.w <= 0.0 {
                 return ImageRect::EVERYWHERE;

@@ -208,12 +208,7 @@ pub fn check_hierarchical(
     two_sided: bool,
     tiles: &[TileSize],
 ) -> Result<HierarchyCheck, String> {
-    let options = shadowgen::BuildOptions {
-        method,
-        two_sided,
-        ..Default::default()
-    };
-    let buf = volumes(scene, cam, light, options, false)?;
+    let buf = volumes(scene, cam, light, options(method, two_sided), false)?;
     check_buffer(cam, eye, &buf, tiles)
 }
 
@@ -232,13 +227,17 @@ pub fn check_hierarchical_clamped(
     two_sided: bool,
     tiles: &[TileSize],
 ) -> Result<HierarchyCheck, String> {
-    let options = shadowgen::BuildOptions {
+    let buf = volumes(scene, cam, light, options(method, two_sided), true)?;
+    check_buffer(cam, eye, &buf, tiles)
+}
+
+/// The build options of the checks: `method`, `two_sided`, no bounds.
+fn options(method: shadowgen::MethodChoice, two_sided: bool) -> shadowgen::BuildOptions {
+    shadowgen::BuildOptions {
         method,
         two_sided,
         ..Default::default()
-    };
-    let buf = volumes(scene, cam, light, options, true)?;
-    check_buffer(cam, eye, &buf, tiles)
+    }
 }
 
 /// Every object's volume for `light`, clamped (receivers: every receiving
