@@ -38,7 +38,8 @@ pub struct Calibration {
 /// clamping. `job_file` names the job in errors and resolves its paths.
 ///
 /// # Errors
-/// Scene, job and pipeline errors.
+/// Scene, job and pipeline errors; [`crate::Error::Job`] on `resolution`
+/// when the frame has too little stencil work to measure.
 pub fn calibrate(job: &Job, job_file: Option<&Path>, reps: u32) -> Result<Calibration> {
     let file = job_file.unwrap_or(Path::new("<default job>"));
     let (loaded, scene, path) = load_scene_for_job(job, job_file)?;
@@ -68,11 +69,24 @@ pub fn calibrate(job: &Job, job_file: Option<&Path>, reps: u32) -> Result<Calibr
     };
     let (low_ms, vertices, _) = measure(VERTEX_BOUND_SIZE, 0)?;
     let (high_ms, _, pixels) = measure(job.resolution, reps)?;
+    // Both costs must be measurable: volumes to draw, and more time at the
+    // job's resolution than at the tiny one.
+    if vertices == 0 || pixels == 0 || high_ms <= low_ms {
+        return Err(crate::Error::Job {
+            file: file.to_path_buf(),
+            location: "resolution".into(),
+            message: format!(
+                "too little stencil work to measure ({vertices} volume vertices, {pixels} \
+                 pixels, {high_ms:.3} ms at {}x{} against {low_ms:.3} ms at {}x{}): \
+                 calibrate on a larger resolution or a view with more shadow",
+                job.resolution.0, job.resolution.1, VERTEX_BOUND_SIZE.0, VERTEX_BOUND_SIZE.1
+            ),
+        });
+    }
     let ns = 1e6;
     Ok(Calibration {
-        vertex_cost: low_ms * ns / vertices.max(1) as f64,
-        pixel_cost: ((high_ms - low_ms).max(0.0) * ns / pixels.max(1) as f64)
-            .max(f64::MIN_POSITIVE),
+        vertex_cost: low_ms * ns / vertices as f64,
+        pixel_cost: (high_ms - low_ms) * ns / pixels as f64,
         vertices,
         pixels,
         stencil_ms: [low_ms, high_ms],

@@ -978,11 +978,14 @@ fn merge_refuses_a_fifo_in_a_shard() {
 fn calibrate_prints_costs_a_job_takes() {
     let dir = tmp_dir("calibrate");
     let job = dir.join("job.ron");
-    std::fs::write(&job, SMALL_JOB).unwrap();
+    // Enough pixels that the per-pixel time stands out of the noise.
+    let measurable = SMALL_JOB.replace("resolution: (64, 48)", "resolution: (320, 240)");
+    assert_ne!(measurable, SMALL_JOB);
+    std::fs::write(&job, &measurable).unwrap();
     let o = bin()
         .arg("calibrate")
         .arg(&job)
-        .args(["--reps", "1"])
+        .args(["--reps", "3"])
         .output()
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
@@ -1002,14 +1005,14 @@ fn calibrate_prints_costs_a_job_takes() {
         assert!(v.is_finite() && v > 0.0, "{line}");
     }
     // Pasted into the job's pipeline, with clamping on: a valid, exact job.
-    let text = SMALL_JOB.replace(
+    let text = measurable.replace(
         "outputs: (masks: true, shaded: true),",
         &format!(
             "outputs: (masks: true, shaded: true),\n    pipeline: (clamping: continuous, {}),",
             fields.replace('\n', " ")
         ),
     );
-    assert_ne!(text, SMALL_JOB);
+    assert_ne!(text, measurable);
     std::fs::write(&job, &text).unwrap();
     let out = dir.join("out");
     let o = bin()

@@ -254,8 +254,9 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
                 j.resolution.0,
                 j.resolution.1
             );
-            println!("clamp_vertex_cost: {:.4},", c.vertex_cost);
-            println!("clamp_pixel_cost: {:.4},", c.pixel_cost);
+            // Shortest round-trip text: never rounds a small cost to 0.
+            println!("clamp_vertex_cost: {:?},", c.vertex_cost);
+            println!("clamp_pixel_cost: {:?},", c.pixel_cost);
             Ok(())
         }
         Command::Inspect {
