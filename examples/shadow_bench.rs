@@ -4,7 +4,7 @@
 //! [--scissor on|off] [--method auto|zpass|zfail|zpplus] [--counters 8|wide] [--tile 4|8|16]
 //! [--full-shadow on|off] [--map N] [--culling none|frustum|exact|chc|chcpp]
 //! [--coverage conservative|point] [--threshold T] [--light-res N]
-//! [--clamping none|continuous] [--clamping-receivers all|psr]
+//! [--clamping none|continuous] [--clamping-receivers all|psr] [--count-fill]
 //! [--two-sided] [--reference] [--mask OUT.png] [--reps R | --path NAME [--frames N]]`
 //! (defaults `--tile 8 --counters 8 --map 2048 --full-shadow on --culling none
 //! --coverage conservative --threshold 0 --light-res 1024 --reps 5`; `--threshold` is the
@@ -39,7 +39,7 @@
 //! `pixels_processed`, `stencil_updates`, `shadowed_pixels`, `h_fragments`,
 //! `tile_tests`, `tiles_lit`, `tiles_shadow`, `tiles_boundary`, `bandwidth_bytes`,
 //! `pixel_bytes`, `tile_bytes`, `silhouette_pixels`, `map_ms`, `psr`, `psc`,
-//! `queries`, `waits`, ...) and with `--reference` (computed on the last frame)
+//! `queries`, `waits`, `segments`, `bf_fill_unclamped`, `bf_fill_clamped`, ...) and with `--reference` (computed on the last frame)
 //! `mismatch_pixels`, `mismatch_off_boundary`, `ambiguous_pixels`, `reference_ms`.
 //!
 //! **A camera path** (`--path NAME --frames N`, N defaults to 8): renders frames
@@ -49,7 +49,8 @@
 //! `--reps` do not apply. Prints one JSON line with `path`, `frames` and per frame, as
 //! arrays in frame order, `frame_ms`, `wall_ms`, `eye_ms`, `light_ms`,
 //! `silhouette_ms`, `volume_ms`, `stencil_ms`, `psr`, `psc`, `queries`, `waits`,
-//! `pixels_processed`, `volume_triangles`, `shadowed_pixels` (with `--reference`,
+//! `pixels_processed`, `volume_triangles`, `shadowed_pixels`, `segments`, `sap_pairs`,
+//! `bf_fill_unclamped`, `bf_fill_clamped` (with `--reference`,
 //! computed on every frame, also `mismatch_pixels`, `mismatch_off_boundary`,
 //! `ambiguous_pixels`, `reference_ms`); for each of these keys K also `K_median` and
 //! `K_total`.
@@ -199,6 +200,10 @@ struct Cli {
     #[arg(long = "clamping-receivers", value_parser = one_of(CLAMP_RECEIVERS),
           default_value = name_of(CLAMP_RECEIVERS, &PipelineOptions::default().clamping_receivers))]
     clamping_receivers: ClampReceiversSpec,
+    /// Counts `bf_fill_unclamped` and `bf_fill_clamped` on any backend by
+    /// extra brute-force passes (in `wall_ms`, not in `pipeline_frame_ms`).
+    #[arg(long = "count-fill")]
+    count_fill: bool,
     /// How culling samples pixels (`point` is aggressive).
     #[arg(long, value_parser = one_of(COVERAGES),
           default_value = name_of(COVERAGES, &PipelineOptions::default().coverage))]
@@ -295,6 +300,7 @@ impl From<Cli> for Args {
                 culling: c.culling,
                 clamping: c.clamping,
                 clamping_receivers: c.clamping_receivers,
+                count_fill: c.count_fill,
                 coverage: c.coverage,
                 query_threshold: c.query_threshold,
                 light_resolution: c.light_resolution,
@@ -421,7 +427,7 @@ const TIMES: [(&str, Get<f64>); 8] = [
 ];
 
 /// Per-frame counters reported as series along a path.
-const COUNTS: [(&str, Get<u64>); 9] = [
+const COUNTS: [(&str, Get<u64>); 11] = [
     ("psr", |s| s.row.shadow.psr),
     ("psc", |s| s.row.shadow.psc),
     ("queries", |s| s.row.shadow.queries),
@@ -433,6 +439,8 @@ const COUNTS: [(&str, Get<u64>); 9] = [
     ("shadowed_pixels", |s| s.row.shadow.shadowed_pixels),
     ("segments", |s| s.row.shadow.volumes.segments as u64),
     ("sap_pairs", |s| s.row.shadow.volumes.sap_pairs as u64),
+    ("bf_fill_unclamped", |s| s.row.shadow.bf_fill_unclamped),
+    ("bf_fill_clamped", |s| s.row.shadow.bf_fill_clamped),
 ];
 
 /// Series along a path with `--reference`.
@@ -500,6 +508,7 @@ fn settings(a: &Args, row: &FrameRow) -> Map<String, Value> {
         "coverage": name_of(COVERAGES, &p.coverage),
         "clamping": name_of(CLAMPINGS, &p.clamping),
         "clamping_receivers": name_of(CLAMP_RECEIVERS, &p.clamping_receivers),
+        "count_fill": p.count_fill,
         "query_threshold": p.query_threshold,
         "light_resolution": p.light_resolution,
         "objects": row.scene.objects,

@@ -107,6 +107,11 @@ pub struct VariantRow {
     pub segments: u64,
     /// Triangles of those segments, summed.
     pub segment_triangles: u64,
+    /// Brute-force pixels processed by the volumes without clamping, summed
+    /// (counted for the clamping variants and by `bf`/`db` themselves).
+    pub bf_fill_unclamped: u64,
+    /// The same with clamping's segments, summed.
+    pub bf_fill_clamped: u64,
 }
 
 /// A serde enum's lowercase name (`chcpp`, `point`).
@@ -195,6 +200,7 @@ pub fn variants(job: &Job) -> Vec<NamedPipeline> {
             stencil: StencilBackend::Bf,
             clamping: ClampingSpec::Continuous,
             clamping_receivers,
+            count_fill: true,
             ..base
         },
     };
@@ -364,7 +370,8 @@ mod tests {
              ambiguous_pixels,compared_pixels,h_fragments,tile_tests,tiles_boundary,\
              bandwidth_bytes,silhouette_pixels,culling,coverage,query_threshold,\
              light_resolution,chcpp,light_ms,psr,psc,queries,waits,clamping,\
-             clamping_receivers,clamp_ms,sap_pairs,sap_swaps,segments,segment_triangles\n"
+             clamping_receivers,clamp_ms,sap_pairs,sap_swaps,segments,segment_triangles,\
+             bf_fill_unclamped,bf_fill_clamped\n"
         );
     }
 }

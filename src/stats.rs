@@ -95,6 +95,16 @@ pub struct ShadowStats {
     /// The light pass's traversal in this light's views (zero without
     /// culling).
     pub light: TraversalStats,
+    /// Brute-force pixels processed (under the frame's scissor and
+    /// depth-bounds tests) that this light's volumes cost without clamping:
+    /// the frame's own count when it draws unclamped volumes with `bf` or
+    /// `db`, else counted with [`crate::PipelineOptions::count_fill`]; 0 when
+    /// not measured.
+    pub bf_fill_unclamped: u64,
+    /// The same with continuous clamping's segments [Steiner §4.4]: the
+    /// frame's own count when it draws clamped volumes with `bf` or `db`,
+    /// else counted with `count_fill`; 0 when not measured.
+    pub bf_fill_clamped: u64,
 }
 
 /// The pipeline's mask against the reference's, on frames that run it.
@@ -260,6 +270,8 @@ impl FrameRow {
         "sap_swaps",
         "segments",
         "segment_triangles",
+        "bf_fill_unclamped",
+        "bf_fill_clamped",
     ];
 
     /// The row's cells in [`FrameRow::COLUMNS`] order.
@@ -489,7 +501,8 @@ mod tests {
              tiles_boundary,pixel_bytes,tile_bytes,bandwidth_bytes,silhouette_pixels,\
              map_ms,psr,psc,queries,waits,light_ms,mismatch_pixels,\
              mismatch_off_boundary,ambiguous_pixels,compared_pixels,frame_ms,\
-             pipeline_frame_ms,clamp_ms,sap_pairs,sap_swaps,segments,segment_triangles"
+             pipeline_frame_ms,clamp_ms,sap_pairs,sap_swaps,segments,segment_triangles,\
+             bf_fill_unclamped,bf_fill_clamped"
         );
     }
 
@@ -582,6 +595,8 @@ mod tests {
                 "sap_swaps",
                 "segments",
                 "segment_triangles",
+                "bf_fill_unclamped",
+                "bf_fill_clamped",
             ]
         );
         assert_eq!(c.get("zfail_casters"), Some(&Cell::Count(4)));

@@ -918,3 +918,86 @@ fn object_flags_keep_masks_exact() -> Result<()> {
     assert!(open.len() > hiding.len(), "the slab hid something");
     Ok(())
 }
+
+/// `count_fill` counts, on every backend and with clamping on or off, the
+/// pixels the brute-force frames of both variants process themselves, and
+/// changes no mask; without it an `h` frame counts nothing, and a `bf`
+/// frame counts its own variant.
+#[test]
+fn count_fill_counts_what_brute_force_processes() -> Result<()> {
+    use shadowcull::pipeline::{ClampReceiversSpec, ClampingSpec};
+    let (scene, path) = city();
+    let lights = lights(&scene, &path);
+    for receivers in [ClampReceiversSpec::All, ClampReceiversSpec::Psr] {
+        let with = |stencil, clamping, count_fill| PipelineOptions {
+            clamping,
+            clamping_receivers: receivers,
+            count_fill,
+            ..options(CullingSpec::Chcpp, stencil)
+        };
+        let (none, cont) = (ClampingSpec::None, ClampingSpec::Continuous);
+        // Per pipeline, per frame and light: (mask, unclamped, clamped, pixels).
+        type Fills = Vec<(Option<shadowcull::mask::Mask>, u64, u64, u64)>;
+        let run = |o: PipelineOptions| -> Result<Vec<Fills>> {
+            let (mut p, _) = pipeline(&scene, o, &lights)?;
+            [0, 3]
+                .iter()
+                .map(|&f| {
+                    let out = p.frame(&input(&path, f))?;
+                    Ok(out
+                        .lights()
+                        .map(|l| {
+                            let s = l.stats();
+                            (
+                                l.mask().cloned(),
+                                s.bf_fill_unclamped,
+                                s.bf_fill_clamped,
+                                s.stencil.pixels_processed,
+                            )
+                        })
+                        .collect())
+                })
+                .collect()
+        };
+        let bf = run(with(StencilBackend::Bf, none, false))?;
+        let bf_clamped = run(with(StencilBackend::Bf, cont, false))?;
+        for (a, b) in bf.iter().flatten().zip(bf_clamped.iter().flatten()) {
+            assert_eq!((a.1, a.2), (a.3, 0), "bf counts its own variant");
+            assert_eq!((b.1, b.2), (0, b.3), "bf counts its own variant");
+            assert!(a.3 > 0 && b.3 > 0);
+        }
+        let counted = [
+            (StencilBackend::Bf, none),
+            (StencilBackend::Bf, cont),
+            (StencilBackend::Db, cont),
+            (StencilBackend::H, none),
+            (StencilBackend::H, cont),
+            (StencilBackend::None, cont),
+        ];
+        for (stencil, clamping) in counted {
+            let uncounted = run(with(stencil, clamping, false))?;
+            let got = run(with(stencil, clamping, true))?;
+            let (plain, clamped) = if stencil == StencilBackend::Db {
+                // `db` counts under its depth-bounds test: its own frames.
+                (
+                    run(with(StencilBackend::Db, none, false))?,
+                    run(with(StencilBackend::Db, cont, false))?,
+                )
+            } else {
+                (bf.clone(), bf_clamped.clone())
+            };
+            let rows = got.iter().flatten().zip(uncounted.iter().flatten());
+            for (k, ((g, u), (p, c))) in rows
+                .zip(plain.iter().flatten().zip(clamped.iter().flatten()))
+                .enumerate()
+            {
+                let at = format!("{stencil:?} {clamping:?} {receivers:?} row {k}");
+                assert_eq!(g.0, u.0, "{at}: count_fill changes no mask");
+                assert_eq!((g.1, g.2), (p.3, c.3), "{at}");
+            }
+        }
+        let h = run(with(StencilBackend::H, cont, false))?;
+        assert!(h.iter().flatten().all(|r| (r.1, r.2) == (0, 0)));
+    }
+    Ok(())
+}

@@ -34,6 +34,8 @@ const PER_PIXEL_REFERENCE: u64 = 48;
 const PER_TRIANGLE_REFERENCE: u64 = 360;
 /// Per light-view texel and light: depth, ids, receiver depths.
 const PER_LIGHT_TEXEL: u64 = 24;
+/// Per viewport pixel and light of `count_fill`'s scratch stencil.
+const PER_PIXEL_LIGHT_FILL: u64 = 2;
 /// Per hybrid shadow-map texel and light.
 const PER_MAP_TEXEL: u64 = 8;
 
@@ -83,7 +85,14 @@ pub fn estimate(options: &PipelineOptions, w: &Workload) -> MemoryEstimate {
     let mut parts = [
         (
             "resolution",
-            m(pixels, PER_PIXEL + m(lights, PER_PIXEL_LIGHT)),
+            m(
+                pixels,
+                PER_PIXEL
+                    + m(
+                        lights,
+                        PER_PIXEL_LIGHT + u64::from(options.count_fill) * PER_PIXEL_LIGHT_FILL,
+                    ),
+            ),
         ),
         (
             "scene",

@@ -19,6 +19,7 @@
 
 mod edit;
 pub mod eye;
+mod fill_count;
 mod light;
 pub mod memory;
 mod options;
@@ -469,9 +470,8 @@ impl Pipeline {
         let shadow_options = o.shadow_options();
         // Clamping's receivers under `psr`: the receiving objects the eye
         // pass drew (every receiving object without culling).
-        let psr_model = shadow_options
-            .clamping
-            .is_some_and(|c| c.receivers == options::ClampReceiversSpec::Psr);
+        let psr_model = (shadow_options.clamping.is_some() || o.count_fill)
+            && o.clamping_receivers == options::ClampReceiversSpec::Psr;
         let receives = match (&self.culling, culled && psr_model) {
             (Some(state), true) => {
                 let mut r = vec![false; scene.objects().len()];
@@ -484,6 +484,7 @@ impl Pipeline {
         };
         let psr = self.psr.len() as u64;
         let mut n = 0;
+        let mut fill_ms = 0.0;
         for s in self.lights.iter_mut().filter_map(|s| s.state.as_mut()) {
             n += 1;
             let casters: &[ObjectId] = if culled {
@@ -537,6 +538,30 @@ impl Pipeline {
             } else {
                 (TraversalStats::default(), 0.0)
             };
+            let fill = if o.count_fill {
+                let t = Instant::now();
+                let clamped = fill_count::ClampedVariant {
+                    options: o.clamp_options(),
+                    receives: receives.as_deref(),
+                };
+                let drawn = fill_count::Drawn {
+                    buffer: &s.scratch.volume.buffer,
+                    stencil: s.shadow.as_ref().map(|f| &f.stencil),
+                };
+                let counts = fill_count::count_fill(
+                    input,
+                    &eye.target,
+                    casters,
+                    &shadow_options,
+                    clamped,
+                    drawn,
+                    &mut s.scratch.fill,
+                )?;
+                fill_ms += ms(t);
+                counts
+            } else {
+                fill_count::FillCounts::default()
+            };
             let mut stats = ShadowStats {
                 eye_ms,
                 volume_triangles: s.scratch.volume.buffer.triangle_count() as u64,
@@ -551,6 +576,17 @@ impl Pipeline {
             };
             if let Some(f) = &s.shadow {
                 add_stencil(&mut stats, f);
+                // A brute-force stencil's own count is the fill of what it drew.
+                if shadow_options.backend == Backend::Brute {
+                    match shadow_options.clamping {
+                        Some(_) => stats.bf_fill_clamped = f.stencil.pixels_processed,
+                        None => stats.bf_fill_unclamped = f.stencil.pixels_processed,
+                    }
+                }
+            }
+            if o.count_fill {
+                stats.bf_fill_unclamped = fill.unclamped;
+                stats.bf_fill_clamped = fill.clamped;
             }
             s.stats = stats;
         }
@@ -558,7 +594,8 @@ impl Pipeline {
         self.camera = Some(*camera);
         self.stats = FrameStats {
             frame,
-            frame_ms: ms(start),
+            // Fill accounting is a measurement, not part of the frame.
+            frame_ms: ms(start) - fill_ms,
             eye_ms,
             objects: self.counts.objects as u64,
             triangles: self.counts.drawn_triangles as u64,

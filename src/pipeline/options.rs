@@ -160,6 +160,13 @@ pub struct PipelineOptions {
     pub clamp_vertex_cost: f64,
     /// Clamping's cost per stencil pixel, r in R = A·r [Steiner eq. 4.3].
     pub clamp_pixel_cost: f64,
+    /// Counts, per light, the brute-force pixels processed by its volumes
+    /// both without and with continuous clamping (`bf_fill_unclamped`,
+    /// `bf_fill_clamped`; receivers and costs from the clamping fields) on
+    /// any backend: the volumes the frame does not draw are built beside it
+    /// and counted by a brute-force pass. A measurement, not a stage: its
+    /// time is left out of every stage time and of the frame time.
+    pub count_fill: bool,
     /// Worker threads of the pipeline's own rayon pool; 0 (the default) runs
     /// on rayon's global pool, or on the pool given to
     /// [`super::Pipeline::set_thread_pool`]. Results are identical for any count.
@@ -204,6 +211,7 @@ impl Default for PipelineOptions {
             clamping_receivers: ClampReceiversSpec::All,
             clamp_vertex_cost: DEFAULT_CLAMP_VERTEX_COST,
             clamp_pixel_cost: DEFAULT_CLAMP_PIXEL_COST,
+            count_fill: false,
             threads: 0,
             reference_every: 1,
             reference: Default::default(),
@@ -254,13 +262,17 @@ impl PipelineOptions {
             scissor: self.scissor,
             depth_bounds: self.depth_bounds || self.stencil == StencilBackend::Db,
             finite_extrusion: self.finite_extrusion,
-            clamping: (self.clamping == ClampingSpec::Continuous).then_some(
-                super::shadow_options::ClampOptions {
-                    receivers: self.clamping_receivers,
-                    vertex_cost: self.clamp_vertex_cost,
-                    pixel_cost: self.clamp_pixel_cost,
-                },
-            ),
+            clamping: (self.clamping == ClampingSpec::Continuous).then(|| self.clamp_options()),
+        }
+    }
+
+    /// Continuous clamping's receivers and costs (used when `clamping` is
+    /// `continuous`, and by `count_fill`).
+    pub(crate) fn clamp_options(&self) -> super::shadow_options::ClampOptions {
+        super::shadow_options::ClampOptions {
+            receivers: self.clamping_receivers,
+            vertex_cost: self.clamp_vertex_cost,
+            pixel_cost: self.clamp_pixel_cost,
         }
     }
 

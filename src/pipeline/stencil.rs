@@ -79,6 +79,8 @@ pub struct ShadowFrame {
 #[derive(Default)]
 pub struct ShadowScratch {
     pub(crate) volume: VolumeScratch,
+    /// Fill accounting's (`count_fill`) other variant and stencil.
+    pub(crate) fill: super::fill_count::FillScratch,
     stencil: Option<StencilTarget>,
     hierarchical: Option<HierarchicalStencil>,
     /// Per volume range its clip matrix, and the (matrix, range) list the

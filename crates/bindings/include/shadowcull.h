@@ -232,6 +232,13 @@ typedef struct sc_pipeline_options {
   double clamp_vertex_cost;
   // Clamping's cost per stencil pixel (r); 0: the library's default.
   double clamp_pixel_cost;
+  // Non-zero: count each light's brute-force fill without and with
+  // clamping (`sc_light_stats.bf_fill_unclamped`, `bf_fill_clamped`) on
+  // any stencil; a measurement left out of every time. (Added with the
+  // 72-byte layout; an older host's struct means 0.)
+  uint32_t count_fill;
+  // Zero.
+  uint32_t reserved;
 } sc_pipeline_options;
 
 // A pipeline: 0 is the null handle.
@@ -376,8 +383,14 @@ typedef struct sc_light_stats {
   uint64_t segments;
   // Triangles of those segments.
   uint64_t segment_triangles;
+  // Brute-force pixels processed by the light's volumes without
+  // clamping: a `bf` frame's own count, or counted with
+  // `sc_pipeline_options.count_fill`; 0 when not measured.
+  uint64_t bf_fill_unclamped;
+  // The same with clamping's segments.
+  uint64_t bf_fill_clamped;
   // Zero; room for fields to come.
-  uint64_t reserved[3];
+  uint64_t reserved[1];
 } sc_light_stats;
 
 // One light's output.

@@ -104,8 +104,14 @@ pub struct sc_light_stats {
     pub segments: u64,
     /// Triangles of those segments.
     pub segment_triangles: u64,
+    /// Brute-force pixels processed by the light's volumes without
+    /// clamping: a `bf` frame's own count, or counted with
+    /// `sc_pipeline_options.count_fill`; 0 when not measured.
+    pub bf_fill_unclamped: u64,
+    /// The same with clamping's segments.
+    pub bf_fill_clamped: u64,
     /// Zero; room for fields to come.
-    pub reserved: [u64; 3],
+    pub reserved: [u64; 1],
 }
 
 /// One light's output.
@@ -290,7 +296,9 @@ impl Outputs {
                     sap_swaps: s.volumes.sap_swaps as u64,
                     segments: s.volumes.segments as u64,
                     segment_triangles: s.volumes.segment_triangles as u64,
-                    reserved: [0; 3],
+                    bf_fill_unclamped: s.bf_fill_unclamped,
+                    bf_fill_clamped: s.bf_fill_clamped,
+                    reserved: [0; 1],
                 },
             });
         }

@@ -117,6 +117,13 @@ pub struct sc_pipeline_options {
     pub clamp_vertex_cost: f64,
     /// Clamping's cost per stencil pixel (r); 0: the library's default.
     pub clamp_pixel_cost: f64,
+    /// Non-zero: count each light's brute-force fill without and with
+    /// clamping (`sc_light_stats.bf_fill_unclamped`, `bf_fill_clamped`) on
+    /// any stencil; a measurement left out of every time. (Added with the
+    /// 72-byte layout; an older host's struct means 0.)
+    pub count_fill: u32,
+    /// Zero.
+    pub reserved: u32,
 }
 
 /// A mesh in the host's memory: positions `vertex_count` times, `stride`
@@ -245,6 +252,8 @@ impl Versioned for sc_pipeline_options {
             clamping_receivers: SC_CLAMP_RECEIVERS_ALL,
             clamp_vertex_cost: 0.0,
             clamp_pixel_cost: 0.0,
+            count_fill: 0,
+            reserved: 0,
         }
     }
 }
@@ -374,6 +383,7 @@ impl sc_pipeline_options {
             light_resolution: self.light_resolution,
             threads: self.threads,
             two_sided: self.two_sided != 0,
+            count_fill: self.count_fill != 0,
             max_memory: (self.max_memory > 0)
                 .then_some(shadowcull::byte_size::ByteSize(self.max_memory)),
             ..PipelineOptions::default()

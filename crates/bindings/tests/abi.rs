@@ -837,7 +837,8 @@ mod forwarding {
 /// their far planes and numbers, the counters say so, the mask equals the
 /// unclamped pipeline's but where the reference would call a pixel
 /// ambiguous (checked in the facade's tests; here: at most 0.01% of it); a
-/// bad value names its field, and a 40-byte struct means no clamping.
+/// bad value names its field, and a 40-byte struct means no clamping. Fill
+/// accounting through `count_fill`.
 #[test]
 fn clamping_through_the_options() {
     use sc_status::*;
@@ -918,4 +919,38 @@ fn clamping_through_the_options() {
     assert!(before
         .iter()
         .all(|(_, r, s)| s.segments == 0 && r.iter().all(|r| r.segment == 0)));
+
+    // Fill accounting (the 72-byte layout): off, an `h` frame counts
+    // nothing; on, it changes no mask, and the unclamped and clamped fills
+    // are the same whichever variant the frame draws and whichever stencil
+    // draws it (the brute-force stencil's own count is one of them).
+    assert!(plain
+        .iter()
+        .all(|(_, _, s)| (s.bf_fill_unclamped, s.bf_fill_clamped) == (0, 0)));
+    let mut f = c_options();
+    f.count_fill = 1;
+    let plain_counted = run(&f);
+    f.clamping = SC_CLAMPING_CONTINUOUS;
+    f.clamping_receivers = SC_CLAMP_RECEIVERS_PSR;
+    let clamped_counted = run(&f);
+    let mut b = f;
+    b.stencil = SC_STENCIL_BF;
+    let bf_clamped = run(&b);
+    let fills = |v: &[(Vec<u8>, Vec<sc_volume_range>, sc_light_stats)]| -> Vec<(u64, u64)> {
+        v.iter()
+            .map(|(_, _, s)| (s.bf_fill_unclamped, s.bf_fill_clamped))
+            .collect()
+    };
+    for (a, b) in plain.iter().zip(&plain_counted) {
+        assert_eq!(a.0, b.0, "count_fill changes no mask");
+    }
+    let counted = fills(&plain_counted);
+    assert!(counted.iter().all(|&(u, c)| u > 0 && c > 0), "{counted:?}");
+    assert_eq!(fills(&clamped_counted), counted);
+    assert_eq!(fills(&bf_clamped), counted);
+    let mut old = f;
+    old.struct_size = 64;
+    assert!(run(&old)
+        .iter()
+        .all(|(_, _, s)| (s.bf_fill_unclamped, s.bf_fill_clamped) == (0, 0)));
 }

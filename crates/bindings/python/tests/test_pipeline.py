@@ -328,4 +328,14 @@ def test_clamping_keeps_the_mask_and_numbers_segments(receivers):
         assert np.isfinite(r["far_plane"]).all()
         assert (np.isnan(r["near_plane"]).all(axis=1) == (r["segment"] == 0)).all()
         assert np.isnan(a.volumes[light].ranges["far_plane"]).all()
+    # Fill accounting: an `h` pipeline with `count_fill` counts what the two
+    # brute-force frames processed, without and with clamping.
+    counted, _, _, _ = box_scene(
+        stencil="h", culling="chcpp", clamping_receivers=receivers, count_fill=True
+    )
+    c = counted.frame(320, 240, camera=CAMERA)
+    for light in (lamp, sun):
+        s = c.light_stats[light]
+        assert s["bf_fill_unclamped"] == a.light_stats[light]["pixels_processed"] > 0
+        assert s["bf_fill_clamped"] == b.light_stats[light]["pixels_processed"] > 0
 
