@@ -168,8 +168,9 @@ fn write_csv(rows: &[VariantRow]) -> std::io::Result<Vec<u8>> {
 /// depth bounds, scissor with depth bounds, the hierarchical stencil with
 /// tiles 4, 8 and 16, the shadow-map hybrid, and the hierarchical stencil
 /// with CHC, CHC++ and point-sampled (aggressive) CHC++ culling, and brute
-/// force with continuous clamping (receivers `all`, `psr`), each otherwise
-/// like `pipeline`.
+/// force with continuous clamping (receivers `all`, `psr`; both count the
+/// fill without and with clamping, `count_fill`), each otherwise like
+/// `pipeline`.
 pub fn variants(job: &Job) -> Vec<NamedPipeline> {
     if !job.pipelines.is_empty() {
         return job.pipelines.clone();

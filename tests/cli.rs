@@ -269,6 +269,7 @@ fn compare_writes_one_row_per_variant_and_a_plot() {
             (name: "chcpp", pipeline: (stencil: h, culling: chcpp, coverage: conservative,
                 light_resolution: 256, query_threshold: 0,
                 chcpp: (batch: 50, revisit: 5, seed: 1))),
+            (name: "clamp", pipeline: (stencil: h, clamping: continuous, count_fill: true)),
         ],"#,
     );
     std::fs::write(&job, text).unwrap();
@@ -284,7 +285,7 @@ fn compare_writes_one_row_per_variant_and_a_plot() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let csv = std::fs::read_to_string(out.join("compare.csv")).unwrap();
     let lines: Vec<&str> = csv.lines().collect();
-    assert_eq!(lines.len(), 1 + 7, "{csv}");
+    assert_eq!(lines.len(), 1 + 8, "{csv}");
     let cols: Vec<&str> = lines[0].split(',').collect();
     let idx = |name: &str| cols.iter().position(|c| *c == name).unwrap();
     let rows: Vec<Vec<&str>> = lines[1..].iter().map(|l| l.split(',').collect()).collect();
@@ -315,6 +316,15 @@ fn compare_writes_one_row_per_variant_and_a_plot() {
     assert_eq!(rows[6][idx("chcpp")], "50/5/1");
     assert_eq!(get(6, "light_resolution"), 256.0);
     assert_eq!(rows[0][idx("culling")], "none");
+    // Clamping with fill accounting on `h`: bf's own fill without clamping,
+    // and the fill with it; bf counts its own.
+    assert_eq!(rows[7][idx("clamping")], "continuous");
+    assert_eq!(get(7, "mismatch_off_boundary"), 0.0);
+    assert!(get(7, "segments") > 0.0);
+    assert_eq!(get(7, "bf_fill_unclamped"), get(0, "pixels_processed"));
+    assert!(get(7, "bf_fill_clamped") > 0.0);
+    assert_eq!(get(0, "bf_fill_unclamped"), get(0, "pixels_processed"));
+    assert_eq!(get(0, "bf_fill_clamped"), 0.0);
     for c in [
         "frame_ms",
         "stencil_ms",
