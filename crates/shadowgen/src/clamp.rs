@@ -128,23 +128,41 @@ impl LightClamp {
         let mut other_casters: Vec<ObjectId> =
             casters.iter().copied().filter(|c| !receiving(c)).collect();
         other_casters.sort_unstable();
-        let unchanged = self.key.as_ref().is_some_and(|k| {
+        let same_geometry = self.key.as_ref().is_some_and(|k| {
             k.light == *light
-                && k.receives == receives
-                && k.other_casters == other_casters
+                && k.receives.len() == receives.len()
                 && k.bounds.len() == objects.len()
                 && k.bounds
                     .iter()
                     .zip(objects)
                     .all(|(b, o)| *b == o.world_bounds)
         });
+        let unchanged = same_geometry
+            && self
+                .key
+                .as_ref()
+                .is_some_and(|k| k.receives == receives && k.other_casters == other_casters);
         let mut stats = ClampStats {
             cached: unchanged,
             ..ClampStats::default()
         };
         if !unchanged {
+            // With the light and every box where they were, only the casters
+            // that pair with an object whose receiver flag or part in the
+            // sweeps changed (before or after the sweep) see other receivers:
+            // they and those objects lose their raw intervals. Anything else
+            // (a light or a box moved) drops them all.
+            let changed = match (&self.key, same_geometry) {
+                (Some(k), true) => changed_objects(k, receives, &other_casters),
+                _ => Vec::new(),
+            };
+            self.forget_pairs_of(&changed);
             self.sweep(input, &mut stats)?;
-            self.raw.clear();
+            if same_geometry {
+                self.forget_pairs_of(&changed);
+            } else {
+                self.raw.clear();
+            }
             self.key = Some(CacheKey {
                 light: *light,
                 receives: receives.to_vec(),
@@ -184,6 +202,19 @@ impl LightClamp {
             plan.set(c, *axis, &self.intervals);
         }
         Ok(stats)
+    }
+
+    /// Drops the raw intervals of `objects` and of every box the sweeps
+    /// pair them with.
+    fn forget_pairs_of(&mut self, objects: &[u32]) {
+        for &d in objects {
+            self.raw.remove(&d);
+            for sap in &self.planes {
+                for c in sap.neighbours(d) {
+                    self.raw.remove(c);
+                }
+            }
+        }
     }
 
     /// Caster `c`'s raw occupied intervals along `axis` from the receivers
@@ -269,6 +300,29 @@ impl LightClamp {
         }
         Ok(())
     }
+}
+
+/// The objects whose receiver flag or part in the sweeps (receiving, or a
+/// caster that does not receive) differs between `key` and the new sets.
+fn changed_objects(key: &CacheKey, receives: &[bool], other_casters: &[ObjectId]) -> Vec<u32> {
+    let n = receives.len();
+    let mark = |ids: &[ObjectId]| {
+        let mut v = vec![false; n];
+        for id in ids {
+            if let Some(f) = v.get_mut(id.0 as usize) {
+                *f = true;
+            }
+        }
+        v
+    };
+    let (was_other, is_other) = (mark(&key.other_casters), mark(other_casters));
+    (0..n)
+        .filter(|&k| {
+            key.receives[k] != receives[k]
+                || (key.receives[k] || was_other[k]) != (receives[k] || is_other[k])
+        })
+        .map(|k| k as u32)
+        .collect()
 }
 
 /// The cube face frames: view axis, then the image plane's two axes.

@@ -1175,6 +1175,36 @@ fn clamp_plans_are_reused_until_something_moves() {
     let again = clamp.plan(&input, &mut plan).unwrap();
     assert!(again.cached && again.sap_pairs == 0);
     assert_eq!(plan.get(ObjectId(0)).unwrap().1, &intervals[..]);
+    // The side box stops receiving: swept again, but the caster does not
+    // pair with it and keeps its intervals; the lowest box stops: the
+    // caster's intervals are recomputed without it.
+    let mut fewer = receives;
+    fewer[3] = false;
+    let side = clamp
+        .plan(
+            &shadowgen::ClampInput {
+                receives: &fewer,
+                ..input
+            },
+            &mut plan,
+        )
+        .unwrap();
+    assert!(!side.cached && side.cached_casters == 1);
+    assert_eq!(plan.get(ObjectId(0)).unwrap().1, &intervals[..]);
+    fewer[2] = false;
+    let below = clamp
+        .plan(
+            &shadowgen::ClampInput {
+                receives: &fewer,
+                ..input
+            },
+            &mut plan,
+        )
+        .unwrap();
+    assert!(!below.cached && below.cached_casters == 0);
+    assert_eq!(plan.get(ObjectId(0)).unwrap().1.len(), 2);
+    clamp.plan(&input, &mut plan).unwrap();
+    assert_eq!(plan.get(ObjectId(0)).unwrap().1, &intervals[..]);
     // A box moves: recomputed, and the interval follows it.
     let moved = build(1.0);
     let input = shadowgen::ClampInput {
@@ -1199,4 +1229,58 @@ fn clamp_plans_are_reused_until_something_moves() {
         .unwrap();
     assert!(!alone.cached);
     assert_eq!(plan.get(ObjectId(0)).unwrap().1.len(), 1);
+}
+
+proptest! {
+    #![proptest_config(testkit::proptest_config(96))]
+
+    /// Receiver and caster sets that change while nothing moves (a culled
+    /// view's PSR and PSC): the kept state forgets only the casters paired
+    /// with a changed object, and its plan equals a fresh state's at every
+    /// step.
+    #[test]
+    fn clamp_plans_follow_changing_sets_like_fresh_ones(
+        pos in prop::collection::vec((-8.0f64..8.0, -9.0f64..0.0, -8.0f64..8.0), 4..20),
+        sun in any::<bool>(),
+        start in prop::collection::vec((any::<bool>(), any::<bool>()), 20),
+        steps in prop::collection::vec(prop::collection::vec((0usize..20, any::<bool>()), 1..4), 1..6),
+    ) {
+        let mut g = SceneGraph::new();
+        let m = g.add_mesh(unit_box());
+        for (k, p) in pos.iter().enumerate() {
+            let t = DMat4::from_translation(DVec3::new(p.0, p.1, p.2));
+            g.add_instance(&format!("b{k}"), m, Transform::Matrix(t));
+        }
+        let s = Scene::new(g).unwrap();
+        let n = pos.len();
+        let l = if sun {
+            Light::Directional { direction: DVec3::new(0.3, -1.0, 0.2) }
+        } else {
+            point(DVec3::new(0.5, 6.0, -0.5))
+        };
+        let (mut receives, mut casts): (Vec<bool>, Vec<bool>) = start[..n].iter().copied().unzip();
+        let mut kept = shadowgen::LightClamp::new();
+        let (mut plan, mut fresh_plan) = (shadowgen::ClampPlan::new(), shadowgen::ClampPlan::new());
+        for (k, flips) in std::iter::once(&Vec::new()).chain(&steps).enumerate() {
+            for &(i, which) in flips {
+                let f = if which { &mut receives } else { &mut casts };
+                f[i % n] = !f[i % n];
+            }
+            let casters: Vec<ObjectId> = (0..n as u32).filter(|&i| casts[i as usize]).map(ObjectId).collect();
+            let input = shadowgen::ClampInput {
+                scene: &s,
+                light: &l,
+                casters: &casters,
+                receives: &receives,
+                cost: None,
+            };
+            kept.plan(&input, &mut plan).unwrap();
+            shadowgen::LightClamp::new().plan(&input, &mut fresh_plan).unwrap();
+            prop_assert_eq!(plan.len(), fresh_plan.len());
+            for c in &casters {
+                prop_assert_eq!(plan.get(*c).map(|p| p.1), fresh_plan.get(*c).map(|p| p.1),
+                    "step {} caster {}", k, c.0);
+            }
+        }
+    }
 }
