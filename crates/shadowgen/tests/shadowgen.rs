@@ -9,6 +9,9 @@ use shadowgen::{
     build_volumes, silhouette, BuildOptions, Error, MethodChoice, Silhouette, SilhouetteCache,
 };
 use std::collections::HashMap;
+use testkit::volume_checks::{
+    blockers, boundary, buffer_crossings, crossing, det4, range_crossings, world,
+};
 
 // ---------------------------------------------------------------- meshes
 
@@ -212,14 +215,6 @@ fn build(s: &Scene, l: &Light, choice: MethodChoice) -> VolumeBuffer {
     buf
 }
 
-fn world(range: &VolumeRange, p: [f32; 4]) -> DVec4 {
-    range.world_from_local * DVec4::new(p[0] as f64, p[1] as f64, p[2] as f64, p[3] as f64)
-}
-
-fn det4(rows: [DVec4; 4]) -> f64 {
-    glam::DMat4::from_cols(rows[0], rows[1], rows[2], rows[3]).determinant()
-}
-
 /// `det[A, B, C, X] > 0` ⇔ X lies behind the triangle (A, B, C) — for w = 0
 /// vertices too, by multilinearity (the limit of far finite points).
 fn check_outward(buf: &VolumeBuffer, interior: DVec3) {
@@ -269,26 +264,6 @@ fn check_extrusion(s: &Scene, buf: &VolumeBuffer, l: &Light) {
 
 /// Directed edges of a range's triangles (by position value) that have no
 /// reverse partner: empty for a closed surface.
-fn boundary(buf: &VolumeBuffer, r: &VolumeRange) -> HashMap<([u32; 4], [u32; 4]), i32> {
-    let key = |i: u32| buf.positions[i as usize].map(f32::to_bits);
-    let mut m: HashMap<([u32; 4], [u32; 4]), i32> = HashMap::new();
-    for t in r.indices().step_by(3) {
-        let tri = [buf.indices[t], buf.indices[t + 1], buf.indices[t + 2]];
-        for k in 0..3 {
-            let (a, b) = (key(tri[k]), key(tri[(k + 1) % 3]));
-            if a == b {
-                continue;
-            }
-            if a < b {
-                *m.entry((a, b)).or_insert(0) += 1;
-            } else {
-                *m.entry((b, a)).or_insert(0) -= 1;
-            }
-        }
-    }
-    m.retain(|_, v| *v != 0);
-    m
-}
 
 // ---------------------------------------------------------------- volumes
 
@@ -562,56 +537,6 @@ fn light_inside_a_closed_object_casts_nothing_one_sided() {
 
 // ---------------------------------------------------------------- volumes = reference
 
-/// Sign of `det[A, B, C, D]`, or `None` when it is too close to 0 to trust
-/// (relative to the sizes of its rows).
-fn sign4(rows: [DVec4; 4]) -> Option<i32> {
-    let d = det4(rows);
-    let scale: f64 = rows.iter().map(|r| r.length()).product();
-    if d.abs() <= 1e-7 * scale {
-        None
-    } else {
-        Some(if d > 0.0 { 1 } else { -1 })
-    }
-}
-
-/// Signed crossing of segment `p → q` (homogeneous, `w ≥ 0`) with triangle
-/// `(a, b, c)`: +1 when it passes from the front to the back side, −1 the other
-/// way, 0 when it misses. `None` when nearly degenerate.
-fn crossing(p: DVec4, q: DVec4, tri: [DVec4; 3]) -> Option<i32> {
-    // Translate so that the finite point p is the origin (a projective map with
-    // determinant 1: signs are kept, and far-from-origin scenes keep precision).
-    let o = p.truncate();
-    let m = |x: DVec4| (x.truncate() - o * x.w).extend(x.w);
-    let (p, q, [a, b, c]) = (m(p), m(q), tri.map(m));
-    let sp = sign4([a, b, c, p])?;
-    let sq = sign4([a, b, c, q])?;
-    if sp == sq {
-        return Some(0);
-    }
-    let e = [
-        sign4([p, q, a, b])?,
-        sign4([p, q, b, c])?,
-        sign4([p, q, c, a])?,
-    ];
-    Some(if e[0] == e[1] && e[1] == e[2] { sq } else { 0 })
-}
-
-/// Reference: how many casting triangles block the segment from `p` to the light.
-fn blockers(s: &Scene, p: DVec3, l: &Light, two_sided: bool) -> Option<i32> {
-    let lh = l.homogeneous();
-    let mut n = 0;
-    let mesh = s.object_mesh(ObjectId(0));
-    for t in 0..mesh.triangles().len() {
-        let w = s.world_triangle(ObjectId(0), t);
-        let casts =
-            scene::faces_light(&w, l) || (two_sided && scene::faces_light(&[w[0], w[2], w[1]], l));
-        if casts {
-            n += crossing(p.extend(1.0), lh, w.map(|v| v.extend(1.0)))?.abs();
-        }
-    }
-    Some(n)
-}
-
 proptest! {
     #![proptest_config(testkit::proptest_config(512))]
 
@@ -678,7 +603,7 @@ proptest! {
             let Some(c) = crossing(e.extend(1.0), q.extend(1.0), tri) else { return Ok(()); };
             count += c;
         }
-        let (Some(bq), Some(be)) = (blockers(&s, q, &l, two_sided), blockers(&s, e, &l, two_sided)) else {
+        let (Some(bq), Some(be)) = (blockers(&s, ObjectId(0), q, &l, two_sided), blockers(&s, ObjectId(0), e, &l, two_sided)) else {
             return Ok(());
         };
         prop_assert_eq!(count, bq - be);
@@ -715,7 +640,7 @@ proptest! {
             for j in 0..=8 {
                 let (u, v) = (i as f64 / 8.0, j as f64 / 8.0);
                 let r = c[0] + (c[1] - c[0]) * u + (c[3] - c[0]) * v;
-                if let Some(n) = blockers(&s, r, &l, true) {
+                if let Some(n) = blockers(&s, ObjectId(0), r, &l, true) {
                     prop_assert_eq!(n, 0, "near point {:?} is in shadow", r);
                 }
             }
@@ -788,7 +713,7 @@ proptest! {
             };
             if !sb.contains(q.as_vec3())
                 || !l.reaches(q)
-                || blockers(&s, q, &l, true).unwrap_or(0) == 0
+                || blockers(&s, ObjectId(0), q, &l, true).unwrap_or(0) == 0
             {
                 continue;
             }
@@ -825,17 +750,6 @@ fn finite_opts(method: MethodChoice) -> BuildOptions {
         finite_extrusion: true,
         ..Default::default()
     }
-}
-
-/// Signed crossings of the segment `e → q` with every triangle of range `r`;
-/// `None` when one is too close to degenerate to trust.
-fn range_crossings(buf: &VolumeBuffer, r: &VolumeRange, e: DVec3, q: DVec3) -> Option<i32> {
-    let mut count = 0;
-    for t in r.indices().step_by(3) {
-        let tri = buf.triangle(t / 3).map(|p| world(r, p));
-        count += crossing(e.extend(1.0), q.extend(1.0), tri)?;
-    }
-    Some(count)
 }
 
 #[test]
@@ -1020,13 +934,6 @@ proptest! {
 }
 
 // ---------------------------------------------------------------- segmented volumes
-
-/// Signed crossings of `e → q` with every range of `buf`.
-fn buffer_crossings(buf: &VolumeBuffer, e: DVec3, q: DVec3) -> Option<i32> {
-    buf.ranges
-        .iter()
-        .try_fold(0, |n, r| Some(n + range_crossings(buf, r, e, q)?))
-}
 
 proptest! {
     #![proptest_config(testkit::proptest_config(384))]

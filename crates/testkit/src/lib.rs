@@ -21,6 +21,7 @@ mod data;
 mod pairs;
 mod scenes;
 mod stencil;
+pub mod volume_checks;
 
 pub use data::{scratch_dir, shared_data, shared_file, shared_jobs, workspace_root};
 pub use pairs::{brute_pairs, bvh_pairs};
