@@ -319,7 +319,16 @@ fn ortho_view(body: &Polyhedron, d: DVec3, res: u32, s: &mut FitScratch) -> Ligh
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), s| {
             (a.min(s), b.max(s))
         });
-    let floor = body.diameter();
+    // The window's width must survive the rounding of `r·p` and `d·p`, which
+    // scales with the coordinates, not with the rotated extent: a body that
+    // is a point or a segment along `d` projects to one image point (a zero
+    // extent near 0) while its coordinates may be large.
+    let magnitude = body
+        .vertices()
+        .iter()
+        .map(|v| v.abs().max_element())
+        .fold(0.0, f64::max);
+    let floor = body.diameter() + magnitude;
     let (x0, x1) = pad(lo.x, hi.x, floor);
     let (y0, y1) = pad(lo.y, hi.y, floor);
     let (s0, s1) = pad(s0, s1, floor);
@@ -580,6 +589,30 @@ mod tests {
                 }
                 prop_assert!(covered(&views, p), "{p} of B not covered by {views:?}");
             }
+        }
+    }
+
+    /// A body that is one point off the origin, seen along the sun's
+    /// direction through it (it projects to image point 0): the view still
+    /// covers it (found by the `light_views` fuzz target; the window was
+    /// 10⁻²³ wide and the point's rounding put it 7·10⁷ widths away).
+    #[test]
+    fn a_point_body_on_the_light_axis_is_covered() {
+        let p = DVec3::splat(-100.0);
+        let s = Aabb {
+            min: p.as_vec3(),
+            max: p.as_vec3(),
+        };
+        let cam = Camera::look_at(p - 150.0, p - 50.0, DVec3::Y, 0.05, 0.25, 1e-3).unwrap();
+        let light = Light::Directional {
+            direction: DVec3::splat(-1.0),
+        };
+        let body = intersection_body(&cam.frustum(), &light, &s);
+        assert!(!body.is_empty());
+        let views = fit_light_views(&body, &light, 1);
+        assert_eq!(views.len(), 1);
+        for v in body.vertices() {
+            assert!(covered(&views, *v), "{v} not covered by {views:?}");
         }
     }
 
