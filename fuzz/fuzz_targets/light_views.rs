@@ -16,40 +16,34 @@ use glam::DVec3;
 use libfuzzer_sys::fuzz_target;
 use shadowcull::scene::{Aabb, Camera, Light};
 use shadowcull::visibility::{fit_light_views, intersection_body, Polyhedron};
+use shadowcull_fuzz::Bytes;
 
-/// Reads the fuzzer's bytes as values (zeros past the end).
-struct Bytes<'a> {
-    data: &'a [u8],
+/// Values in their test domain, or (wild inputs) sometimes any bit pattern.
+struct Values<'a> {
+    b: Bytes<'a>,
     wild: bool,
 }
 
-impl Bytes<'_> {
-    fn u8(&mut self) -> u8 {
-        let (b, rest) = self
-            .data
-            .split_first()
-            .map_or((0, &[][..]), |(b, r)| (*b, r));
-        self.data = rest;
-        b
-    }
+impl Values<'_> {
     /// In `[lo, hi]`, or (wild inputs, one in four) any f64 bit pattern.
     fn f64(&mut self, lo: f64, hi: f64) -> f64 {
-        if self.wild && self.u8() % 4 == 0 {
-            let bytes = [0; 8].map(|_| self.u8());
-            return f64::from_le_bytes(bytes);
+        if self.wild && self.b.u8() % 4 == 0 {
+            return self.b.any_f64();
         }
-        let t = f64::from(u16::from_le_bytes([self.u8(), self.u8()])) / 65535.0;
-        lo + (hi - lo) * t
+        lo + (hi - lo) * self.b.unit()
     }
     fn vec3(&mut self, lo: f64, hi: f64) -> DVec3 {
         DVec3::new(self.f64(lo, hi), self.f64(lo, hi), self.f64(lo, hi))
+    }
+    fn u8(&mut self) -> u8 {
+        self.b.u8()
     }
 }
 
 fuzz_target!(|data: &[u8]| {
     let wild = data.first().is_some_and(|b| b % 2 == 1);
-    let mut b = Bytes {
-        data: data.get(1..).unwrap_or(&[]),
+    let mut b = Values {
+        b: Bytes(data.get(1..).unwrap_or(&[])),
         wild,
     };
     let lo = b.vec3(-100.0, 100.0);

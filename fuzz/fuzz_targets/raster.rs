@@ -19,25 +19,14 @@ use libfuzzer_sys::fuzz_target;
 use shadowcull::raster::{
     Coverage, CullMode, DepthPick, DepthTarget, DrawItem, InstructionSet, TileSize,
 };
+use shadowcull_fuzz::Bytes;
 
-/// Reads the fuzzer's bytes as values (zeros past the end).
-struct Bytes<'a>(&'a [u8]);
-
-impl Bytes<'_> {
-    fn u8(&mut self) -> u8 {
-        let (b, rest) = self.0.split_first().map_or((0, &[][..]), |(b, r)| (*b, r));
-        self.0 = rest;
-        b
-    }
-    fn u32(&mut self) -> u32 {
-        u32::from_le_bytes([self.u8(), self.u8(), self.u8(), self.u8()])
-    }
-    fn f32(&mut self) -> f32 {
-        match self.u8() % 8 {
-            0 => f32::from_bits(self.u32()),
-            1 => f32::from(self.u8() as i8) * 1e3,
-            _ => f32::from(self.u8() as i8) / 16.0,
-        }
+/// Mostly small values; one in eight any bit pattern, one in eight large.
+fn coordinate(b: &mut Bytes) -> f32 {
+    match b.u8() % 8 {
+        0 => b.any_f32(),
+        1 => b.small(1e3),
+        _ => b.small(1.0 / 16.0),
     }
 }
 
@@ -90,7 +79,14 @@ fuzz_target!(|data: &[u8]| {
     let cull = [CullMode::None, CullMode::Back][usize::from(b.u8() % 2)];
     let n = 1 + usize::from(b.u8() % 12);
     let positions: Vec<Vec4> = (0..n)
-        .map(|_| Vec4::new(b.f32(), b.f32(), b.f32(), b.f32()))
+        .map(|_| {
+            Vec4::new(
+                coordinate(&mut b),
+                coordinate(&mut b),
+                coordinate(&mut b),
+                coordinate(&mut b),
+            )
+        })
         .collect();
     let count = 1 + usize::from(b.u8() % 8);
     let tris: Vec<[u32; 3]> = (0..count)

@@ -19,42 +19,27 @@ use shadowcull::shadowgen::{
     build_clamped_volumes, build_volumes, BuildOptions, ClampPlan, MethodChoice, SegmentAxis,
     SilhouetteCache, VolumeRequest,
 };
+use shadowcull_fuzz::Bytes;
 use testkit::volume_checks::{blockers, boundary, range_crossings};
 
-/// Reads the fuzzer's bytes as values (zeros past the end).
-struct Bytes<'a>(&'a [u8]);
+/// Mostly in [−4, 4) in steps of 1/32; one in sixteen any bit pattern.
+fn coordinate(b: &mut Bytes) -> f32 {
+    match b.u8() % 16 {
+        0 => b.any_f32(),
+        _ => b.small(1.0 / 32.0),
+    }
+}
 
-impl Bytes<'_> {
-    fn u8(&mut self) -> u8 {
-        let (b, rest) = self.0.split_first().map_or((0, &[][..]), |(b, r)| (*b, r));
-        self.0 = rest;
-        b
-    }
-    /// Mostly in [−2, 2) in steps of 1/32; sometimes any f32 bit pattern.
-    fn f32(&mut self) -> f32 {
-        match self.u8() % 16 {
-            0 => f32::from_bits(u32::from_le_bytes([
-                self.u8(),
-                self.u8(),
-                self.u8(),
-                self.u8(),
-            ])),
-            _ => f32::from(self.u8() as i8) / 32.0,
-        }
-    }
-    fn unit(&mut self) -> f64 {
-        f64::from(self.u8()) / 255.0
-    }
-    fn vec3(&mut self) -> DVec3 {
-        DVec3::new(self.unit(), self.unit(), self.unit()) * 2.0 - 1.0
-    }
+/// A point of the cube [−1, 1]³.
+fn point(b: &mut Bytes) -> DVec3 {
+    DVec3::new(b.unit(), b.unit(), b.unit()) * 2.0 - 1.0
 }
 
 fuzz_target!(|data: &[u8]| {
     let mut b = Bytes(data);
     let n = 3 + usize::from(b.u8() % 10);
     let positions: Vec<Vec3> = (0..n)
-        .map(|_| Vec3::new(b.f32(), b.f32(), b.f32()))
+        .map(|_| Vec3::new(coordinate(&mut b), coordinate(&mut b), coordinate(&mut b)))
         .collect();
     let count = 1 + usize::from(b.u8() % 16);
     let tris: Vec<[u32; 3]> = (0..count)
@@ -78,15 +63,15 @@ fuzz_target!(|data: &[u8]| {
     let at = |p: DVec3| w.transform_point3(p);
     let light = match b.u8() % 3 {
         0 => Light::Directional {
-            direction: b.vec3(),
+            direction: point(&mut b),
         },
         1 => Light::Point {
-            position: at(b.vec3() * 4.0),
+            position: at(point(&mut b) * 4.0),
             range: None,
         },
         _ => Light::Spot {
-            position: at(b.vec3() * 4.0),
-            direction: b.vec3(),
+            position: at(point(&mut b) * 4.0),
+            direction: point(&mut b),
             apex_angle: 0.1 + 3.0 * b.unit(),
             range: None,
         },
@@ -140,9 +125,9 @@ fuzz_target!(|data: &[u8]| {
     };
     for _ in 0..4 {
         let (e, te, q, tq) = (
-            b.vec3(),
+            point(&mut b),
             0.3 + 3.0 * b.unit(),
-            b.vec3(),
+            point(&mut b),
             0.3 + 3.0 * b.unit(),
         );
         let (e, q) = (slide(at(e), te), slide(at(q), tq));
