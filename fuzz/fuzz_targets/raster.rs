@@ -30,6 +30,20 @@ fn coordinate(b: &mut Bytes) -> f32 {
     }
 }
 
+/// Asserts that `b` holds `a`'s depth and ids.
+fn same_image(a: &DepthTarget, b: &DepthTarget, what: &str) {
+    assert_eq!(a.depth_rows(), b.depth_rows(), "{what} changed depth");
+    for y in 0..a.height() {
+        for x in 0..a.width() {
+            assert_eq!(
+                a.id_at(x, y),
+                b.id_at(x, y),
+                "{what} changed the id at ({x}, {y})"
+            );
+        }
+    }
+}
+
 /// Draws `tris` one item each, in `order`, into a fresh target.
 fn draw(
     (w, h, tile): (u32, u32, TileSize),
@@ -135,20 +149,7 @@ fuzz_target!(|data: &[u8]| {
         &tris,
         (0..count).rev(),
     );
-    assert_eq!(
-        a.depth_rows(),
-        reversed.depth_rows(),
-        "draw order changed depth"
-    );
-    for y in 0..h {
-        for x in 0..w {
-            assert_eq!(
-                a.id_at(x, y),
-                reversed.id_at(x, y),
-                "draw order changed the id at ({x}, {y})"
-            );
-        }
-    }
+    same_image(&a, &reversed, "the reversed draw order");
     if detected != InstructionSet::Portable {
         let p = draw(
             frame,
@@ -157,16 +158,7 @@ fuzz_target!(|data: &[u8]| {
             &tris,
             0..count,
         );
-        assert_eq!(
-            a.depth_rows(),
-            p.depth_rows(),
-            "portable and {detected:?} differ"
-        );
-        for y in 0..h {
-            for x in 0..w {
-                assert_eq!(a.id_at(x, y), p.id_at(x, y));
-            }
-        }
+        same_image(&a, &p, "the portable kernels");
         assert_eq!(a.stats(), p.stats());
     }
 });

@@ -1086,30 +1086,28 @@ fn clamp_plans_are_reused_until_something_moves() {
     // pair with it and keeps its intervals; the lowest box stops: the
     // caster's intervals are recomputed without it.
     let mut fewer = receives;
-    fewer[3] = false;
-    let side = clamp
-        .plan(
-            &shadowgen::ClampInput {
-                receives: &fewer,
-                ..input
-            },
-            &mut plan,
-        )
-        .unwrap();
-    assert!(!side.cached && side.cached_casters == 1);
-    assert_eq!(plan.get(ObjectId(0)).unwrap().1, &intervals[..]);
-    fewer[2] = false;
-    let below = clamp
-        .plan(
-            &shadowgen::ClampInput {
-                receives: &fewer,
-                ..input
-            },
-            &mut plan,
-        )
-        .unwrap();
-    assert!(!below.cached && below.cached_casters == 0);
-    assert_eq!(plan.get(ObjectId(0)).unwrap().1.len(), 2);
+    for (dropped, kept, segments) in [(3, 1, intervals.len()), (2, 0, 2)] {
+        fewer[dropped] = false;
+        let st = clamp
+            .plan(
+                &shadowgen::ClampInput {
+                    receives: &fewer,
+                    ..input
+                },
+                &mut plan,
+            )
+            .unwrap();
+        assert!(
+            !st.cached && st.cached_casters == kept,
+            "box {dropped}: {st:?}"
+        );
+        let now = plan.get(ObjectId(0)).unwrap().1;
+        assert_eq!(now.len(), segments);
+        assert!(
+            kept == 0 || now == &intervals[..],
+            "kept intervals unchanged"
+        );
+    }
     clamp.plan(&input, &mut plan).unwrap();
     assert_eq!(plan.get(ObjectId(0)).unwrap().1, &intervals[..]);
     // A box moves: recomputed, and the interval follows it.
