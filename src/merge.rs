@@ -22,6 +22,7 @@
 //!   computes them ([`RowSummary::of`]);
 //! - `load_ms`, `bvh_ms`: the maximum over shards (each shard loads the scene
 //!   and builds the reference's BVH once; the slowest one bounds the job);
+//! - `peak_rss_bytes`: the maximum over shards (each is its own process);
 //! - `shards` (only in a merged summary): each shard's directory and
 //!   `shard.json`, with its load, warm-up and wall times.
 
@@ -197,6 +198,15 @@ pub fn merge_shards(out: &Path, dirs: &[PathBuf]) -> Result<MergeReport> {
         };
         summary.insert("load_ms".into(), max("load_ms").into());
         summary.insert("bvh_ms".into(), max("bvh_ms").into());
+        if shards
+            .iter()
+            .any(|s| s.summary.get("peak_rss_bytes").is_some())
+        {
+            summary.insert(
+                "peak_rss_bytes".into(),
+                (max("peak_rss_bytes") as u64).into(),
+            );
+        }
         let list = shards
             .iter()
             .map(|s| {

@@ -70,6 +70,10 @@ pub struct RunSummary {
     pub load_ms: f64,
     /// Time to build the reference's triangle BVH (ms; 0 when no frame ran it).
     pub bvh_ms: f64,
+    /// The process's peak resident set when the run ended, in bytes (Linux;
+    /// left out elsewhere): the scene, every buffer, the reference when on.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub peak_rss_bytes: Option<u64>,
     /// Everything derived from the rows (`frames`, means, medians, totals).
     #[serde(flatten)]
     pub rows: RowSummary,
@@ -270,6 +274,7 @@ pub fn run_job(
         lights,
         load_ms,
         bvh_ms: runner.bvh_ms,
+        peak_rss_bytes: crate::memory::peak_rss_bytes(),
         rows: RowSummary::of(written, &rows),
     };
     write_json(&out.join("summary.json"), &summary)?;

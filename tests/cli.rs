@@ -204,6 +204,11 @@ fn run_writes_stats_summary_and_images() {
         summary["frame_ms_mean"].as_f64().unwrap(),
     );
     assert!(median > 0.0 && mean > 0.0, "{summary}");
+    // On Linux, the peak resident set: at least the job's output buffers.
+    if cfg!(target_os = "linux") {
+        let rss = summary["peak_rss_bytes"].as_u64().unwrap();
+        assert!(rss > 1 << 20, "{summary}");
+    }
     for f in [
         "0_0_mask.png",
         "0_1_mask.png",
@@ -557,6 +562,9 @@ fn sharded_runs_merge_into_the_single_run() {
                 .unwrap();
         assert_eq!(summary["frames"], 12);
         assert_eq!(summary["shards"].as_array().unwrap().len(), n as usize);
+        if cfg!(target_os = "linux") {
+            assert!(summary["peak_rss_bytes"].as_u64().unwrap() > 1 << 20);
+        }
         let manifest: serde_json::Value = serde_json::from_str(
             &std::fs::read_to_string(dirs[n as usize - 1].join("shard.json")).unwrap(),
         )

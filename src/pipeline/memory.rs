@@ -167,6 +167,15 @@ pub fn machine_memory() -> Option<u64> {
     })
 }
 
+/// The process's peak resident set in bytes so far (`VmHWM` of
+/// `/proc/self/status`); `None` where it cannot be read (not Linux).
+pub fn peak_rss_bytes() -> Option<u64> {
+    let text = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = text.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    kib.checked_mul(1024)
+}
+
 /// Bytes for people, in the binary units `--max-memory` takes: `12.7 GiB`.
 fn human(bytes: u64) -> String {
     let b = bytes as f64;
