@@ -27,8 +27,6 @@ use glam::{DVec3, Vec4};
 use rayon::prelude::*;
 use scene::Light;
 
-/// One receiver piece with its two placed ends and its light-local segment.
-type PieceSlots<'a> = ((&'a (u32, u32), &'a mut [DVec3]), &'a mut (Vec4, Vec4));
 /// Relative push of a receiver point away from the light before marking.
 pub const RECEIVER_PUSH: f64 = 1.0 / 1_048_576.0;
 
@@ -76,8 +74,6 @@ pub(crate) struct Prepared {
     local: Vec<Vec4>,
     /// Pieces as (first, last) point indices.
     pieces: Vec<(u32, u32)>,
-    /// Points: the pushed world points; segments: each piece's pushed ends.
-    pushed: Vec<DVec3>,
     segments: Vec<(Vec4, Vec4)>,
     face_points: [Vec<Vec4>; 6],
     face_segments: [Vec<(Vec4, Vec4)>; 6],
@@ -111,53 +107,41 @@ impl Prepared {
                 Some(c) => c + (p - c) * (1.0 + push),
                 None => p - step,
             };
-            (q, (q - origin).as_vec3().extend(1.0))
+            (q - origin).as_vec3().extend(1.0)
         };
         self.segmented = sampling == Sampling::Conservative;
         if self.segmented {
             // Only the pieces' ends are placed: two per piece, not one per point.
             self.cut_pieces(r);
             let n = self.pieces.len();
-            self.pushed.resize(2 * n, DVec3::NAN);
             self.segments.resize(n, (Vec4::NAN, Vec4::NAN));
-            let piece = |((&(a, b), w), s): PieceSlots<'_>| {
-                let (pa, la) = place(r.points[a as usize]);
-                let (pb, lb) = place(r.points[b as usize]);
-                (w[0], w[1]) = (pa, pb);
-                *s = (la, lb);
+            let piece = |(&(a, b), s): (&(u32, u32), &mut (Vec4, Vec4))| {
+                *s = (place(r.points[a as usize]), place(r.points[b as usize]));
             };
             #[cfg(feature = "parallel")]
             self.pieces
                 .par_iter()
-                .zip(self.pushed.par_chunks_mut(2))
                 .zip(self.segments.par_iter_mut())
                 .with_min_len(1024)
                 .for_each(piece);
             #[cfg(not(feature = "parallel"))]
             self.pieces
                 .iter()
-                .zip(self.pushed.chunks_mut(2))
                 .zip(self.segments.iter_mut())
                 .for_each(piece);
         } else {
             let n = r.points.len();
-            self.pushed.resize(n, DVec3::NAN);
             self.local.resize(n, Vec4::NAN);
             // (NaN points, the eye's background pixels, stay NaN: marking skips them.)
-            let point = |((&p, q), l): ((&DVec3, &mut DVec3), &mut Vec4)| (*q, *l) = place(p);
+            let point = |(&p, l): (&DVec3, &mut Vec4)| *l = place(p);
             #[cfg(feature = "parallel")]
             r.points
                 .par_iter()
-                .zip(self.pushed.par_iter_mut())
                 .zip(self.local.par_iter_mut())
                 .with_min_len(4096)
                 .for_each(point);
             #[cfg(not(feature = "parallel"))]
-            r.points
-                .iter()
-                .zip(self.pushed.iter_mut())
-                .zip(self.local.iter_mut())
-                .for_each(point);
+            r.points.iter().zip(self.local.iter_mut()).for_each(point);
         }
         let cube_res = views
             .iter()
@@ -165,7 +149,7 @@ impl Prepared {
             .map(|v| v.resolution)
             .min();
         self.cube = false;
-        if let (Some(res), Some(l)) = (cube_res, light.position()) {
+        if let (Some(res), Some(_)) = (cube_res, light.position()) {
             self.cube = true;
             let eps = match sampling {
                 Sampling::Conservative => raster::RECEIVER_EPS_PX,
@@ -174,7 +158,7 @@ impl Prepared {
             // The marking's reach beyond a face's edge: its footprint and
             // the two-pixel margin its clip keeps.
             let slack = 1.0 + 2.0 * (2.0 + eps) / f64::from(res) + 1e-9;
-            self.bin_faces(l, slack);
+            self.bin_faces(slack);
         }
     }
 
@@ -220,8 +204,14 @@ impl Prepared {
         }
     }
 
-    /// Sends every point or piece to the cube faces whose widened cone it meets.
-    fn bin_faces(&mut self, l: DVec3, slack: f64) {
+    /// Sends every point or piece to the cube faces whose widened cone it
+    /// meets, by its light-relative coordinates (a positional light is the
+    /// views' origin). They are f32: the rounding (2⁻²⁴ relative) moves a
+    /// point across a widened cone's boundary only within 2⁻²⁴ of it, and
+    /// that boundary lies `slack` beyond the face — the marking's footprint
+    /// plus the two pixels its clip keeps — so such a point marks no pixel of
+    /// the face either way (at most 16384 · 2⁻²⁴ ≈ 0.001 px nearer).
+    fn bin_faces(&mut self, slack: f64) {
         for f in &mut self.face_points {
             f.clear();
         }
@@ -229,8 +219,8 @@ impl Prepared {
             f.clear();
         }
         if self.segmented {
-            for (w, s) in self.pushed.chunks(2).zip(&self.segments) {
-                let (da, db) = (w[0] - l, w[1] - l);
+            for s in &self.segments {
+                let (da, db) = (s.0.truncate().as_dvec3(), s.1.truncate().as_dvec3());
                 if let (Some(ka), Some(kb)) = (clear_face(da, slack), clear_face(db, slack)) {
                     if ka == kb {
                         self.face_segments[ka].push(*s);
@@ -244,8 +234,8 @@ impl Prepared {
                 }
             }
         } else {
-            for (p, q) in self.pushed.iter().zip(&self.local) {
-                let d = *p - l;
+            for q in &self.local {
+                let d = q.truncate().as_dvec3();
                 for (k, f) in self.face_points.iter_mut().enumerate() {
                     if segment_meets_face(d, d, k, slack) {
                         f.push(*q);
