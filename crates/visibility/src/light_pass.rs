@@ -45,7 +45,7 @@ use raster::{
 #[cfg(feature = "parallel")]
 use rayon::prelude::*;
 use scene::{faces_light, Camera, Light, ObjectId, Plane, Scene};
-use std::sync::{Arc, Mutex, OnceLock, PoisonError};
+use std::sync::{Arc, OnceLock};
 
 /// Which view a host's occlusion backend serves ([`BackendFactory`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -122,50 +122,17 @@ pub struct LightPassResult {
     pub stats: TraversalStats,
 }
 
-/// One light view's persistent state: its culler, its query buffers and its
-/// last result (its depth and receiver targets are the light's
-/// [`TargetPool`]'s).
+/// One light view's persistent state: its culler, and its depth and receiver
+/// targets, reused from frame to frame (cleared, not reallocated).
 #[derive(Debug, Default)]
 struct ViewSlot {
     culler: ViewCuller,
+    target: Option<DepthTarget>,
+    marks: Option<Arc<ReceiverTarget>>,
     /// The bundled backend's query results, kept between frames.
     queries: QueryBuffers,
     /// The last traversal's result (its lists reused).
     result: CullResult,
-}
-
-/// A depth target and receiver marks, as one light view uses them.
-type Targets = (Option<DepthTarget>, Option<Arc<ReceiverTarget>>);
-
-/// The light views' targets, lent to each view while it runs and kept
-/// across frames. A light's views share them, so a point light's six cube
-/// faces hold as many sets as run at once (the worker threads), not six: at
-/// 1024² a set is about 9 MB. Every use clears what it reads (the traversal
-/// clears the depth, the marking clears the marks), so which set a view
-/// gets changes nothing.
-#[derive(Debug, Default)]
-struct TargetPool(Mutex<Vec<Targets>>);
-
-impl TargetPool {
-    /// A set, one of `size` when there is one (else any, or none yet).
-    fn take(&self, size: (u32, u32)) -> Targets {
-        let mut sets = self.0.lock().unwrap_or_else(PoisonError::into_inner);
-        let fits = sets
-            .iter()
-            .position(|(t, _)| t.as_ref().is_some_and(|t| (t.width(), t.height()) == size));
-        match fits.or(sets.len().checked_sub(1)) {
-            Some(k) => sets.swap_remove(k),
-            None => (None, None),
-        }
-    }
-
-    /// Returns a set (its buffer grows only to the sets in use at once).
-    fn put(&self, set: Targets) {
-        self.0
-            .lock()
-            .unwrap_or_else(PoisonError::into_inner)
-            .push(set);
-    }
 }
 
 /// One light's persistent light-pass state: a slot per light view, the
@@ -174,7 +141,6 @@ impl TargetPool {
 #[derive(Debug, Default)]
 pub struct LightPass {
     slots: Vec<ViewSlot>,
-    targets: TargetPool,
     receivers: Prepared,
     views: Vec<LightView>,
     casting: CastingCache,
@@ -478,7 +444,6 @@ impl LightPass {
             diameter,
             casting: &casting,
             options,
-            targets: &self.targets,
         };
         let frame = self.frame;
         self.frame = frame.saturating_add(1);
@@ -537,8 +502,6 @@ struct ViewsInput<'a> {
     /// The casting triangles of an object drawn as an occluder.
     casting: &'a (dyn Fn(ObjectId) -> Arc<[[u32; 3]]> + Sync),
     options: &'a LightPassOptions,
-    /// The views' targets, lent while a view runs.
-    targets: &'a TargetPool,
 }
 
 impl ViewSlot {
@@ -558,19 +521,17 @@ impl ViewSlot {
             diameter,
             casting,
             options,
-            targets,
         } = *input;
         let m = view.clip_from_world;
         let clip_from_origin = (m * DMat4::from_translation(origin)).as_mat4();
         let size = (view.resolution, view.resolution);
-        let (lent_target, lent_marks) = targets.take(size);
-        let mut target = match lent_target {
+        let mut target = match self.target.take() {
             Some(t) if (t.width(), t.height()) == size => t,
             _ => DepthTarget::new(size.0, size.1, TileSize::T8, false)?,
         };
         target.set_instruction_set(options.instruction_set);
         // Reused unless the size changed or a host backend kept a reference.
-        let mut marks = match lent_marks {
+        let mut marks = match self.marks.take() {
             Some(r)
                 if r.size() == size && Arc::strong_count(&r) == 1 && Arc::weak_count(&r) == 0 =>
             {
@@ -598,7 +559,8 @@ impl ViewSlot {
         // lies in the view holding r (views are cones from the light, fitted
         // to B, which holds the segment) — r's own view finds it.
         let Some(rows) = marks_mut.marked_rows() else {
-            targets.put((Some(target), Some(marks)));
+            self.target = Some(target);
+            self.marks = Some(marks);
             self.result.clear();
             return Ok(());
         };
@@ -646,7 +608,7 @@ impl ViewSlot {
             .culler
             .cull_into(objects, &setup, options.culling, backend, &mut self.result);
         backend.set_receivers(None)?;
-        let target = match (bundled, target) {
+        self.target = match (bundled, target) {
             (Some(b), _) => {
                 let (t, queries) = b.into_parts();
                 self.queries = queries;
@@ -654,7 +616,7 @@ impl ViewSlot {
             }
             (None, t) => t,
         };
-        targets.put((target, Some(marks)));
+        self.marks = Some(marks);
         r
     }
 }
