@@ -144,7 +144,17 @@ fuzz_target!(|data: &[u8]| {
         ) else {
             continue;
         };
-        assert_eq!(count, bq - be, "crossings of {e} -> {q}");
+        assert_eq!(
+            count,
+            bq - be,
+            "crossings of {e} -> {q}: blockers {be} -> {bq}; {light:?}, two-sided {two_sided}, \
+             scale {scale}, offset {offset}, positions {positions:?}, triangles {tris:?}, \
+             ranges {:?}",
+            buf.ranges
+                .iter()
+                .map(|r| (r.method, r.index_count))
+                .collect::<Vec<_>>()
+        );
     }
     // Segments over arbitrary sorted depth intervals: each closed.
     let bounds = s.object(ObjectId(0)).world_bounds;
