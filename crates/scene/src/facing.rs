@@ -13,35 +13,112 @@ use glam::DVec3;
 /// [`crate::transform::world_point`], winding already flipped for mirrored
 /// objects by [`crate::Scene::world_triangle`]).
 ///
-/// The sign is computed from the triangle's lexicographically smallest
-/// vertex, so it does not depend on which vertex a mesh lists first: a
-/// triangle and its rotations get the same answer, and a triangle and its
-/// reverse never both face the light, even where rounding decides (a light
-/// nearly in the plane of a triangle whose coordinates differ by many orders
-/// of magnitude). Otherwise a mesh holding one triangle twice, rotated,
-/// could cast it once each way in two-sided mode, and its two volumes
-/// cancel where the reference counts two blockers.
+/// The sign is exact for finite inputs: the determinant
+/// `det[b − a, c − a, v]` (`v` = light − a, or the direction toward a
+/// directional light) is evaluated in f64 with a forward error bound
+/// [Shewchuk's `orient3d` filter], and only when the bound cannot decide
+/// (the light within rounding of the plane, or an overflow) again in exact
+/// integer arithmetic. So a triangle and its rotations always agree, a
+/// triangle and its reverse never both face the light, and the answer is
+/// the true side even where floating point cancels catastrophically (found
+/// by the `volumes` fuzz target: a triangle with one vertex 10³⁶ out and
+/// two near the origin, whose f64 normal taken at the far vertex lost its
+/// largest component, so the shadow volume was built inside out).
+/// Non-finite inputs face nothing.
 pub fn faces_light(tri: &[DVec3; 3], light: &Light) -> bool {
-    let [a, b, c] = canonical(tri);
-    let n = (b - a).cross(c - a);
-    let s = match *light {
-        Light::Point { position, .. } | Light::Spot { position, .. } => n.dot(position - a),
-        Light::Directional { direction } => -n.dot(direction),
+    let [a, b, c] = *tri;
+    let v = match *light {
+        Light::Point { position, .. } | Light::Spot { position, .. } => Toward::Point(position),
+        Light::Directional { direction } => Toward::Direction(-direction),
     };
-    s > 0.0
+    orientation(a, b, c, v) > 0
 }
 
-/// `tri` rotated (an even permutation: the orientation is kept) to start
-/// at its lexicographically smallest vertex.
-fn canonical(tri: &[DVec3; 3]) -> [DVec3; 3] {
-    let less = |p: DVec3, q: DVec3| p.to_array() < q.to_array();
-    let [a, b, c] = *tri;
-    if less(b, a) && !less(c, b) {
-        [b, c, a]
-    } else if less(c, a) && less(c, b) {
-        [c, a, b]
-    } else {
-        [a, b, c]
+/// Where the light is: a finite point, or a direction toward it.
+#[derive(Clone, Copy)]
+enum Toward {
+    Point(DVec3),
+    Direction(DVec3),
+}
+
+/// The exact sign (−1, 0, 1) of `det[b − a, c − a, v]`, `v` = `p − a` for
+/// `Toward::Point(p)` and `d` for `Toward::Direction(d)`; 0 for non-finite
+/// inputs.
+fn orientation(a: DVec3, b: DVec3, c: DVec3, toward: Toward) -> i32 {
+    let (x, y, v) = match toward {
+        Toward::Point(p) => (b - a, c - a, p - a),
+        Toward::Direction(d) => (b - a, c - a, d),
+    };
+    let d = x.cross(y).dot(v);
+    // The permanent: the determinant's terms with absolute values. Rounding
+    // (of the differences, products and sums) moves the f64 determinant by
+    // less than (7 + 56ε)·ε·permanent [Shewchuk, o3derrboundA]; 8ε is safe.
+    // The absolute term covers products that underflowed.
+    let (x, y, v) = (x.abs(), y.abs(), v.abs());
+    let permanent = x.x * (y.y * v.z + y.z * v.y)
+        + x.y * (y.x * v.z + y.z * v.x)
+        + x.z * (y.x * v.y + y.y * v.x);
+    let bound = 8.0 * f64::EPSILON / 2.0 * permanent + 1e-300;
+    if d.is_finite() && bound.is_finite() && d.abs() > bound {
+        return if d > 0.0 { 1 } else { -1 };
+    }
+    exact::orientation(a, b, c, toward)
+}
+
+/// The fallback: the same determinant in big integers.
+mod exact {
+    use super::Toward;
+    use glam::DVec3;
+    use num_bigint::BigInt;
+
+    /// `x` as an integer multiple of 2⁻¹⁰⁷⁴ (every finite f64 is one).
+    fn scaled(x: f64) -> BigInt {
+        let bits = x.to_bits();
+        let exponent = ((bits >> 52) & 0x7ff) as i64;
+        let fraction = bits & ((1 << 52) - 1);
+        // Subnormals: fraction · 2⁻¹⁰⁷⁴; normals: (2⁵² + fraction) · 2^(e − 1075).
+        let (mantissa, shift) = if exponent == 0 {
+            (fraction, 0)
+        } else {
+            (fraction | (1 << 52), exponent - 1)
+        };
+        let m = BigInt::from(mantissa) << shift;
+        if x.is_sign_negative() {
+            -m
+        } else {
+            m
+        }
+    }
+
+    fn vector(p: DVec3) -> [BigInt; 3] {
+        [scaled(p.x), scaled(p.y), scaled(p.z)]
+    }
+
+    fn sub(p: &[BigInt; 3], q: &[BigInt; 3]) -> [BigInt; 3] {
+        [&p[0] - &q[0], &p[1] - &q[1], &p[2] - &q[2]]
+    }
+
+    pub(super) fn orientation(a: DVec3, b: DVec3, c: DVec3, toward: Toward) -> i32 {
+        let light = match toward {
+            Toward::Point(p) | Toward::Direction(p) => p,
+        };
+        if ![a, b, c, light].iter().all(|p| p.is_finite()) {
+            return 0;
+        }
+        let [a, b, c] = [a, b, c].map(vector);
+        let (x, y) = (sub(&b, &a), sub(&c, &a));
+        let v = match toward {
+            Toward::Point(p) => sub(&vector(p), &a),
+            Toward::Direction(d) => vector(d),
+        };
+        let d = &x[0] * (&y[1] * &v[2] - &y[2] * &v[1])
+            + &x[1] * (&y[2] * &v[0] - &y[0] * &v[2])
+            + &x[2] * (&y[0] * &v[1] - &y[1] * &v[0]);
+        match d.sign() {
+            num_bigint::Sign::Plus => 1,
+            num_bigint::Sign::Minus => -1,
+            num_bigint::Sign::NoSign => 0,
+        }
     }
 }
 
@@ -102,6 +179,55 @@ mod tests {
         assert!(!(f && faces_light(&[t[0], t[2], t[1]], &l)));
     }
 
+    /// Found by the `volumes` fuzz target: one vertex 10³³ out, two near
+    /// the origin, the sun along −(1, 1, 1). Taken at the far vertex (the
+    /// lexicographically smallest, as the rule once did), the f64 normal
+    /// loses its largest component and the triangle seems to face the other
+    /// way; its shadow volume was built inside out.
+    #[test]
+    fn a_far_vertex_does_not_flip_the_facing() {
+        let p = DVec3::new(0.001375, 3.125e-5, 0.0);
+        let q = DVec3::new(
+            9.196021172131612e-44,
+            -3.711097520999097e-30,
+            -0.00028125000000000003,
+        );
+        let r = DVec3::new(-7.969793658065675e28, 0.0, 1.3057709929374802e33);
+        let sun = Light::Directional {
+            direction: DVec3::splat(-1.0),
+        };
+        // The true normal of (p, q, r), taken at p, where nothing cancels:
+        // (q − p) × (r − p) · (1, 1, 1) > 0.
+        assert!((q - p).cross(r - p).dot(DVec3::ONE) > 0.0);
+        for t in [[p, q, r], [q, r, p], [r, p, q]] {
+            assert!(faces_light(&t, &sun));
+            assert!(!faces_light(&[t[0], t[2], t[1]], &sun));
+        }
+    }
+
+    /// A light in the plane faces nothing, however far out the vertices.
+    #[test]
+    fn a_light_exactly_in_the_plane_faces_nothing() {
+        let t = [
+            DVec3::new(-3.0e30, 0.0, 7.0),
+            DVec3::new(0.25, 0.0, -1e-20),
+            DVec3::new(5.0, 0.0, 2.0e33),
+        ];
+        for position in [DVec3::new(1e-300, 0.0, 4.0), DVec3::new(-2.0e40, 0.0, 3.0)] {
+            let l = Light::Point {
+                position,
+                range: None,
+            };
+            assert!(!faces_light(&t, &l));
+            assert!(!faces_light(&[t[0], t[2], t[1]], &l));
+        }
+        let grazing = Light::Directional {
+            direction: DVec3::new(1.0, 0.0, -1e-30),
+        };
+        assert!(!faces_light(&t, &grazing));
+        assert!(!faces_light(&[t[0], t[2], t[1]], &grazing));
+    }
+
     proptest::proptest! {
         /// Any triangle (coordinates over 80 orders of magnitude) and light:
         /// its rotations agree, and it and its reverse never both face.
@@ -124,6 +250,31 @@ mod tests {
             for r in [[t[0], t[2], t[1]], [t[2], t[1], t[0]], [t[1], t[0], t[2]]] {
                 proptest::prop_assert!(!(f && faces_light(&r, &l)));
             }
+        }
+
+        /// The f64 filter never decides against the exact determinant, with
+        /// lights within rounding of the plane (where it must defer) and
+        /// vertices over 80 orders of magnitude.
+        #[test]
+        fn the_filter_agrees_with_the_exact_sign(
+            v in proptest::array::uniform3(proptest::array::uniform3(-1.0f64..1.0)),
+            e in proptest::array::uniform3(-40i32..40),
+            st in proptest::array::uniform2(-2.0f64..2.0),
+            off in -40i32..2,
+            sun in proptest::bool::ANY,
+        ) {
+            let [a, b, c] = [0, 1, 2].map(|k| DVec3::from(v[k]) * 10f64.powi(e[k]));
+            let n = (b - a).cross(c - a);
+            let in_plane = a + (b - a) * st[0] + (c - a) * st[1];
+            let toward = if sun {
+                Toward::Direction((b - a) * st[0] + (c - a) * st[1] + n * 10f64.powi(off))
+            } else {
+                Toward::Point(in_plane + n * 10f64.powi(off))
+            };
+            proptest::prop_assert_eq!(
+                orientation(a, b, c, toward),
+                exact::orientation(a, b, c, toward)
+            );
         }
     }
 }

@@ -1189,3 +1189,134 @@ proptest! {
         }
     }
 }
+
+/// Found by the `volumes` fuzz target (fuzz/HOURS.md findings 4 and 5): soups
+/// with a vertex 10³⁶–10³⁸ out beside vertices near 10⁻², under a sun. The
+/// f64 facing sign, once taken at the far vertex, lost the normal's largest
+/// component, so a triangle's shadow volume was built inside out and the
+/// zfail crossings disagreed with the reference's blockers. The facing rule
+/// is exact now.
+#[test]
+fn huge_coordinate_soups_count_their_blockers() {
+    struct Case {
+        positions: Vec<Vec3>,
+        triangles: Vec<[u32; 3]>,
+        scale: f64,
+        offset: f64,
+        direction: DVec3,
+        two_sided: bool,
+        e: DVec3,
+        q: DVec3,
+    }
+    let cases = [
+        Case {
+            positions: vec![
+                Vec3::new(-7.9697937e31, 0.0, 1.305771e36),
+                Vec3::new(1.375, 0.03125, 0.0),
+                Vec3::new(-0.3999635, 1.4088781e36, 0.0),
+                Vec3::new(3.84375, 3.84375, 0.0),
+                Vec3::new(9.196e-41, -3.7110975e-27, -0.28125),
+            ],
+            triangles: vec![
+                [1, 4, 0],
+                [3, 0, 2],
+                [3, 3, 3],
+                [0, 3, 2],
+                [2, 1, 2],
+                [2, 3, 0],
+                [4, 0, 0],
+            ],
+            scale: 0.001,
+            offset: 0.0,
+            direction: DVec3::splat(-1.0),
+            two_sided: true,
+            e: DVec3::new(
+                0.0003464988186095855,
+                -0.001539882504347613,
+                0.00046008697760859365,
+            ),
+            q: DVec3::new(
+                -0.004703410562431061,
+                -0.004765484263506822,
+                -0.004809216620262753,
+            ),
+        },
+        Case {
+            positions: vec![
+                Vec3::new(-0.03125, -2.96875, -0.03125),
+                Vec3::new(-0.03125, -1.7279962e38, -2.1532974e38),
+                Vec3::new(-2.96875, -0.53125, 6.2862357e-30),
+                Vec3::new(3.65625, 0.03125, 0.09375),
+                Vec3::new(0.0, 0.03125, 2.3509548e-38),
+                Vec3::new(0.09375, 0.25, -3.5),
+                Vec3::new(3.375, 1.90625, -3.0625),
+                Vec3::new(-3.0625, -3.0625, -0.03125),
+                Vec3::new(2.3509886e-38, -0.03125, 1.03125),
+                Vec3::new(-0.28125, 2.3509754e-38, 0.0),
+                Vec3::new(0.4375, 3.65625, -0.03125),
+            ],
+            triangles: vec![
+                [0, 2, 5],
+                [0, 1, 0],
+                [3, 2, 0],
+                [2, 1, 0],
+                [3, 6, 7],
+                [10, 1, 0],
+                [10, 8, 7],
+                [10, 2, 5],
+                [0, 0, 6],
+                [4, 6, 0],
+                [10, 10, 0],
+                [0, 0, 10],
+                [0, 10, 6],
+                [4, 0, 10],
+                [8, 10, 10],
+                [10, 10, 10],
+            ],
+            scale: 1.0,
+            offset: 1000.0,
+            direction: DVec3::new(
+                -0.49871061264972916,
+                -0.9184557869840543,
+                -0.6403143358510719,
+            ),
+            two_sided: false,
+            e: DVec3::new(999.8730174145991, 999.5670305006744, 998.5346453654586),
+            q: DVec3::new(998.6338017283246, 998.325586997203, 998.5298235145392),
+        },
+    ];
+    for (k, c) in cases.into_iter().enumerate() {
+        let mesh = Mesh::new("soup", &c.positions, &c.triangles).unwrap();
+        let w = DMat4::from_translation(DVec3::splat(c.offset))
+            * DMat4::from_scale(DVec3::splat(c.scale));
+        let s = scene_with(mesh, w);
+        let l = Light::Directional {
+            direction: c.direction,
+        };
+        let mut buf = VolumeBuffer::new();
+        let mut cache = SilhouetteCache::new();
+        let opts = BuildOptions {
+            method: MethodChoice::ZFail,
+            two_sided: c.two_sided,
+            viewport: None,
+            ..Default::default()
+        };
+        build_volumes(
+            &mut buf,
+            &s,
+            &camera(),
+            &l,
+            &[ObjectId(0)],
+            opts,
+            &mut cache,
+        )
+        .unwrap();
+        for r in &buf.ranges {
+            assert!(boundary(&buf, r).is_empty(), "case {k}: an open volume");
+        }
+        let count = buffer_crossings(&buf, c.e, c.q).expect("decidable crossings");
+        let bq = blockers(&s, ObjectId(0), c.q, &l, c.two_sided).expect("decidable blockers");
+        let be = blockers(&s, ObjectId(0), c.e, &l, c.two_sided).expect("decidable blockers");
+        assert_eq!(count, bq - be, "case {k}: crossings against blockers");
+    }
+}
