@@ -132,9 +132,14 @@ impl TriangleBvh {
             scene.bounds().size().max_element().max(1e-30)
         };
         let pad = extent * (1.0 / 65536.0);
-        let mut tris = Vec::new();
-        let mut ids = Vec::new();
-        let mut flags = Vec::new();
+        // Exact capacities: grown by doubling, the f64 triangles alone
+        // would reserve up to twice their 72 bytes per triangle.
+        let total: usize = (0..scene.objects().len())
+            .map(|oi| scene.object_mesh(ObjectId(oi as u32)).triangles().len())
+            .sum();
+        let mut tris = Vec::with_capacity(total);
+        let mut ids = Vec::with_capacity(total);
+        let mut flags = Vec::with_capacity(total);
         for (oi, o) in scene.objects().iter().enumerate() {
             let id = ObjectId(oi as u32);
             let n = scene.object_mesh(id).triangles().len();

@@ -45,7 +45,8 @@ use raster::{
 #[cfg(feature = "parallel")]
 use rayon::prelude::*;
 use scene::{faces_light, Camera, Light, ObjectId, Plane, Scene};
-use std::sync::{Arc, OnceLock};
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::{Arc, Mutex, OnceLock, PoisonError};
 
 /// Which view a host's occlusion backend serves ([`BackendFactory`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -122,17 +123,27 @@ pub struct LightPassResult {
     pub stats: TraversalStats,
 }
 
-/// One light view's persistent state: its culler, and its depth and receiver
-/// targets, reused from frame to frame (cleared, not reallocated).
+/// One light view's persistent state: its culler, its query buffers and
+/// its last result, reused from frame to frame (cleared, not reallocated).
 #[derive(Debug, Default)]
 struct ViewSlot {
     culler: ViewCuller,
-    target: Option<DepthTarget>,
-    marks: Option<Arc<ReceiverTarget>>,
     /// The bundled backend's query results, kept between frames.
     queries: QueryBuffers,
     /// The last traversal's result (its lists reused).
     result: CullResult,
+}
+
+/// A depth target and a receiver target (one light view's worth, 8 bytes
+/// per texel), shared by the views of one group: the views run in as many
+/// groups as the pool has threads, each group's views one after another, so
+/// a light holds one set per thread instead of one per view (a point light's
+/// six 1024² cube faces: two sets, 16 MiB, instead of six, 48 MiB). Nothing
+/// a view computes depends on which set it used: each view clears both.
+#[derive(Debug, Default)]
+struct TargetSet {
+    target: Option<DepthTarget>,
+    marks: Option<Arc<ReceiverTarget>>,
 }
 
 /// One light's persistent light-pass state: a slot per light view, the
@@ -140,7 +151,10 @@ struct ViewSlot {
 /// casting triangles of the objects drawn as occluders.
 #[derive(Debug, Default)]
 pub struct LightPass {
-    slots: Vec<ViewSlot>,
+    /// Per view; a lock only so that whichever group claims a view can run
+    /// it (each view is claimed once per frame: never contended).
+    slots: Vec<Mutex<ViewSlot>>,
+    sets: Vec<TargetSet>,
     receivers: Prepared,
     views: Vec<LightView>,
     casting: CastingCache,
@@ -331,7 +345,7 @@ impl LightPass {
     /// keeping the buffers: the next run is a cold start (a keyframe).
     pub fn reset_history(&mut self) {
         for s in &mut self.slots {
-            s.culler.reset();
+            slot_mut(s).culler.reset();
         }
         self.casting.entries.clear();
         self.casting.key = None;
@@ -341,7 +355,7 @@ impl LightPass {
     /// ([`ViewCuller::remap`]).
     pub fn remap(&mut self, old: &Hierarchy, new: &Hierarchy) {
         for s in &mut self.slots {
-            s.culler.remap(old, new);
+            slot_mut(s).culler.remap(old, new);
         }
     }
 
@@ -417,13 +431,13 @@ impl LightPass {
         // slots' targets (their buffers are reused, not reallocated).
         if self.views.len() != self.fitted.len() {
             for s in &mut self.slots {
-                s.culler.reset();
+                slot_mut(s).culler.reset();
             }
         }
         std::mem::swap(&mut self.views, &mut self.fitted);
         let views = &self.views;
         if self.slots.len() < views.len() {
-            self.slots.resize_with(views.len(), ViewSlot::default);
+            self.slots.resize_with(views.len(), Mutex::default);
         }
         let diameter = f64::from(bounds.size().length());
         let origin = light.position().unwrap_or_else(|| bounds.center());
@@ -448,17 +462,29 @@ impl LightPass {
         let frame = self.frame;
         self.frame = frame.saturating_add(1);
         for s in &mut self.slots {
-            s.culler.set_frame(frame);
+            slot_mut(s).culler.set_frame(frame);
         }
-        // The views are independent: each has its own culler and targets.
+        // The views are independent: each has its own culler. They run in
+        // `groups` tasks (one per thread of the pool), each with its own
+        // target set, each claiming the next unclaimed view until none is
+        // left: balanced like a parallel loop over the views, but never
+        // more target sets than groups, however rayon nests its tasks.
         #[cfg(feature = "parallel")]
-        let slots = self.slots.par_iter_mut();
+        let threads = rayon::current_num_threads();
         #[cfg(not(feature = "parallel"))]
-        let slots = self.slots.iter_mut();
-        slots
-            .zip(views)
-            .enumerate()
-            .try_for_each(|(k, (slot, view))| {
+        let threads = 1;
+        let groups = threads.clamp(1, views.len().max(1));
+        if self.sets.len() < groups {
+            self.sets.resize_with(groups, TargetSet::default);
+        }
+        let next = AtomicUsize::new(0);
+        let slots = &self.slots;
+        let group = |set: &mut TargetSet| -> Result<()> {
+            loop {
+                let k = next.fetch_add(1, Ordering::Relaxed);
+                let Some(view) = views.get(k) else {
+                    return Ok(());
+                };
                 let receivers = prepared.for_view(view);
                 let backend = backends.map(|(f, light)| {
                     f(ViewRole::LightView {
@@ -467,16 +493,22 @@ impl LightPass {
                         size: view.resolution,
                     })
                 });
-                slot.run(&shared, view, receivers, backend)
-            })?;
+                let mut slot = slots[k].lock().unwrap_or_else(PoisonError::into_inner);
+                slot.run(set, &shared, view, receivers, backend)?;
+            }
+        };
+        #[cfg(feature = "parallel")]
+        self.sets[..groups].par_iter_mut().try_for_each(group)?;
+        #[cfg(not(feature = "parallel"))]
+        self.sets[..groups].iter_mut().try_for_each(group)?;
         out.psc.clear();
         out.psc.reserve(scene.objects().len());
         out.views = views.len();
         out.stats = TraversalStats::default();
         self.in_psc.clear();
         self.in_psc.resize(scene.objects().len(), false);
-        for slot in &self.slots[..views.len()] {
-            let r = &slot.result;
+        for slot in &mut self.slots[..views.len()] {
+            let r = &slot_mut(slot).result;
             add_stats(&mut out.stats, &r.stats);
             for id in &r.visible {
                 if !self.in_psc[id.0 as usize] {
@@ -509,6 +541,7 @@ impl ViewSlot {
     /// in front of them, in `host` when given, else in the slot's own target.
     fn run(
         &mut self,
+        set: &mut TargetSet,
         input: &ViewsInput<'_>,
         view: &LightView,
         receivers: Marks<'_>,
@@ -525,13 +558,13 @@ impl ViewSlot {
         let m = view.clip_from_world;
         let clip_from_origin = (m * DMat4::from_translation(origin)).as_mat4();
         let size = (view.resolution, view.resolution);
-        let mut target = match self.target.take() {
+        let mut target = match set.target.take() {
             Some(t) if (t.width(), t.height()) == size => t,
             _ => DepthTarget::new(size.0, size.1, TileSize::T8, false)?,
         };
         target.set_instruction_set(options.instruction_set);
         // Reused unless the size changed or a host backend kept a reference.
-        let mut marks = match self.marks.take() {
+        let mut marks = match set.marks.take() {
             Some(r)
                 if r.size() == size && Arc::strong_count(&r) == 1 && Arc::weak_count(&r) == 0 =>
             {
@@ -559,8 +592,8 @@ impl ViewSlot {
         // lies in the view holding r (views are cones from the light, fitted
         // to B, which holds the segment) — r's own view finds it.
         let Some(rows) = marks_mut.marked_rows() else {
-            self.target = Some(target);
-            self.marks = Some(marks);
+            set.target = Some(target);
+            set.marks = Some(marks);
             self.result.clear();
             return Ok(());
         };
@@ -608,7 +641,7 @@ impl ViewSlot {
             .culler
             .cull_into(objects, &setup, options.culling, backend, &mut self.result);
         backend.set_receivers(None)?;
-        self.target = match (bundled, target) {
+        set.target = match (bundled, target) {
             (Some(b), _) => {
                 let (t, queries) = b.into_parts();
                 self.queries = queries;
@@ -616,9 +649,15 @@ impl ViewSlot {
             }
             (None, t) => t,
         };
-        self.marks = Some(marks);
+        set.marks = Some(marks);
         r
     }
+}
+
+/// A view's slot, with exclusive access (a poisoned lock only means a view
+/// panicked; its state is still a valid culler).
+fn slot_mut(s: &mut Mutex<ViewSlot>) -> &mut ViewSlot {
+    s.get_mut().unwrap_or_else(PoisonError::into_inner)
 }
 
 fn add_stats(a: &mut TraversalStats, b: &TraversalStats) {
