@@ -215,6 +215,29 @@ fn build(s: &Scene, l: &Light, choice: MethodChoice) -> VolumeBuffer {
     buf
 }
 
+/// Object 0's unclamped zfail volume for `l`.
+fn zfail_volumes(s: &Scene, l: &Light, two_sided: bool) -> VolumeBuffer {
+    let mut buf = VolumeBuffer::new();
+    let opts = BuildOptions {
+        method: MethodChoice::ZFail,
+        two_sided,
+        viewport: None,
+        ..Default::default()
+    };
+    let casters = [ObjectId(0)];
+    build_volumes(
+        &mut buf,
+        s,
+        &camera(),
+        l,
+        &casters,
+        opts,
+        &mut SilhouetteCache::new(),
+    )
+    .unwrap();
+    buf
+}
+
 /// `det[A, B, C, X] > 0` ⇔ X lies behind the triangle (A, B, C) — for w = 0
 /// vertices too, by multilinearity (the limit of far finite points).
 fn check_outward(buf: &VolumeBuffer, interior: DVec3) {
@@ -368,24 +391,7 @@ fn open_and_non_manifold_volumes_are_closed() {
         point(DVec3::new(0.3, 2.0, -5.0)),
     ] {
         for two_sided in [false, true] {
-            let mut buf = VolumeBuffer::new();
-            let mut cache = SilhouetteCache::new();
-            let opts = BuildOptions {
-                method: MethodChoice::ZFail,
-                two_sided,
-                viewport: None,
-                ..Default::default()
-            };
-            build_volumes(
-                &mut buf,
-                &s,
-                &camera(),
-                &l,
-                &[ObjectId(0)],
-                opts,
-                &mut cache,
-            )
-            .unwrap();
+            let buf = zfail_volumes(&s, &l, two_sided);
             assert!(boundary(&buf, &buf.ranges[0]).is_empty());
         }
     }
@@ -1293,24 +1299,7 @@ fn huge_coordinate_soups_count_their_blockers() {
         let l = Light::Directional {
             direction: c.direction,
         };
-        let mut buf = VolumeBuffer::new();
-        let mut cache = SilhouetteCache::new();
-        let opts = BuildOptions {
-            method: MethodChoice::ZFail,
-            two_sided: c.two_sided,
-            viewport: None,
-            ..Default::default()
-        };
-        build_volumes(
-            &mut buf,
-            &s,
-            &camera(),
-            &l,
-            &[ObjectId(0)],
-            opts,
-            &mut cache,
-        )
-        .unwrap();
+        let buf = zfail_volumes(&s, &l, c.two_sided);
         for r in &buf.ranges {
             assert!(boundary(&buf, r).is_empty(), "case {k}: an open volume");
         }
