@@ -82,7 +82,7 @@ impl std::fmt::Display for Shard {
 /// The first warm-up frame of a block starting at `start`: `warmup` frames
 /// before it, but not before the keyframe at or below `start` (the single
 /// run forgets its history there, so earlier frames cannot matter).
-pub(crate) fn warmup_start(start: u32, warmup: u32, keyframe: Option<u32>) -> u32 {
+pub fn warmup_start(start: u32, warmup: u32, keyframe: Option<u32>) -> u32 {
     let floor = keyframe.filter(|&k| k > 0).map_or(0, |k| start - start % k);
     start.saturating_sub(warmup).max(floor)
 }

@@ -11,68 +11,23 @@
 //! `cargo +nightly fuzz run pipeline fuzz/corpus/pipeline`
 #![no_main]
 
-use glam::{DMat4, DQuat, DVec3, Vec3};
+use glam::DVec3;
 use libfuzzer_sys::fuzz_target;
 use shadowcull::pipeline::eye::{eye_pass, MeshCache};
 use shadowcull::raster::TileSize;
-use shadowcull::scene::{Camera, Light, Mesh, Scene, SceneGraph, Transform};
+use shadowcull::scene::Camera;
 use shadowcull::shadowgen::MethodChoice;
 use shadowcull::{CullingSpec, FrameInput, Pipeline, PipelineOptions, StencilBackend};
-use shadowcull_fuzz::Bytes;
+use shadowcull_fuzz::{box_scene, point, Bytes};
 
 const W: u32 = 40;
 const H: u32 = 30;
 
-fn unit_box() -> Mesh {
-    let p: Vec<Vec3> = (0..8)
-        .map(|c| Vec3::new((c & 1) as f32, ((c >> 1) & 1) as f32, ((c >> 2) & 1) as f32))
-        .collect();
-    let tris = shadowcull::raster::AABB_TRIANGLES;
-    Mesh::new("box", &p, &tris).expect("a unit box")
-}
-
-fn point(b: &mut Bytes, scale: f64) -> DVec3 {
-    (DVec3::new(b.unit(), b.unit(), b.unit()) * 2.0 - 1.0) * scale
-}
-
 fuzz_target!(|data: &[u8]| {
     let mut b = Bytes(data);
-    let mut g = SceneGraph::new();
-    let cube = g.add_mesh(unit_box());
-    let ground = DMat4::from_scale_rotation_translation(
-        DVec3::new(20.0, 0.01, 20.0),
-        DQuat::IDENTITY,
-        DVec3::new(-10.0, -0.01, -10.0),
-    );
-    g.add_instance("ground", cube, Transform::Matrix(ground));
-    for k in 0..b.u8() % 7 {
-        let size = DVec3::new(b.unit(), b.unit(), b.unit()) * 3.0 + 0.05;
-        let at = point(&mut b, 6.0) + DVec3::Y * 6.0;
-        let turn = DQuat::from_rotation_y(b.unit() * std::f64::consts::TAU);
-        let m = DMat4::from_scale_rotation_translation(size, turn, at);
-        g.add_instance(&format!("box{k}"), cube, Transform::Matrix(m));
-    }
-    let Ok(scene) = Scene::new(g) else {
+    let Some((scene, light)) = box_scene(&mut b) else {
         return;
     };
-    let light = match b.u8() % 3 {
-        0 => Light::Directional {
-            direction: point(&mut b, 1.0) - DVec3::Y,
-        },
-        1 => Light::Point {
-            position: point(&mut b, 12.0) + DVec3::Y * 8.0,
-            range: None,
-        },
-        _ => Light::Spot {
-            position: point(&mut b, 12.0) + DVec3::Y * 8.0,
-            direction: point(&mut b, 1.0) - DVec3::Y,
-            apex_angle: 0.2 + 2.5 * b.unit(),
-            range: None,
-        },
-    };
-    if light.validate().is_err() {
-        return;
-    }
     let near = 10f64.powf(-4.0 + 4.0 * b.unit());
     let eye = point(&mut b, 14.0) + DVec3::Y * 4.0;
     let target = point(&mut b, 4.0);
