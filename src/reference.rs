@@ -153,15 +153,7 @@ impl TriangleBvh {
             .iter()
             .map(|t| tri_box(&t.map(|p| p - center), pad))
             .collect();
-        let bvh = if boxes.is_empty() {
-            Bvh2::default()
-        } else {
-            obvhs::bvh2::builder::build_bvh2(
-                &boxes,
-                obvhs::BvhBuildParams::fast_build(),
-                &mut Default::default(),
-            )
-        };
+        let bvh = scene::bvh_build::build_bvh2(&boxes, obvhs::BvhBuildParams::fast_build());
         TriangleBvh {
             bvh,
             tris,

@@ -161,6 +161,27 @@ fn box_shadow_area_matches_the_analytic_projection() {
     );
 }
 
+/// Six hundred copies of one box in one place: the triangle BVH chains
+/// them (600 coinciding triangles per face), far deeper than obvhs' fixed
+/// traversal stacks (96 and 192; `scene::bvh_build` sizes the stack). The
+/// mask equals one box's.
+#[test]
+fn coinciding_copies_cast_like_one() {
+    let cam = test_camera();
+    let light = test_lamp();
+    let caster = || box_mesh(Vec3::new(-1.0, 0.0, -1.0), Vec3::new(1.0, 2.0, 1.0));
+    let one = scene_of(vec![quad(0.0, 10.0, true), caster()], Transform::default());
+    let mut meshes = vec![quad(0.0, 10.0, true)];
+    meshes.extend((0..600).map(|_| caster()));
+    let many = scene_of(meshes, Transform::default());
+    let a = mask(&TriangleBvh::new(&one), &cam, &light, 160, 120);
+    let b = mask(&TriangleBvh::new(&many), &cam, &light, 160, 120);
+    assert!(a.counts.classes.shadow > 100, "{:?}", a.counts);
+    // (Ambiguity differs: the copies tie at every visible pixel of the box.)
+    assert!(a.mask == b.mask);
+    assert_eq!(a.counts.classes, b.counts.classes);
+}
+
 #[test]
 fn open_quad_casts_only_when_it_faces_the_light() {
     let light = Light::Point {

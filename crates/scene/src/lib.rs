@@ -23,6 +23,7 @@
 #![forbid(unsafe_code)]
 
 mod aabb;
+pub mod bvh_build;
 mod camera;
 mod camera_path;
 mod error;

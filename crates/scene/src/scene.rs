@@ -246,7 +246,7 @@ impl Scene {
         let mut params = obvhs::BvhBuildParams::medium_build();
         // One object per leaf: visibility traverses objects, and refit needs it.
         params.max_prims_per_leaf = 1;
-        let mut bvh = obvhs::bvh2::builder::build_bvh2(&boxes, params, &mut Default::default());
+        let mut bvh = crate::bvh_build::build_bvh2(&boxes, params);
         bvh.init_primitives_to_nodes_if_uninit();
         bvh
     }
@@ -804,6 +804,22 @@ mod tests {
 
     fn tri_mesh() -> Mesh {
         Mesh::new("tri", &[Vec3::ZERO, Vec3::X, Vec3::NEG_Z], &[[0, 1, 2]]).unwrap()
+    }
+
+    /// Found by the `obj` fuzz target: objects whose bounds coincide chain
+    /// the object BVH as deep as their count, and obvhs' debug validation
+    /// panicked on the depth (`bvh_build`). Tests run with debug assertions.
+    #[test]
+    fn coinciding_instances_build_a_scene() {
+        let mut g = SceneGraph::new();
+        let m = g.add_mesh(tri_mesh());
+        for k in 0..300 {
+            g.add_instance(&format!("o{k}"), m, Transform::default());
+        }
+        let s = Scene::new(g).unwrap();
+        let bvh = s.object_bvh();
+        assert!(bvh.max_depth > crate::bvh_build::depth(bvh));
+        assert_eq!(bvh.primitive_indices.len(), 300);
     }
 
     #[test]
