@@ -135,9 +135,10 @@ struct ViewSlot {
 }
 
 /// A depth target and a receiver target (one light view's worth, 8 bytes
-/// per texel), shared by the views of one group: the views run in as many
-/// groups as the pool has threads, each group's views one after another, so
-/// a light holds one set per thread instead of one per view (a point light's
+/// per texel), shared by the views one group claims: the views run in as
+/// many groups as the pool has threads, each group running the views it
+/// claims one after another, so a light holds one set per thread instead of
+/// one per view (a point light's
 /// six 1024² cube faces: two sets, 16 MiB, instead of six, 48 MiB). Nothing
 /// a view computes depends on which set it used: each view clears both.
 #[derive(Debug, Default)]
@@ -428,7 +429,7 @@ impl LightPass {
             &mut self.body_scratch.clip,
         );
         // A new set of views starts its culling history cold, but keeps the
-        // slots' targets (their buffers are reused, not reallocated).
+        // target sets (their buffers are reused, not reallocated).
         if self.views.len() != self.fitted.len() {
             for s in &mut self.slots {
                 slot_mut(s).culler.reset();
