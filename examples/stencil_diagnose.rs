@@ -165,7 +165,7 @@ fn mismatches(pick: &str) {
                 .unwrap();
                 for &(x, y, on_boundary) in &c.mismatch_pixels {
                     let i = (y * w + x) as usize;
-                    let (obj, tri) = eye.primitive[i].unwrap();
+                    let (obj, tri) = eye.primitive(x, y).unwrap();
                     let surf = scene.world_triangle(obj, tri as usize);
                     let dir = cam.ray_direction(x as f64 + 0.5, y as f64 + 0.5, w, h);
                     let fwd = cam.forward();
@@ -360,8 +360,7 @@ fn one_pixel(pick: &str, frame: u32, li: usize, (x, y): (u32, u32), all: bool) {
         let q = cam.position + e.truncate() / e.w;
         println!("near corner ({cx},{cy}) {q}: {:?}", count_between(q));
     }
-    let i = (y * w + x) as usize;
-    let (obj, tri) = eye.primitive[i].unwrap();
+    let (obj, tri) = eye.primitive(x, y).unwrap();
     let surf = scene.world_triangle(obj, tri as usize);
     let dir = cam.ray_direction(x as f64 + 0.5, y as f64 + 0.5, w, h);
     let n = (surf[1] - surf[0]).cross(surf[2] - surf[0]);

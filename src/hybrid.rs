@@ -415,11 +415,10 @@ pub fn classify(
     light.validate()?;
     let start = std::time::Instant::now();
     let n = w as usize * h as usize;
-    let depth = eye.depth.unwrap_or(&[]);
-    if depth.len() != n || eye.primitive.len() != n {
+    if !eye.has_depth() || !eye.fits(w, h) {
         return Err(raster::Error::MaskLength {
             expected: n,
-            got: depth.len().min(eye.primitive.len()),
+            got: if eye.has_depth() { eye.len() } else { 0 },
             width: w,
             height: h,
         }
@@ -517,8 +516,7 @@ pub fn classify(
         .enumerate()
         .for_each(|(y, (sh_row, si_row))| {
             for x in 0..w as usize {
-                let i = y * w as usize + x;
-                let Some((obj, t)) = eye.primitive[i] else {
+                let Some((obj, t)) = eye.primitive(x as u32, y as u32) else {
                     continue;
                 };
                 let tri = scene.world_triangle(obj, t as usize);
@@ -529,7 +527,7 @@ pub fn classify(
                 if is_unlit(&tri, e, light, plane.point_or_origin(e, dir), two_sided) {
                     continue;
                 }
-                let z = f64::from(depth[i]);
+                let z = f64::from(eye.depth(x as u32, y as u32).unwrap_or(raster::BACKGROUND));
                 if z.is_nan() || z <= 0.0 {
                     si_row[x] = true;
                     continue;
@@ -783,8 +781,7 @@ mod tests {
                 }
                 // Or a receiver the light grazes (more than 60° from its
                 // normal), which the map leaves to the volumes on purpose.
-                let i = (y * W as i64 + x) as usize;
-                let grazing = eye.primitive[i].is_some_and(|(o, t)| {
+                let grazing = eye.primitive(x as u32, y as u32).is_some_and(|(o, t)| {
                     let tri = scene.world_triangle(o, t as usize);
                     let n = (tri[1] - tri[0]).cross(tri[2] - tri[0]).normalize();
                     let to_light = light.toward_light(tri[0]).normalize();
@@ -876,7 +873,7 @@ mod tests {
         let (_, light) = lights()[2];
         let class = classify(&scene, &cam, &light, eye.surface(), (W, H), 64, false).unwrap();
         for i in 0..(W * H) as usize {
-            if eye.primitive[i].is_none() {
+            if eye.primitive(i as u32 % W, i as u32 / W).is_none() {
                 assert!(!class.shadowed[i] && !class.silhouette[i]);
             }
         }

@@ -2,6 +2,7 @@
 //! every producer of masks shares, comparison against the reference, and PNG
 //! output.
 
+use crate::reference::EyeSurface;
 use crate::surface::RayPlane;
 use glam::DVec3;
 use scene::{faces_light, Camera, Light, ObjectId, Scene};
@@ -97,7 +98,7 @@ pub struct View<'a> {
 }
 
 /// Assembles the four-class mask from the raw stencil and the eye pass's
-/// primitive ids (DESIGN.md "Masks") for `view`: background where no
+/// visible surface's primitive ids (DESIGN.md "Masks") for `view`: background where no
 /// primitive; unlit where [`is_unlit`] says so for the visible triangle (world
 /// space, from [`Scene::world_triangle`]) at the pixel's surface point (the
 /// pixel-centre eye ray meeting that triangle's plane, in f64); otherwise
@@ -106,20 +107,18 @@ pub struct View<'a> {
 /// casts, as in [`is_unlit`].
 ///
 /// # Panics
-/// If `primitive` is not `view.width × view.height` long or names an object
-/// or triangle not in `scene`.
+/// If `surface` is not `view.width × view.height` or names an object or
+/// triangle not in `scene`.
 pub fn assemble(
     scene: &Scene,
     view: View<'_>,
     light: &Light,
-    primitive: &[Option<(ObjectId, u32)>],
+    surface: EyeSurface<'_>,
     shadowed: impl Fn(usize) -> bool + Sync,
     two_sided: bool,
 ) -> Mask {
     let mut mask = Mask::filled(0, 0, PixelClass::Background);
-    assemble_into(
-        scene, view, light, primitive, shadowed, two_sided, &mut mask,
-    );
+    assemble_into(scene, view, light, surface, shadowed, two_sided, &mut mask);
     mask
 }
 
@@ -131,7 +130,7 @@ pub fn assemble_into(
     scene: &Scene,
     view: View<'_>,
     light: &Light,
-    primitive: &[Option<(ObjectId, u32)>],
+    surface: EyeSurface<'_>,
     shadowed: impl Fn(usize) -> bool + Sync,
     two_sided: bool,
     mask: &mut Mask,
@@ -141,11 +140,7 @@ pub fn assemble_into(
         width,
         height,
     } = view;
-    assert_eq!(
-        primitive.len(),
-        width as usize * height as usize,
-        "primitive ids size"
-    );
+    assert!(surface.fits(width, height), "primitive ids size");
     (mask.width, mask.height) = (width, height);
     mask.pixels.clear();
     mask.pixels
@@ -163,9 +158,11 @@ pub fn assemble_into(
         // (primitive, its world triangle, unlit by facing, receives).
         type Run = ((ObjectId, u32), [DVec3; 3], bool, bool);
         let mut last: Option<Run> = None;
-        for (x, px) in out.iter_mut().enumerate() {
+        surface.for_each_in_row(y as u32, |x, id| {
+            let x = x as usize;
             let i = y * width as usize + x;
-            let Some(id) = primitive[i] else { continue };
+            let Some(id) = id else { return };
+            let px = &mut out[x];
             let (tri, facing_unlit, receives) = match last {
                 Some((l, tri, f, r)) if l == id => (tri, f, r),
                 _ => {
@@ -188,7 +185,7 @@ pub fn assemble_into(
             } else {
                 PixelClass::Lit
             };
-        }
+        });
     };
     use rayon::prelude::*;
     mask.pixels

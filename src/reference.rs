@@ -89,17 +89,140 @@ pub type PrimitiveId = (ObjectId, u32);
 
 /// The eye pass's visible surface, when a rasterizer produced one: per pixel
 /// (row 0 at the top) the primitive id of the visible triangle, `None` for
-/// background. The surface point is rebuilt in f64 by intersecting the pixel's
-/// eye ray with that triangle's plane.
+/// background, and the rasterized depth when known. The surface point is
+/// rebuilt in f64 by intersecting the pixel's eye ray with that triangle's
+/// plane. It reads an eye pass's tile-major target in place
+/// ([`crate::pipeline::EyePass::surface`]) or row-major buffers
+/// ([`EyeSurface::from_rows`]).
 #[derive(Clone, Copy, Debug)]
 pub struct EyeSurface<'a> {
-    /// `width × height` primitive ids.
-    pub primitive: &'a [Option<PrimitiveId>],
-    /// The rasterized depth (reversed Z) of the same pixels, when known: the
+    source: Source<'a>,
+}
+
+#[derive(Clone, Copy, Debug)]
+enum Source<'a> {
+    Rows {
+        width: u32,
+        primitive: &'a [Option<PrimitiveId>],
+        depth: Option<&'a [f32]>,
+    },
+    /// A depth target with primitive ids.
+    Target(&'a raster::DepthTarget),
+}
+
+impl<'a> EyeSurface<'a> {
+    /// Row-major buffers `width` pixels wide: the primitive ids and, when
+    /// known, the rasterized depth (reversed Z) of the same pixels: the
     /// ambiguity window along the eye ray is widened to twice the distance
     /// between the exact surface point and the rasterized one, since every
     /// stencil decision at the pixel is made against the rasterized depth.
-    pub depth: Option<&'a [f32]>,
+    pub fn from_rows(
+        width: u32,
+        primitive: &'a [Option<PrimitiveId>],
+        depth: Option<&'a [f32]>,
+    ) -> Self {
+        EyeSurface {
+            source: Source::Rows {
+                width,
+                primitive,
+                depth,
+            },
+        }
+    }
+
+    /// The surface of a depth target drawn with primitive ids.
+    pub(crate) fn from_target(target: &'a raster::DepthTarget) -> Self {
+        EyeSurface {
+            source: Source::Target(target),
+        }
+    }
+
+    /// Whether the surface is `width × height` pixels (its depth too, when
+    /// known).
+    pub fn fits(&self, width: u32, height: u32) -> bool {
+        let n = width as usize * height as usize;
+        match self.source {
+            Source::Rows {
+                width: w,
+                primitive,
+                depth,
+            } => w == width && primitive.len() == n && depth.is_none_or(|d| d.len() == n),
+            Source::Target(t) => (t.width(), t.height()) == (width, height),
+        }
+    }
+
+    /// The number of pixels.
+    pub fn len(&self) -> usize {
+        match self.source {
+            Source::Rows { primitive, .. } => primitive.len(),
+            Source::Target(t) => t.width() as usize * t.height() as usize,
+        }
+    }
+
+    /// Whether the surface has no pixel.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Whether the rasterized depth is known.
+    pub fn has_depth(&self) -> bool {
+        match self.source {
+            Source::Rows { depth, .. } => depth.is_some(),
+            Source::Target(_) => true,
+        }
+    }
+
+    /// The visible primitive at pixel `(x, y)`.
+    ///
+    /// # Panics
+    /// When `(x, y)` lies outside the surface.
+    pub fn primitive(&self, x: u32, y: u32) -> Option<PrimitiveId> {
+        match self.source {
+            Source::Rows {
+                width, primitive, ..
+            } => {
+                assert!(x < width, "pixel ({x}, {y}) outside the surface");
+                primitive[y as usize * width as usize + x as usize]
+            }
+            Source::Target(t) => t.id_at(x, y).map(|(o, k)| (ObjectId(o), k)),
+        }
+    }
+
+    /// The rasterized depth at pixel `(x, y)` (reversed Z,
+    /// [`raster::BACKGROUND`] where nothing was drawn), when known.
+    ///
+    /// # Panics
+    /// When `(x, y)` lies outside the surface.
+    pub fn depth(&self, x: u32, y: u32) -> Option<f32> {
+        match self.source {
+            Source::Rows { width, depth, .. } => {
+                assert!(x < width, "pixel ({x}, {y}) outside the surface");
+                depth.map(|d| d[y as usize * width as usize + x as usize])
+            }
+            Source::Target(t) => Some(t.depth_at(x, y).unwrap_or(raster::BACKGROUND)),
+        }
+    }
+
+    /// Calls `f(x, primitive)` for every pixel of row `y`, left to right:
+    /// the bulk form of [`EyeSurface::primitive`].
+    ///
+    /// # Panics
+    /// When `y` lies outside the surface.
+    pub fn for_each_in_row(&self, y: u32, mut f: impl FnMut(u32, Option<PrimitiveId>)) {
+        match self.source {
+            Source::Rows {
+                width, primitive, ..
+            } => {
+                let row = &primitive[y as usize * width as usize..][..width as usize];
+                for (x, p) in row.iter().enumerate() {
+                    f(x as u32, *p);
+                }
+            }
+            Source::Target(t) => t.for_each_in_row(y, |x, _, id| {
+                f(x, id.map(|(o, k)| (ObjectId(o), k)));
+            }),
+        }
+    }
 }
 
 /// All scene triangles in a BVH, for ray casting.
@@ -417,9 +540,8 @@ pub fn try_reference_mask(
 ) -> Result<ReferenceMask> {
     let n = width as usize * height as usize;
     if let Some(s) = &surface {
-        assert_eq!(
-            s.primitive.len(),
-            n,
+        assert!(
+            s.fits(width, height),
             "surface size differs from the viewport"
         );
     }
@@ -482,7 +604,7 @@ pub fn try_reference_mask(
             for (x, px) in row.iter_mut().enumerate() {
                 let dir = rays.direction(x as f64 + 0.5, y as f64 + 0.5);
                 let hit = match (&surface, &lookup) {
-                    (Some(s), Some(l)) => s.primitive[y * width as usize + x].map(|id| {
+                    (Some(s), Some(l)) => s.primitive(x as u32, y as u32).map(|id| {
                         let k = *l
                             .get(&id)
                             .expect("surface names a primitive not in the scene");
@@ -500,16 +622,19 @@ pub fn try_reference_mask(
                 let depth = (p - eye).dot(forward);
                 let delta = (4.0 * options.depth_error * depth).max(depth / (1u64 << 20) as f64);
                 // The rasterized surface's distance from `p` along the ray, when given.
-                let buffer_error = surface.as_ref().and_then(|s| s.depth).map_or(0.0, |z| {
-                    let zb = f64::from(z[y * width as usize + x]);
-                    // Reversed Z, infinite far plane: z = near / view depth.
-                    let db = if zb > 0.0 {
-                        camera.near / zb
-                    } else {
-                        f64::INFINITY
-                    };
-                    (db - depth).abs() / dir.dot(forward)
-                });
+                let buffer_error = surface
+                    .as_ref()
+                    .and_then(|s| s.depth(x as u32, y as u32))
+                    .map_or(0.0, |z| {
+                        let zb = f64::from(z);
+                        // Reversed Z, infinite far plane: z = near / view depth.
+                        let db = if zb > 0.0 {
+                            camera.near / zb
+                        } else {
+                            f64::INFINITY
+                        };
+                        (db - depth).abs() / dir.dot(forward)
+                    });
                 let window = delta.max(2.0 * buffer_error);
                 let classify_at =
                     |q: DVec3, behind_rule: bool| shadow_rays.classify(k, q, delta, behind_rule);

@@ -784,7 +784,7 @@ fn host_backends_give_identical_results() -> Result<()> {
                     )
                 })
                 .collect();
-            Ok((out.psr().to_vec(), lights, out.eye().depth.clone()))
+            Ok((out.psr().to_vec(), lights, out.eye().target.depth_rows()))
         };
         let a = take(&mut builtin, &ids)?;
         let b = take(&mut hosted, &hosted_ids)?;
@@ -844,7 +844,7 @@ fn object_flags_keep_masks_exact() -> Result<()> {
             .flat_map(|l| l.volumes().ranges.iter().map(|r| ObjectId(r.object)))
             .collect();
         let masks: Vec<_> = out.lights().map(|l| l.mask().unwrap().clone()).collect();
-        let eye_ids = out.eye().primitive.clone();
+        let eye_ids = out.eye().primitives();
         let unculled: Vec<_> = plain
             .frame(&input(&path, 0))?
             .lights()

@@ -360,10 +360,7 @@ fn given_eye_surface_gives_the_same_mask() {
         200,
         150,
         &ReferenceOptions::default(),
-        Some(EyeSurface {
-            primitive: &a.primitive,
-            depth: None,
-        }),
+        Some(EyeSurface::from_rows(200, &a.primitive, None)),
     );
     let c = compare(&a.mask, &a.ambiguous, &b.mask);
     assert_eq!(c.mismatches, 0);

@@ -126,15 +126,14 @@ fn a_count_of_256_wraps_to_lit_in_8_bits_and_stays_shadow_wide() {
     let mut seen = [0usize; QUADS + 1];
     for y in 0..SIZE {
         for x in 0..SIZE {
-            let i = (y * SIZE + x) as usize;
             let d = cam.ray_direction(x as f64 + 0.5, y as f64 + 0.5, SIZE, SIZE);
             let p = cam.position + d * (EYE_Y / -d.y);
             assert!(
-                eye.primitive[i].is_some(),
+                eye.primitive(x, y).is_some(),
                 "pixel ({x}, {y}) sees the ground"
             );
             assert_eq!(
-                eye.primitive[i].unwrap().0 .0,
+                eye.primitive(x, y).unwrap().0 .0,
                 0,
                 "only the ground is visible"
             );

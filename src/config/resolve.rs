@@ -206,6 +206,9 @@ pub fn load_scene(spec: &SceneSpec, base: &Path) -> Result<Loaded> {
 }
 
 /// Loads the job's scene (with its optional ground quad) and flattens it.
+/// The graph moves into the [`Scene`] (read it there, [`Scene::graph`]):
+/// the returned [`Loaded`] keeps the cameras, paths and lights, with an
+/// empty graph, so the job holds its geometry once.
 ///
 /// # Errors
 /// Loader and graph errors, naming the file.
@@ -237,7 +240,7 @@ pub fn prepare_scene(job: &Job, base: &Path) -> Result<(Loaded, Scene)> {
             Transform::translation(DVec3::new(c.x, g.y as f64, c.z)),
         );
     }
-    let scene = Scene::new(loaded.graph.clone())?;
+    let scene = Scene::new(std::mem::take(&mut loaded.graph))?;
     Ok((loaded, scene))
 }
 

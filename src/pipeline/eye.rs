@@ -95,16 +95,12 @@ fn draw_objects(
 }
 
 /// The eye pass's result: depth with hierarchical z, and per pixel (row 0 at the
-/// top) the visible primitive.
+/// top) the visible primitive, in the rasterizer's tile-major target (read in
+/// place: [`EyePass::primitive`], [`EyePass::surface`]).
 #[derive(Debug)]
 pub struct EyePass {
     /// Depth and primitive-id target.
     pub target: DepthTarget,
-    /// Per pixel the visible `(object, triangle)`, `None` for background.
-    pub primitive: Vec<Option<PrimitiveId>>,
-    /// Per pixel (row 0 at the top) the rasterized depth, reversed Z
-    /// ([`raster::BACKGROUND`] where nothing was drawn).
-    pub depth: Vec<f32>,
 }
 
 impl EyePass {
@@ -123,20 +119,37 @@ impl EyePass {
             Some(p) if (p.target.width(), p.target.height()) == (width, height) => p,
             _ => EyePass {
                 target: DepthTarget::new(width, height, TileSize::T8, true)?,
-                primitive: Vec::new(),
-                depth: Vec::new(),
             },
         };
         pass.target.set_instruction_set(isa);
         Ok(pass)
     }
 
-    /// The visible surface as the reference takes it: primitive ids and depth.
+    /// The visible surface as the mask assembly and the reference take it:
+    /// primitive ids and depth, read from the target in place.
     pub fn surface(&self) -> crate::reference::EyeSurface<'_> {
-        crate::reference::EyeSurface {
-            primitive: &self.primitive,
-            depth: Some(&self.depth),
+        crate::reference::EyeSurface::from_target(&self.target)
+    }
+
+    /// The visible `(object, triangle)` at pixel `(x, y)`, `None` for
+    /// background.
+    ///
+    /// # Panics
+    /// When `(x, y)` lies outside the target.
+    pub fn primitive(&self, x: u32, y: u32) -> Option<PrimitiveId> {
+        self.surface().primitive(x, y)
+    }
+
+    /// Every pixel's visible primitive, row-major (row 0 at the top): a copy,
+    /// for inspection.
+    pub fn primitives(&self) -> Vec<Option<PrimitiveId>> {
+        let (w, h) = (self.target.width(), self.target.height());
+        let mut out = Vec::with_capacity(w as usize * h as usize);
+        let surface = self.surface();
+        for y in 0..h {
+            surface.for_each_in_row(y, |_, p| out.push(p));
         }
+        out
     }
 }
 
@@ -182,17 +195,13 @@ pub(crate) fn eye_pass_of(
     previous: Option<EyePass>,
     subset: Option<&[ObjectId]>,
 ) -> Result<EyePass> {
-    let (mut target, primitive, depth) = match previous {
+    let mut target = match previous {
         Some(p) if (p.target.width(), p.target.height()) == (width, height) => {
             let mut t = p.target;
             t.clear();
-            (t, p.primitive, p.depth)
+            t
         }
-        _ => (
-            DepthTarget::new(width, height, TileSize::T8, true)?,
-            Vec::new(),
-            Vec::new(),
-        ),
+        _ => DepthTarget::new(width, height, TileSize::T8, true)?,
     };
     match subset {
         Some(ids) => draw_objects(scene, meshes, camera, &mut target, ids.iter().copied())?,
@@ -204,37 +213,7 @@ pub(crate) fn eye_pass_of(
             (0..scene.objects().len() as u32).map(ObjectId),
         )?,
     }
-    Ok(EyePass::from_target(target, primitive, depth))
-}
-
-impl EyePass {
-    /// The eye pass of a rendered `target`, filling (and reusing) the
-    /// row-major id and depth vectors.
-    fn from_target(
-        target: DepthTarget,
-        mut primitive: Vec<Option<PrimitiveId>>,
-        mut depth: Vec<f32>,
-    ) -> EyePass {
-        use rayon::prelude::*;
-        let (width, height) = (target.width() as usize, target.height() as usize);
-        primitive.resize(width * height, None);
-        depth.resize(width * height, raster::BACKGROUND);
-        primitive
-            .par_chunks_mut(width)
-            .zip(depth.par_chunks_mut(width))
-            .enumerate()
-            .for_each(|(y, (prims, depths))| {
-                target.for_each_in_row(y as u32, |x, d, id| {
-                    prims[x as usize] = id.map(|(o, t)| (ObjectId(o), t));
-                    depths[x as usize] = d;
-                });
-            });
-        EyePass {
-            target,
-            primitive,
-            depth,
-        }
-    }
+    Ok(EyePass { target })
 }
 
 /// Per-run state of the culled eye pass (PSR, [Steiner §4.3]): the object
@@ -307,45 +286,67 @@ impl EyeCulling {
     }
 }
 
-/// The eye's visible surface points (world, f64), row-major, one per pixel:
-/// the pixel-centre ray met with the visible triangle's plane (as the mask
-/// assembly computes them), NaN on background pixels — the fragment-level
-/// receivers of the light pass, which skips the NaN points. A point is
-/// joined to its left neighbour when both lie on the same triangle's plane
-/// (and the rays meet it): the points of a run lie on one line, in order.
-pub fn visible_points(scene: &Scene, camera: &Camera, eye: &EyePass) -> visibility::ReceiverPoints {
-    let mut out = visibility::ReceiverPoints::default();
-    visible_points_into(scene, camera, eye, &mut out);
-    out
-}
-
-/// [`visible_points`] into `out` (reused from frame to frame: no allocation).
-pub fn visible_points_into(
+/// The eye's visible surface points (world, f64) that the light pass marks
+/// as receivers: per eye row, the pixel-centre rays met with the visible
+/// triangles' planes (as the mask assembly computes them), on receiving
+/// objects only. A run of pixels on one triangle's plane (whose rays meet
+/// it) lies on one line, in order; `sampling` decides how much of it is
+/// kept:
+/// - conservative: the run's first point, every [`visibility::PIECE_STEPS`]-th
+///   after it and its last, each joined to the one before — the ends of the
+///   pieces the light pass marks as segments, so no point per pixel is held;
+/// - point-sampled (aggressive): every point, each its own mark.
+///
+/// A ray parallel to its plane gives the eye position, alone.
+pub fn visible_points(
     scene: &Scene,
     camera: &Camera,
     eye: &EyePass,
-    out: &mut visibility::ReceiverPoints,
+    sampling: visibility::Sampling,
+) -> visibility::ReceiverPoints {
+    let mut bands = Vec::new();
+    visible_points_into(scene, camera, eye, sampling, &mut bands);
+    let mut out = visibility::ReceiverPoints::default();
+    for band in bands {
+        out.points.extend(band.points);
+        out.joined.extend(band.joined);
+    }
+    out
+}
+
+/// Rows per band of [`visible_points_into`]'s parallel work.
+const BAND_ROWS: usize = 16;
+
+/// [`visible_points`] in bands of [`BAND_ROWS`] rows, built in parallel
+/// into `bands` (their buffers reused from frame to frame: no allocation
+/// once they have grown): the parts the light pass takes.
+pub(crate) fn visible_points_into(
+    scene: &Scene,
+    camera: &Camera,
+    eye: &EyePass,
+    sampling: visibility::Sampling,
+    bands: &mut Vec<visibility::ReceiverPoints>,
 ) {
     use rayon::prelude::*;
-    let (w, h) = (eye.target.width(), eye.target.height());
-    let rays = camera.rays(w, h);
+    let stride = match sampling {
+        visibility::Sampling::Conservative => visibility::PIECE_STEPS,
+        visibility::Sampling::Point => 1,
+    };
+    let (w, h) = (eye.target.width() as usize, eye.target.height() as usize);
+    let rays = camera.rays(w as u32, h as u32);
     let e = camera.position;
-    let n = (w * h) as usize;
-    out.points.resize(n, glam::DVec3::NAN);
-    out.joined.resize(n, false);
-    out.points
-        .par_chunks_mut(w as usize)
-        .zip(out.joined.par_chunks_mut(w as usize))
-        .zip(eye.primitive.par_chunks(w as usize))
-        .enumerate()
-        .for_each(|(y, ((row, joined), prims))| {
+    let surface = eye.surface();
+    bands.resize_with(h.div_ceil(BAND_ROWS), Default::default);
+    bands.par_iter_mut().enumerate().for_each(|(b, band)| {
+        band.points.clear();
+        band.joined.clear();
+        for y in b * BAND_ROWS..((b + 1) * BAND_ROWS).min(h) {
+            let mut run = RunCutter::new(band, stride);
             // The plane of the row's last triangle: runs of pixels share one.
             let mut last: Option<((ObjectId, u32), Option<RayPlane>)> = None;
-            let mut prev: Option<(ObjectId, u32)> = None;
             let (base, step) = rays.row(y as f64 + 0.5);
-            for (x, ((p, j), prim)) in row.iter_mut().zip(joined.iter_mut()).zip(prims).enumerate()
-            {
-                let plane = match *prim {
+            surface.for_each_in_row(y as u32, |x, prim| {
+                let plane = match prim {
                     None => None,
                     Some(prim) => match last {
                         Some((q, plane)) if q == prim => plane,
@@ -359,20 +360,81 @@ pub fn visible_points_into(
                         }
                     },
                 };
-                let (Some(prim), Some(plane)) = (*prim, plane) else {
-                    *p = glam::DVec3::NAN;
-                    *j = false;
-                    prev = None;
-                    continue;
+                let (Some(prim), Some(plane)) = (prim, plane) else {
+                    run.end();
+                    return;
                 };
-                let dir = base + step * (x as f64 + 0.5);
-                let t_hit = plane.hit(dir);
-                let hit = t_hit.is_some();
-                *p = e + dir * t_hit.unwrap_or(0.0);
-                *j = hit && prev == Some(prim);
-                prev = hit.then_some(prim);
+                let dir = base + step * (f64::from(x) + 0.5);
+                match plane.hit(dir) {
+                    Some(t) => run.push(prim, e + dir * t),
+                    None => run.alone(e),
+                }
+            });
+            run.end();
+        }
+    });
+}
+
+/// Cuts one eye row's runs into pieces of `stride` steps as its points
+/// arrive, keeping only the pieces' ends.
+struct RunCutter<'a> {
+    out: &'a mut visibility::ReceiverPoints,
+    stride: usize,
+    /// The current run's triangle, and its steps since the last kept point.
+    run: Option<((ObjectId, u32), usize)>,
+    /// The run's last point when it is not kept yet.
+    pending: Option<glam::DVec3>,
+}
+
+impl<'a> RunCutter<'a> {
+    fn new(out: &'a mut visibility::ReceiverPoints, stride: usize) -> Self {
+        RunCutter {
+            out,
+            stride,
+            run: None,
+            pending: None,
+        }
+    }
+
+    fn keep(&mut self, p: glam::DVec3, joined: bool) {
+        self.out.points.push(p);
+        self.out.joined.push(joined);
+    }
+
+    /// The next pixel's point `p`, on `prim`'s plane.
+    fn push(&mut self, prim: (ObjectId, u32), p: glam::DVec3) {
+        match self.run {
+            Some((q, steps)) if q == prim => {
+                if steps + 1 == self.stride {
+                    self.keep(p, true);
+                    self.pending = None;
+                    self.run = Some((prim, 0));
+                } else {
+                    self.pending = Some(p);
+                    self.run = Some((prim, steps + 1));
+                }
             }
-        });
+            _ => {
+                self.end();
+                self.keep(p, false);
+                self.run = Some((prim, 0));
+            }
+        }
+    }
+
+    /// A point that joins nothing (and ends the run before it).
+    fn alone(&mut self, p: glam::DVec3) {
+        self.end();
+        self.keep(p, false);
+    }
+
+    /// Ends the current run: its last point is kept.
+    fn end(&mut self) {
+        if let Some(p) = self.pending.take() {
+            self.keep(p, true);
+        }
+        self.run = None;
+    }
 }
 
 /// How the culled eye pass traverses: the algorithm, the query threshold
@@ -436,15 +498,9 @@ pub(crate) fn eye_pass_culled_into(
         threshold,
         sampling,
     } = traversal;
-    let (target, primitive, depth) = match previous {
-        Some(p) if (p.target.width(), p.target.height()) == (width, height) => {
-            (p.target, p.primitive, p.depth)
-        }
-        _ => (
-            DepthTarget::new(width, height, TileSize::T8, true)?,
-            Vec::new(),
-            Vec::new(),
-        ),
+    let target = match previous {
+        Some(p) if (p.target.width(), p.target.height()) == (width, height) => p.target,
+        _ => DepthTarget::new(width, height, TileSize::T8, true)?,
     };
     let queries = std::mem::take(&mut state.queries);
     let mut backend = raster::SyncBackend::reusing(target, queries);
@@ -463,7 +519,7 @@ pub(crate) fn eye_pass_culled_into(
         f.visible && !f.occludes
     });
     draw_objects(scene, meshes, camera, &mut target, deferred)?;
-    Ok(EyePass::from_target(target, primitive, depth))
+    Ok(EyePass { target })
 }
 
 /// The culled eye traversal through a host's `backend`: the same view and

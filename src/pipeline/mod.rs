@@ -27,9 +27,10 @@ mod shadow_options;
 pub mod stencil;
 mod volume;
 
+use eye::visible_points_into;
 pub use eye::{
-    eye_pass, eye_pass_culled, eye_pass_reusing, visible_points, visible_points_into, EyeCulling,
-    EyePass, EyeTraversal, MeshCache,
+    eye_pass, eye_pass_culled, eye_pass_reusing, visible_points, EyeCulling, EyePass, EyeTraversal,
+    MeshCache,
 };
 pub use options::{
     BadOption, ChcppSpec, ClampReceiversSpec, ClampingSpec, CoverageSpec, CullingSpec,
@@ -174,7 +175,8 @@ pub struct Pipeline {
     culling: Option<EyeCulling>,
     eye: Option<EyePass>,
     camera: Option<Camera>,
-    receivers: visibility::ReceiverPoints,
+    /// The eye's visible points, in bands of rows.
+    receivers: Vec<visibility::ReceiverPoints>,
     /// Every live visible object's slot id, ascending: the PSR without culling.
     all_visible: Vec<ObjectId>,
     /// Every live casting object's slot id, ascending: the casters without culling.
@@ -431,7 +433,13 @@ impl Pipeline {
                 .filter(|id| scene.object(**id).flags.visible);
             self.psr.extend(visible.map(|id| scene.id_of(id.0)));
             self.psr.sort_unstable();
-            visible_points_into(scene, camera, &eye, &mut self.receivers);
+            visible_points_into(
+                scene,
+                camera,
+                &eye,
+                o.coverage.sampling(),
+                &mut self.receivers,
+            );
             (eye, r.stats.queries, r.stats.waits)
         } else {
             let eye = eye_pass_reusing(scene, &self.meshes, camera, w, h, previous)?;

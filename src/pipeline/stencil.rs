@@ -296,7 +296,7 @@ pub(crate) fn stencil_volumes(
         scene,
         view,
         light,
-        &eye.primitive,
+        eye.surface(),
         shadowed,
         options.two_sided,
         &mut mask,

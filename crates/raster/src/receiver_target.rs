@@ -240,7 +240,7 @@ impl ReceiverTarget {
     pub fn mark_segments_within(
         &mut self,
         clip_from_local: Mat4,
-        segments: &[(Vec4, Vec4)],
+        segments: impl IntoIterator<Item = (Vec4, Vec4)>,
         eps_px: f64,
     ) -> u64 {
         let pr = Projector::new(self.layout, clip_from_local, eps_px);
@@ -248,7 +248,7 @@ impl ReceiverTarget {
         let (w, h) = (pr.w, pr.h);
         let mut n = 0;
         for (a, b) in segments {
-            let (p, q, z) = match pr.clip_segment(a, b) {
+            let (p, q, z) = match pr.clip_segment(&a, &b) {
                 None => continue,
                 Some(Segment::Span(p, q, z)) => (p, q, z),
                 Some(Segment::Everywhere(z)) => {

@@ -440,7 +440,7 @@ proptest! {
         let mut by_segment = ReceiverTarget::for_target(&t);
         by_segment.mark_segments_within(
             m,
-            &[(a.as_vec3().extend(1.0), b.as_vec3().extend(1.0))],
+            [(a.as_vec3().extend(1.0), b.as_vec3().extend(1.0))],
             eps,
         );
         for y in 0..h {

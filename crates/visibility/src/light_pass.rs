@@ -108,8 +108,9 @@ pub struct PassInput<'a> {
     pub meshes: &'a MeshData,
     /// The eye.
     pub camera: &'a Camera,
-    /// The eye's visible surface points.
-    pub receivers: &'a ReceiverPoints,
+    /// The eye's visible surface points, in parts (any split that keeps
+    /// each joined point in the part of the point it is joined to).
+    pub receivers: &'a [ReceiverPoints],
 }
 
 /// What a light pass found.
@@ -584,10 +585,7 @@ impl ViewSlot {
             ),
             Sampling::Point => (0.0, Coverage::Standard),
         };
-        match receivers {
-            Marks::Points(p) => marks_mut.mark_points_within(clip_from_origin, p, eps),
-            Marks::Segments(s) => marks_mut.mark_segments_within(clip_from_origin, s, eps),
-        };
+        receivers.mark(marks_mut, clip_from_origin, eps);
         // A view without receivers finds no caster: a caster's shadow on a
         // receiver point r crosses the segment from r to the light, which
         // lies in the view holding r (views are cones from the light, fitted

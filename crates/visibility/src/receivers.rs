@@ -5,14 +5,14 @@
 //! Conservative marking works on *segments*: the visible pixels of one eye
 //! row on one triangle lie on a line (the row's pixel-centre rays span a
 //! plane through the eye; it meets the triangle's plane in a line), in
-//! order. A run of such points, cut into pieces of [`PIECE_STEPS`] steps,
-//! is marked as the segment between each piece's ends
-//! ([`raster::ReceiverTarget::mark_segments_within`]): every pixel a point
-//! would mark, at a depth no nearer, with two projections per piece instead
-//! of one per point. The push away from the light is a homothety about the
-//! light (or a translation, for a directional light), so pushed points stay
-//! on their pushed segment. Point-sampled (aggressive) marking keeps one
-//! projection per point.
+//! order. The producer cuts such a run into pieces of [`PIECE_STEPS`] steps
+//! and keeps only the pieces' ends; each piece is marked as the segment
+//! between its ends ([`raster::ReceiverTarget::mark_segments_within`]):
+//! every pixel a point would mark, at a depth no nearer, with two
+//! projections per piece instead of one per point. The push away from the
+//! light is a homothety about the light (or a translation, for a directional
+//! light), so pushed points stay on their pushed segment. Point-sampled
+//! (aggressive) marking keeps one projection per point.
 //!
 //! Cube faces: a point, or a segment, goes only to the faces whose cone
 //! (the directions in which the face's axis dominates, widened by the
@@ -22,7 +22,7 @@
 
 use crate::light_view::{LightView, LightViewKind};
 use crate::view_setup::Sampling;
-use glam::{DVec3, Vec4};
+use glam::{DVec3, Mat4, Vec4};
 #[cfg(feature = "parallel")]
 use rayon::prelude::*;
 use scene::Light;
@@ -30,20 +30,21 @@ use scene::Light;
 /// Relative push of a receiver point away from the light before marking.
 pub const RECEIVER_PUSH: f64 = 1.0 / 1_048_576.0;
 
-/// Steps per receiver segment: a run of joined points is marked in pieces
-/// of this many steps (longer pieces save projections but give their
-/// pixels the piece's farthest depth).
+/// Steps per receiver segment: the eye's runs of visible pixels are cut into
+/// pieces of this many steps, each marked as one segment (longer pieces save
+/// projections but give their pixels the piece's farthest depth).
 pub const PIECE_STEPS: usize = 8;
 
 /// The eye's visible surface points, as the light pass takes them.
 #[derive(Clone, Debug, Default)]
 pub struct ReceiverPoints {
-    /// World points (NaN where the eye sees background), in any order that
-    /// keeps each run of joined points consecutive (row-major).
+    /// World points, in any order that keeps each joined point right after
+    /// the one it is joined to (NaN points are skipped).
     pub points: Vec<DVec3>,
-    /// Per point: true when it continues the run of the point before it —
-    /// both on one line, the points between them on the segment joining
-    /// them (same eye row, same triangle plane). Empty: no point is joined.
+    /// Per point: true when it and the point before it end one piece, marked
+    /// (conservatively) as the segment between them: the surface the eye
+    /// sees between them lies on that segment (same eye row, same triangle
+    /// plane). Point-sampled marking ignores it. Empty: no point is joined.
     pub joined: Vec<bool>,
 }
 
@@ -63,31 +64,72 @@ impl ReceiverPoints {
 
 /// What one view marks.
 pub(crate) enum Marks<'a> {
+    /// Points, each on its own.
     Points(&'a [Vec4]),
-    Segments(&'a [(Vec4, Vec4)]),
+    /// Pieces `(first, last)` of `points`, each marked as the segment
+    /// between its ends: all of them, or those listed in `only`.
+    Segments {
+        points: &'a [Vec4],
+        pieces: &'a [(u32, u32)],
+        only: Option<&'a [u32]>,
+    },
+}
+
+impl Marks<'_> {
+    /// Marks these receivers in `target` (local points, clip
+    /// `clip_from_local · p`) within `eps_px`.
+    pub fn mark(&self, target: &mut raster::ReceiverTarget, clip_from_local: Mat4, eps_px: f64) {
+        match *self {
+            Marks::Points(p) => {
+                target.mark_points_within(clip_from_local, p, eps_px);
+            }
+            Marks::Segments {
+                points,
+                pieces,
+                only,
+            } => {
+                let segment = |&(a, b): &(u32, u32)| (points[a as usize], points[b as usize]);
+                match only {
+                    Some(ix) => target.mark_segments_within(
+                        clip_from_local,
+                        ix.iter().map(|&i| segment(&pieces[i as usize])),
+                        eps_px,
+                    ),
+                    None => target.mark_segments_within(
+                        clip_from_local,
+                        pieces.iter().map(segment),
+                        eps_px,
+                    ),
+                };
+            }
+        }
+    }
 }
 
 /// The receivers prepared for one light's views (buffers reused from frame
 /// to frame).
 #[derive(Debug, Default)]
 pub(crate) struct Prepared {
+    /// Every point, pushed and relative to the views' origin.
     local: Vec<Vec4>,
-    /// Pieces as (first, last) point indices.
+    /// Segmented: the pieces as (first, last) indices into `local`.
     pieces: Vec<(u32, u32)>,
-    segments: Vec<(Vec4, Vec4)>,
+    /// Point-sampled, per cube face: the points that can mark it.
     face_points: [Vec<Vec4>; 6],
-    face_segments: [Vec<(Vec4, Vec4)>; 6],
+    /// Segmented, per cube face: the indices of the pieces that can mark it.
+    face_pieces: [Vec<u32>; 6],
     segmented: bool,
     cube: bool,
 }
 
 impl Prepared {
-    /// Pushes `r`'s points away from `light` (by [`RECEIVER_PUSH`] when
-    /// conservative; `diameter` scales a directional light's push), makes
-    /// them relative to `origin`, and sends them to `views`.
+    /// Pushes the points of `parts` away from `light` (by
+    /// [`RECEIVER_PUSH`] when conservative; `diameter` scales a directional
+    /// light's push), makes them relative to `origin`, and sends them to
+    /// `views`.
     pub fn prepare(
         &mut self,
-        r: &ReceiverPoints,
+        parts: &[ReceiverPoints],
         light: &Light,
         origin: DVec3,
         diameter: f64,
@@ -110,38 +152,28 @@ impl Prepared {
             (q - origin).as_vec3().extend(1.0)
         };
         self.segmented = sampling == Sampling::Conservative;
-        if self.segmented {
-            // Only the pieces' ends are placed: two per piece, not one per point.
-            self.cut_pieces(r);
-            let n = self.pieces.len();
-            self.segments.resize(n, (Vec4::NAN, Vec4::NAN));
-            let piece = |(&(a, b), s): (&(u32, u32), &mut (Vec4, Vec4))| {
-                *s = (place(r.points[a as usize]), place(r.points[b as usize]));
-            };
-            #[cfg(feature = "parallel")]
-            self.pieces
-                .par_iter()
-                .zip(self.segments.par_iter_mut())
-                .with_min_len(1024)
-                .for_each(piece);
-            #[cfg(not(feature = "parallel"))]
-            self.pieces
-                .iter()
-                .zip(self.segments.iter_mut())
-                .for_each(piece);
-        } else {
-            let n = r.points.len();
-            self.local.resize(n, Vec4::NAN);
-            // (NaN points, the eye's background pixels, stay NaN: marking skips them.)
+        self.pieces.clear();
+        let n = parts.iter().map(|r| r.points.len()).sum();
+        self.local.resize(n, Vec4::NAN);
+        let mut rest = &mut self.local[..];
+        let mut offset = 0;
+        for r in parts {
+            if self.segmented {
+                cut_pieces(r, offset, &mut self.pieces);
+            }
+            let (local, tail) = rest.split_at_mut(r.points.len());
+            // (NaN points stay NaN: marking skips them, and no piece holds one.)
             let point = |(&p, l): (&DVec3, &mut Vec4)| *l = place(p);
             #[cfg(feature = "parallel")]
             r.points
                 .par_iter()
-                .zip(self.local.par_iter_mut())
+                .zip(local.par_iter_mut())
                 .with_min_len(4096)
                 .for_each(point);
             #[cfg(not(feature = "parallel"))]
-            r.points.iter().zip(self.local.iter_mut()).for_each(point);
+            r.points.iter().zip(local.iter_mut()).for_each(point);
+            rest = tail;
+            offset += r.points.len() as u32;
         }
         let cube_res = views
             .iter()
@@ -164,43 +196,18 @@ impl Prepared {
 
     /// The receivers `view` marks.
     pub fn for_view(&self, view: &LightView) -> Marks<'_> {
-        match (view.kind, self.cube, self.segmented) {
-            (LightViewKind::CubeFace(k), true, true) => {
-                Marks::Segments(&self.face_segments[k as usize])
-            }
-            (LightViewKind::CubeFace(k), true, false) => {
-                Marks::Points(&self.face_points[k as usize])
-            }
-            (_, _, true) => Marks::Segments(&self.segments),
-            (_, _, false) => Marks::Points(&self.local),
-        }
-    }
-
-    /// Cuts the runs of joined points into pieces of at most
-    /// [`PIECE_STEPS`] steps; a lone point is a piece of its own.
-    fn cut_pieces(&mut self, r: &ReceiverPoints) {
-        self.pieces.clear();
-        let n = r.points.len();
-        let mut i = 0;
-        while i < n {
-            if r.points[i].x.is_nan() {
-                i += 1;
-                continue;
-            }
-            let mut end = i;
-            while end + 1 < n && r.joined(end + 1) {
-                end += 1;
-            }
-            let mut a = i;
-            loop {
-                let b = (a + PIECE_STEPS).min(end);
-                self.pieces.push((a as u32, b as u32));
-                if b == end {
-                    break;
-                }
-                a = b;
-            }
-            i = end + 1;
+        let face = match (view.kind, self.cube) {
+            (LightViewKind::CubeFace(k), true) => Some(k as usize),
+            _ => None,
+        };
+        match (face, self.segmented) {
+            (face, true) => Marks::Segments {
+                points: &self.local,
+                pieces: &self.pieces,
+                only: face.map(|k| &self.face_pieces[k][..]),
+            },
+            (Some(k), false) => Marks::Points(&self.face_points[k]),
+            (None, false) => Marks::Points(&self.local),
         }
     }
 
@@ -215,21 +222,22 @@ impl Prepared {
         for f in &mut self.face_points {
             f.clear();
         }
-        for f in &mut self.face_segments {
+        for f in &mut self.face_pieces {
             f.clear();
         }
         if self.segmented {
-            for s in &self.segments {
-                let (da, db) = (s.0.truncate().as_dvec3(), s.1.truncate().as_dvec3());
+            let at = |i: u32| self.local[i as usize].truncate().as_dvec3();
+            for (i, &(a, b)) in self.pieces.iter().enumerate() {
+                let (da, db) = (at(a), at(b));
                 if let (Some(ka), Some(kb)) = (clear_face(da, slack), clear_face(db, slack)) {
                     if ka == kb {
-                        self.face_segments[ka].push(*s);
+                        self.face_pieces[ka].push(i as u32);
                         continue;
                     }
                 }
-                for (k, f) in self.face_segments.iter_mut().enumerate() {
+                for (k, f) in self.face_pieces.iter_mut().enumerate() {
                     if segment_meets_face(da, db, k, slack) {
-                        f.push(*s);
+                        f.push(i as u32);
                     }
                 }
             }
@@ -242,6 +250,22 @@ impl Prepared {
                     }
                 }
             }
+        }
+    }
+}
+
+/// Appends `r`'s pieces (indices offset by `offset`) to `pieces`: each
+/// joined point with the one before it, and every point joined to neither
+/// neighbour on its own.
+fn cut_pieces(r: &ReceiverPoints, offset: u32, pieces: &mut Vec<(u32, u32)>) {
+    let valid = |i: usize| !r.points[i].x.is_nan();
+    let n = r.points.len();
+    for i in (0..n).filter(|&i| valid(i)) {
+        let at = offset + i as u32;
+        if i > 0 && r.joined(i) && valid(i - 1) {
+            pieces.push((at - 1, at));
+        } else if !(i + 1 < n && r.joined(i + 1) && valid(i + 1)) {
+            pieces.push((at, at));
         }
     }
 }
@@ -292,23 +316,20 @@ fn segment_meets_face(a: DVec3, b: DVec3, k: usize, slack: f64) -> bool {
 mod tests {
     use super::*;
 
-    /// Pieces cover every joined run end to end with at most PIECE_STEPS
-    /// steps, lone points alone, background skipped.
+    /// Joined points pair with the point before them, lone points stand
+    /// alone, NaN points are skipped (and join nothing); pieces are appended
+    /// at the part's offset.
     #[test]
-    fn runs_are_cut_into_pieces() {
+    fn joined_points_make_pieces() {
         let nan = DVec3::NAN;
         let p = DVec3::ONE;
-        // Runs: [0..=11] (12 points), [12], background 13, [14..=15].
-        let mut points = vec![p; 16];
-        points[13] = nan;
-        let mut joined = vec![true; 16];
-        for i in [0, 12, 13, 14] {
-            joined[i] = false;
-        }
+        // Runs: [0 (joined to nothing), 1, 2], [3], NaN 4, [5 (joined to the NaN), 6].
+        let points = vec![p, p, p, p, nan, p, p];
+        let joined = vec![true, true, true, false, true, true, true];
         let r = ReceiverPoints { points, joined };
-        let mut pr = Prepared::default();
-        pr.cut_pieces(&r);
-        assert_eq!(pr.pieces, vec![(0, 8), (8, 11), (12, 12), (14, 15)]);
+        let mut pieces = vec![(0, 0)];
+        cut_pieces(&r, 10, &mut pieces);
+        assert_eq!(pieces, vec![(0, 0), (10, 11), (11, 12), (13, 13), (15, 16)]);
     }
 
     /// A seeded uniform sampler of [−1, 1) (an LCG: reproducible, no dependency).
