@@ -177,6 +177,8 @@ pub struct Pipeline {
     camera: Option<Camera>,
     /// The eye's visible points, in bands of rows.
     receivers: Vec<visibility::ReceiverPoints>,
+    /// The stencil targets the lights take turns on.
+    stencil_targets: stencil::StencilTargets,
     /// Every live visible object's slot id, ascending: the PSR without culling.
     all_visible: Vec<ObjectId>,
     /// Every live casting object's slot id, ascending: the casters without culling.
@@ -235,6 +237,7 @@ impl Pipeline {
             eye: None,
             camera: None,
             receivers: Default::default(),
+            stencil_targets: Default::default(),
             all_visible: live_slots_of(&scene, |f| f.visible),
             all_casters: live_slots_of(&scene, |f| f.casts),
             casters: Vec::new(),
@@ -530,7 +533,9 @@ impl Pipeline {
             for r in &mut s.scratch.volume.buffer.ranges {
                 r.object = scene.id_of(r.object).0;
             }
-            s.shadow = match o.stencil {
+            // The lights take turns on one set of stencil targets.
+            std::mem::swap(&mut s.scratch.targets, &mut self.stencil_targets);
+            let shadow = match o.stencil {
                 StencilBackend::None => None,
                 _ => Some(stencil::stencil_volumes(
                     input,
@@ -539,8 +544,10 @@ impl Pipeline {
                     &mut s.scratch,
                     volumes,
                     s.shadow.take(),
-                )?),
+                )),
             };
+            std::mem::swap(&mut s.scratch.targets, &mut self.stencil_targets);
+            s.shadow = shadow.transpose()?;
             let (light, light_ms) = if culled {
                 (s.culling.result.stats, s.culling.ms)
             } else {

@@ -81,12 +81,20 @@ pub struct ShadowScratch {
     pub(crate) volume: VolumeScratch,
     /// Fill accounting's (`count_fill`) other variant and stencil.
     pub(crate) fill: super::fill_count::FillScratch,
-    stencil: Option<StencilTarget>,
-    hierarchical: Option<HierarchicalStencil>,
+    /// The stencil targets (a pipeline lends its lights one set in turn).
+    pub(crate) targets: StencilTargets,
     /// Per volume range its clip matrix, and the (matrix, range) list the
     /// stencil draws (kept empty between frames).
     clip: Vec<glam::Mat4>,
     ranges: Vec<(glam::Mat4, &'static raster::VolumeRange)>,
+}
+
+/// The stencil stage's targets: cleared for every light, so the lights of a
+/// frame, stenciled one after the other, can share one set.
+#[derive(Default)]
+pub(crate) struct StencilTargets {
+    stencil: Option<StencilTarget>,
+    hierarchical: Option<HierarchicalStencil>,
 }
 
 impl std::fmt::Debug for ShadowScratch {
@@ -195,7 +203,7 @@ pub(crate) fn stencil_volumes(
     match options.backend {
         Backend::Brute => {
             tiles = None;
-            let mut stencil = match scratch.stencil.take() {
+            let mut stencil = match scratch.targets.stencil.take() {
                 Some(mut s) if (s.width(), s.height(), s.bits()) == (w, h, options.bits) => {
                     s.clear();
                     s
@@ -210,7 +218,7 @@ pub(crate) fn stencil_volumes(
                 &mut stats,
             )?;
             stencil.resolve(&eye.target, &mut raw_nonzero, &mut stats)?;
-            scratch.stencil = Some(stencil);
+            scratch.targets.stencil = Some(stencil);
         }
         Backend::Hierarchical { tile, full_shadow } => {
             let want = HierarchicalOptions {
@@ -218,7 +226,7 @@ pub(crate) fn stencil_volumes(
                 bits: options.bits,
                 full_shadow,
             };
-            let mut stencil = match scratch.hierarchical.take() {
+            let mut stencil = match scratch.targets.hierarchical.take() {
                 Some(mut s) if (s.width(), s.height(), s.options()) == (w, h, want) => {
                     s.clear();
                     s
@@ -242,7 +250,7 @@ pub(crate) fn stencil_volumes(
                 tiles_y,
                 classes,
             });
-            scratch.hierarchical = Some(stencil);
+            scratch.targets.hierarchical = Some(stencil);
         }
         Backend::Hybrid { map_size } => {
             tiles = None;
@@ -265,7 +273,7 @@ pub(crate) fn stencil_volumes(
                 bits: options.bits,
                 full_shadow: true,
             };
-            let mut stencil = match scratch.hierarchical.take() {
+            let mut stencil = match scratch.targets.hierarchical.take() {
                 Some(mut s) if (s.width(), s.height(), s.options()) == (w, h, want) => {
                     s.clear();
                     s
@@ -279,7 +287,7 @@ pub(crate) fn stencil_volumes(
                     *r = class.shadowed[i];
                 }
             }
-            scratch.hierarchical = Some(stencil);
+            scratch.targets.hierarchical = Some(stencil);
             silhouette_pixels = class.silhouette_pixels;
             map_ms = class.map_ms;
         }

@@ -20,11 +20,13 @@ struct Entry {
     silhouette: Silhouette,
 }
 
-/// The entries of one light, indexed by object id.
+/// The entries of one light, indexed by object id (boxed: most objects of a
+/// large scene never cast for a given view, and an empty slot then costs 8
+/// bytes, not an entry's 180).
 struct LightEntries {
     key: [u64; 4],
     last_used: u64,
-    objects: Vec<Option<Entry>>,
+    objects: Vec<Option<Box<Entry>>>,
 }
 
 /// Silhouettes cached per (object, light) and recomputed only when the
@@ -146,13 +148,24 @@ impl SilhouetteCache {
                 continue;
             }
             // Mark the entry current now (a repeated id then counts as a hit)
-            // and take its buffers for the recomputation.
-            let old = e.replace(Entry {
-                world_from_local: *w,
-                two_sided,
-                silhouette: Silhouette::default(),
-            });
-            work.push((id, old.map(|o| o.silhouette).unwrap_or_default()));
+            // and take its buffers for the recomputation (a stale entry is
+            // rewritten in place).
+            let old = match e {
+                Some(e) => {
+                    e.world_from_local = *w;
+                    e.two_sided = two_sided;
+                    std::mem::take(&mut e.silhouette)
+                }
+                None => {
+                    *e = Some(Box::new(Entry {
+                        world_from_local: *w,
+                        two_sided,
+                        silhouette: Silhouette::default(),
+                    }));
+                    Silhouette::default()
+                }
+            };
+            work.push((id, old));
         }
         self.misses += work.len();
         if self.counters.len() < work.len() {

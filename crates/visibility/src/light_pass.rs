@@ -180,7 +180,8 @@ pub struct LightPass {
 struct CastingCache {
     /// The light's homogeneous position bits and the two-sided rule.
     key: Option<([u64; 4], bool)>,
-    entries: Vec<OnceLock<Casting>>,
+    /// Per object (boxed: an empty slot costs 16 bytes, not 180).
+    entries: Vec<OnceLock<Box<Casting>>>,
     /// A moved object's casting triangles, found by the update to compare
     /// with its old list: an unchanged set keeps its list (no allocation).
     found: Vec<[u32; 3]>,
@@ -190,20 +191,21 @@ struct CastingCache {
 /// least as long, else into a new list of `all` (the mesh's triangle count)
 /// entries, so that a moving object's later sets fit in place. The tail is
 /// padded with a degenerate triangle, which every draw rejects.
-fn refill(mut list: Arc<[[u32; 3]]>, found: &[[u32; 3]], all: usize) -> Arc<[[u32; 3]]> {
+fn refill(list: &mut Arc<[[u32; 3]]>, found: &[[u32; 3]], all: usize) {
     let pad = [found.first().map_or(0, |t| t[0]); 3];
-    match Arc::get_mut(&mut list).filter(|l| l.len() >= found.len()) {
+    match Arc::get_mut(list).filter(|l| l.len() >= found.len()) {
         Some(l) => {
             l[..found.len()].copy_from_slice(found);
             l[found.len()..].fill(pad);
-            list
         }
-        None => found
-            .iter()
-            .copied()
-            .chain(std::iter::repeat(pad))
-            .take(all.max(found.len()))
-            .collect(),
+        None => {
+            *list = found
+                .iter()
+                .copied()
+                .chain(std::iter::repeat(pad))
+                .take(all.max(found.len()))
+                .collect();
+        }
     }
 }
 
@@ -253,23 +255,19 @@ impl CastingCache {
             {
                 // Moved: its casting set is found again, into its old list
                 // when that is unshared and long enough (no allocation).
-                let mut list = e.take().expect("checked").triangles;
+                let mut c = e.take().expect("checked");
                 if !two_sided {
                     let id = ObjectId(k as u32);
                     let all = scene.object_mesh(id).triangles().len();
                     self.found.clear();
                     self.found.reserve(all);
                     self.found.extend(facing_triangles(scene, light, id));
-                    if list[..] != self.found[..] {
-                        list = refill(list, &self.found, all);
+                    if c.triangles[..] != self.found[..] {
+                        refill(&mut c.triangles, &self.found, all);
                     }
                 }
-                let _ = e.set(Casting {
-                    world_from_local: o.world_from_local,
-                    mesh: o.mesh,
-                    version: scene.mesh_version(o.mesh),
-                    triangles: list,
-                });
+                c.world_from_local = o.world_from_local;
+                let _ = e.set(c);
             }
         }
     }
@@ -291,12 +289,12 @@ impl CastingCache {
                 } else {
                     facing_triangles(scene, light, id).collect()
                 };
-                Casting {
+                Box::new(Casting {
                     world_from_local: o.world_from_local,
                     mesh: o.mesh,
                     version: scene.mesh_version(o.mesh),
                     triangles,
-                }
+                })
             })
             .triangles
             .clone()
