@@ -864,6 +864,34 @@ mod tests {
         check_light(name, &light, true);
     }
 
+    /// The eye target read in place and its row-major copies are one
+    /// surface: the same ids and depth at every pixel, the same classes.
+    #[test]
+    fn target_surface_reads_like_its_rows() {
+        let scene = boxes_on_ground();
+        let cam = overview_camera();
+        let meshes = MeshCache::new(&scene);
+        let eye = eye_pass(&scene, &meshes, &cam, W, H).unwrap();
+        let ids = eye.primitives();
+        let depth = eye.target.depth_rows();
+        let rows = EyeSurface::from_rows(W, &ids, Some(&depth));
+        let target = eye.surface();
+        assert!(rows.fits(W, H) && target.fits(W, H) && !target.fits(W + 1, H));
+        let mut seen = 0;
+        for y in 0..H {
+            for x in 0..W {
+                assert_eq!(target.primitive(x, y), rows.primitive(x, y), "({x}, {y})");
+                assert_eq!(target.depth(x, y), rows.depth(x, y), "({x}, {y})");
+                seen += usize::from(rows.primitive(x, y).is_some());
+            }
+        }
+        assert!(seen > 0 && seen < (W * H) as usize, "{seen}");
+        let (_, light) = lights()[0];
+        let a = classify(&scene, &cam, &light, target, (W, H), 64, false).unwrap();
+        let b = classify(&scene, &cam, &light, rows, (W, H), 64, false).unwrap();
+        assert_eq!((a.shadowed, a.silhouette), (b.shadowed, b.silhouette));
+    }
+
     #[test]
     fn hybrid_background_and_bad_input() {
         let scene = boxes_on_ground();

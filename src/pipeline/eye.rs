@@ -551,3 +551,60 @@ pub(crate) fn cull_with(
         &mut state.result,
     )?)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::DVec3;
+
+    /// Feeds one row: `(triangle, hit)` per pixel, `None` for a pixel that
+    /// receives nothing; the point of pixel `x` is `(x, 0, 0)` (`(-1, 0, 0)`
+    /// for a ray parallel to its plane, the eye).
+    fn cut(row: &[Option<(u32, bool)>], stride: usize) -> Vec<(f64, bool)> {
+        let mut out = visibility::ReceiverPoints::default();
+        let mut run = RunCutter::new(&mut out, stride);
+        for (x, px) in row.iter().enumerate() {
+            match *px {
+                None => run.end(),
+                Some((t, true)) => run.push((ObjectId(0), t), DVec3::new(x as f64, 0.0, 0.0)),
+                Some((_, false)) => run.alone(DVec3::NEG_X),
+            }
+        }
+        run.end();
+        out.points.iter().map(|p| p.x).zip(out.joined).collect()
+    }
+
+    /// A run keeps its first point, every `stride`-th after it and its last,
+    /// each joined to the one before: the ends of the pieces the light pass
+    /// marks. Runs end at another triangle, a pixel that receives nothing,
+    /// and a ray parallel to its plane (a lone point at the eye).
+    #[test]
+    fn runs_keep_their_piece_ends() {
+        let mut row = vec![Some((1, true)); 12]; // pixels 0..=11
+        row.push(Some((1, false))); // 12: parallel, alone
+        row.push(Some((1, true))); // 13: a new run of one
+        row.push(None); // 14
+        row.extend([Some((2, true)); 9]); // 15..=23: eight steps
+        row.extend([Some((3, true)); 2]); // 24, 25
+        let t = true;
+        let f = false;
+        assert_eq!(
+            cut(&row, 8),
+            vec![
+                (0.0, f),
+                (8.0, t),
+                (11.0, t),
+                (-1.0, f),
+                (13.0, f),
+                (15.0, f),
+                (23.0, t),
+                (24.0, f),
+                (25.0, t),
+            ]
+        );
+        // Stride 1 (point sampling) keeps every point.
+        let every = cut(&row, 1);
+        assert_eq!(every.len(), row.iter().flatten().count());
+        assert_eq!(&every[..3], &[(0.0, f), (1.0, t), (2.0, t)]);
+    }
+}
