@@ -225,12 +225,17 @@ impl<'a> EyeSurface<'a> {
     }
 }
 
+/// Triangles per cluster of the reference BVH's build.
+const CLUSTER: usize = 4;
+
 /// All scene triangles in a BVH, for ray casting.
 pub struct TriangleBvh {
     bvh: Bvh2,
     /// World-space f64 vertices (from [`Scene::world_triangle`]), indexed by primitive.
     tris: Vec<[DVec3; 3]>,
     ids: Vec<PrimitiveId>,
+    /// Per object the index of its first triangle, then the triangle count.
+    firsts: Vec<u32>,
     /// Per primitive, its object's flags.
     flags: Vec<scene::ObjectFlags>,
     center: DVec3,
@@ -272,15 +277,43 @@ impl TriangleBvh {
                 flags.push(o.flags);
             }
         }
-        let boxes: Vec<obvhs::aabb::Aabb> = tris
-            .iter()
-            .map(|t| tri_box(&t.map(|p| p - center), pad))
+        // The tree is built over clusters of up to CLUSTER consecutive
+        // triangles of one object, then expanded: a quarter of the build
+        // scratch and of the nodes.
+        let mut starts = Vec::with_capacity(total.div_ceil(CLUSTER) + scene.objects().len() + 1);
+        let mut firsts = Vec::with_capacity(scene.objects().len() + 1);
+        let mut first = 0u32;
+        for oi in 0..scene.objects().len() {
+            let n = scene.object_mesh(ObjectId(oi as u32)).triangles().len() as u32;
+            firsts.push(first);
+            starts.extend((first..first + n).step_by(CLUSTER));
+            first += n;
+        }
+        starts.push(first);
+        firsts.push(first);
+        let boxes: Vec<obvhs::aabb::Aabb> = starts
+            .windows(2)
+            .map(|w| {
+                tris[w[0] as usize..w[1] as usize]
+                    .iter()
+                    .fold(obvhs::aabb::Aabb::empty(), |b, t| {
+                        b.union(&tri_box(&t.map(|p| p - center), pad))
+                    })
+            })
             .collect();
-        let bvh = scene::bvh_build::build_bvh2(&boxes, obvhs::BvhBuildParams::fast_build());
+        let params = obvhs::BvhBuildParams {
+            // Leaves of at most two clusters: eight triangles, as before.
+            max_prims_per_leaf: 2,
+            ..obvhs::BvhBuildParams::fast_build()
+        };
+        let mut bvh = scene::bvh_build::build_bvh2(&boxes, params);
+        drop(boxes);
+        scene::bvh_build::expand_clusters(&mut bvh, &starts);
         TriangleBvh {
             bvh,
             tris,
             ids,
+            firsts,
             flags,
             center,
             pad,
@@ -319,6 +352,13 @@ impl TriangleBvh {
             }
         }
         self.bvh.refit_all();
+    }
+
+    /// The triangle of primitive `id`, if the scene holds it.
+    fn index_of(&self, (object, t): PrimitiveId) -> Option<usize> {
+        let o = object.0 as usize;
+        let (first, end) = (*self.firsts.get(o)?, *self.firsts.get(o + 1)?);
+        (t < end - first).then_some((first + t) as usize)
     }
 
     /// Number of triangles.
@@ -545,14 +585,6 @@ pub fn try_reference_mask(
             "surface size differs from the viewport"
         );
     }
-    // Primitive id -> BVH triangle index, only needed with an external surface.
-    let lookup = surface.as_ref().map(|_| {
-        let mut first = std::collections::HashMap::new();
-        for (k, id) in bvh.ids.iter().enumerate() {
-            first.entry(*id).or_insert(k);
-        }
-        first
-    });
     let eye = camera.position - bvh.center;
     let forward = camera.forward();
     let light_rel = match *light {
@@ -603,15 +635,15 @@ pub fn try_reference_mask(
         .for_each(|(y, row)| {
             for (x, px) in row.iter_mut().enumerate() {
                 let dir = rays.direction(x as f64 + 0.5, y as f64 + 0.5);
-                let hit = match (&surface, &lookup) {
-                    (Some(s), Some(l)) => s.primitive(x as u32, y as u32).map(|id| {
-                        let k = *l
-                            .get(&id)
+                let hit = match &surface {
+                    Some(s) => s.primitive(x as u32, y as u32).map(|id| {
+                        let k = bvh
+                            .index_of(id)
                             .expect("surface names a primitive not in the scene");
                         let t = plane_distance(&bvh.rel(k), eye, dir);
                         (t, k)
                     }),
-                    _ => bvh.closest_hit(eye, dir),
+                    None => bvh.closest_hit(eye, dir),
                 };
                 let Some((t, k)) = hit else { continue };
                 if !t.is_finite() {
@@ -822,5 +854,30 @@ mod tests {
             "{e}"
         );
         assert_eq!(super::try_filled(2, 1u8, "x").unwrap(), [1, 1]);
+    }
+
+    /// An eye surface's primitive ids find their triangles (the object's
+    /// first triangle plus the index); ids the scene does not hold find none.
+    #[test]
+    fn primitive_ids_find_their_triangles() {
+        use scene::procedural::analytic;
+        use scene::{ObjectId, Scene, SceneGraph, Transform};
+        let mut g = SceneGraph::new();
+        let ground = g.add_mesh(
+            analytic::horizontal_quad("ground", [-5.0, 5.0], [-5.0, 5.0], 0.0, true).unwrap(),
+        );
+        let cube =
+            g.add_mesh(analytic::box_mesh("box", glam::Vec3::ZERO, glam::Vec3::ONE).unwrap());
+        g.add_instance("ground", ground, Transform::default());
+        g.add_instance("a", cube, Transform::translation(glam::DVec3::Y));
+        g.add_instance("b", cube, Transform::translation(glam::DVec3::X * 3.0));
+        let scene = Scene::new(g).unwrap();
+        let bvh = super::TriangleBvh::new(&scene);
+        assert_eq!(bvh.len(), 2 + 12 + 12);
+        for (k, &id) in bvh.ids.iter().enumerate() {
+            assert_eq!(bvh.index_of(id), Some(k), "{id:?}");
+        }
+        assert_eq!(bvh.index_of((ObjectId(1), 12)), None);
+        assert_eq!(bvh.index_of((ObjectId(3), 0)), None);
     }
 }
