@@ -2,8 +2,7 @@
 //! every producer of masks shares, comparison against the reference, and PNG
 //! output.
 
-use crate::reference::EyeSurface;
-use crate::surface::RayPlane;
+use crate::surface::{EyeSurface, RayPlane};
 use glam::DVec3;
 use scene::{faces_light, Camera, Light, ObjectId, Scene};
 #[cfg(feature = "images")]
