@@ -2,7 +2,7 @@
 //!
 //! `cargo run --release --example shadow_bench -- SCENE CAMERA WxH [--stencil bf|db|h|hybrid|none]
 //! [--scissor on|off] [--method auto|zpass|zfail|zpplus] [--counters 8|wide] [--tile 4|8|16]
-//! [--full-shadow on|off] [--map N] [--culling none|frustum|exact|chc|chcpp]
+//! [--full-shadow on|off] [--map N] [--culling none|frustum|exact|chc|chcpp|auto]
 //! [--coverage conservative|point] [--threshold T] [--light-res N]
 //! [--clamping none|continuous] [--clamping-receivers all|psr] [--count-fill]
 //! [--two-sided] [--reference] [--mask OUT.png] [--reps R | --path NAME [--frames N]]`
@@ -94,6 +94,7 @@ const CULLINGS: &[(&str, CullingSpec)] = &[
     ("exact", CullingSpec::Exact),
     ("chc", CullingSpec::Chc),
     ("chcpp", CullingSpec::Chcpp),
+    ("auto", CullingSpec::Auto),
 ];
 const METHODS: &[(&str, MethodChoice)] = &[
     ("auto", MethodChoice::Auto),

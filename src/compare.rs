@@ -73,7 +73,7 @@ pub struct VariantRow {
     pub bandwidth_bytes: u64,
     /// Hybrid: pixels left to the volumes, summed.
     pub silhouette_pixels: u64,
-    /// Culling traversal (`none`, `frustum`, `exact`, `chc`, `chcpp`).
+    /// Culling traversal (`none`, `frustum`, `exact`, `chc`, `chcpp`, `auto`).
     pub culling: String,
     /// Culling's sampling (`conservative` or the aggressive `point`).
     pub coverage: String,
@@ -122,7 +122,7 @@ fn spec_name<T: Serialize>(v: &T) -> String {
 impl VariantRow {
     fn from_rows(name: &str, p: &PipelineOptions, rows: &[FrameRow]) -> Self {
         let table: Vec<Vec<Cell>> = rows.iter().map(FrameRow::cells).collect();
-        let chcpp = if p.culling == CullingSpec::Chcpp {
+        let chcpp = if matches!(p.culling, CullingSpec::Chcpp | CullingSpec::Auto) {
             format!("{}/{}/{}", p.chcpp.batch, p.chcpp.revisit, p.chcpp.seed)
         } else {
             String::new()
@@ -216,6 +216,7 @@ pub fn variants(job: &Job) -> Vec<NamedPipeline> {
         culled("h_chc", CullingSpec::Chc, CoverageSpec::Conservative),
         culled("h_chcpp", CullingSpec::Chcpp, CoverageSpec::Conservative),
         culled("h_chcpp_point", CullingSpec::Chcpp, CoverageSpec::Point),
+        culled("h_auto", CullingSpec::Auto, CoverageSpec::Conservative),
         clamped("bf_clamp", ClampReceiversSpec::All),
         clamped("bf_clamp_psr", ClampReceiversSpec::Psr),
     ]

@@ -68,8 +68,8 @@ mod surface;
 pub use error::{Error, Result};
 pub use pipeline::memory;
 pub use pipeline::{
-    ClampReceiversSpec, ClampingSpec, CoverageSpec, CullingSpec, FrameInput, FrameOutput, LightId,
-    LightOutput, Pipeline, PipelineOptions, StencilBackend,
+    AutoSpec, ClampReceiversSpec, ClampingSpec, CoverageSpec, CullingSpec, FrameInput, FrameOutput,
+    LightId, LightOutput, Pipeline, PipelineOptions, StencilBackend,
 };
 pub use raster;
 pub use scene;

@@ -544,6 +544,7 @@ mod tests {
                 "shadow.light.waits",
                 "shadow.light.wait_ms",
                 "shadow.light.objects_rendered",
+                "shadow.light.triangles_rendered",
                 "shadow.light.objects_visible",
             ]
         );

@@ -1001,3 +1001,87 @@ fn count_fill_counts_what_brute_force_processes() -> Result<()> {
     }
     Ok(())
 }
+
+/// `culling: auto` chooses per view and per frame from counters, so its
+/// masks are the unculled ones, the same run twice gives the same counters,
+/// `reset_history` starts the choice over, and a scene with fewer than
+/// `min_objects` objects never culls. Costs are set so that both modes run:
+/// the light pass is priced out (each light culls its first two frames and
+/// then its probes), and the eye probes the unculled mode at its third
+/// frame.
+#[test]
+fn auto_culling_chooses_per_view_and_keeps_masks() -> Result<()> {
+    let (scene, path) = city();
+    let lights = lights(&scene, &path);
+    let mut o = options(CullingSpec::Auto, StencilBackend::H);
+    o.auto.probe = 2;
+    o.auto.light_node = 1e9;
+    let (mut a, _) = pipeline(&scene, o, &lights)?;
+    let (mut b, _) = pipeline(&scene, o, &lights)?;
+    let (mut plain, _) = pipeline(
+        &scene,
+        options(CullingSpec::None, StencilBackend::H),
+        &lights,
+    )?;
+    let n = scene.objects().len();
+    // Per frame: whether the eye culled, and each light.
+    type Modes = (bool, Vec<bool>);
+    let summary = |out: shadowcull::FrameOutput<'_>| {
+        let lights: Vec<_> = out
+            .lights()
+            .map(|l| {
+                let culled = !l.views().is_empty();
+                assert_eq!(culled, l.stats().light.nodes_visited > 0);
+                if !culled {
+                    assert_eq!(l.psc().len(), n, "an unculled light casts every object");
+                }
+                (
+                    culled,
+                    l.psc().to_vec(),
+                    l.stats().queries,
+                    l.mask().cloned(),
+                )
+            })
+            .collect::<Vec<_>>();
+        let s = out.stats();
+        let eye_culled = s.eye_queries > 0;
+        assert_eq!(eye_culled, (s.psr as usize) < n || s.eye_queries > 0);
+        (eye_culled, out.psr().to_vec(), lights)
+    };
+    let mut modes: Vec<Modes> = Vec::new();
+    for frame in 0..14 {
+        let input = input(&path, frame % 8);
+        let x = summary(a.frame(&input)?);
+        let y = summary(b.frame(&input)?);
+        assert_eq!(x, y, "frame {frame}: the same choices and counters");
+        let out = plain.frame(&input)?;
+        for (li, (l, p)) in x.2.iter().zip(out.lights()).enumerate() {
+            assert_eq!(l.3.as_ref(), p.mask(), "frame {frame} light {li}");
+        }
+        modes.push((x.0, x.2.iter().map(|l| l.0).collect()));
+    }
+    // The eye: culled cold and warm, then the unculled probe.
+    assert_eq!(
+        modes[..3].iter().map(|m| m.0).collect::<Vec<_>>(),
+        [true, true, false]
+    );
+    // The lights: culled twice, then unculled, then probes of two frames.
+    for li in 0..lights.len() {
+        let l: Vec<bool> = modes.iter().map(|m| m.1[li]).collect();
+        assert_eq!(l[..3], [true, true, false], "light {li}: {l:?}");
+        assert!(l[3..].contains(&true), "light {li} probes culling: {l:?}");
+        assert!(l.iter().filter(|c| **c).count() < 10, "light {li}: {l:?}");
+    }
+    // A reset starts over: the next frame culls every view.
+    a.reset_history();
+    let x = summary(a.frame(&input(&path, 0))?);
+    assert!(x.0 && x.2.iter().all(|l| l.0));
+    // Too few objects: nothing culls.
+    o.auto.min_objects = n as u32 + 1;
+    let (mut small, _) = pipeline(&scene, o, &lights)?;
+    for frame in 0..3 {
+        let x = summary(small.frame(&input(&path, frame))?);
+        assert!(!x.0 && x.2.iter().all(|l| !l.0 && l.2 == 0));
+    }
+    Ok(())
+}

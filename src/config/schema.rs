@@ -399,9 +399,21 @@ mod tests {
         .unwrap();
         assert_eq!(j.pipeline.coverage, CoverageSpec::Point);
         assert_eq!((j.pipeline.chcpp.batch, j.pipeline.chcpp.seed), (50, 9));
+        let j = parse(
+            r#"(version: 1, scene: City(()), pipeline: (culling: auto,
+                auto: (probe: 4, min_objects: 2, eye_node: 0.5)))"#,
+        )
+        .unwrap();
+        let a = j.pipeline.auto;
+        assert_eq!(j.pipeline.culling, CullingSpec::Auto);
+        assert_eq!((a.probe, a.min_objects, a.eye_node), (4, 2, 0.5));
+        assert_eq!(a.light_node, crate::AutoSpec::default().light_node);
         for (text, field) in [
             ("chcpp: (batch: 0)", "pipeline.chcpp"),
             ("light_resolution: 4", "pipeline.light_resolution"),
+            ("auto: (probe: 0)", "pipeline.auto.probe"),
+            ("auto: (margin: 0.5)", "pipeline.auto.margin"),
+            ("auto: (eye_tile: -1.0)", "pipeline.auto"),
         ] {
             let e = parse(&format!(
                 "(version: 1, scene: City(()), pipeline: ({text}))"
@@ -410,7 +422,12 @@ mod tests {
             .to_string();
             assert!(e.contains(field), "{e}");
         }
-        for text in ["culling: chcp", "coverage: exact", "chcpp: (batches: 5)"] {
+        for text in [
+            "culling: chcp",
+            "coverage: exact",
+            "chcpp: (batches: 5)",
+            "auto: (probes: 5)",
+        ] {
             let e = parse(&format!(
                 "(version: 1, scene: City(()), pipeline: ({text}))"
             ));

@@ -17,6 +17,7 @@
 //! 4. `stencil` — the brute-force, hierarchical \[Aila04\] or hybrid
 //!    \[ChanDurand04\] stencil and the mask.
 
+mod auto;
 mod edit;
 pub mod eye;
 mod fill_count;
@@ -33,7 +34,7 @@ pub use eye::{
     MeshCache,
 };
 pub use options::{
-    BadOption, ChcppSpec, ClampReceiversSpec, ClampingSpec, CoverageSpec, CullingSpec,
+    AutoSpec, BadOption, ChcppSpec, ClampReceiversSpec, ClampingSpec, CoverageSpec, CullingSpec,
     PipelineOptions, StencilBackend, DEFAULT_CLAMP_PIXEL_COST, DEFAULT_CLAMP_VERTEX_COST,
 };
 use shadow_options::ShadowInput;
@@ -103,6 +104,10 @@ struct LightState {
     light: Light,
     id: LightId,
     culling: LightCulling,
+    /// `culling: auto`'s choice state of the light pass.
+    auto: auto::AutoView,
+    /// Whether this frame runs the light pass (culls the casters).
+    culled: bool,
     /// The last PSC as public ids (slot and generation), ascending.
     psc: Vec<ObjectId>,
     scratch: ShadowScratch,
@@ -117,6 +122,8 @@ impl LightState {
             light,
             id,
             culling: LightCulling::default(),
+            auto: auto::AutoView::default(),
+            culled: false,
             psc: Vec::new(),
             scratch: ShadowScratch::default(),
             volume_stats: VolumeStats::default(),
@@ -173,6 +180,8 @@ pub struct Pipeline {
     meshes: MeshCache,
     /// Hierarchy, meshes and the eye view's CHC state, built on first culled frame.
     culling: Option<EyeCulling>,
+    /// `culling: auto`'s choice state of the eye pass.
+    auto_eye: auto::AutoView,
     eye: Option<EyePass>,
     camera: Option<Camera>,
     /// The eye's visible points, in bands of rows.
@@ -234,6 +243,7 @@ impl Pipeline {
             counts: scene.counts(),
             meshes: MeshCache::new(&scene),
             culling: None,
+            auto_eye: auto::AutoView::default(),
             eye: None,
             camera: None,
             receivers: Default::default(),
@@ -305,6 +315,7 @@ impl Pipeline {
             if let Some(c) = &mut self.culling {
                 c.reset();
             }
+            self.auto_eye.reset();
             for s in self.lights.iter_mut().filter_map(|s| s.state.as_mut()) {
                 *s = LightState::new(s.light, s.id);
             }
@@ -335,8 +346,10 @@ impl Pipeline {
         if let Some(c) = &mut self.culling {
             c.reset();
         }
+        self.auto_eye.reset();
         for s in self.lights.iter_mut().filter_map(|s| s.state.as_mut()) {
             s.culling.pass.reset_history();
+            s.auto.reset();
             s.scratch.volume.cache.clear();
         }
     }
@@ -386,14 +399,29 @@ impl Pipeline {
         let camera = &input.camera;
         let scene: &Scene = &self.scene;
         let o = self.options;
-        let culled = o.culling != CullingSpec::None;
+        // Which views cull this frame: every one, none, or (`auto`) each
+        // as its cost model chooses.
+        let auto = o.culling == CullingSpec::Auto;
+        let may_cull = match o.culling {
+            CullingSpec::None => false,
+            CullingSpec::Auto => scene.objects().len() >= o.auto.min_objects as usize,
+            _ => true,
+        };
+        let culled = may_cull && (!auto || self.auto_eye.choose(&o.auto));
+        let mut lights_culled = false;
+        for s in self.lights.iter_mut().filter_map(|s| s.state.as_mut()) {
+            s.culled = may_cull && (!auto || s.auto.choose(&o.auto));
+            lights_culled |= s.culled;
+        }
 
         // 1. Eye pass (PSR) and, for the light pass, the visible surface points.
-        let previous = Some(EyePass::reusable(
+        let mut previous = EyePass::reusable(
             self.eye.take(),
             (w, h),
             o.instruction_set.unwrap_or_default(),
-        )?);
+        )?;
+        previous.target.take_stats();
+        let previous = Some(previous);
         let (eye, eye_queries, eye_waits) = if culled {
             let state = self.culling.get_or_insert_with(|| EyeCulling::new(scene));
             state.set_frame(frame);
@@ -436,31 +464,68 @@ impl Pipeline {
                 .filter(|id| scene.object(**id).flags.visible);
             self.psr.extend(visible.map(|id| scene.id_of(id.0)));
             self.psr.sort_unstable();
-            visible_points_into(
-                scene,
-                camera,
-                &eye,
-                o.coverage.sampling(),
-                &mut self.receivers,
-            );
+            if lights_culled {
+                visible_points_into(
+                    scene,
+                    camera,
+                    &eye,
+                    o.coverage.sampling(),
+                    &mut self.receivers,
+                );
+            }
             (eye, r.stats.queries, r.stats.waits)
         } else {
             let eye = eye_pass_reusing(scene, &self.meshes, camera, w, h, previous)?;
             self.psr.clear();
             self.psr
                 .extend(self.all_visible.iter().map(|id| scene.id_of(id.0)));
+            if lights_culled {
+                self.culling.get_or_insert_with(|| EyeCulling::new(scene));
+                visible_points_into(
+                    scene,
+                    camera,
+                    &eye,
+                    o.coverage.sampling(),
+                    &mut self.receivers,
+                );
+            }
             (eye, 0, 0)
         };
         let eye_ms = ms(start);
+        if auto && may_cull {
+            let traversal = match (&self.culling, culled) {
+                (Some(state), true) => state.result.stats,
+                _ => TraversalStats::default(),
+            };
+            let raster = eye.target.stats();
+            let host = self.backends.is_some();
+            let cost = auto::eye_cost(&o.auto, culled, &raster, &traversal, host);
+            self.auto_eye.observe(&o.auto, culled, cost, None);
+            tracing::debug!(
+                target: "shadowcull::auto",
+                view = "eye",
+                culled,
+                cost,
+                eye_ms,
+                triangles = raster.triangles_in,
+                tiles = raster.tiles_touched,
+                pixels = raster.pixels_tested,
+                nodes = traversal.nodes_visited,
+                queries = traversal.queries,
+                objects = traversal.objects_rendered,
+                points = lights_culled,
+            );
+        }
 
-        // 2. Light passes (PSC) of all lights, concurrently.
-        if let (true, Some(state)) = (culled, &self.culling) {
+        // 2. Light passes (PSC) of the culling lights, concurrently.
+        if let (true, Some(state)) = (lights_culled, &self.culling) {
             let (hierarchy, meshes) = state.parts();
             use rayon::prelude::*;
             let lights = self
                 .lights
                 .par_iter_mut()
                 .filter_map(|slot| slot.state.as_mut())
+                .filter(|state| state.culled)
                 .map(|state| (state.light, state.id.0, &mut state.culling));
             let input = light::LightPassInput {
                 pass: visibility::PassInput {
@@ -494,11 +559,16 @@ impl Pipeline {
             _ => None,
         };
         let psr = self.psr.len() as u64;
+        let all_caster_triangles = if auto && may_cull {
+            triangles_of(scene, &self.all_casters)
+        } else {
+            0
+        };
         let mut n = 0;
         let mut fill_ms = 0.0;
         for s in self.lights.iter_mut().filter_map(|s| s.state.as_mut()) {
             n += 1;
-            let casters: &[ObjectId] = if culled {
+            let casters: &[ObjectId] = if s.culled {
                 self.casters.clear();
                 self.casters.reserve(scene.objects().len());
                 let casting = s
@@ -548,7 +618,7 @@ impl Pipeline {
             };
             std::mem::swap(&mut s.scratch.targets, &mut self.stencil_targets);
             s.shadow = shadow.transpose()?;
-            let (light, light_ms) = if culled {
+            let (light, light_ms) = if s.culled {
                 (s.culling.result.stats, s.culling.ms)
             } else {
                 (TraversalStats::default(), 0.0)
@@ -604,6 +674,44 @@ impl Pipeline {
                 stats.bf_fill_clamped = fill.clamped;
             }
             s.stats = stats;
+            if auto && may_cull {
+                let costs = auto::LightCosts {
+                    caster_triangles: triangles_of(scene, casters),
+                    all_caster_triangles,
+                    volume_triangles: s.stats.volume_triangles,
+                    stencil: s.shadow.as_ref().map(|f| f.stencil).unwrap_or_default(),
+                    hierarchical: matches!(shadow_options.backend, Backend::Hierarchical { .. }),
+                    pass: s.culled.then_some(auto::LightPassWork {
+                        traversal: light,
+                        raster: s.culling.result.raster,
+                        host: self.backends.is_some(),
+                        eye_pixels: u64::from(w) * u64::from(h),
+                    }),
+                };
+                let (cost, unculled) = costs.costs(&o.auto);
+                s.auto.observe(&o.auto, s.culled, cost, unculled);
+                let st = &s.stats;
+                tracing::debug!(
+                    target: "shadowcull::auto",
+                    view = "light",
+                    light = s.id.0,
+                    culled = s.culled,
+                    cost,
+                    unculled = unculled.unwrap_or(f64::NAN),
+                    light_ms,
+                    volumes_ms = st.volumes.silhouette_ms + st.volumes.volume_ms,
+                    stencil_ms = st.stencil_ms,
+                    nodes = light.nodes_visited,
+                    queries = light.queries,
+                    raster_triangles = s.culling.result.raster.triangles_in,
+                    raster_tiles = s.culling.result.raster.tiles_touched,
+                    raster_pixels = s.culling.result.raster.pixels_tested,
+                    objects = light.objects_rendered,
+                    caster_triangles = costs.caster_triangles,
+                    h_fragments = costs.stencil.h_fragments,
+                    pixels_processed = costs.stencil.pixels_processed,
+                );
+            }
         }
         self.eye = Some(eye);
         self.camera = Some(*camera);
@@ -822,9 +930,14 @@ impl<'a> LightOutput<'a> {
         &self.state.scratch.volume.buffer
     }
 
-    /// The light views the light pass used (empty without culling).
+    /// The light views the light pass used (empty when the light did not
+    /// cull this frame: without culling, or as `culling: auto` chose).
     pub fn views(&self) -> &'a [LightView] {
-        self.state.culling.pass.views()
+        if self.state.culled {
+            self.state.culling.pass.views()
+        } else {
+            &[]
+        }
     }
 
     /// This light's counters (the frame's eye figures repeated).
@@ -901,6 +1014,19 @@ fn check_options(options: &PipelineOptions) -> Result<()> {
         field: e.field.into(),
         message: e.message,
     })
+}
+
+/// The triangles of objects `ids`.
+fn triangles_of(scene: &Scene, ids: &[ObjectId]) -> u64 {
+    let meshes = scene.graph().meshes();
+    let objects = scene.objects();
+    ids.iter()
+        .map(|id| {
+            meshes[objects[id.0 as usize].mesh.0 as usize]
+                .triangles()
+                .len() as u64
+        })
+        .sum()
 }
 
 fn ms(t: Instant) -> f64 {

@@ -44,6 +44,11 @@ pub enum CullingSpec {
     Chc,
     /// CHC++: batched queries, multiqueries, revisits (`chcpp`).
     Chcpp,
+    /// Per view (the eye, each light) and per frame, CHC++ or no culling,
+    /// whichever the cost model of [`AutoSpec`] finds cheaper from the
+    /// counters of earlier frames (never from timers): see
+    /// `src/pipeline/auto.rs` for the rule. The mask is the unculled one.
+    Auto,
 }
 
 /// How culling samples pixels (`coverage: conservative`).
@@ -104,6 +109,94 @@ impl Default for ChcppSpec {
     }
 }
 
+/// `culling: auto`'s cost model (`auto: (probe: 8, ...)`): what one unit of
+/// each counter costs, in nanoseconds on the machine kind the defaults were
+/// fitted on (2-core AMD EPYC Zen 4, `docs/auto.md`), and when to look
+/// again at the mode not chosen. Only the ratios matter to the rule.
+#[derive(Clone, Copy, Debug, PartialEq, Deserialize, Serialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct AutoSpec {
+    /// Culled eye pass: per triangle submitted to the eye target (the
+    /// traversal's draws and query boxes, one at a time).
+    pub eye_triangle: f64,
+    /// Culled eye pass: per 8×8 tile the rasterizer visits.
+    pub eye_tile: f64,
+    /// Culled eye pass: per pixel depth-tested.
+    pub eye_pixel: f64,
+    /// Culled eye pass: per hierarchy node visited.
+    pub eye_node: f64,
+    /// Unculled eye pass (one parallel batch of every object): per triangle.
+    pub batch_triangle: f64,
+    /// Unculled eye pass: per tile visited.
+    pub batch_tile: f64,
+    /// Unculled eye pass: per pixel depth-tested.
+    pub batch_pixel: f64,
+    /// Light pass: per triangle submitted to a light view.
+    pub light_triangle: f64,
+    /// Light pass: per tile visited.
+    pub light_tile: f64,
+    /// Light pass: per pixel depth-tested.
+    pub light_pixel: f64,
+    /// Light pass: per hierarchy node visited.
+    pub light_node: f64,
+    /// Per occlusion query a host backend answers (its raster work is not
+    /// counted here).
+    pub query: f64,
+    /// Per eye pixel, for each culling light: the receiver points.
+    pub receiver_pixel: f64,
+    /// Per triangle of a caster whose volume is built (silhouette, volume).
+    pub caster_triangle: f64,
+    /// Per shadow-volume triangle drawn by the stencil.
+    pub volume_triangle: f64,
+    /// Per hierarchical-stencil tile test.
+    pub stencil_tile: f64,
+    /// Per hierarchical-stencil fragment (in boundary tiles).
+    pub h_fragment: f64,
+    /// Per brute-force stencil fragment (pixels processed; also `db`).
+    pub bf_fragment: f64,
+    /// Frames before the mode not chosen is tried again; doubles (up to 8×)
+    /// each time a try confirms the choice.
+    pub probe: u32,
+    /// A light's culled frame estimates its unculled cost; the estimate is
+    /// trusted only when it differs from the culled cost by more than this
+    /// factor, and the unculled mode is probed otherwise.
+    pub margin: f64,
+    /// Scenes with fewer objects never cull: there is too little to cull
+    /// for a traversal to pay.
+    pub min_objects: u32,
+}
+
+impl Default for AutoSpec {
+    /// Fitted (non-negative least squares) to the stage times of the city
+    /// and city_16384 street and bird views, point light and sun, `h` and
+    /// `bf` (`docs/auto.md`).
+    fn default() -> Self {
+        AutoSpec {
+            eye_triangle: 74.0,
+            eye_tile: 33.0,
+            eye_pixel: 7.7,
+            eye_node: 1690.0,
+            batch_triangle: 21.7,
+            batch_tile: 184.0,
+            batch_pixel: 0.0,
+            light_triangle: 206.0,
+            light_tile: 2.6,
+            light_pixel: 9.0,
+            light_node: 1600.0,
+            query: 2000.0,
+            receiver_pixel: 10.0,
+            caster_triangle: 253.0,
+            volume_triangle: 424.0,
+            stencil_tile: 55.0,
+            h_fragment: 16.0,
+            bf_fragment: 7.7,
+            probe: 8,
+            margin: 2.0,
+            min_objects: 16,
+        }
+    }
+}
+
 /// Default [`PipelineOptions::clamp_vertex_cost`]: nanoseconds per volume
 /// vertex of the CPU stencil (clip, setup and bin), an estimate for this
 /// machine kind.
@@ -142,8 +235,10 @@ pub struct PipelineOptions {
     pub query_threshold: u32,
     /// How culling samples pixels (`conservative` or the aggressive `point`).
     pub coverage: CoverageSpec,
-    /// CHC++ parameters (with `culling: chcpp`).
+    /// CHC++ parameters (with `culling: chcpp` or `auto`).
     pub chcpp: ChcppSpec,
+    /// The cost model of `culling: auto`.
+    pub auto: AutoSpec,
     /// Side of every light view (or cube face) of the light pass, in pixels.
     pub light_resolution: u32,
     /// Every triangle casts (back-facing ones flipped); the reference uses the same rule.
@@ -204,6 +299,7 @@ impl Default for PipelineOptions {
             query_threshold: 0,
             coverage: CoverageSpec::Conservative,
             chcpp: ChcppSpec::default(),
+            auto: AutoSpec::default(),
             light_resolution: 1024,
             two_sided: false,
             finite_extrusion: false,
@@ -222,18 +318,20 @@ impl Default for PipelineOptions {
 }
 
 impl PipelineOptions {
-    /// The culling traversal.
+    /// The culling traversal (`auto`'s culled mode is CHC++).
     pub fn culling(&self) -> visibility::Culling {
         match self.culling {
             CullingSpec::None => visibility::Culling::None,
             CullingSpec::Frustum => visibility::Culling::Frustum,
             CullingSpec::Exact => visibility::Culling::Exact,
             CullingSpec::Chc => visibility::Culling::Chc,
-            CullingSpec::Chcpp => visibility::Culling::ChcPlusPlus(visibility::ChcppOptions {
-                batch: self.chcpp.batch,
-                revisit: self.chcpp.revisit,
-                seed: self.chcpp.seed,
-            }),
+            CullingSpec::Chcpp | CullingSpec::Auto => {
+                visibility::Culling::ChcPlusPlus(visibility::ChcppOptions {
+                    batch: self.chcpp.batch,
+                    revisit: self.chcpp.revisit,
+                    seed: self.chcpp.seed,
+                })
+            }
         }
     }
 
@@ -316,6 +414,39 @@ impl PipelineOptions {
                     p.chcpp.batch, p.chcpp.revisit
                 ),
             );
+        }
+        if p.auto.probe == 0 {
+            return bad("auto.probe", "must be at least 1".into());
+        }
+        if !(p.auto.margin >= 1.0 && p.auto.margin.is_finite()) {
+            return bad(
+                "auto.margin",
+                format!("{} is not a finite number >= 1", p.auto.margin),
+            );
+        }
+        let a = &p.auto;
+        let costs = [
+            a.eye_triangle,
+            a.eye_tile,
+            a.eye_pixel,
+            a.eye_node,
+            a.batch_triangle,
+            a.batch_tile,
+            a.batch_pixel,
+            a.light_triangle,
+            a.light_tile,
+            a.light_pixel,
+            a.light_node,
+            a.query,
+            a.receiver_pixel,
+            a.caster_triangle,
+            a.volume_triangle,
+            a.stencil_tile,
+            a.h_fragment,
+            a.bf_fragment,
+        ];
+        if let Some(c) = costs.iter().find(|c| !(c.is_finite() && **c >= 0.0)) {
+            return bad("auto", format!("cost {c} is not a finite number >= 0"));
         }
         if !(8..=raster::MAX_TARGET_SIZE).contains(&p.light_resolution) {
             return bad(

@@ -124,6 +124,11 @@
 // CHC++ (the default).
 #define SC_CULLING_CHCPP 4
 
+// Per view and frame, CHC++ or no culling, as a cost model of the last
+// frames' counters chooses (`culling: auto`; its cost constants are the
+// defaults).
+#define SC_CULLING_AUTO 5
+
 // CPU stencil (`sc_pipeline_options.stencil`): none; no mask, for a host
 // that draws the volumes itself (the default).
 #define SC_STENCIL_NONE 0

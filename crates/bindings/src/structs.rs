@@ -31,6 +31,10 @@ pub const SC_CULLING_EXACT: u32 = 2;
 pub const SC_CULLING_CHC: u32 = 3;
 /// CHC++ (the default).
 pub const SC_CULLING_CHCPP: u32 = 4;
+/// Per view and frame, CHC++ or no culling, as a cost model of the last
+/// frames' counters chooses (`culling: auto`; its cost constants are the
+/// defaults).
+pub const SC_CULLING_AUTO: u32 = 5;
 
 /// CPU stencil (`sc_pipeline_options.stencil`): none; no mask, for a host
 /// that draws the volumes itself (the default).
@@ -308,6 +312,7 @@ impl sc_pipeline_options {
             SC_CULLING_EXACT => CullingSpec::Exact,
             SC_CULLING_CHC => CullingSpec::Chc,
             SC_CULLING_CHCPP => CullingSpec::Chcpp,
+            SC_CULLING_AUTO => CullingSpec::Auto,
             v => {
                 return Err(Failure::invalid(format!(
                     "options.culling: {v} is no SC_CULLING_*"

@@ -520,6 +520,14 @@ fn versioned_structs() {
     old.stencil = 77; // past the old size: ignored
     ok(sc_pipeline_create(&old, &mut h));
     ok(sc_pipeline_destroy(h));
+    // `culling: auto` is a culling value; past it, none is.
+    let mut auto = c_options();
+    auto.culling = SC_CULLING_AUTO;
+    ok(sc_pipeline_create(&auto, &mut h));
+    ok(sc_pipeline_destroy(h));
+    auto.culling = SC_CULLING_AUTO + 1;
+    assert_eq!(sc_pipeline_create(&auto, &mut h), SC_INVALID_ARGUMENT);
+    assert!(last_error().contains("options.culling"), "{}", last_error());
     assert_eq!(sc_version(), SC_ABI_VERSION);
 }
 

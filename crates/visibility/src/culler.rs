@@ -29,6 +29,9 @@ pub struct TraversalStats {
     pub wait_ms: f64,
     /// Objects drawn.
     pub objects_rendered: u64,
+    /// Triangles of the objects drawn as occluders (a light view's: their
+    /// casting triangles).
+    pub triangles_rendered: u64,
     /// Objects found visible (drawn and, where queried, confirmed).
     pub objects_visible: u64,
 }
@@ -272,6 +275,7 @@ impl Run<'_, '_> {
             Some(f) => f(id),
             None => self.meshes.triangles[mesh].clone(),
         };
+        self.out.stats.triangles_rendered += triangles.len() as u64;
         self.backend.draw(DrawCommand {
             clip_from_local: (self.view.clip_from_local)(&o.world_from_local),
             positions: self.meshes.positions[mesh].clone(),

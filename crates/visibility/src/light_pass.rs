@@ -122,6 +122,9 @@ pub struct LightPassResult {
     pub views: usize,
     /// Counters summed over the views.
     pub stats: TraversalStats,
+    /// The bundled rasterizer's counters summed over the views (zero for
+    /// views a host backend ran): what `culling: auto` weighs.
+    pub raster: raster::RasterStats,
 }
 
 /// One light view's persistent state: its culler, its query buffers and
@@ -133,6 +136,8 @@ struct ViewSlot {
     queries: QueryBuffers,
     /// The last traversal's result (its lists reused).
     result: CullResult,
+    /// The bundled rasterizer's counters of the last traversal.
+    raster: raster::RasterStats,
 }
 
 /// A depth target and a receiver target (one light view's worth, 8 bytes
@@ -505,11 +510,14 @@ impl LightPass {
         out.psc.reserve(scene.objects().len());
         out.views = views.len();
         out.stats = TraversalStats::default();
+        out.raster = raster::RasterStats::default();
         self.in_psc.clear();
         self.in_psc.resize(scene.objects().len(), false);
         for slot in &mut self.slots[..views.len()] {
-            let r = &slot_mut(slot).result;
+            let slot = slot_mut(slot);
+            let r = &slot.result;
             add_stats(&mut out.stats, &r.stats);
+            out.raster.add(&slot.raster);
             for id in &r.visible {
                 if !self.in_psc[id.0 as usize] {
                     self.in_psc[id.0 as usize] = true;
@@ -592,6 +600,7 @@ impl ViewSlot {
             set.target = Some(target);
             set.marks = Some(marks);
             self.result.clear();
+            self.raster = raster::RasterStats::default();
             return Ok(());
         };
         let mut target = Some(target);
@@ -640,11 +649,15 @@ impl ViewSlot {
         backend.set_receivers(None)?;
         set.target = match (bundled, target) {
             (Some(b), _) => {
-                let (t, queries) = b.into_parts();
+                let (mut t, queries) = b.into_parts();
                 self.queries = queries;
+                self.raster = t.take_stats();
                 Some(t)
             }
-            (None, t) => t,
+            (None, t) => {
+                self.raster = raster::RasterStats::default();
+                t
+            }
         };
         set.marks = Some(marks);
         r
@@ -663,5 +676,6 @@ fn add_stats(a: &mut TraversalStats, b: &TraversalStats) {
     a.waits += b.waits;
     a.wait_ms += b.wait_ms;
     a.objects_rendered += b.objects_rendered;
+    a.triangles_rendered += b.triangles_rendered;
     a.objects_visible += b.objects_visible;
 }

@@ -26,7 +26,7 @@ def box_scene(**options):
 
 
 @pytest.mark.parametrize("stencil", ["bf", "db", "h"])
-@pytest.mark.parametrize("culling", ["none", "chcpp"])
+@pytest.mark.parametrize("culling", ["none", "chcpp", "auto"])
 def test_mask_equals_the_reference(stencil, culling):
     p, cubes, lamp, sun = box_scene(stencil=stencil, culling=culling)
     for frame in range(3):
