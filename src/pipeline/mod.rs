@@ -464,15 +464,6 @@ impl Pipeline {
                 .filter(|id| scene.object(**id).flags.visible);
             self.psr.extend(visible.map(|id| scene.id_of(id.0)));
             self.psr.sort_unstable();
-            if lights_culled {
-                visible_points_into(
-                    scene,
-                    camera,
-                    &eye,
-                    o.coverage.sampling(),
-                    &mut self.receivers,
-                );
-            }
             (eye, r.stats.queries, r.stats.waits)
         } else {
             let eye = eye_pass_reusing(scene, &self.meshes, camera, w, h, previous)?;
@@ -480,17 +471,21 @@ impl Pipeline {
             self.psr
                 .extend(self.all_visible.iter().map(|id| scene.id_of(id.0)));
             if lights_culled {
+                // The light passes read the hierarchy.
                 self.culling.get_or_insert_with(|| EyeCulling::new(scene));
-                visible_points_into(
-                    scene,
-                    camera,
-                    &eye,
-                    o.coverage.sampling(),
-                    &mut self.receivers,
-                );
             }
             (eye, 0, 0)
         };
+        // The culling lights mark the eye's visible surface points.
+        if lights_culled {
+            visible_points_into(
+                scene,
+                camera,
+                &eye,
+                o.coverage.sampling(),
+                &mut self.receivers,
+            );
+        }
         let eye_ms = ms(start);
         if auto && may_cull {
             let traversal = match (&self.culling, culled) {
