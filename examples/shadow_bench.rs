@@ -1,6 +1,6 @@
 //! One view, or one camera path, through the stencil shadow pipeline, timed per stage.
 //!
-//! `cargo run --release --example shadow_bench -- SCENE CAMERA WxH [--stencil bf|db|h|hybrid|none]
+//! `cargo run --release --example shadow_bench -- SCENE CAMERA WxH [--stencil bf|db|h|hybrid|none|auto]
 //! [--scissor on|off] [--method auto|zpass|zfail|zpplus] [--counters 8|wide] [--tile 4|8|16]
 //! [--full-shadow on|off] [--map N] [--culling none|frustum|exact|chc|chcpp|auto]
 //! [--coverage conservative|point] [--threshold T] [--light-res N]
@@ -87,6 +87,7 @@ const STENCILS: &[(&str, StencilBackend)] = &[
     ("h", StencilBackend::H),
     ("hybrid", StencilBackend::Hybrid),
     ("none", StencilBackend::None),
+    ("auto", StencilBackend::Auto),
 ];
 const CULLINGS: &[(&str, CullingSpec)] = &[
     ("none", CullingSpec::None),

@@ -167,7 +167,8 @@ fn write_csv(rows: &[VariantRow]) -> std::io::Result<Vec<u8>> {
 /// The variants a job compares: its `pipelines`, or when empty brute force,
 /// depth bounds, scissor with depth bounds, the hierarchical stencil with
 /// tiles 4, 8 and 16, the shadow-map hybrid, and the hierarchical stencil
-/// with CHC, CHC++ and point-sampled (aggressive) CHC++ culling, and brute
+/// with CHC, CHC++, point-sampled (aggressive) CHC++ and `auto` culling,
+/// `auto` culling with `auto` stencil (`auto`), and brute
 /// force with continuous clamping (receivers `all`, `psr`; both count the
 /// fill without and with clamping, `count_fill`), each otherwise like
 /// `pipeline`.
@@ -217,6 +218,15 @@ pub fn variants(job: &Job) -> Vec<NamedPipeline> {
         culled("h_chcpp", CullingSpec::Chcpp, CoverageSpec::Conservative),
         culled("h_chcpp_point", CullingSpec::Chcpp, CoverageSpec::Point),
         culled("h_auto", CullingSpec::Auto, CoverageSpec::Conservative),
+        NamedPipeline {
+            name: "auto".into(),
+            pipeline: PipelineOptions {
+                stencil: StencilBackend::Auto,
+                culling: CullingSpec::Auto,
+                coverage: CoverageSpec::Conservative,
+                ..base
+            },
+        },
         clamped("bf_clamp", ClampReceiversSpec::All),
         clamped("bf_clamp_psr", ClampReceiversSpec::Psr),
     ]

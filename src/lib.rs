@@ -69,7 +69,7 @@ pub use error::{Error, Result};
 pub use pipeline::memory;
 pub use pipeline::{
     AutoSpec, ClampReceiversSpec, ClampingSpec, CoverageSpec, CullingSpec, FrameInput, FrameOutput,
-    LightId, LightOutput, Pipeline, PipelineOptions, StencilBackend,
+    LightId, LightOutput, Pipeline, PipelineOptions, StencilBackend, StencilCosts,
 };
 pub use raster;
 pub use scene;

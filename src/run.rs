@@ -388,6 +388,8 @@ pub(crate) fn check_job_memory(
                 let (so, st) = cities(s)?;
                 Ok::<_, Error>((o.saturating_add(so), t.saturating_add(st)))
             })?,
+            // One object, but the inner scene's work bounds it.
+            SceneSpec::Merged(inner) => cities(inner)?,
             SceneSpec::Gltf(_) | SceneSpec::Obj(_) | SceneSpec::BoxCity(_) => (0, 0),
         })
     }

@@ -33,6 +33,19 @@ fn every_job_file_parses() {
     }
 }
 
+/// The single-object job of `culling: auto`'s cases: one object of at
+/// least 100k triangles, over at least 30 frames.
+#[test]
+fn the_merged_city_job_is_one_object_of_100k_triangles() {
+    let f = jobs_dir().join("merged_city.ron");
+    let job = Job::from_file(&f).unwrap();
+    let (_, scene) = prepare_scene(&job, f.parent().unwrap()).unwrap();
+    let c = scene.counts();
+    assert_eq!(c.objects, 1, "{c:?}");
+    assert!(c.triangles >= 100_000, "{c:?}");
+    assert!(job.frames.is_some_and(|n| n >= 30));
+}
+
 #[test]
 fn default_job_file_matches_the_built_in_default() {
     let j = Job::from_file(&jobs_dir().join("default_city.ron")).unwrap();

@@ -1009,6 +1009,84 @@ fn count_fill_counts_what_brute_force_processes() -> Result<()> {
 /// the light pass is priced out (each light culls its first two frames and
 /// then its probes), and the eye probes the unculled mode at its third
 /// frame.
+/// `stencil: auto` runs `h` first, then measures `db`, and keeps the
+/// cheaper by its cost model: the constants decide which, the masks never
+/// change, and two runs choose alike.
+#[test]
+fn auto_stencil_chooses_per_light_and_keeps_masks() -> Result<()> {
+    let (scene, path) = city();
+    let lights = lights(&scene, &path);
+    let (mut plain, _) = pipeline(
+        &scene,
+        options(CullingSpec::Chcpp, StencilBackend::H),
+        &lights,
+    )?;
+    let mut o = options(CullingSpec::Chcpp, StencilBackend::Auto);
+    o.auto.probe = 2;
+    // Per frame and light: whether the stencil ran `h` (it has a tile image).
+    let mut run = |o: PipelineOptions, frames: u32| -> Result<Vec<Vec<bool>>> {
+        let (mut a, _) = pipeline(&scene, o, &lights)?;
+        let (mut b, _) = pipeline(&scene, o, &lights)?;
+        let mut modes = Vec::new();
+        for frame in 0..frames {
+            let input = input(&path, frame % 8);
+            let x: Vec<_> = a
+                .frame(&input)?
+                .lights()
+                .map(|l| (l.shadow().unwrap().tiles.is_some(), l.stats().stencil))
+                .collect();
+            let y: Vec<_> = b
+                .frame(&input)?
+                .lights()
+                .map(|l| (l.shadow().unwrap().tiles.is_some(), l.stats().stencil))
+                .collect();
+            assert_eq!(x, y, "frame {frame}: the same choices and counters");
+            let out = plain.frame(&input)?;
+            for (li, (l, p)) in a
+                .last_output()
+                .unwrap()
+                .lights()
+                .zip(out.lights())
+                .enumerate()
+            {
+                assert_eq!(l.mask(), p.mask(), "frame {frame} light {li}");
+            }
+            modes.push(x.iter().map(|m| m.0).collect());
+        }
+        Ok(modes)
+    };
+    let per_light =
+        |modes: &[Vec<bool>], li: usize| -> Vec<bool> { modes.iter().map(|m| m[li]).collect() };
+    // `h` priced out. Probe period 2: `h` (the start), the probe of `db`
+    // reverses the choice (period 2), `h` probed at 2 confirms `db`
+    // (period 4), at 6 again (period 8).
+    let (t, f) = (true, false);
+    let mut dear_h = o;
+    dear_h.auto.stencil.h_pixel = 1e6;
+    let modes = run(dear_h, 12)?;
+    for li in 0..lights.len() {
+        let l = per_light(&modes, li);
+        assert_eq!(l, [t, f, t, f, f, f, t, f, f, f, f, f], "light {li}");
+    }
+    // `db` priced out: the start's probe of `db` confirms `h` (period 4),
+    // `db` probed at 5 (period 8).
+    let mut dear_db = o;
+    dear_db.auto.stencil.db_pixel = 1e6;
+    let modes = run(dear_db, 12)?;
+    for li in 0..lights.len() {
+        let l = per_light(&modes, li);
+        assert_eq!(l, [t, f, t, t, t, f, t, t, t, t, t, t], "light {li}");
+    }
+    // The fitted constants choose per light; whatever they choose, the
+    // masks are `h`'s (checked in `run`).
+    let modes = run(o, 6)?;
+    for li in 0..lights.len() {
+        let l = per_light(&modes, li);
+        assert_eq!(l[..2], [t, f], "light {li}: {l:?}");
+    }
+    Ok(())
+}
+
 #[test]
 fn auto_culling_chooses_per_view_and_keeps_masks() -> Result<()> {
     let (scene, path) = city();
@@ -1082,6 +1160,54 @@ fn auto_culling_chooses_per_view_and_keeps_masks() -> Result<()> {
     for frame in 0..3 {
         let x = summary(small.frame(&input(&path, frame))?);
         assert!(!x.0 && x.2.iter().all(|l| !l.0 && l.2 == 0));
+    }
+    Ok(())
+}
+
+/// `Merged(City(..))` bakes the city into one object: the same triangles
+/// and bounds, one object, so `culling: auto` never culls (too few objects)
+/// and every mask, whichever stencil `stencil: auto` runs, matches the
+/// reference.
+#[test]
+fn a_merged_city_is_one_object_with_exact_masks_under_auto() -> Result<()> {
+    use shadowcull::config::{load_scene, SceneSpec};
+    let city = SceneSpec::City(scene::procedural::city::CityParams {
+        seed: 3,
+        blocks_x: 2,
+        blocks_z: 2,
+        ..Default::default()
+    });
+    let base = std::path::Path::new(".");
+    let plain = Scene::new(load_scene(&city, base)?.graph)?;
+    let loaded = load_scene(&SceneSpec::Merged(Box::new(city)), base)?;
+    let (_, path) = loaded
+        .paths
+        .iter()
+        .find(|(name, _)| name == "street")
+        .cloned()
+        .expect("the city's street path");
+    let merged = Arc::new(Scene::new(loaded.graph)?);
+    assert_eq!(merged.objects().len(), 1);
+    assert!(plain.objects().len() > 16);
+    assert_eq!(merged.counts().triangles, plain.counts().triangles);
+    assert_eq!(merged.bounds(), plain.bounds());
+    let lights = crate::common::city_lights(&merged).to_vec();
+    let o = PipelineOptions {
+        culling: CullingSpec::Auto,
+        stencil: StencilBackend::Auto,
+        light_resolution: 256,
+        ..Default::default()
+    };
+    let (mut p, ids) = pipeline(&merged, o, &lights)?;
+    for frame in 0..4 {
+        let out = p.frame(&input(&path, frame * 2))?;
+        assert_eq!(out.stats().eye_queries, 0, "frame {frame}: nothing culls");
+        let masks: Vec<_> = out.lights().map(|l| l.mask().unwrap().clone()).collect();
+        for (k, m) in masks.iter().enumerate() {
+            let r = p.reference_mask(ids[k])?;
+            let cmp = compare(&r.mask, &r.ambiguous, m);
+            assert_eq!(cmp.mismatches, 0, "frame {frame} light {k}: {cmp:?}");
+        }
     }
     Ok(())
 }

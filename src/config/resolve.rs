@@ -5,7 +5,7 @@ use super::schema::{CameraSpec, Job, LightSpec, SceneSpec};
 use crate::{Error, Result};
 use glam::{DVec3, Vec3};
 use scene::load::Loaded;
-use scene::{CameraPath, Light, LookAt, Mesh, Scene, Transform};
+use scene::{CameraPath, Light, LookAt, Mesh, Scene, SceneGraph, Transform};
 use std::path::{Path, PathBuf};
 
 impl LightSpec {
@@ -202,7 +202,55 @@ pub fn load_scene(spec: &SceneSpec, base: &Path) -> Result<Loaded> {
             }
             all
         }
+        SceneSpec::Merged(inner) => {
+            let mut loaded = load_scene(inner, base)?;
+            loaded.graph = merged_graph(std::mem::take(&mut loaded.graph))?;
+            loaded
+        }
     })
+}
+
+/// `graph`'s objects baked into one mesh at the identity transform:
+/// vertices in world space (f32), mirrored objects' triangles rewound so
+/// that world-space facing is kept. The warnings carry over.
+///
+/// # Errors
+/// A graph that does not flatten, or more vertices than 32-bit indices hold.
+fn merged_graph(graph: SceneGraph) -> Result<SceneGraph> {
+    let scene = Scene::new(graph)?;
+    let meshes = scene.graph().meshes();
+    let (mut positions, mut triangles) = (Vec::new(), Vec::new());
+    for o in scene.objects() {
+        let mesh = &meshes[o.mesh.0 as usize];
+        let first = u32::try_from(positions.len())
+            .ok()
+            .filter(|f| f.checked_add(mesh.positions().len() as u32).is_some())
+            .ok_or_else(|| Error::Options {
+                field: "scene".into(),
+                message: "Merged: more vertices than 32-bit indices hold".into(),
+            })?;
+        let m = o.world_from_local;
+        positions.extend(
+            mesh.positions()
+                .iter()
+                .map(|p| m.transform_point3(p.as_dvec3()).as_vec3()),
+        );
+        triangles.extend(mesh.triangles().iter().map(|t| {
+            let [a, b, c] = t.map(|i| i + first);
+            if o.mirrored {
+                [a, c, b]
+            } else {
+                [a, b, c]
+            }
+        }));
+    }
+    let mut merged = SceneGraph::new();
+    for w in scene.warnings() {
+        merged.warn(w.clone());
+    }
+    let mesh = merged.add_mesh(Mesh::new("merged", &positions, &triangles)?);
+    merged.add_instance("merged", mesh, Transform::default());
+    Ok(merged)
 }
 
 /// Loads the job's scene (with its optional ground quad) and flattens it.
@@ -284,6 +332,7 @@ fn describe_scene(spec: &SceneSpec) -> String {
         SceneSpec::City(_) => "the procedural city".into(),
         SceneSpec::Group(v) if v.is_empty() => "an empty Group([])".into(),
         SceneSpec::Group(v) => v.iter().map(describe_scene).collect::<Vec<_>>().join(" + "),
+        SceneSpec::Merged(inner) => format!("{} (merged)", describe_scene(inner)),
     }
 }
 

@@ -82,6 +82,10 @@ pub enum SceneSpec {
     City(CityParams),
     /// Several scenes combined into one.
     Group(Vec<SceneSpec>),
+    /// Every object of a scene baked into one object (world-space vertices,
+    /// one mesh at the identity): a level exported as a single draw, where
+    /// object culling has nothing to remove (`Merged(City(()))`).
+    Merged(Box<SceneSpec>),
 }
 
 /// A ground quad: a square of side `size` centred under the scene bounds, at height `y`, facing up.
@@ -408,12 +412,22 @@ mod tests {
         assert_eq!(j.pipeline.culling, CullingSpec::Auto);
         assert_eq!((a.probe, a.min_objects, a.eye_node), (4, 2, 0.5));
         assert_eq!(a.light_node, crate::AutoSpec::default().light_node);
+        let j = parse(
+            r#"(version: 1, scene: City(()), pipeline: (stencil: auto,
+                auto: (stencil: (h_tile: 3.5))))"#,
+        )
+        .unwrap();
+        let t = j.pipeline.auto.stencil;
+        assert_eq!(j.pipeline.stencil, crate::StencilBackend::Auto);
+        assert_eq!(t.h_tile, 3.5);
+        assert_eq!(t.db_fragment, crate::StencilCosts::default().db_fragment);
         for (text, field) in [
             ("chcpp: (batch: 0)", "pipeline.chcpp"),
             ("light_resolution: 4", "pipeline.light_resolution"),
             ("auto: (probe: 0)", "pipeline.auto.probe"),
             ("auto: (margin: 0.5)", "pipeline.auto.margin"),
             ("auto: (eye_tile: -1.0)", "pipeline.auto"),
+            ("auto: (stencil: (db_pixel: inf))", "pipeline.auto.stencil"),
         ] {
             let e = parse(&format!(
                 "(version: 1, scene: City(()), pipeline: ({text}))"
@@ -427,6 +441,7 @@ mod tests {
             "coverage: exact",
             "chcpp: (batches: 5)",
             "auto: (probes: 5)",
+            "auto: (stencil: (h_tiles: 5))",
         ] {
             let e = parse(&format!(
                 "(version: 1, scene: City(()), pipeline: ({text}))"

@@ -1,25 +1,37 @@
-//! `culling: auto`: for each view — the eye pass, and each light's light
-//! pass — and each frame, whether to cull (CHC++) or to draw everything.
+//! `culling: auto` and `stencil: auto`: per view and per frame, one of two
+//! modes, whichever a cost model of earlier frames' counters finds cheaper.
+//!
+//! `culling: auto`, for each view — the eye pass, and each light's light
+//! pass — chooses whether to cull (CHC++) or to draw everything.
 //! Culling pays when it removes more work than its traversal costs: on a
 //! street view it removes nearly every object; on a bird view, where most
 //! objects are visible and cast visible shadows, its queries cost more than
 //! they save; in a scene of a few large objects there is nothing to remove
 //! [Steiner §2.5.1, §5].
 //!
+//! `stencil: auto`, for each light, chooses the hierarchical stencil (`h`)
+//! or the brute-force one with the depth-bounds test and scissor rectangles
+//! (`db`). `h` pays where volumes cover large screen areas of few boundary
+//! tiles (its whole-tile updates); `db` where many small or distant volumes
+//! make `h` test many tiles and rasterize most of them per pixel anyway,
+//! while the depth bounds and scissors reject most of their fragments
+//! [Aila04 §5, EK].
+//!
 //! The decision reads counters of earlier frames and the cost constants of
 //! [`AutoSpec`], never a timer, so a run's choices — and so its counters —
 //! are a function of its inputs: repeated runs choose alike, and so do
 //! shards that reset at the same keyframes. Masks never depend on it.
 //!
-//! The rule, per view:
+//! The rule, per view (for the stencil, per light; its first mode is `h`,
+//! its second `db`, and neither needs a warm frame):
 //! 1. Each mode has a modeled cost: a weighted sum of the counters of the
-//!    stage it changes ([`eye_cost`], [`LightCosts`]). A culled frame
-//!    measures the culled cost; an unculled frame the unculled one. A
-//!    light's culled frame also estimates its unculled cost: the volumes of
-//!    every caster, scaled from those of the potential casters by caster
-//!    triangles. The estimate is kept only when it differs from the culled
-//!    cost by more than the factor `margin`; a close call is measured by a
-//!    probe instead, as the eye's always is.
+//!    stage it changes ([`eye_cost`], [`LightCosts`], [`stencil_cost`]). A
+//!    culled frame measures the culled cost; an unculled frame the unculled
+//!    one. A light's culled frame also estimates its unculled cost: the
+//!    volumes of every caster, scaled from those of the potential casters by
+//!    caster triangles. The estimate is kept only when it differs from the
+//!    culled cost by more than the factor `margin`; a close call is measured
+//!    by a probe instead, as the eye's always is.
 //! 2. The view runs the mode with the lower known cost, culling on a tie.
 //!    Only a warm culled frame (one after a culled frame) measures the
 //!    culled cost: the first culled frame after a gap has no history and
@@ -30,10 +42,12 @@
 //!    times `probe`, each time a probe confirms the choice; it starts over
 //!    when a probe reverses it.
 //! 4. After [`super::Pipeline::reset_history`] (and in a new pipeline) a
-//!    view starts by culling: cold, then warm.
+//!    view starts with its first mode (culling: cold, then warm), then
+//!    measures the second.
 //! 5. A scene with fewer than `min_objects` objects never culls.
 
-use super::options::AutoSpec;
+use super::options::{AutoSpec, StencilCosts};
+use super::shadow_options::{Backend, ShadowOptions};
 use raster::{RasterStats, StencilStats};
 use visibility::TraversalStats;
 
@@ -45,13 +59,19 @@ struct Cost {
     at: u32,
 }
 
-/// One view's choice state across frames.
+/// One view's choice state across frames, between a first mode (culling;
+/// the stencil's `h`) and a second (no culling; `db`).
 #[derive(Clone, Debug, Default)]
 pub(crate) struct AutoView {
+    /// The first mode's cost (`culled`) and the second's.
     culled: Option<Cost>,
     unculled: Option<Cost>,
-    /// Consecutive culled frames up to the last one.
+    /// Consecutive first-mode frames up to the last one.
     culled_run: u32,
+    /// First-mode frames in a row before one measures its cost: 2 for
+    /// culling (its first frame after a gap has no history), 1 for a choice
+    /// without state.
+    warm: u32,
     /// Frames observed since the last reset.
     frames: u32,
     /// Frames after which the mode not chosen is probed (0: `probe`).
@@ -61,12 +81,31 @@ pub(crate) struct AutoView {
 }
 
 impl AutoView {
-    /// Forgets everything (a keyframe, new options).
-    pub fn reset(&mut self) {
-        *self = AutoView::default();
+    /// A view choosing whether to cull.
+    pub fn culling() -> Self {
+        AutoView {
+            warm: 2,
+            ..AutoView::default()
+        }
     }
 
-    /// Whether this frame culls.
+    /// A light choosing its stencil (true: `h`).
+    pub fn stencil() -> Self {
+        AutoView {
+            warm: 1,
+            ..AutoView::default()
+        }
+    }
+
+    /// Forgets everything (a keyframe, new options).
+    pub fn reset(&mut self) {
+        *self = AutoView {
+            warm: self.warm,
+            ..AutoView::default()
+        };
+    }
+
+    /// Whether this frame runs the first mode (culls).
     pub fn choose(&mut self, spec: &AutoSpec) -> bool {
         if self.period == 0 {
             self.period = spec.probe.max(1);
@@ -100,7 +139,7 @@ impl AutoView {
         let at = self.frames;
         if culled {
             self.culled_run += 1;
-            if self.culled_run >= 2 {
+            if self.culled_run >= self.warm.max(1) {
                 self.culled = Some(Cost { value: cost, at });
             }
             // An estimate close to the culled cost is not trusted: the
@@ -118,7 +157,7 @@ impl AutoView {
             let done = if before {
                 !culled
             } else {
-                culled && self.culled_run >= 2
+                culled && self.culled_run >= self.warm.max(1)
             };
             if done {
                 self.probing = None;
@@ -237,6 +276,39 @@ impl LightCosts {
     }
 }
 
+/// `stencil: auto`'s `db`: brute force with the per-volume depth-bounds
+/// test and scissor rectangles, from the options of its `h`.
+pub(crate) fn db_options(h: ShadowOptions) -> ShadowOptions {
+    ShadowOptions {
+        backend: Backend::Brute,
+        depth_bounds: true,
+        scissor: true,
+        ..h
+    }
+}
+
+/// The stencil stage's modeled cost for one light: `h` from its tile tests
+/// and boundary-tile fragments, `db` from its fragments processed, both
+/// also per volume triangle and per eye pixel.
+pub(crate) fn stencil_cost(
+    costs: &StencilCosts,
+    hierarchical: bool,
+    stencil: &StencilStats,
+    eye_pixels: u64,
+) -> f64 {
+    let (px, tri) = (eye_pixels as f64, stencil.triangles as f64);
+    if hierarchical {
+        costs.h_pixel * px
+            + costs.h_triangle * tri
+            + costs.h_tile * stencil.tile_tests as f64
+            + costs.h_fragment * stencil.h_fragments as f64
+    } else {
+        costs.db_pixel * px
+            + costs.db_triangle * tri
+            + costs.db_fragment * stencil.pixels_processed as f64
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -251,7 +323,7 @@ mod tests {
         estimate: Option<f64>,
     ) -> Vec<bool> {
         let spec = AutoSpec::default();
-        let mut v = AutoView::default();
+        let mut v = AutoView::culling();
         let mut run = 0;
         (0..frames)
             .map(|_| {
@@ -304,7 +376,7 @@ mod tests {
     #[test]
     fn a_reversing_probe_switches_and_restarts_the_period() {
         let spec = AutoSpec::default();
-        let mut v = AutoView::default();
+        let mut v = AutoView::culling();
         // Culled warm cost 5, unculled 10: culling preferred.
         assert!(v.choose(&spec));
         v.observe(&spec, true, 5.0, None);
@@ -335,6 +407,50 @@ mod tests {
         v.observe(&spec, true, 5.0, None);
         assert_eq!(v.period, 8);
         assert!(v.choose(&spec));
+    }
+
+    #[test]
+    fn the_stencil_cost_reads_each_backends_own_counters() {
+        let c = StencilCosts::default();
+        let s = StencilStats {
+            triangles: 10,
+            tile_tests: 20,
+            h_fragments: 30,
+            pixels_processed: 40,
+            ..Default::default()
+        };
+        let h = c.h_pixel * 100.0 + c.h_triangle * 10.0 + c.h_tile * 20.0 + c.h_fragment * 30.0;
+        assert_eq!(stencil_cost(&c, true, &s, 100), h);
+        let db = c.db_pixel * 100.0 + c.db_triangle * 10.0 + c.db_fragment * 40.0;
+        assert_eq!(stencil_cost(&c, false, &s, 100), db);
+        // `db` is brute force with depth bounds and scissors, the rest kept.
+        let h = ShadowOptions {
+            backend: Backend::Hierarchical {
+                tile: raster::TileSize::T8,
+                full_shadow: true,
+            },
+            two_sided: true,
+            ..Default::default()
+        };
+        let db = db_options(h);
+        assert_eq!(db.backend, Backend::Brute);
+        assert!(db.depth_bounds && db.scissor && db.two_sided);
+    }
+
+    #[test]
+    fn a_stencil_view_measures_its_first_mode_at_once() {
+        let spec = AutoSpec::default();
+        let mut v = AutoView::stencil();
+        assert!(v.choose(&spec));
+        v.observe(&spec, true, 5.0, None);
+        // No warm frame: `db` is probed at the second frame, and loses.
+        assert!(!v.choose(&spec));
+        v.observe(&spec, false, 9.0, None);
+        assert!(v.choose(&spec));
+        v.reset();
+        assert!(v.choose(&spec));
+        v.observe(&spec, true, 5.0, None);
+        assert!(!v.choose(&spec), "a reset keeps the warm-up count");
     }
 
     #[test]

@@ -35,7 +35,8 @@ pub use eye::{
 };
 pub use options::{
     AutoSpec, BadOption, ChcppSpec, ClampReceiversSpec, ClampingSpec, CoverageSpec, CullingSpec,
-    PipelineOptions, StencilBackend, DEFAULT_CLAMP_PIXEL_COST, DEFAULT_CLAMP_VERTEX_COST,
+    PipelineOptions, StencilBackend, StencilCosts, DEFAULT_CLAMP_PIXEL_COST,
+    DEFAULT_CLAMP_VERTEX_COST,
 };
 use shadow_options::ShadowInput;
 pub use shadow_options::{Backend, ClampOptions, ShadowOptions};
@@ -106,6 +107,10 @@ struct LightState {
     culling: LightCulling,
     /// `culling: auto`'s choice state of the light pass.
     auto: auto::AutoView,
+    /// `stencil: auto`'s choice state of the stencil, one for frames whose
+    /// light pass culls and one for frames that draw every caster: the two
+    /// stencils' costs compare only over the same casters.
+    stencil_auto: [auto::AutoView; 2],
     /// Whether this frame runs the light pass (culls the casters).
     culled: bool,
     /// The last PSC as public ids (slot and generation), ascending.
@@ -122,7 +127,8 @@ impl LightState {
             light,
             id,
             culling: LightCulling::default(),
-            auto: auto::AutoView::default(),
+            auto: auto::AutoView::culling(),
+            stencil_auto: [auto::AutoView::stencil(), auto::AutoView::stencil()],
             culled: false,
             psc: Vec::new(),
             scratch: ShadowScratch::default(),
@@ -243,7 +249,7 @@ impl Pipeline {
             counts: scene.counts(),
             meshes: MeshCache::new(&scene),
             culling: None,
-            auto_eye: auto::AutoView::default(),
+            auto_eye: auto::AutoView::culling(),
             eye: None,
             camera: None,
             receivers: Default::default(),
@@ -350,6 +356,7 @@ impl Pipeline {
         for s in self.lights.iter_mut().filter_map(|s| s.state.as_mut()) {
             s.culling.pass.reset_history();
             s.auto.reset();
+            s.stencil_auto.iter_mut().for_each(auto::AutoView::reset);
             s.scratch.volume.cache.clear();
         }
     }
@@ -559,6 +566,7 @@ impl Pipeline {
         } else {
             0
         };
+        let stencil_auto = o.stencil == StencilBackend::Auto;
         let mut n = 0;
         let mut fill_ms = 0.0;
         for s in self.lights.iter_mut().filter_map(|s| s.state.as_mut()) {
@@ -582,10 +590,18 @@ impl Pipeline {
                 camera,
                 light: &s.light,
             };
+            // `stencil: auto`: this light's stencil this frame.
+            let stencil_view = usize::from(s.culled);
+            let hierarchical = !stencil_auto || s.stencil_auto[stencil_view].choose(&o.auto);
+            let light_options = if hierarchical {
+                shadow_options
+            } else {
+                auto::db_options(shadow_options)
+            };
             let volumes = volume::build_for(
                 input,
                 casters,
-                &shadow_options,
+                &light_options,
                 (w, h),
                 receives.as_deref(),
                 &mut s.scratch.volume,
@@ -605,7 +621,7 @@ impl Pipeline {
                 _ => Some(stencil::stencil_volumes(
                     input,
                     &eye,
-                    &shadow_options,
+                    &light_options,
                     &mut s.scratch,
                     volumes,
                     s.shadow.take(),
@@ -632,7 +648,7 @@ impl Pipeline {
                     input,
                     &eye.target,
                     casters,
-                    &shadow_options,
+                    &light_options,
                     clamped,
                     drawn,
                     &mut s.scratch.fill,
@@ -657,8 +673,8 @@ impl Pipeline {
             if let Some(f) = &s.shadow {
                 add_stencil(&mut stats, f);
                 // A brute-force stencil's own count is the fill of what it drew.
-                if shadow_options.backend == Backend::Brute {
-                    match shadow_options.clamping {
+                if light_options.backend == Backend::Brute {
+                    match light_options.clamping {
                         Some(_) => stats.bf_fill_clamped = f.stencil.pixels_processed,
                         None => stats.bf_fill_unclamped = f.stencil.pixels_processed,
                     }
@@ -669,13 +685,30 @@ impl Pipeline {
                 stats.bf_fill_clamped = fill.clamped;
             }
             s.stats = stats;
+            if let (true, Some(f)) = (stencil_auto, &s.shadow) {
+                let pixels = u64::from(w) * u64::from(h);
+                let cost = auto::stencil_cost(&o.auto.stencil, hierarchical, &f.stencil, pixels);
+                s.stencil_auto[stencil_view].observe(&o.auto, hierarchical, cost, None);
+                tracing::debug!(
+                    target: "shadowcull::auto",
+                    view = "stencil",
+                    light = s.id.0,
+                    hierarchical,
+                    cost,
+                    stencil_ms = f.stencil_ms,
+                    triangles = f.stencil.triangles,
+                    tile_tests = f.stencil.tile_tests,
+                    h_fragments = f.stencil.h_fragments,
+                    pixels_processed = f.stencil.pixels_processed,
+                );
+            }
             if auto && may_cull {
                 let costs = auto::LightCosts {
                     caster_triangles: triangles_of(scene, casters),
                     all_caster_triangles,
                     volume_triangles: s.stats.volume_triangles,
                     stencil: s.shadow.as_ref().map(|f| f.stencil).unwrap_or_default(),
-                    hierarchical: matches!(shadow_options.backend, Backend::Hierarchical { .. }),
+                    hierarchical: matches!(light_options.backend, Backend::Hierarchical { .. }),
                     pass: s.culled.then_some(auto::LightPassWork {
                         traversal: light,
                         raster: s.culling.result.raster,

@@ -26,6 +26,11 @@ pub enum StencilBackend {
     /// No CPU stencil and no mask: PSR, PSC and the volumes only, for a host
     /// that draws the volumes on its GPU.
     None,
+    /// Per light and per frame, `h` or `db` with scissor rectangles,
+    /// whichever the cost model of [`AutoSpec::stencil`] finds cheaper from
+    /// the counters of earlier frames (never from timers): see
+    /// `src/pipeline/auto.rs` for the rule. The mask is the same either way.
+    Auto,
 }
 
 /// Occlusion culling (`culling: chc`) of the eye pass (PSR) and of the light
@@ -109,7 +114,7 @@ impl Default for ChcppSpec {
     }
 }
 
-/// `culling: auto`'s cost model (`auto: (probe: 8, ...)`): what one unit of
+/// The cost model of `culling: auto` and `stencil: auto` (`auto: (probe: 8, ...)`): what one unit of
 /// each counter costs, in nanoseconds on the machine kind the defaults were
 /// fitted on (2-core AMD EPYC Zen 4, `docs/auto.md`), and when to look
 /// again at the mode not chosen. Only the ratios matter to the rule.
@@ -164,6 +169,31 @@ pub struct AutoSpec {
     /// Scenes with fewer objects never cull: there is too little to cull
     /// for a traversal to pay.
     pub min_objects: u32,
+    /// The stencil stage's cost model of `stencil: auto`.
+    pub stencil: StencilCosts,
+}
+
+/// The stencil stage's modeled cost (`stencil: auto`), per backend, in
+/// nanoseconds on the calibration machine (`docs/auto.md`): a fixed cost
+/// per eye pixel (clears, the tile bounds, the resolve and the mask), per
+/// volume triangle submitted, and per unit of the backend's own work.
+#[derive(Clone, Copy, Debug, PartialEq, Deserialize, Serialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct StencilCosts {
+    /// `h`: per eye pixel.
+    pub h_pixel: f64,
+    /// `h`: per volume triangle.
+    pub h_triangle: f64,
+    /// `h`: per tile test (a volume triangle piece against a tile).
+    pub h_tile: f64,
+    /// `h`: per fragment in a boundary tile.
+    pub h_fragment: f64,
+    /// `db` (with scissor rectangles): per eye pixel.
+    pub db_pixel: f64,
+    /// `db`: per volume triangle.
+    pub db_triangle: f64,
+    /// `db`: per fragment processed (inside the scissor and the depth bounds).
+    pub db_fragment: f64,
 }
 
 impl Default for AutoSpec {
@@ -193,6 +223,24 @@ impl Default for AutoSpec {
             probe: 8,
             margin: 2.0,
             min_objects: 16,
+            stencil: StencilCosts::default(),
+        }
+    }
+}
+
+impl Default for StencilCosts {
+    /// Fitted (non-negative least squares) to the stencil times of `h` and
+    /// `db` with scissor on the city, city_16384 and city_4096 street and
+    /// bird views, point light and sun (`docs/auto.md`).
+    fn default() -> Self {
+        StencilCosts {
+            h_pixel: 10.3,
+            h_triangle: 344.0,
+            h_tile: 124.0,
+            h_fragment: 4.7,
+            db_pixel: 16.5,
+            db_triangle: 363.0,
+            db_fragment: 2.0,
         }
     }
 }
@@ -344,14 +392,18 @@ impl PipelineOptions {
                 StencilBackend::Bf | StencilBackend::Db | StencilBackend::None => {
                     super::shadow_options::Backend::Brute
                 }
-                StencilBackend::H => super::shadow_options::Backend::Hierarchical {
-                    tile: match self.tile {
-                        4 => raster::TileSize::T4,
-                        16 => raster::TileSize::T16,
-                        _ => raster::TileSize::T8,
-                    },
-                    full_shadow: self.full_shadow,
-                },
+                // `auto` starts each light with `h` (`db` per light and frame
+                // by `auto::db_options`).
+                StencilBackend::H | StencilBackend::Auto => {
+                    super::shadow_options::Backend::Hierarchical {
+                        tile: match self.tile {
+                            4 => raster::TileSize::T4,
+                            16 => raster::TileSize::T16,
+                            _ => raster::TileSize::T8,
+                        },
+                        full_shadow: self.full_shadow,
+                    }
+                }
                 StencilBackend::Hybrid => super::shadow_options::Backend::Hybrid {
                     map_size: self.map_size,
                 },
@@ -447,6 +499,22 @@ impl PipelineOptions {
         ];
         if let Some(c) = costs.iter().find(|c| !(c.is_finite() && **c >= 0.0)) {
             return bad("auto", format!("cost {c} is not a finite number >= 0"));
+        }
+        let t = &a.stencil;
+        let costs = [
+            t.h_pixel,
+            t.h_triangle,
+            t.h_tile,
+            t.h_fragment,
+            t.db_pixel,
+            t.db_triangle,
+            t.db_fragment,
+        ];
+        if let Some(c) = costs.iter().find(|c| !(c.is_finite() && **c >= 0.0)) {
+            return bad(
+                "auto.stencil",
+                format!("cost {c} is not a finite number >= 0"),
+            );
         }
         if !(8..=raster::MAX_TARGET_SIZE).contains(&p.light_resolution) {
             return bad(

@@ -139,6 +139,14 @@
 // Hierarchical stencil.
 #define SC_STENCIL_H 2
 
+// Brute-force stencil with the per-volume depth-bounds test.
+#define SC_STENCIL_DB 3
+
+// Per light and frame, the hierarchical stencil or the depth-bounds one
+// with scissor rectangles, as a cost model of the last frames' counters
+// chooses (`stencil: auto`; its cost constants are the defaults).
+#define SC_STENCIL_AUTO 4
+
 // Conservative coverage: the culled mask equals the unculled one (default).
 #define SC_COVERAGE_CONSERVATIVE 0
 

@@ -43,6 +43,12 @@ pub const SC_STENCIL_NONE: u32 = 0;
 pub const SC_STENCIL_BF: u32 = 1;
 /// Hierarchical stencil.
 pub const SC_STENCIL_H: u32 = 2;
+/// Brute-force stencil with the per-volume depth-bounds test.
+pub const SC_STENCIL_DB: u32 = 3;
+/// Per light and frame, the hierarchical stencil or the depth-bounds one
+/// with scissor rectangles, as a cost model of the last frames' counters
+/// chooses (`stencil: auto`; its cost constants are the defaults).
+pub const SC_STENCIL_AUTO: u32 = 4;
 
 /// Conservative coverage: the culled mask equals the unculled one (default).
 pub const SC_COVERAGE_CONSERVATIVE: u32 = 0;
@@ -323,6 +329,8 @@ impl sc_pipeline_options {
             SC_STENCIL_NONE => StencilBackend::None,
             SC_STENCIL_BF => StencilBackend::Bf,
             SC_STENCIL_H => StencilBackend::H,
+            SC_STENCIL_DB => StencilBackend::Db,
+            SC_STENCIL_AUTO => StencilBackend::Auto,
             v => {
                 return Err(Failure::invalid(format!(
                     "options.stencil: {v} is no SC_STENCIL_*"

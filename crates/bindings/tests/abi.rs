@@ -528,6 +528,16 @@ fn versioned_structs() {
     auto.culling = SC_CULLING_AUTO + 1;
     assert_eq!(sc_pipeline_create(&auto, &mut h), SC_INVALID_ARGUMENT);
     assert!(last_error().contains("options.culling"), "{}", last_error());
+    // So are the depth-bounds and `auto` stencils; past them, none is.
+    let mut stencil = c_options();
+    for v in [SC_STENCIL_DB, SC_STENCIL_AUTO] {
+        stencil.stencil = v;
+        ok(sc_pipeline_create(&stencil, &mut h));
+        ok(sc_pipeline_destroy(h));
+    }
+    stencil.stencil = SC_STENCIL_AUTO + 1;
+    assert_eq!(sc_pipeline_create(&stencil, &mut h), SC_INVALID_ARGUMENT);
+    assert!(last_error().contains("options.stencil"), "{}", last_error());
     assert_eq!(sc_version(), SC_ABI_VERSION);
 }
 

@@ -25,7 +25,7 @@ def box_scene(**options):
     return p, cubes, lamp, sun
 
 
-@pytest.mark.parametrize("stencil", ["bf", "db", "h"])
+@pytest.mark.parametrize("stencil", ["bf", "db", "h", "auto"])
 @pytest.mark.parametrize("culling", ["none", "chcpp", "auto"])
 def test_mask_equals_the_reference(stencil, culling):
     p, cubes, lamp, sun = box_scene(stencil=stencil, culling=culling)
