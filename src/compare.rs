@@ -350,7 +350,11 @@ mod tests {
             r.shadow.volumes.silhouette_ms = [0.5, 0.25, 2.0][i];
             r.check.mismatch_pixels = i as u64;
         }
-        let v = VariantRow::from_rows("a,b", &PipelineOptions::default(), &rows);
+        let unculled = PipelineOptions {
+            culling: CullingSpec::None,
+            ..Default::default()
+        };
+        let v = VariantRow::from_rows("a,b", &unculled, &rows);
         assert_eq!(v.frame_ms, 3.0);
         assert_eq!(v.silhouette_ms, 0.5);
         assert_eq!(v.pixels_processed, 60);

@@ -265,7 +265,7 @@ fn compare_writes_one_row_per_variant_and_a_plot() {
     let text = SMALL_JOB.replace(
         "outputs: (masks: true, shaded: true),",
         r#"pipelines: [
-            (name: "bf"),
+            (name: "bf", pipeline: (culling: none)),
             (name: "db", pipeline: (stencil: db, scissor: true)),
             (name: "zfail", pipeline: (method: zfail)),
             (name: "zpass", pipeline: (method: zpass)),
@@ -274,7 +274,8 @@ fn compare_writes_one_row_per_variant_and_a_plot() {
             (name: "chcpp", pipeline: (stencil: h, culling: chcpp, coverage: conservative,
                 light_resolution: 256, query_threshold: 0,
                 chcpp: (batch: 50, revisit: 5, seed: 1))),
-            (name: "clamp", pipeline: (stencil: h, clamping: continuous, count_fill: true)),
+            (name: "clamp", pipeline: (stencil: h, culling: none, clamping: continuous,
+                count_fill: true)),
         ],"#,
     );
     std::fs::write(&job, text).unwrap();

@@ -156,6 +156,7 @@ fn run_case(case: &Case, two_sided: bool) -> Outcome {
     let base = PipelineOptions {
         stencil: STENCIL,
         two_sided,
+        culling: CullingSpec::None,
         coverage: CoverageSpec::Conservative,
         query_threshold: 0,
         reference_every: 0,

@@ -39,7 +39,6 @@ pub enum StencilBackend {
 #[serde(rename_all = "lowercase")]
 pub enum CullingSpec {
     /// Draw every object.
-    #[default]
     None,
     /// View-frustum culling.
     Frustum,
@@ -53,6 +52,9 @@ pub enum CullingSpec {
     /// whichever the cost model of [`AutoSpec`] finds cheaper from the
     /// counters of earlier frames (never from timers): see
     /// `src/pipeline/auto.rs` for the rule. The mask is the unculled one.
+    /// The default: it is never far from the best fixed choice, and a
+    /// scene of fewer than `auto.min_objects` objects never culls.
+    #[default]
     Auto,
 }
 
@@ -277,7 +279,8 @@ pub struct PipelineOptions {
     pub map_size: u32,
     /// Occlusion culling of the eye pass (the objects it draws are the
     /// potentially shadowed receivers, PSR) and of the light pass (shadow
-    /// volumes only for the potential shadow casters, PSC).
+    /// volumes only for the potential shadow casters, PSC); `auto` by
+    /// default.
     pub culling: CullingSpec,
     /// A node counts as visible above this many samples (0: conservative).
     pub query_threshold: u32,
@@ -343,7 +346,7 @@ impl Default for PipelineOptions {
             tile: 8,
             full_shadow: true,
             map_size: 2048,
-            culling: CullingSpec::None,
+            culling: CullingSpec::Auto,
             query_threshold: 0,
             coverage: CoverageSpec::Conservative,
             chcpp: ChcppSpec::default(),
