@@ -3,7 +3,8 @@
 //! and pixels processed, against mismatches with the ray-cast reference.
 //!
 //! Writes `compare.csv` (one row per variant) and `compare.svg` (time against
-//! mismatch per variant). The reference of a frame and light is computed once
+//! off-boundary mismatch per variant, with the Pareto front; see
+//! `trade_plot.rs`). The reference of a frame and light is computed once
 //! and shared by every variant with the same reference options; each variant
 //! starts with no history (culling, silhouette caches) at frame 0, so no
 //! variant inherits another's work.
@@ -16,6 +17,7 @@ use crate::pipeline::{
 };
 use crate::run::{atomic, frame_camera};
 use crate::stats::{cells, from_cells, leaves, median, Cell, FrameRow};
+use crate::trade_plot::{pareto_front, TradePoint};
 use crate::{Error, Result};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -112,6 +114,10 @@ pub struct VariantRow {
     pub bf_fill_unclamped: u64,
     /// The same with clamping's segments, summed.
     pub bf_fill_clamped: u64,
+    /// 1 when the variant is on the comparison's Pareto front of `frame_ms`
+    /// against `mismatch_off_boundary` (no other variant is at least as fast
+    /// and as close, and better in one), else 0.
+    pub pareto: u64,
 }
 
 /// A serde enum's lowercase name (`chcpp`, `point`).
@@ -139,6 +145,8 @@ impl VariantRow {
                 "chcpp" => Cell::Text(chcpp.clone()),
                 "clamping" => Cell::Text(spec_name(&p.clamping)),
                 "clamping_receivers" => Cell::Text(spec_name(&p.clamping_receivers)),
+                // Set over the whole table, by `mark_front`.
+                "pareto" => Cell::Count(0),
                 stat => {
                     let k = FrameRow::column(stat)
                         .unwrap_or_else(|| panic!("`{stat}` is not a stats.csv column"));
@@ -167,7 +175,8 @@ fn write_csv(rows: &[VariantRow]) -> std::io::Result<Vec<u8>> {
 /// The variants a job compares: its `pipelines`, or when empty brute force,
 /// depth bounds, scissor with depth bounds, the hierarchical stencil with
 /// tiles 4, 8 and 16, the shadow-map hybrid, and the hierarchical stencil
-/// with CHC, CHC++, point-sampled (aggressive) CHC++ and `auto` culling,
+/// with CHC, CHC++, point-sampled (aggressive) CHC++, point-sampled CHC++
+/// in 256² light views (`h_chcpp_point_lr256`, a trade point) and `auto` culling,
 /// `auto` culling with `auto` stencil (`auto`), and brute
 /// force with continuous clamping (receivers `all`, `psr`; both count the
 /// fill without and with clamping, `count_fill`), each otherwise like
@@ -217,6 +226,14 @@ pub fn variants(job: &Job) -> Vec<NamedPipeline> {
         culled("h_chc", CullingSpec::Chc, CoverageSpec::Conservative),
         culled("h_chcpp", CullingSpec::Chcpp, CoverageSpec::Conservative),
         culled("h_chcpp_point", CullingSpec::Chcpp, CoverageSpec::Point),
+        // A trade point: point sampling in 256² light views (aggressive).
+        NamedPipeline {
+            name: "h_chcpp_point_lr256".into(),
+            pipeline: PipelineOptions {
+                light_resolution: 256,
+                ..culled("", CullingSpec::Chcpp, CoverageSpec::Point).pipeline
+            },
+        },
         culled("h_auto", CullingSpec::Auto, CoverageSpec::Conservative),
         NamedPipeline {
             name: "auto".into(),
@@ -289,6 +306,7 @@ pub fn compare_job(
             pixels_processed = row.pixels_processed, mismatch_pixels = row.mismatch_pixels);
         table.push(row);
     }
+    mark_front(&mut table);
     let out = &options.out_dir;
     let csv_path = out.join("compare.csv");
     atomic(&csv_path, |tmp| std::fs::write(tmp, write_csv(&table)?))?;
@@ -299,42 +317,29 @@ pub fn compare_job(
     Ok(table)
 }
 
-/// `compare.svg`: median pipeline time (x) against mismatched pixels (y), one
-/// labelled point per variant.
+/// Sets every row's `pareto` column from the table's front of `frame_ms`
+/// against `mismatch_off_boundary` ([`crate::trade_plot::pareto_front`]).
+fn mark_front(table: &mut [VariantRow]) {
+    let points: Vec<(f64, u64)> = table
+        .iter()
+        .map(|r| (r.frame_ms, r.mismatch_off_boundary))
+        .collect();
+    for (row, on) in table.iter_mut().zip(pareto_front(&points)) {
+        row.pareto = on.into();
+    }
+}
+
+/// `compare.svg`: [`crate::trade_plot`]'s plot of the table.
 fn plot(rows: &[VariantRow], path: &Path) -> std::result::Result<(), Box<dyn std::error::Error>> {
-    use plotters::prelude::*;
-    let root = SVGBackend::new(path, (800, 500)).into_drawing_area();
-    root.fill(&WHITE)?;
-    let x_max = rows
+    let points: Vec<TradePoint> = rows
         .iter()
-        .map(|r| r.frame_ms)
-        .fold(0.0, f64::max)
-        .max(1e-3)
-        * 1.25;
-    let y_max = rows
-        .iter()
-        .map(|r| r.mismatch_pixels as f64)
-        .fold(0.0, f64::max)
-        .max(1.0)
-        * 1.25;
-    let mut chart = ChartBuilder::on(&root)
-        .caption("shadowcull compare: time vs mismatch", ("sans-serif", 20))
-        .margin(16)
-        .x_label_area_size(40)
-        .y_label_area_size(60)
-        .build_cartesian_2d(0.0..x_max, 0.0..y_max)?;
-    chart
-        .configure_mesh()
-        .x_desc("median frame time per light (ms)")
-        .y_desc("mismatched pixels vs reference")
-        .draw()?;
-    chart.draw_series(rows.iter().map(|r| {
-        EmptyElement::at((r.frame_ms, r.mismatch_pixels as f64))
-            + Circle::new((0, 0), 4, BLUE.filled())
-            + Text::new(r.name.clone(), (6, -14), ("sans-serif", 13))
-    }))?;
-    root.present()?;
-    Ok(())
+        .map(|r| TradePoint {
+            name: r.name.clone(),
+            ms: r.frame_ms,
+            mismatch: r.mismatch_off_boundary,
+        })
+        .collect();
+    crate::trade_plot::plot(&points, path)
 }
 
 #[cfg(test)]
@@ -387,7 +392,7 @@ mod tests {
              bandwidth_bytes,silhouette_pixels,culling,coverage,query_threshold,\
              light_resolution,chcpp,light_ms,psr,psc,queries,waits,clamping,\
              clamping_receivers,clamp_ms,sap_pairs,sap_swaps,segments,segment_triangles,\
-             bf_fill_unclamped,bf_fill_clamped\n"
+             bf_fill_unclamped,bf_fill_clamped,pareto\n"
         );
     }
 }

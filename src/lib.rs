@@ -64,6 +64,8 @@ pub mod run;
 pub mod shard;
 pub mod stats;
 mod surface;
+#[cfg(feature = "jobs")]
+mod trade_plot;
 
 pub use error::{Error, Result};
 pub use pipeline::memory;

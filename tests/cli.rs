@@ -341,9 +341,28 @@ fn compare_writes_one_row_per_variant_and_a_plot() {
     }
     let svg = std::fs::read_to_string(out.join("compare.svg")).unwrap();
     assert!(
-        svg.contains("<svg") && svg.contains("zfail"),
+        svg.contains("<svg") && svg.contains("zfail") && svg.contains("Pareto front"),
         "labelled plot"
     );
+    // The Pareto front of time against off-boundary mismatch: the fastest of
+    // the closest variants is on it, and nothing on it is beaten.
+    let point = |r: usize| (get(r, "frame_ms"), get(r, "mismatch_off_boundary"));
+    let beats = |a: (f64, f64), b: (f64, f64)| a.0 <= b.0 && a.1 <= b.1 && a != b;
+    let closest = (0..rows.len())
+        .min_by(|&a, &b| {
+            point(a)
+                .1
+                .total_cmp(&point(b).1)
+                .then(point(a).0.total_cmp(&point(b).0))
+        })
+        .unwrap();
+    assert_eq!(get(closest, "pareto"), 1.0, "{csv}");
+    for r in 0..rows.len() {
+        let on = get(r, "pareto");
+        assert!(on == 0.0 || on == 1.0, "{csv}");
+        let beaten = (0..rows.len()).any(|q| beats(point(q), point(r)));
+        assert_eq!(on == 1.0, !beaten, "row {r}: {csv}");
+    }
     // A bad variant names itself.
     std::fs::write(
         &job,
