@@ -195,16 +195,19 @@ pub fn variants(job: &Job) -> Vec<NamedPipeline> {
             ..base
         },
     };
-    let culled = |name: &str, culling, coverage| NamedPipeline {
+    let culled_at = |name: &str, culling, coverage, light_resolution| NamedPipeline {
         name: name.into(),
         pipeline: PipelineOptions {
             stencil: StencilBackend::H,
             tile: 8,
             culling,
             coverage,
+            light_resolution,
             ..base
         },
     };
+    let culled =
+        |name: &str, culling, coverage| culled_at(name, culling, coverage, base.light_resolution);
     let clamped = |name: &str, clamping_receivers| NamedPipeline {
         name: name.into(),
         pipeline: PipelineOptions {
@@ -227,13 +230,12 @@ pub fn variants(job: &Job) -> Vec<NamedPipeline> {
         culled("h_chcpp", CullingSpec::Chcpp, CoverageSpec::Conservative),
         culled("h_chcpp_point", CullingSpec::Chcpp, CoverageSpec::Point),
         // A trade point: point sampling in 256² light views (aggressive).
-        NamedPipeline {
-            name: "h_chcpp_point_lr256".into(),
-            pipeline: PipelineOptions {
-                light_resolution: 256,
-                ..culled("", CullingSpec::Chcpp, CoverageSpec::Point).pipeline
-            },
-        },
+        culled_at(
+            "h_chcpp_point_lr256",
+            CullingSpec::Chcpp,
+            CoverageSpec::Point,
+            256,
+        ),
         culled("h_auto", CullingSpec::Auto, CoverageSpec::Conservative),
         NamedPipeline {
             name: "auto".into(),
@@ -337,6 +339,7 @@ fn plot(rows: &[VariantRow], path: &Path) -> std::result::Result<(), Box<dyn std
             name: r.name.clone(),
             ms: r.frame_ms,
             mismatch: r.mismatch_off_boundary,
+            front: r.pareto != 0,
         })
         .collect();
     crate::trade_plot::plot(&points, path)

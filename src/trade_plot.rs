@@ -25,6 +25,8 @@ pub(crate) struct TradePoint {
     pub ms: f64,
     /// Mismatched pixels off a reference boundary.
     pub mismatch: u64,
+    /// On the Pareto front ([`pareto_front`], computed once by the caller).
+    pub front: bool,
 }
 
 /// Per point, whether it is on the Pareto front of (time, mismatch), both
@@ -116,12 +118,6 @@ pub(crate) fn plot(
 ) -> std::result::Result<(), Box<dyn std::error::Error>> {
     use plotters::prelude::*;
     const FONT: i32 = 13;
-    let front = pareto_front(
-        &points
-            .iter()
-            .map(|p| (p.ms, p.mismatch))
-            .collect::<Vec<_>>(),
-    );
     let drawn: Vec<usize> = (0..points.len())
         .filter(|&i| points[i].ms.is_finite() && points[i].ms >= 0.0)
         .collect();
@@ -165,7 +161,7 @@ pub(crate) fn plot(
             vec![(x_lo, y), (x_hi, y)],
             RGBColor(225, 225, 225),
         )))?;
-        let (_, py) = chart.backend_coord(&(x_lo, y));
+        let (px, py) = chart.backend_coord(&(x_lo, y));
         let text = if m >= 1000 {
             format!("{}k", m / 1000)
         } else {
@@ -173,16 +169,13 @@ pub(crate) fn plot(
         };
         root.draw(&Text::new(
             text.clone(),
-            (
-                chart.backend_coord(&(x_lo, y)).0 - 8 - text_width(&text, FONT),
-                py - FONT / 2,
-            ),
+            (px - 8 - text_width(&text, FONT), py - FONT / 2),
             ("sans-serif", FONT),
         ))?;
     }
 
     // The front: a staircase through its points, fastest first.
-    let mut on_front: Vec<usize> = drawn.iter().copied().filter(|&i| front[i]).collect();
+    let mut on_front: Vec<usize> = drawn.iter().copied().filter(|&i| points[i].front).collect();
     on_front.sort_by(|&a, &b| ms(a).total_cmp(&ms(b)));
     let mut stairs = Vec::new();
     for (k, &i) in on_front.iter().enumerate() {
@@ -209,7 +202,11 @@ pub(crate) fn plot(
         .map(|&i| chart.backend_coord(&(ms(i), y_of(points[i].mismatch as f64))))
         .collect();
     for (&i, &(x, y)) in order.iter().zip(&anchors) {
-        let color = if front[i] { RED } else { RGBColor(90, 90, 90) };
+        let color = if points[i].front {
+            RED
+        } else {
+            RGBColor(90, 90, 90)
+        };
         root.draw(&Circle::new((x, y), 4, color.filled()))?;
     }
     let (px, py) = chart.plotting_area().get_pixel_range();
@@ -230,7 +227,7 @@ pub(crate) fn plot(
                 RGBColor(170, 170, 170),
             ))?;
         }
-        let color = if front[i] { RED } else { BLACK };
+        let color = if points[i].front { RED } else { BLACK };
         root.draw(&Text::new(
             points[i].name.clone(),
             (cx, cy + 1),

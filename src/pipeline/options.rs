@@ -480,44 +480,47 @@ impl PipelineOptions {
             );
         }
         let a = &p.auto;
-        let costs = [
-            a.eye_triangle,
-            a.eye_tile,
-            a.eye_pixel,
-            a.eye_node,
-            a.batch_triangle,
-            a.batch_tile,
-            a.batch_pixel,
-            a.light_triangle,
-            a.light_tile,
-            a.light_pixel,
-            a.light_node,
-            a.query,
-            a.receiver_pixel,
-            a.caster_triangle,
-            a.volume_triangle,
-            a.stencil_tile,
-            a.h_fragment,
-            a.bf_fragment,
-        ];
-        if let Some(c) = costs.iter().find(|c| !(c.is_finite() && **c >= 0.0)) {
-            return bad("auto", format!("cost {c} is not a finite number >= 0"));
-        }
         let t = &a.stencil;
-        let costs = [
-            t.h_pixel,
-            t.h_triangle,
-            t.h_tile,
-            t.h_fragment,
-            t.db_pixel,
-            t.db_triangle,
-            t.db_fragment,
-        ];
-        if let Some(c) = costs.iter().find(|c| !(c.is_finite() && **c >= 0.0)) {
-            return bad(
+        for (field, costs) in [
+            (
+                "auto",
+                &[
+                    a.eye_triangle,
+                    a.eye_tile,
+                    a.eye_pixel,
+                    a.eye_node,
+                    a.batch_triangle,
+                    a.batch_tile,
+                    a.batch_pixel,
+                    a.light_triangle,
+                    a.light_tile,
+                    a.light_pixel,
+                    a.light_node,
+                    a.query,
+                    a.receiver_pixel,
+                    a.caster_triangle,
+                    a.volume_triangle,
+                    a.stencil_tile,
+                    a.h_fragment,
+                    a.bf_fragment,
+                ][..],
+            ),
+            (
                 "auto.stencil",
-                format!("cost {c} is not a finite number >= 0"),
-            );
+                &[
+                    t.h_pixel,
+                    t.h_triangle,
+                    t.h_tile,
+                    t.h_fragment,
+                    t.db_pixel,
+                    t.db_triangle,
+                    t.db_fragment,
+                ][..],
+            ),
+        ] {
+            if let Some(c) = costs.iter().find(|c| !(c.is_finite() && **c >= 0.0)) {
+                return bad(field, format!("cost {c} is not a finite number >= 0"));
+            }
         }
         if !(8..=raster::MAX_TARGET_SIZE).contains(&p.light_resolution) {
             return bad(
