@@ -2,9 +2,9 @@
 //! every producer of masks shares, comparison against the reference, and PNG
 //! output.
 
-use crate::surface::{EyeSurface, RayPlane};
+use crate::surface::{EyeSurface, PrimitiveId, RayPlane, RunRows};
 use glam::DVec3;
-use scene::{faces_light, Camera, Light, ObjectId, Scene};
+use scene::{faces_light, Camera, Light, Scene};
 #[cfg(feature = "images")]
 use std::io::Write;
 #[cfg(feature = "images")]
@@ -134,6 +134,57 @@ pub fn assemble_into(
     two_sided: bool,
     mask: &mut Mask,
 ) {
+    let mut runs = Vec::new();
+    let mask_in = MaskInput {
+        scene,
+        view,
+        light,
+        surface,
+        two_sided,
+    };
+    assemble_runs(mask_in, shadowed, mask, &mut runs);
+}
+
+/// What [`assemble_runs`] reads besides the raw stencil.
+pub(crate) struct MaskInput<'a> {
+    pub scene: &'a Scene,
+    pub view: View<'a>,
+    pub light: &'a Light,
+    pub surface: EyeSurface<'a>,
+    pub two_sided: bool,
+}
+
+/// One visible triangle's part of the mask rule, found once per triangle
+/// and band of rows.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct TriangleFacts {
+    /// Unlit by its facing (or the eye and light on opposite sides).
+    unlit: bool,
+    /// Its object receives shadows.
+    receives: bool,
+    /// Its plane seen from the eye.
+    plane: RayPlane,
+}
+
+/// Rows per band of [`assemble_runs`]' parallel work.
+const MASK_BAND_ROWS: usize = 16;
+
+/// [`assemble_into`] in bands of [`MASK_BAND_ROWS`] rows, by runs of one
+/// visible triangle ([`EyeSurface::for_each_run_in_rows`]), with `runs` the
+/// bands' run buffers, kept from frame to frame.
+pub(crate) fn assemble_runs(
+    input: MaskInput<'_>,
+    shadowed: impl Fn(usize) -> bool + Sync,
+    mask: &mut Mask,
+    runs: &mut Vec<RunRows<TriangleFacts>>,
+) {
+    let MaskInput {
+        scene,
+        view,
+        light,
+        surface,
+        two_sided,
+    } = input;
     let View {
         camera,
         width,
@@ -151,46 +202,61 @@ pub fn assemble_into(
         Light::Point { range: None, .. } | Light::Directional { .. }
     );
     let e = camera.position;
-    let row = |y: usize, out: &mut [PixelClass]| {
-        // Neighbouring pixels mostly show the same triangle: its facing is
-        // computed once per run.
-        // (primitive, its world triangle, unlit by facing, receives).
-        type Run = ((ObjectId, u32), [DVec3; 3], bool, bool);
-        let mut last: Option<Run> = None;
-        surface.for_each_in_row(y as u32, |x, id| {
-            let x = x as usize;
-            let i = y * width as usize + x;
-            let Some(id) = id else { return };
-            let px = &mut out[x];
-            let (tri, facing_unlit, receives) = match last {
-                Some((l, tri, f, r)) if l == id => (tri, f, r),
-                _ => {
-                    let tri = scene.world_triangle(id.0, id.1 as usize);
-                    let f = unlit_by_facing(&tri, e, light, two_sided);
-                    let r = scene.object(id.0).flags.receives;
-                    last = Some((id, tri, f, r));
-                    (tri, f, r)
+    let w = width as usize;
+    let facts = |id: PrimitiveId| {
+        let tri = scene.world_triangle(id.0, id.1 as usize);
+        TriangleFacts {
+            unlit: unlit_by_facing(&tri, e, light, two_sided),
+            receives: scene.object(id.0).flags.receives,
+            plane: RayPlane::new(&tri, e),
+        }
+    };
+    let band = |b: usize, out: &mut [PixelClass], runs: &mut RunRows<TriangleFacts>| {
+        let y0 = b * MASK_BAND_ROWS;
+        let rows = y0 as u32..(y0 + out.len() / w) as u32;
+        surface.for_each_run_in_rows(rows, runs, facts, |y, x0, x1, _, f| {
+            let (y, x0, x1) = (y as usize, x0 as usize, x1 as usize);
+            let out = &mut out[(y - y0) * w + x0..(y - y0) * w + x1];
+            if f.unlit {
+                out.fill(PixelClass::Unlit);
+                return;
+            }
+            let base = y * w;
+            let class = |i: usize| {
+                if f.receives && shadowed(i) {
+                    PixelClass::Shadow
+                } else {
+                    PixelClass::Lit
                 }
             };
-            let unlit = facing_unlit
-                || (!everywhere && {
-                    let dir = rays.direction(x as f64 + 0.5, y as f64 + 0.5);
-                    !light.reaches(RayPlane::new(&tri, e).point_or_origin(e, dir))
-                });
-            *px = if unlit {
-                PixelClass::Unlit
-            } else if receives && shadowed(i) {
-                PixelClass::Shadow
-            } else {
-                PixelClass::Lit
-            };
+            if everywhere {
+                if f.receives {
+                    for (k, px) in out.iter_mut().enumerate() {
+                        *px = class(base + x0 + k);
+                    }
+                } else {
+                    out.fill(PixelClass::Lit);
+                }
+                return;
+            }
+            for (k, px) in out.iter_mut().enumerate() {
+                let x = x0 + k;
+                let dir = rays.direction(x as f64 + 0.5, y as f64 + 0.5);
+                *px = if light.reaches(f.plane.point_or_origin(e, dir)) {
+                    class(base + x)
+                } else {
+                    PixelClass::Unlit
+                };
+            }
         });
     };
     use rayon::prelude::*;
+    runs.resize_with((height as usize).div_ceil(MASK_BAND_ROWS), Default::default);
     mask.pixels
-        .par_chunks_mut(width as usize)
+        .par_chunks_mut((w * MASK_BAND_ROWS).max(1))
+        .zip(runs.par_iter_mut())
         .enumerate()
-        .for_each(|(y, out)| row(y, out));
+        .for_each(|(b, (out, runs))| band(b, out, runs));
 }
 
 /// A per-pixel classification, row 0 at the top.

@@ -126,11 +126,81 @@ impl<'a> EyeSurface<'a> {
         }
     }
 
+    /// Calls `f(x0, x1, primitive)` for every run of pixels `x0..x1` of row
+    /// `y` that show one primitive (or none), left to right: what consumers
+    /// that decide once per visible triangle read.
+    ///
+    /// # Panics
+    /// When `y` lies outside the surface.
+    #[inline]
+    pub fn for_each_run_in_row(&self, y: u32, mut f: impl FnMut(u32, u32, Option<PrimitiveId>)) {
+        let mut run: Option<(u32, Option<PrimitiveId>)> = None;
+        let mut end = 0;
+        self.for_each_in_row(y, |x, p| {
+            match run {
+                Some((x0, q)) if q != p => {
+                    f(x0, x, q);
+                    run = Some((x, p));
+                }
+                None => run = Some((x, p)),
+                _ => {}
+            }
+            end = x + 1;
+        });
+        if let Some((x0, q)) = run {
+            f(x0, end, q);
+        }
+    }
+
+    /// Calls `f(y, x0, x1, primitive, data)` for every run of pixels
+    /// `x0..x1` of rows `rows` (top to bottom) that show one primitive,
+    /// skipping pixels that show none, with `data(primitive)`, the per-triangle
+    /// work of a consumer. A run that overlaps a run of the row above
+    /// showing the same primitive takes that run's `data` instead of calling
+    /// `data` again: a triangle a few pixels wide spans several rows, and its
+    /// world triangle, plane and facing are found once, not once per row.
+    /// `data` must depend on the primitive alone.
+    ///
+    /// # Panics
+    /// When `rows` reaches outside the surface.
+    pub(crate) fn for_each_run_in_rows<T: Copy>(
+        &self,
+        rows: std::ops::Range<u32>,
+        scratch: &mut RunRows<T>,
+        mut data: impl FnMut(PrimitiveId) -> T,
+        mut f: impl FnMut(u32, u32, u32, PrimitiveId, T),
+    ) {
+        let RunRows { above, here } = scratch;
+        above.clear();
+        for y in rows {
+            here.clear();
+            let mut k = 0;
+            self.for_each_run_in_row(y, |x0, x1, p| {
+                let Some(p) = p else { return };
+                // The runs above that end after x0, from the first; those that
+                // start before x1 overlap.
+                while k < above.len() && above[k].1 <= x0 {
+                    k += 1;
+                }
+                let reuse = above[k..]
+                    .iter()
+                    .take_while(|r| r.0 < x1)
+                    .find(|r| r.2 == p)
+                    .map(|r| r.3);
+                let d = reuse.unwrap_or_else(|| data(p));
+                here.push((x0, x1, p, d));
+                f(y, x0, x1, p, d);
+            });
+            std::mem::swap(above, here);
+        }
+    }
+
     /// Calls `f(x, primitive)` for every pixel of row `y`, left to right:
     /// the bulk form of [`EyeSurface::primitive`].
     ///
     /// # Panics
     /// When `y` lies outside the surface.
+    #[inline]
     pub fn for_each_in_row(&self, y: u32, mut f: impl FnMut(u32, Option<PrimitiveId>)) {
         match self.source {
             Source::Rows {
@@ -184,6 +254,23 @@ impl RayPlane {
     }
 }
 
+/// The runs of the last two rows of [`EyeSurface::for_each_run_in_rows`]
+/// (reused from call to call): `(x0, x1, primitive, data)`.
+#[derive(Debug)]
+pub(crate) struct RunRows<T> {
+    above: Vec<(u32, u32, PrimitiveId, T)>,
+    here: Vec<(u32, u32, PrimitiveId, T)>,
+}
+
+impl<T> Default for RunRows<T> {
+    fn default() -> Self {
+        RunRows {
+            above: Vec::new(),
+            here: Vec::new(),
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -202,5 +289,67 @@ mod tests {
         assert!(((o + d * t).y - 1.0).abs() < 1e-12);
         assert_eq!(p.hit(DVec3::X), None);
         assert_eq!(p.point_or_origin(o, DVec3::X), o);
+    }
+
+    /// The runs of rows `rows` by the definition: maximal runs of one
+    /// primitive, pixels showing none skipped.
+    fn naive_runs(w: u32, ids: &[Option<PrimitiveId>]) -> Vec<(u32, u32, u32, PrimitiveId)> {
+        let mut out = Vec::new();
+        for (y, row) in ids.chunks(w as usize).enumerate() {
+            let mut x = 0;
+            while x < row.len() {
+                let end = x + row[x..].iter().take_while(|p| **p == row[x]).count();
+                if let Some(p) = row[x] {
+                    out.push((y as u32, x as u32, end as u32, p));
+                }
+                x = end;
+            }
+        }
+        out
+    }
+
+    proptest::proptest! {
+        /// The runs are the maximal runs of one primitive, each with its
+        /// primitive's data; a triangle that continues from the row above
+        /// keeps its data without another call.
+        #[test]
+        fn runs_of_rows_carry_their_primitives_data(
+            w in 1u32..12,
+            cells in proptest::collection::vec(proptest::option::weighted(0.8, 0u32..4), 1..120),
+        ) {
+            let h = (cells.len() as u32).div_ceil(w);
+            let mut ids: Vec<Option<PrimitiveId>> =
+                cells.iter().map(|c| c.map(|k| (ObjectId(k % 2), k))).collect();
+            ids.resize((w * h) as usize, None);
+            let surface = EyeSurface::from_rows(w, &ids, None);
+            let mut calls = 0;
+            let mut got = Vec::new();
+            let mut scratch = RunRows::default();
+            surface.for_each_run_in_rows(
+                0..h,
+                &mut scratch,
+                |p: PrimitiveId| {
+                    calls += 1;
+                    p.1 * 10 + p.0 .0
+                },
+                |y, x0, x1, p, d| got.push((y, x0, x1, p, d)),
+            );
+            let want = naive_runs(w, &ids);
+            proptest::prop_assert_eq!(got.len(), want.len());
+            for (g, n) in got.iter().zip(&want) {
+                proptest::prop_assert_eq!((g.0, g.1, g.2, g.3), *n);
+                proptest::prop_assert_eq!(g.4, g.3 .1 * 10 + g.3 .0 .0);
+            }
+            // Calls: one per run that overlaps no run of the same primitive above.
+            let fresh = want
+                .iter()
+                .filter(|r| {
+                    !want.iter().any(|a| {
+                        a.0 + 1 == r.0 && a.3 == r.3 && a.1 < r.2 && r.1 < a.2
+                    })
+                })
+                .count();
+            proptest::prop_assert_eq!(calls, fresh);
+        }
     }
 }

@@ -5,7 +5,7 @@
 //! receivers.
 
 use crate::reference::PrimitiveId;
-use crate::surface::RayPlane;
+use crate::surface::{RayPlane, RunRows};
 use crate::Result;
 use glam::Vec4;
 use raster::{Coverage, DepthTarget, DrawItem, TileSize};
@@ -305,7 +305,7 @@ pub fn visible_points(
     sampling: visibility::Sampling,
 ) -> visibility::ReceiverPoints {
     let mut bands = Vec::new();
-    visible_points_into(scene, camera, eye, sampling, &mut bands);
+    visible_points_into(scene, camera, eye, sampling, &mut bands, &mut Vec::new());
     let mut out = visibility::ReceiverPoints::default();
     for band in bands {
         out.points.extend(band.points);
@@ -326,6 +326,7 @@ pub(crate) fn visible_points_into(
     eye: &EyePass,
     sampling: visibility::Sampling,
     bands: &mut Vec<visibility::ReceiverPoints>,
+    runs: &mut Vec<RunRows<Option<RayPlane>>>,
 ) {
     use rayon::prelude::*;
     let stride = match sampling {
@@ -337,104 +338,77 @@ pub(crate) fn visible_points_into(
     let e = camera.position;
     let surface = eye.surface();
     bands.resize_with(h.div_ceil(BAND_ROWS), Default::default);
-    bands.par_iter_mut().enumerate().for_each(|(b, band)| {
-        band.points.clear();
-        band.joined.clear();
-        for y in b * BAND_ROWS..((b + 1) * BAND_ROWS).min(h) {
-            let mut run = RunCutter::new(band, stride);
-            // The plane of the row's last triangle: runs of pixels share one.
-            let mut last: Option<((ObjectId, u32), Option<RayPlane>)> = None;
-            let (base, step) = rays.row(y as f64 + 0.5);
-            surface.for_each_in_row(y as u32, |x, prim| {
-                let plane = match prim {
-                    None => None,
-                    Some(prim) => match last {
-                        Some((q, plane)) if q == prim => plane,
-                        _ => {
-                            // Surfaces that cannot be shadowed are no receivers.
-                            let plane = scene.object(prim.0).flags.receives.then(|| {
-                                RayPlane::new(&scene.world_triangle(prim.0, prim.1 as usize), e)
-                            });
-                            last = Some((prim, plane));
-                            plane
-                        }
-                    },
+    runs.resize_with(bands.len(), Default::default);
+    // Per visible triangle: its plane, `None` for surfaces that cannot be
+    // shadowed (no receivers).
+    let plane_of = |prim: PrimitiveId| {
+        scene
+            .object(prim.0)
+            .flags
+            .receives
+            .then(|| RayPlane::new(&scene.world_triangle(prim.0, prim.1 as usize), e))
+    };
+    bands
+        .par_iter_mut()
+        .zip(runs.par_iter_mut())
+        .enumerate()
+        .for_each(|(b, (band, runs))| {
+            band.points.clear();
+            band.joined.clear();
+            let rows = (b * BAND_ROWS) as u32..((b + 1) * BAND_ROWS).min(h) as u32;
+            surface.for_each_run_in_rows(rows, runs, plane_of, |y, x0, x1, _, plane| {
+                let Some(plane) = plane else { return };
+                let (base, step) = rays.row(f64::from(y) + 0.5);
+                let dir = |x: u32| base + step * (f64::from(x) + 0.5);
+                let keep = |x0: u32, x1: u32, band: &mut visibility::ReceiverPoints| {
+                    for (x, joined) in piece_ends(x0, x1, stride) {
+                        let d = dir(x);
+                        // Never parallel: those pixels end the sub-runs.
+                        band.points.push(e + d * plane.hit(d).unwrap_or(0.0));
+                        band.joined.push(joined);
+                    }
                 };
-                let (Some(prim), Some(plane)) = (prim, plane) else {
-                    run.end();
+                // The ray's dot product with the plane normal is affine in x:
+                // with both ends of one sign and well clear of rounding, no
+                // pixel between them is parallel.
+                let clear = |x: u32| {
+                    let d = dir(x);
+                    let den = plane.normal.dot(d);
+                    (den.abs() > 1e-9 * plane.normal.length() * d.length()).then_some(den > 0.0)
+                };
+                if clear(x0).is_some_and(|s| clear(x1 - 1) == Some(s)) {
+                    keep(x0, x1, band);
                     return;
-                };
-                let dir = base + step * (f64::from(x) + 0.5);
-                match plane.hit(dir) {
-                    Some(t) => run.push(prim, e + dir * t),
-                    None => run.alone(e),
                 }
+                // A ray parallel to the plane ends the run: a lone point at the eye.
+                let mut start = x0;
+                for x in x0..x1 {
+                    if plane.hit(dir(x)).is_none() {
+                        keep(start, x, band);
+                        band.points.push(e);
+                        band.joined.push(false);
+                        start = x + 1;
+                    }
+                }
+                keep(start, x1, band);
             });
-            run.end();
-        }
-    });
+        });
 }
 
-/// Cuts one eye row's runs into pieces of `stride` steps as its points
-/// arrive, keeping only the pieces' ends.
-struct RunCutter<'a> {
-    out: &'a mut visibility::ReceiverPoints,
-    stride: usize,
-    /// The current run's triangle, and its steps since the last kept point.
-    run: Option<((ObjectId, u32), usize)>,
-    /// The run's last point when it is not kept yet.
-    pending: Option<glam::DVec3>,
-}
-
-impl<'a> RunCutter<'a> {
-    fn new(out: &'a mut visibility::ReceiverPoints, stride: usize) -> Self {
-        RunCutter {
-            out,
-            stride,
-            run: None,
-            pending: None,
-        }
-    }
-
-    fn keep(&mut self, p: glam::DVec3, joined: bool) {
-        self.out.points.push(p);
-        self.out.joined.push(joined);
-    }
-
-    /// The next pixel's point `p`, on `prim`'s plane.
-    fn push(&mut self, prim: (ObjectId, u32), p: glam::DVec3) {
-        match self.run {
-            Some((q, steps)) if q == prim => {
-                if steps + 1 == self.stride {
-                    self.keep(p, true);
-                    self.pending = None;
-                    self.run = Some((prim, 0));
-                } else {
-                    self.pending = Some(p);
-                    self.run = Some((prim, steps + 1));
-                }
-            }
-            _ => {
-                self.end();
-                self.keep(p, false);
-                self.run = Some((prim, 0));
-            }
-        }
-    }
-
-    /// A point that joins nothing (and ends the run before it).
-    fn alone(&mut self, p: glam::DVec3) {
-        self.end();
-        self.keep(p, false);
-    }
-
-    /// Ends the current run: its last point is kept.
-    fn end(&mut self) {
-        if let Some(p) = self.pending.take() {
-            self.keep(p, true);
-        }
-        self.run = None;
-    }
+/// The pixels of run `x0..x1` whose points are kept, each with whether it
+/// is joined to the one before: the first (not joined), every `stride`-th
+/// after it and the last — the ends of the pieces of `stride` steps the
+/// light pass marks. Empty for an empty run.
+fn piece_ends(x0: u32, x1: u32, stride: usize) -> impl Iterator<Item = (u32, bool)> {
+    let stride = stride.max(1);
+    let tail = x1
+        .checked_sub(1)
+        .filter(|&l| l >= x0 && !((l - x0) as usize).is_multiple_of(stride))
+        .map(|l| (l, true));
+    (x0..x1)
+        .step_by(stride)
+        .map(move |x| (x, x != x0))
+        .chain(tail)
 }
 
 /// How the culled eye pass traverses: the algorithm, the query threshold
@@ -555,56 +529,33 @@ pub(crate) fn cull_with(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use glam::DVec3;
-
-    /// Feeds one row: `(triangle, hit)` per pixel, `None` for a pixel that
-    /// receives nothing; the point of pixel `x` is `(x, 0, 0)` (`(-1, 0, 0)`
-    /// for a ray parallel to its plane, the eye).
-    fn cut(row: &[Option<(u32, bool)>], stride: usize) -> Vec<(f64, bool)> {
-        let mut out = visibility::ReceiverPoints::default();
-        let mut run = RunCutter::new(&mut out, stride);
-        for (x, px) in row.iter().enumerate() {
-            match *px {
-                None => run.end(),
-                Some((t, true)) => run.push((ObjectId(0), t), DVec3::new(x as f64, 0.0, 0.0)),
-                Some((_, false)) => run.alone(DVec3::NEG_X),
-            }
-        }
-        run.end();
-        out.points.iter().map(|p| p.x).zip(out.joined).collect()
-    }
 
     /// A run keeps its first point, every `stride`-th after it and its last,
     /// each joined to the one before: the ends of the pieces the light pass
-    /// marks. Runs end at another triangle, a pixel that receives nothing,
-    /// and a ray parallel to its plane (a lone point at the eye).
+    /// marks.
     #[test]
     fn runs_keep_their_piece_ends() {
-        let mut row = vec![Some((1, true)); 12]; // pixels 0..=11
-        row.push(Some((1, false))); // 12: parallel, alone
-        row.push(Some((1, true))); // 13: a new run of one
-        row.push(None); // 14
-        row.extend([Some((2, true)); 9]); // 15..=23: eight steps
-        row.extend([Some((3, true)); 2]); // 24, 25
         let t = true;
         let f = false;
-        assert_eq!(
-            cut(&row, 8),
-            vec![
-                (0.0, f),
-                (8.0, t),
-                (11.0, t),
-                (-1.0, f),
-                (13.0, f),
-                (15.0, f),
-                (23.0, t),
-                (24.0, f),
-                (25.0, t),
-            ]
-        );
+        let ends = |x0, x1, stride| piece_ends(x0, x1, stride).collect::<Vec<_>>();
+        assert_eq!(ends(0, 12, 8), [(0, f), (8, t), (11, t)]);
+        assert_eq!(ends(15, 24, 8), [(15, f), (23, t)]);
+        assert_eq!(ends(13, 14, 8), [(13, f)]);
+        assert_eq!(ends(24, 26, 8), [(24, f), (25, t)]);
+        assert!(ends(5, 5, 8).is_empty());
         // Stride 1 (point sampling) keeps every point.
-        let every = cut(&row, 1);
-        assert_eq!(every.len(), row.iter().flatten().count());
-        assert_eq!(&every[..3], &[(0.0, f), (1.0, t), (2.0, t)]);
+        assert_eq!(ends(3, 6, 1), [(3, f), (4, t), (5, t)]);
+        // Against the definition, on every short run.
+        for stride in 1..10usize {
+            for x0 in 0..12u32 {
+                for x1 in x0..x0 + 30 {
+                    let want: Vec<(u32, bool)> = (x0..x1)
+                        .filter(|&x| ((x - x0) as usize).is_multiple_of(stride) || x + 1 == x1)
+                        .map(|x| (x, x != x0))
+                        .collect();
+                    assert_eq!(ends(x0, x1, stride), want, "{x0}..{x1} by {stride}");
+                }
+            }
+        }
     }
 }

@@ -192,6 +192,8 @@ pub struct Pipeline {
     camera: Option<Camera>,
     /// The eye's visible points, in bands of rows.
     receivers: Vec<visibility::ReceiverPoints>,
+    /// The receiver points' run buffers, one per band of rows.
+    receiver_runs: Vec<crate::surface::RunRows<Option<crate::surface::RayPlane>>>,
     /// The stencil targets the lights take turns on.
     stencil_targets: stencil::StencilTargets,
     /// Every live visible object's slot id, ascending: the PSR without culling.
@@ -253,6 +255,7 @@ impl Pipeline {
             eye: None,
             camera: None,
             receivers: Default::default(),
+            receiver_runs: Default::default(),
             stencil_targets: Default::default(),
             all_visible: live_slots_of(&scene, |f| f.visible),
             all_casters: live_slots_of(&scene, |f| f.casts),
@@ -491,6 +494,7 @@ impl Pipeline {
                 &eye,
                 o.coverage.sampling(),
                 &mut self.receivers,
+                &mut self.receiver_runs,
             );
         }
         let eye_ms = ms(start);

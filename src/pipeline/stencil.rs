@@ -7,7 +7,7 @@ use super::eye::EyePass;
 use super::shadow_options::ShadowInput;
 pub use super::shadow_options::{Backend, ShadowOptions};
 use super::volume::{build_for, VolumeScratch};
-use crate::mask::{assemble_into, Mask, PixelClass, View};
+use crate::mask::{assemble_runs, Mask, MaskInput, PixelClass, TriangleFacts, View};
 use crate::Result;
 use raster::{
     HierarchicalOptions, HierarchicalStencil, StencilStats, StencilTarget, TileClass, TileSize,
@@ -87,6 +87,8 @@ pub struct ShadowScratch {
     /// stencil draws (kept empty between frames).
     clip: Vec<glam::Mat4>,
     ranges: Vec<(glam::Mat4, &'static raster::VolumeRange)>,
+    /// The mask assembly's run buffers, one per band of rows.
+    runs: Vec<crate::surface::RunRows<TriangleFacts>>,
 }
 
 /// The stencil stage's targets: cleared for every light, so the lights of a
@@ -300,15 +302,14 @@ pub(crate) fn stencil_volumes(
         width: w,
         height: h,
     };
-    assemble_into(
+    let mask_in = MaskInput {
         scene,
         view,
         light,
-        eye.surface(),
-        shadowed,
-        options.two_sided,
-        &mut mask,
-    );
+        surface: eye.surface(),
+        two_sided: options.two_sided,
+    };
+    assemble_runs(mask_in, shadowed, &mut mask, &mut scratch.runs);
     Ok(ShadowFrame {
         mask,
         volumes,
