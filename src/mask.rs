@@ -121,7 +121,8 @@ pub fn assemble(
     mask
 }
 
-/// [`assemble`] into `mask`, whose pixel buffer is reused.
+/// [`assemble`] into `mask`, whose pixel buffer is reused (the per-band run
+/// buffers are made per call; the pipeline keeps its own).
 ///
 /// # Panics
 /// As [`assemble`].
@@ -154,8 +155,8 @@ pub(crate) struct MaskInput<'a> {
     pub two_sided: bool,
 }
 
-/// One visible triangle's part of the mask rule, found once per triangle
-/// and band of rows.
+/// One visible triangle's part of the mask rule, found once per run, or
+/// taken from the run of the same triangle in the row above.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct TriangleFacts {
     /// Unlit by its facing (or the eye and light on opposite sides).

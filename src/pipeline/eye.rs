@@ -360,39 +360,68 @@ pub(crate) fn visible_points_into(
                 let Some(plane) = plane else { return };
                 let (base, step) = rays.row(f64::from(y) + 0.5);
                 let dir = |x: u32| base + step * (f64::from(x) + 0.5);
-                let keep = |x0: u32, x1: u32, band: &mut visibility::ReceiverPoints| {
-                    for (x, joined) in piece_ends(x0, x1, stride) {
-                        let d = dir(x);
-                        // Never parallel: those pixels end the sub-runs.
-                        band.points.push(e + d * plane.hit(d).unwrap_or(0.0));
-                        band.joined.push(joined);
-                    }
+                let n = plane.normal;
+                // The ray's dot product with the plane normal is affine in x.
+                // Its computed value errs by under 1e-14 of `scale` (the sum
+                // of the magnitudes it is made of, at any pixel of the run),
+                // so with both ends of one sign and beyond 1e-9 · scale, no
+                // pixel between them computes to 0 (a parallel ray). Tiny
+                // scales (underflow) and runs of one or two pixels ask per
+                // pixel instead.
+                let never_parallel = x1 - x0 > 2 && {
+                    let scale = n.abs().element_sum()
+                        * (base.abs().element_sum()
+                            + step.abs().element_sum() * (f64::from(x1) + 0.5));
+                    let tol = 1e-9 * scale;
+                    let (a, b) = (n.dot(dir(x0)), n.dot(dir(x1 - 1)));
+                    tol >= f64::MIN_POSITIVE
+                        && a.abs() > tol
+                        && b.abs() > tol
+                        && (a > 0.0) == (b > 0.0)
                 };
-                // The ray's dot product with the plane normal is affine in x:
-                // with both ends of one sign and well clear of rounding, no
-                // pixel between them is parallel.
-                let clear = |x: u32| {
-                    let d = dir(x);
-                    let den = plane.normal.dot(d);
-                    (den.abs() > 1e-9 * plane.normal.length() * d.length()).then_some(den > 0.0)
-                };
-                if clear(x0).is_some_and(|s| clear(x1 - 1) == Some(s)) {
-                    keep(x0, x1, band);
-                    return;
-                }
-                // A ray parallel to the plane ends the run: a lone point at the eye.
-                let mut start = x0;
-                for x in x0..x1 {
-                    if plane.hit(dir(x)).is_none() {
-                        keep(start, x, band);
-                        band.points.push(e);
-                        band.joined.push(false);
-                        start = x + 1;
-                    }
-                }
-                keep(start, x1, band);
+                let parallel = |x: u32| plane.hit(dir(x)).is_none();
+                run_points(x0..x1, stride, never_parallel, parallel, |px, joined| {
+                    let p = match px {
+                        Some(x) => {
+                            let d = dir(x);
+                            e + d * plane.hit(d).unwrap_or(0.0)
+                        }
+                        None => e,
+                    };
+                    band.points.push(p);
+                    band.joined.push(joined);
+                });
             });
         });
+}
+
+/// The points one run of pixels `x0..x1` on one plane gives the light pass,
+/// in order: `emit(Some(x), joined)` for pixel `x`'s point and
+/// `emit(None, false)` for the lone point at the eye of a pixel whose ray is
+/// parallel to the plane (`parallel(x)`), which ends the run: the pixels
+/// after it start a new one. Each run between such pixels keeps its
+/// [`piece_ends`]. `never_parallel` (the caller's proof that no pixel is)
+/// skips asking `parallel`. Always inlined: as a call, the receiver points
+/// of city street took 12–22 % longer (criterion, `surface` bench).
+#[inline(always)]
+fn run_points(
+    run: std::ops::Range<u32>,
+    stride: usize,
+    never_parallel: bool,
+    parallel: impl Fn(u32) -> bool,
+    mut emit: impl FnMut(Option<u32>, bool),
+) {
+    let mut start = run.start;
+    if !never_parallel {
+        for x in run.clone() {
+            if parallel(x) {
+                piece_ends(start, x, stride).for_each(|(x, j)| emit(Some(x), j));
+                emit(None, false);
+                start = x + 1;
+            }
+        }
+    }
+    piece_ends(start, run.end, stride).for_each(|(x, j)| emit(Some(x), j));
 }
 
 /// The pixels of run `x0..x1` whose points are kept, each with whether it
@@ -529,6 +558,78 @@ pub(crate) fn cull_with(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A run's points against the per-pixel rule they replace: each pixel's
+    /// point is pushed in turn; a run keeps its first point (not joined),
+    /// every `stride`-th after it and its last, each joined to the one
+    /// before; a parallel pixel ends the run with a lone point at the eye.
+    #[test]
+    fn parallel_pixels_split_runs_as_the_per_pixel_rule_does() {
+        fn per_pixel(n: u32, stride: u32, parallel: &[bool]) -> Vec<(Option<u32>, bool)> {
+            let mut out = Vec::new();
+            // (steps since the last kept point, the pending last point)
+            let mut run: Option<(u32, Option<u32>)> = None;
+            let end = |run: &mut Option<(u32, Option<u32>)>, out: &mut Vec<_>| {
+                if let Some((_, Some(p))) = run.take() {
+                    out.push((Some(p), true));
+                }
+            };
+            for x in 0..n {
+                if parallel[x as usize] {
+                    end(&mut run, &mut out);
+                    out.push((None, false));
+                    continue;
+                }
+                run = match run {
+                    None => {
+                        out.push((Some(x), false));
+                        Some((0, None))
+                    }
+                    Some((steps, _)) if steps + 1 == stride => {
+                        out.push((Some(x), true));
+                        Some((0, None))
+                    }
+                    Some((steps, _)) => Some((steps + 1, Some(x))),
+                };
+            }
+            end(&mut run, &mut out);
+            out
+        }
+        for stride in [1u32, 2, 3, 8] {
+            for n in 0..14u32 {
+                // Every set of parallel pixels of runs up to 9 pixels; masks
+                // of longer runs by a fixed pattern.
+                let masks: Vec<u32> = if n <= 9 {
+                    (0..1 << n).collect()
+                } else {
+                    vec![0, 1, 1 << (n - 1), 0b1010_0100_1001 & ((1 << n) - 1)]
+                };
+                for m in masks {
+                    let parallel: Vec<bool> = (0..n).map(|x| m >> x & 1 == 1).collect();
+                    let mut got = Vec::new();
+                    run_points(
+                        0..n,
+                        stride as usize,
+                        false,
+                        |x| parallel[x as usize],
+                        |p, j| got.push((p, j)),
+                    );
+                    assert_eq!(got, per_pixel(n, stride, &parallel), "n {n} mask {m:b}");
+                    if m == 0 {
+                        let mut fast = Vec::new();
+                        run_points(
+                            0..n,
+                            stride as usize,
+                            true,
+                            |_| true,
+                            |p, j| fast.push((p, j)),
+                        );
+                        assert_eq!(fast, got);
+                    }
+                }
+            }
+        }
+    }
 
     /// A run keeps its first point, every `stride`-th after it and its last,
     /// each joined to the one before: the ends of the pieces the light pass
