@@ -163,8 +163,9 @@ pub(crate) struct TriangleFacts {
     unlit: bool,
     /// Its object receives shadows.
     receives: bool,
-    /// Its plane seen from the eye.
-    plane: RayPlane,
+    /// Its plane seen from the eye, where the light's reach depends on the
+    /// surface point (spot and ranged point lights).
+    plane: Option<RayPlane>,
 }
 
 /// Rows per band of [`assemble_runs`]' parallel work.
@@ -209,7 +210,7 @@ pub(crate) fn assemble_runs(
         TriangleFacts {
             unlit: unlit_by_facing(&tri, e, light, two_sided),
             receives: scene.object(id.0).flags.receives,
-            plane: RayPlane::new(&tri, e),
+            plane: (!everywhere).then(|| RayPlane::new(&tri, e)),
         }
     };
     let band = |b: usize, out: &mut [PixelClass], runs: &mut RunRows<TriangleFacts>| {
@@ -230,7 +231,7 @@ pub(crate) fn assemble_runs(
                     PixelClass::Lit
                 }
             };
-            if everywhere {
+            let Some(plane) = f.plane else {
                 if f.receives {
                     for (k, px) in out.iter_mut().enumerate() {
                         *px = class(base + x0 + k);
@@ -239,11 +240,12 @@ pub(crate) fn assemble_runs(
                     out.fill(PixelClass::Lit);
                 }
                 return;
-            }
+            };
+            // The light's reach depends on the point: per pixel.
             for (k, px) in out.iter_mut().enumerate() {
                 let x = x0 + k;
                 let dir = rays.direction(x as f64 + 0.5, y as f64 + 0.5);
-                *px = if light.reaches(f.plane.point_or_origin(e, dir)) {
+                *px = if light.reaches(plane.point_or_origin(e, dir)) {
                     class(base + x)
                 } else {
                     PixelClass::Unlit

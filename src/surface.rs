@@ -133,7 +133,11 @@ impl<'a> EyeSurface<'a> {
     /// # Panics
     /// When `y` lies outside the surface.
     #[inline]
-    pub fn for_each_run_in_row(&self, y: u32, mut f: impl FnMut(u32, u32, Option<PrimitiveId>)) {
+    pub(crate) fn for_each_run_in_row(
+        &self,
+        y: u32,
+        mut f: impl FnMut(u32, u32, Option<PrimitiveId>),
+    ) {
         let mut run: Option<(u32, Option<PrimitiveId>)> = None;
         let mut end = 0;
         self.for_each_in_row(y, |x, p| {
