@@ -4,7 +4,7 @@
 //! [--scissor on|off] [--method auto|zpass|zfail|zpplus] [--counters 8|wide] [--tile 4|8|16]
 //! [--full-shadow on|off] [--map N] [--culling none|frustum|exact|chc|chcpp|auto]
 //! [--coverage conservative|point] [--threshold T] [--light-res N]
-//! [--clamping none|continuous] [--clamping-receivers all|psr] [--count-fill]
+//! [--clamping none|continuous] [--clamping-receivers all|psr|fragment] [--count-fill]
 //! [--two-sided] [--reference] [--mask OUT.png] [--reps R | --path NAME [--frames N]]`
 //! (defaults `--tile 8 --counters 8 --map 2048 --full-shadow on --culling none
 //! --coverage conservative --threshold 0 --light-res 1024 --reps 5`; `--threshold` is the
@@ -111,6 +111,7 @@ const CLAMPINGS: &[(&str, ClampingSpec)] = &[
 const CLAMP_RECEIVERS: &[(&str, ClampReceiversSpec)] = &[
     ("all", ClampReceiversSpec::All),
     ("psr", ClampReceiversSpec::Psr),
+    ("fragment", ClampReceiversSpec::Fragment),
 ];
 const COVERAGES: &[(&str, CoverageSpec)] = &[
     ("conservative", CoverageSpec::Conservative),

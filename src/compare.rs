@@ -248,6 +248,14 @@ pub fn variants(job: &Job) -> Vec<NamedPipeline> {
         },
         clamped("bf_clamp", ClampReceiversSpec::All),
         clamped("bf_clamp_psr", ClampReceiversSpec::Psr),
+        // Fragment receivers come from the light pass: culled.
+        NamedPipeline {
+            name: "bf_clamp_fragment".into(),
+            pipeline: PipelineOptions {
+                culling: CullingSpec::Chcpp,
+                ..clamped("", ClampReceiversSpec::Fragment).pipeline
+            },
+        },
     ]
 }
 

@@ -47,6 +47,8 @@ pub(crate) struct ClampedVariant<'a> {
     pub(crate) options: ClampOptions,
     /// The receiver set, as in [`build_for`].
     pub(crate) receives: Option<&'a [bool]>,
+    /// The fragment receivers, as in [`build_for`].
+    pub(crate) fragments: Option<&'a visibility::FragmentDepths>,
 }
 
 /// Counts the brute-force fill of `drawn` and of the variant the frame did
@@ -81,6 +83,7 @@ pub(crate) fn count_fill(
         &other_options,
         viewport,
         clamped.receives,
+        clamped.fragments,
         &mut scratch.other,
     )?;
     let other_pixels = brute_pixels(

@@ -523,6 +523,17 @@ impl Pipeline {
             );
         }
 
+        // Clamping to fragment receivers: the light passes read each
+        // caster's intervals along its clamping axis.
+        let fragment_model = (o.clamping == ClampingSpec::Continuous || o.count_fill)
+            && o.clamping_receivers == options::ClampReceiversSpec::Fragment;
+        let axes = |l: &scene::Light, b: &scene::Aabb| {
+            shadowgen::SegmentAxis::new(l, b).map(|a| visibility::DepthAxis {
+                origin: a.origin,
+                axis: a.axis,
+            })
+        };
+
         // 2. Light passes (PSC) of the culling lights, concurrently.
         if let (true, Some(state)) = (lights_culled, &self.culling) {
             let (hierarchy, meshes) = state.parts();
@@ -540,6 +551,7 @@ impl Pipeline {
                     meshes,
                     camera,
                     receivers: &self.receivers,
+                    fragment_axes: fragment_model.then_some(&axes as &visibility::AxisFn),
                 },
                 backends: self.backends.as_deref(),
                 options: &o.light_pass_options(),
@@ -602,14 +614,21 @@ impl Pipeline {
             } else {
                 auto::db_options(shadow_options)
             };
-            let volumes = volume::build_for(
+            // Fragment receivers come from this frame's light pass; a light
+            // not culled this frame clamps to every receiving object.
+            let fragments = (s.culled && fragment_model).then_some(&s.culling.result.fragments);
+            let mut volumes = volume::build_for(
                 input,
                 casters,
                 &light_options,
                 (w, h),
                 receives.as_deref(),
+                fragments,
                 &mut s.scratch.volume,
             )?;
+            if fragments.is_some() && light_options.clamping.is_some() {
+                volumes.clamp_ms += s.culling.result.fragment_ms;
+            }
             s.volume_stats = volumes;
             // Public ids (slot and generation) in the outputs.
             s.psc.clear();
@@ -643,6 +662,7 @@ impl Pipeline {
                 let clamped = fill_count::ClampedVariant {
                     options: o.clamp_options(),
                     receives: receives.as_deref(),
+                    fragments,
                 };
                 let drawn = fill_count::Drawn {
                     buffer: &s.scratch.volume.buffer,

@@ -60,6 +60,14 @@ pub enum ClampReceiversSpec {
     /// The eye pass's potentially visible receivers (PSR): tighter, but
     /// view-dependent. Without culling every receiving object counts.
     Psr,
+    /// Fragment receivers [Steiner Fig. 4.16]: the eye's visible surface as
+    /// the light pass marks it, with the nearest and farthest depth per
+    /// light pixel, read over each caster's light-view footprint
+    /// (`visibility::FragmentDepths`). The tightest, recomputed every
+    /// frame. A light the frame does not cull (`culling: none`, or `auto`
+    /// choosing none) has no light pass and clamps to every receiving
+    /// object, as `all`.
+    Fragment,
 }
 
 /// Options of continuous clamping in the shadow stage.

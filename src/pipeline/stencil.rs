@@ -144,7 +144,15 @@ pub fn shadow_mask_for(
         camera,
         light,
     };
-    let volumes = build_for(input, casters, options, viewport, None, &mut scratch.volume)?;
+    let volumes = build_for(
+        input,
+        casters,
+        options,
+        viewport,
+        None,
+        None,
+        &mut scratch.volume,
+    )?;
     stencil_volumes(input, eye, options, scratch, volumes, None)
 }
 

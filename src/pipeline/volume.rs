@@ -12,9 +12,10 @@ use raster::VolumeBuffer;
 use scene::{Aabb, Camera, ObjectId, Scene};
 use shadowgen::{
     build_clamped_volumes, build_volumes, BuildOptions, ClampInput, ClampPlan, GapCost, GapModel,
-    LightClamp, SegmentAxis, SilhouetteCache, VolumeRequest, VolumeStats,
+    LightClamp, ReceiverDepths, SegmentAxis, SilhouetteCache, VolumeRequest, VolumeStats,
 };
 use std::time::Instant;
+use visibility::FragmentDepths;
 
 /// The volume stage's state kept per light between frames.
 #[derive(Default)]
@@ -32,8 +33,9 @@ pub(crate) struct VolumeScratch {
 /// (cleared first) with the shadow stage's method, extrusion and clamping
 /// options; scissor rectangles and depth bounds are computed only when a
 /// stencil test uses them (they cost time), for a `viewport` of `(width,
-/// height)` pixels. `receives[id]` (internal ids) is clamping's receiver set;
-/// `None`: every receiving object.
+/// height)` pixels. Clamping's receivers are `fragments` (the light pass's
+/// fragment intervals) when given, else the objects `receives[id]`
+/// (internal ids), `None`: every receiving object.
 ///
 /// # Errors
 /// An invalid light or caster id ([`crate::Error::Shadowgen`]).
@@ -43,6 +45,7 @@ pub(crate) fn build_for(
     options: &ShadowOptions,
     viewport: (u32, u32),
     receives: Option<&[bool]>,
+    fragments: Option<&FragmentDepths>,
     scratch: &mut VolumeScratch,
 ) -> Result<VolumeStats> {
     let ShadowInput {
@@ -83,7 +86,14 @@ pub(crate) fn build_for(
                 receives,
                 cost: Some(&model),
             };
-            let cs = scratch.clamp.plan(&clamp_input, &mut scratch.plan)?;
+            let cs = match fragments {
+                Some(f) => {
+                    scratch
+                        .clamp
+                        .plan_from_depths(&clamp_input, &Fragments(f), &mut scratch.plan)
+                }
+                None => scratch.clamp.plan(&clamp_input, &mut scratch.plan)?,
+            };
             let clamp_ms = t.elapsed().as_secs_f64() * 1e3;
             let plan = &scratch.plan;
             let request = VolumeRequest {
@@ -102,6 +112,15 @@ pub(crate) fn build_for(
     };
     scratch.buffer.reserve_headroom();
     Ok(stats)
+}
+
+/// The light pass's fragment intervals as clamping reads them.
+struct Fragments<'a>(&'a FragmentDepths);
+
+impl ReceiverDepths for Fragments<'_> {
+    fn depths(&self, caster: ObjectId) -> Option<&[[f64; 2]]> {
+        self.0.get(caster)
+    }
 }
 
 /// The gap cost model on the eye's image: a caster's segments cost its

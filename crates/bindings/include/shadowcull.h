@@ -167,6 +167,10 @@
 // The eye pass's potentially visible receivers (with culling).
 #define SC_CLAMP_RECEIVERS_PSR 1
 
+// Fragment receivers: the eye's visible surface read in the light views
+// (with culling; a light the frame does not cull clamps as with `ALL`).
+#define SC_CLAMP_RECEIVERS_FRAGMENT 2
+
 // `float` elements.
 #define SC_F32 0
 

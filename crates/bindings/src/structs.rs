@@ -66,6 +66,9 @@ pub const SC_CLAMPING_CONTINUOUS: u32 = 1;
 pub const SC_CLAMP_RECEIVERS_ALL: u32 = 0;
 /// The eye pass's potentially visible receivers (with culling).
 pub const SC_CLAMP_RECEIVERS_PSR: u32 = 1;
+/// Fragment receivers: the eye's visible surface read in the light views
+/// (with culling; a light the frame does not cull clamps as with `ALL`).
+pub const SC_CLAMP_RECEIVERS_FRAGMENT: u32 = 2;
 
 /// `float` elements.
 pub const SC_F32: u32 = 0;
@@ -358,6 +361,7 @@ impl sc_pipeline_options {
         let clamping_receivers = match self.clamping_receivers {
             SC_CLAMP_RECEIVERS_ALL => ClampReceiversSpec::All,
             SC_CLAMP_RECEIVERS_PSR => ClampReceiversSpec::Psr,
+            SC_CLAMP_RECEIVERS_FRAGMENT => ClampReceiversSpec::Fragment,
             v => {
                 return Err(Failure::invalid(format!(
                     "options.clamping_receivers: {v} is no SC_CLAMP_RECEIVERS_*"

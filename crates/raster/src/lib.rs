@@ -91,7 +91,7 @@ pub use item::{aabb_corners, DrawItem, AABB_TRIANGLES};
 pub use layout::{TileSize, BACKGROUND};
 pub use limits::{DEPTH_ERROR, GUARD_BAND_PX, MAX_TARGET_SIZE};
 pub use query_options::{meets_apex_region, QueryMode, QueryOptions, APEX_EPS, VISIBLE};
-pub use receiver_target::{ReceiverTarget, RECEIVER_EPS_PX, SEGMENT_SLACK_PX};
+pub use receiver_target::{ReceiverTarget, TileMarks, RECEIVER_EPS_PX, SEGMENT_SLACK_PX};
 pub use setup::Facing;
 // The rasterizer's own setup, for tests that check the kernels against it.
 #[cfg(feature = "test-util")]

@@ -5,6 +5,11 @@
 //!
 //! A point marks every pixel whose closed square lies within
 //! [`RECEIVER_EPS_PX`] pixels (Euclidean) of its projection.
+//!
+//! On request ([`ReceiverTarget::set_track_nearest`]) the target also keeps
+//! the nearest receiver depth per pixel: with the farthest it bounds the
+//! depths of the receivers over the pixel, which fragment-receiver clamping
+//! reads [Steiner §4.4.1, Fig. 4.16].
 
 use crate::depth_target::DepthTarget;
 
@@ -16,11 +21,17 @@ use glam::{Mat4, Vec4};
 /// projection (below 2⁻¹⁰ px at 16384 px) with a wide margin.
 pub const RECEIVER_EPS_PX: f64 = 1.0 / 64.0;
 
-/// The farthest receiver depth per pixel of a light view (+∞ where unmarked).
+/// The farthest receiver depth per pixel of a light view (+∞ where unmarked),
+/// and on request the nearest.
 #[derive(Clone, Debug)]
 pub struct ReceiverTarget {
     pub(crate) layout: Layout,
     pub(crate) depth: Vec<f32>,
+    /// Per pixel the nearest (largest reversed-Z) marked depth, −∞ where
+    /// unmarked; empty unless [`ReceiverTarget::set_track_nearest`] is on.
+    near: Vec<f32>,
+    /// Per tile the nearest marked depth (as `near`).
+    tile_near: Vec<f32>,
     /// Per tile the smallest (farthest) marked depth, +∞ where none: a query
     /// sample can pass only at or in front of it, so a triangle wholly behind
     /// it skips the tile.
@@ -36,9 +47,93 @@ impl ReceiverTarget {
         ReceiverTarget {
             layout: target.layout,
             depth: vec![f32::INFINITY; target.depth.len()],
+            near: Vec::new(),
+            tile_near: Vec::new(),
             tile_min: vec![f32::INFINITY; target.tiles.len()],
             scratch: Vec::new(),
         }
+    }
+
+    /// Keeps (`true`) or stops keeping the nearest receiver depth per pixel
+    /// beside the farthest, from the next mark on. Turning it on unmarks the
+    /// target; off frees the nearest depths.
+    pub fn set_track_nearest(&mut self, on: bool) {
+        if on == self.tracks_nearest() {
+            return;
+        }
+        if on {
+            self.clear();
+            self.near = vec![f32::NEG_INFINITY; self.depth.len()];
+            self.tile_near = vec![f32::NEG_INFINITY; self.tile_min.len()];
+        } else {
+            self.near = Vec::new();
+            self.tile_near = Vec::new();
+        }
+    }
+
+    /// Whether the nearest receiver depth per pixel is kept.
+    pub fn tracks_nearest(&self) -> bool {
+        !self.near.is_empty()
+    }
+
+    /// The nearest receiver depth at pixel `(x, y)`, `None` when unmarked or
+    /// when the nearest depths are not kept.
+    ///
+    /// # Panics
+    /// When `(x, y)` lies outside the target.
+    pub fn nearest_at(&self, x: u32, y: u32) -> Option<f32> {
+        assert!(x < self.layout.width && y < self.layout.height);
+        let d = *self.near.get(self.layout.pixel_index(x, y))?;
+        (d != f32::NEG_INFINITY).then_some(d)
+    }
+
+    /// Calls `f` with every tile of the inclusive rectangle `x0..=x1 ×
+    /// y0..=y1` (cut to the target) that holds a mark, as [`TileMarks`].
+    pub fn for_each_tile_in(
+        &self,
+        (x0, x1): (u32, u32),
+        (y0, y1): (u32, u32),
+        mut f: impl FnMut(&TileMarks<'_>),
+    ) {
+        let l = self.layout;
+        if l.width == 0 || l.height == 0 {
+            return;
+        }
+        let (x1, y1) = (x1.min(l.width - 1), y1.min(l.height - 1));
+        if x0 > x1 || y0 > y1 {
+            return;
+        }
+        for ty in y0 >> l.shift..=y1 >> l.shift {
+            for tx in x0 >> l.shift..=x1 >> l.shift {
+                let t = l.tile_index(tx, ty);
+                let far = self.tile_min[t];
+                if far == f32::INFINITY {
+                    continue;
+                }
+                let (rx0, rx1, ry0, ry1) = l.tile_rect(tx, ty);
+                f(&TileMarks {
+                    target: self,
+                    x: (rx0.max(x0), rx1.min(x1)),
+                    y: (ry0.max(y0), ry1.min(y1)),
+                    far,
+                    near: self.tile_near.get(t).copied().unwrap_or(f32::INFINITY),
+                });
+            }
+        }
+    }
+
+    /// Calls `f(x, y, farthest, nearest)` for every marked pixel of the
+    /// inclusive rectangle `x0..=x1 × y0..=y1` (cut to the target), tile by
+    /// tile, skipping tiles with no mark. Without
+    /// [`ReceiverTarget::set_track_nearest`] the nearest depth passed is +∞
+    /// (unknown: as near as can be).
+    pub fn for_each_marked_in(
+        &self,
+        xs: (u32, u32),
+        ys: (u32, u32),
+        mut f: impl FnMut(u32, u32, f32, f32),
+    ) {
+        self.for_each_tile_in(xs, ys, |t| t.for_each_marked(&mut f));
     }
 
     /// Width and height in pixels.
@@ -53,6 +148,10 @@ impl ReceiverTarget {
         for (t, m) in self.tile_min.iter_mut().enumerate() {
             if *m != f32::INFINITY {
                 self.depth[t * n..(t + 1) * n].fill(f32::INFINITY);
+                if let Some(near) = self.near.get_mut(t * n..(t + 1) * n) {
+                    near.fill(f32::NEG_INFINITY);
+                    self.tile_near[t] = f32::NEG_INFINITY;
+                }
                 *m = f32::INFINITY;
             }
         }
@@ -100,7 +199,7 @@ impl ReceiverTarget {
             for x in 0..w {
                 let z = rows[(y * w + x) as usize];
                 if z != f32::INFINITY {
-                    r.mark_pixel(r.layout.pixel_index(x, y), z);
+                    r.mark_pixel(r.layout.pixel_index(x, y), z, z);
                 }
             }
         }
@@ -159,7 +258,7 @@ impl ReceiverTarget {
                 let dx = (x as f64 - f.px).max(f.px - (x as f64 + 1.0)).max(0.0);
                 let dy = (y as f64 - f.py).max(f.py - (y as f64 + 1.0)).max(0.0);
                 if dx * dx + dy * dy <= eps * eps {
-                    self.mark_pixel(l.pixel_index(x, y), f.z);
+                    self.mark_pixel(l.pixel_index(x, y), f.z, f.z);
                     n += 1;
                 }
             }
@@ -167,12 +266,18 @@ impl ReceiverTarget {
         n
     }
 
+    /// Marks pixel `i` (tile-major index) with a receiver depth range:
+    /// `far` (smallest reversed-Z) and `near`.
     #[inline(always)]
-    fn mark_pixel(&mut self, i: usize, z: f32) {
+    fn mark_pixel(&mut self, i: usize, far: f32, near: f32) {
         // Tile-major storage: a pixel's tile is its index over the tile size.
         let t = i >> (2 * self.layout.shift);
-        self.depth[i] = self.depth[i].min(z);
-        self.tile_min[t] = self.tile_min[t].min(z);
+        self.depth[i] = self.depth[i].min(far);
+        self.tile_min[t] = self.tile_min[t].min(far);
+        if let Some(n) = self.near.get_mut(i) {
+            *n = n.max(near);
+            self.tile_near[t] = self.tile_near[t].max(near);
+        }
     }
 
     /// Many points: the projections run in parallel, each point's footprint
@@ -215,7 +320,7 @@ impl ReceiverTarget {
                 NONE => {}
                 MANY => n += self.mark_one(pr, &points[k]),
                 _ => {
-                    self.mark_pixel(i as usize, z);
+                    self.mark_pixel(i as usize, z, z);
                     n += 1;
                 }
             }
@@ -236,7 +341,11 @@ impl ReceiverTarget {
     /// depth z/w is monotone along it, so its farthest value is at an end.
     /// The part of a segment behind the centre of projection (clip w ≤ 0)
     /// or off the target is clipped away first, in homogeneous coordinates.
-    /// Returns the number of pixels marked (counting repeats).
+    /// With [`ReceiverTarget::set_track_nearest`] on, each pixel takes the
+    /// farthest and nearest depth of the part of the segment within its
+    /// widened square instead (depth is affine along the projected
+    /// segment), which is tighter and still no nearer than any of its
+    /// points there. Returns the number of pixels marked (counting repeats).
     pub fn mark_segments_within(
         &mut self,
         clip_from_local: Mat4,
@@ -248,17 +357,26 @@ impl ReceiverTarget {
         let (w, h) = (pr.w, pr.h);
         let mut n = 0;
         for (a, b) in segments {
-            let (p, q, z) = match pr.clip_segment(&a, &b) {
+            let (p, q, zp, zq) = match pr.clip_segment(&a, &b) {
                 None => continue,
-                Some(Segment::Span(p, q, z)) => (p, q, z),
+                Some(Segment::Span(p, q, zp, zq)) => (p, q, zp, zq),
                 Some(Segment::Everywhere(z)) => {
+                    // Near depths reach the light: unbounded.
                     for i in 0..self.depth.len() {
-                        self.mark_pixel(i, z);
+                        self.mark_pixel(i, z, f32::INFINITY);
                     }
                     n += self.depth.len() as u64;
                     continue;
                 }
             };
+            // Depth along the projected segment is affine in its screen
+            // parameter (a line's image in normalized device coordinates
+            // is a line): a pixel's depths are those of the part of the
+            // segment within its widened square when the nearest depths
+            // are kept; else the segment's farthest.
+            let (z, near) = (zp.min(zq) as f32, zp.max(zq) as f32);
+            let (dx, dz) = (q.0 - p.0, zq - zp);
+            let tracking = !self.near.is_empty();
             // Rows whose widened band [y − e, y + 1 + e] the segment meets.
             let (ylo, yhi) = (p.1.min(q.1), p.1.max(q.1));
             let y0 = (-floor(1.0 + e - ylo)).max(0.0);
@@ -291,12 +409,60 @@ impl ReceiverTarget {
                     continue;
                 }
                 for x in x0 as u32..=x1 as u32 {
-                    self.mark_pixel(self.layout.pixel_index(x, y), z);
+                    let (far, nearest) = if tracking {
+                        let (mut u0, mut u1) = (t0, t1);
+                        if dx != 0.0 {
+                            let xf = f64::from(x);
+                            let (ta, tb) = ((xf - e - p.0) / dx, (xf + 1.0 + e - p.0) / dx);
+                            u0 = u0.max(ta.min(tb));
+                            u1 = u1.min(ta.max(tb));
+                            if u0 > u1 {
+                                // Rounding at the band's edge: the row's part.
+                                (u0, u1) = (t0, t1);
+                            }
+                        }
+                        let (za, zb) = (zp + dz * u0, zp + dz * u1);
+                        (za.min(zb) as f32, za.max(zb) as f32)
+                    } else {
+                        (z, near)
+                    };
+                    self.mark_pixel(self.layout.pixel_index(x, y), far, nearest);
                     n += 1;
                 }
             }
         }
         n
+    }
+}
+
+/// The marks of one tile within a rectangle ([`ReceiverTarget::for_each_tile_in`]).
+pub struct TileMarks<'a> {
+    target: &'a ReceiverTarget,
+    /// Inclusive pixel columns of the tile within the rectangle.
+    pub x: (u32, u32),
+    /// Inclusive pixel rows of the tile within the rectangle.
+    pub y: (u32, u32),
+    /// The farthest marked depth of the whole tile.
+    pub far: f32,
+    /// The nearest marked depth of the whole tile (+∞ without
+    /// [`ReceiverTarget::set_track_nearest`]).
+    pub near: f32,
+}
+
+impl TileMarks<'_> {
+    /// Calls `f(x, y, farthest, nearest)` for every marked pixel of the
+    /// tile within the rectangle (nearest +∞ when not kept).
+    pub fn for_each_marked(&self, mut f: impl FnMut(u32, u32, f32, f32)) {
+        let r = self.target;
+        for y in self.y.0..=self.y.1 {
+            for x in self.x.0..=self.x.1 {
+                let i = r.layout.pixel_index(x, y);
+                let far = r.depth[i];
+                if far != f32::INFINITY {
+                    f(x, y, far, r.near.get(i).copied().unwrap_or(f32::INFINITY));
+                }
+            }
+        }
     }
 }
 
@@ -312,8 +478,8 @@ const PARALLEL_POINTS: usize = 1 << 16;
 
 /// A clipped, projected receiver segment.
 enum Segment {
-    /// Ends in pixel coordinates, farthest depth.
-    Span((f64, f64), (f64, f64), f32),
+    /// Ends in pixel coordinates and their depths.
+    Span((f64, f64), (f64, f64), f64, f64),
     /// Reaches the centre of projection: marks every pixel at this depth.
     Everywhere(f32),
 }
@@ -394,9 +560,8 @@ impl Projector {
         };
         let (p, q) = (end(t0), end(t1));
         if p.3 > 0.0 && q.3 > 0.0 {
-            let z = p.2.min(q.2) as f32;
             let finite = [p.0, p.1, q.0, q.1].iter().all(|v| v.is_finite());
-            return finite.then_some(Segment::Span((p.0, p.1), (q.0, q.1), z));
+            return finite.then_some(Segment::Span((p.0, p.1), (q.0, q.1), p.2, q.2));
         }
         // An end at the centre of projection (x = y = w = 0: the segment
         // runs into the light): points near it project anywhere, at depths
@@ -466,6 +631,7 @@ mod tests {
     fn tile_bounds_are_the_farthest_marked_depth() {
         let t = DepthTarget::new(37, 29, TileSize::T8, false).unwrap();
         let mut r = ReceiverTarget::for_target(&t);
+        r.set_track_nearest(true);
         let points: Vec<Vec4> = (0..200)
             .map(|k| {
                 let f = k as f32;
@@ -480,12 +646,14 @@ mod tests {
         let mut marked_tiles = 0;
         for ty in 0..ty_n {
             for tx in 0..tx_n {
-                let mut m = f32::INFINITY;
+                let (mut m, mut near) = (f32::INFINITY, f32::NEG_INFINITY);
                 for y in ty * 8..((ty + 1) * 8).min(29) {
                     for x in tx * 8..((tx + 1) * 8).min(37) {
                         m = m.min(r.at(x, y).unwrap_or(f32::INFINITY));
+                        near = near.max(r.nearest_at(x, y).unwrap_or(f32::NEG_INFINITY));
                     }
                 }
+                assert_eq!(r.tile_near[r.layout.tile_index(tx, ty)], near);
                 assert_eq!(
                     r.tile_min[r.layout.tile_index(tx, ty)],
                     m,
@@ -502,6 +670,7 @@ mod tests {
         r.clear();
         assert_eq!(r.marked_rows(), None);
         assert!(r.tile_min.iter().all(|z| z.is_infinite()));
+        assert!(r.tile_near.iter().all(|z| *z == f32::NEG_INFINITY));
     }
 
     #[test]
@@ -569,6 +738,7 @@ mod tests {
             let (w, h) = (23u32, 17u32);
             let t = DepthTarget::new(w, h, TileSize::T8, false).unwrap();
             let mut r = ReceiverTarget::for_target(&t);
+            r.set_track_nearest(true);
             // Some points snapped to pixel edges (ndc multiples of 2/w).
             let points: Vec<Vec4> = pts
                 .iter()
@@ -584,7 +754,7 @@ mod tests {
             r.mark_points_within(Mat4::IDENTITY, &points, eps);
             for y in 0..h {
                 for x in 0..w {
-                    let mut want = f32::INFINITY;
+                    let (mut want, mut near) = (f32::INFINITY, f32::NEG_INFINITY);
                     for p in &points {
                         let c = p.as_dvec4();
                         if c.w <= 0.0 {
@@ -598,13 +768,19 @@ mod tests {
                         let dy = (f64::from(y) - py).max(py - f64::from(y + 1)).max(0.0);
                         if dx * dx + dy * dy <= eps * eps {
                             want = want.min((c.z * iw) as f32);
+                            near = near.max((c.z * iw) as f32);
                         }
                     }
                     proptest::prop_assert_eq!(r.at(x, y), (want != f32::INFINITY).then_some(want), "pixel ({}, {})", x, y);
+                    proptest::prop_assert_eq!(r.nearest_at(x, y), (near != f32::NEG_INFINITY).then_some(near), "pixel ({}, {})", x, y);
+                    let mut seen = None;
+                    r.for_each_marked_in((x, x), (y, y), |_, _, f, n| seen = Some((f, n)));
+                    proptest::prop_assert_eq!(seen, r.at(x, y).zip(r.nearest_at(x, y)));
                 }
             }
             r.clear();
             proptest::prop_assert!(r.depth.iter().all(|z| z.is_infinite()));
+            proptest::prop_assert!(r.near.iter().all(|z| *z == f32::NEG_INFINITY));
             proptest::prop_assert!(r.tile_min.iter().all(|z| z.is_infinite()));
         }
     }

@@ -420,8 +420,9 @@ proptest! {
 
     /// A receiver segment marks every pixel its points mark (each point's
     /// footprint at half the segment's, leaving room for the f32 rounding of
-    /// points computed one by one), at a depth no nearer (up to that
-    /// rounding); segments reaching behind the eye or off the target too.
+    /// points computed one by one), at a farthest depth no nearer and a
+    /// nearest depth no farther (up to that rounding); segments reaching
+    /// behind the eye or off the target too.
     #[test]
     fn receiver_segments_cover_their_points(
         a in (-12.0f64..12.0, -12.0f64..12.0, -20.0f64..3.0),
@@ -436,8 +437,10 @@ proptest! {
             .collect();
         let eps = RECEIVER_EPS_PX;
         let mut by_points = ReceiverTarget::for_target(&t);
+        by_points.set_track_nearest(true);
         by_points.mark_points_within(m, &points, eps / 2.0);
         let mut by_segment = ReceiverTarget::for_target(&t);
+        by_segment.set_track_nearest(true);
         by_segment.mark_segments_within(
             m,
             [(a.as_vec3().extend(1.0), b.as_vec3().extend(1.0))],
@@ -450,6 +453,11 @@ proptest! {
                     prop_assert!(
                         ds.is_some_and(|ds| ds <= dp + 1e-6),
                         "pixel ({}, {}): point depth {} segment {:?}", x, y, dp, ds
+                    );
+                    let (np, ns) = (by_points.nearest_at(x, y), by_segment.nearest_at(x, y));
+                    prop_assert!(
+                        np.zip(ns).is_some_and(|(np, ns)| ns >= np - 1e-6 && ns >= ds.unwrap_or(0.0)),
+                        "pixel ({}, {}): nearest point depth {:?} segment {:?}", x, y, np, ns
                     );
                 }
             }

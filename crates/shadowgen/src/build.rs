@@ -52,7 +52,9 @@ pub struct VolumeStats {
     /// Triangles of the clamped casters' segments (within `volume_triangles`).
     pub segment_triangles: usize,
     /// Wall time of continuous clamping (the sweeps and the occupied
-    /// intervals; set by the caller that plans it), ms.
+    /// intervals; with fragment receivers, their reading in the light pass
+    /// too, which its own time also holds; set by the caller that plans
+    /// it), ms.
     pub clamp_ms: f64,
     /// Overlapping pairs of clamping's sweeps (set by the caller).
     pub sap_pairs: usize,

@@ -93,6 +93,16 @@ pub struct ClampInput<'a> {
     pub cost: Option<&'a dyn GapModel>,
 }
 
+/// Per caster, the depths along its [`SegmentAxis`] where receivers may lie
+/// in its shadow, found by the caller: the fragment receivers of the light
+/// pass [Steiner Fig. 4.16] (`visibility::FragmentDepths`).
+pub trait ReceiverDepths {
+    /// `caster`'s receiver depth intervals along `SegmentAxis::new(light,
+    /// bounds)`, or `None` when the caller has none for it (it stays
+    /// unclamped).
+    fn depths(&self, caster: ObjectId) -> Option<&[[f64; 2]]>;
+}
+
 /// What the gap cost model [Steiner eqs. 4.2–4.3] needs from the renderer.
 pub trait GapModel {
     /// The cost constants and vertex counts of `caster`'s segments.
@@ -202,6 +212,47 @@ impl LightClamp {
             plan.set(c, *axis, &self.intervals);
         }
         Ok(stats)
+    }
+
+    /// [`LightClamp::plan`] with the receivers' depths given per caster by
+    /// `depths` instead of found from receiver objects: no sweep, nothing
+    /// cached (fragment receivers change with the view). A caster with an
+    /// axis and an entry in `depths` is clamped to the occupied intervals of
+    /// its own depths and those entries ([`crate::occupied_intervals`], with
+    /// `input.cost`); any other stays unclamped. `input.receives` is not
+    /// read.
+    pub fn plan_from_depths(
+        &mut self,
+        input: &ClampInput<'_>,
+        depths: &dyn ReceiverDepths,
+        plan: &mut ClampPlan,
+    ) -> ClampStats {
+        plan.clear();
+        let mut stats = ClampStats::default();
+        let objects = input.scene.objects();
+        for &c in input.casters {
+            let Some(bounds) = objects.get(c.0 as usize).map(|o| o.world_bounds) else {
+                continue;
+            };
+            let (Some(axis), Some(found)) =
+                (SegmentAxis::new(input.light, &bounds), depths.depths(c))
+            else {
+                continue;
+            };
+            let model = input.cost.map(|m| (m.cost(c), m));
+            let area = |a: f64, b: f64| model.map_or(0.0, |(_, m)| m.area(&bounds, &axis, a, b));
+            let area: GapArea<'_> = &area;
+            occupied_intervals(
+                axis.box_depths(&bounds),
+                found.iter().copied(),
+                model.as_ref().map(|(m, _)| (m, area)),
+                &mut self.intervals,
+            );
+            stats.clamped += 1;
+            stats.intervals += self.intervals.len() as u64;
+            plan.set(c, axis, &self.intervals);
+        }
+        stats
     }
 
     /// Drops the raw intervals of `objects` and of every box the sweeps

@@ -50,7 +50,7 @@ mod volume;
 
 pub use bounds::{volume_bounds, VolumeBounds, BOUNDS_MARGIN};
 pub use build::{build_clamped_volumes, build_volumes, BuildOptions, VolumeRequest, VolumeStats};
-pub use clamp::{ClampInput, ClampStats, GapModel, LightClamp};
+pub use clamp::{ClampInput, ClampStats, GapModel, LightClamp, ReceiverDepths};
 pub use clamp_intervals::{occupied_intervals, GapArea, GapCost};
 pub use error::{Error, Result};
 pub use method::{choose_method, zpass_is_safe, MethodChoice, NearLightHull, ZPASS_MARGIN};

@@ -34,6 +34,7 @@
 mod chcpp;
 mod culler;
 mod error;
+mod fragment_depths;
 mod hierarchy;
 mod intersection_body;
 mod light_pass;
@@ -46,6 +47,7 @@ mod view_setup;
 pub use chcpp::ChcppOptions;
 pub use culler::{CullResult, Objects, TraversalStats, ViewCuller};
 pub use error::{Error, Result};
+pub use fragment_depths::{AxisFn, DepthAxis, FragmentDepths};
 pub use hierarchy::{BvhNodeId, Hierarchy};
 pub use intersection_body::{intersection_body, Face, Polyhedron};
 pub use light_pass::{

@@ -30,6 +30,7 @@
 //! the segments of `receivers.rs`, which mark a superset.
 
 use crate::culler::{CullResult, Objects, TraversalStats, ViewCuller};
+use crate::fragment_depths::{AxisFn, FragmentDepths, ViewFragments};
 use crate::hierarchy::Hierarchy;
 use crate::intersection_body::{intersection_body_into, BodyScratch, Polyhedron};
 use crate::light_view::{fit_light_views_into, FitScratch, LightView};
@@ -111,6 +112,10 @@ pub struct PassInput<'a> {
     /// The eye's visible surface points, in parts (any split that keeps
     /// each joined point in the part of the point it is joined to).
     pub receivers: &'a [ReceiverPoints],
+    /// Fragment receivers for clamping: with a caster's clamping axis, the
+    /// pass also finds each caster's fragment intervals
+    /// ([`LightPassResult::fragments`]); `None` skips them.
+    pub fragment_axes: Option<&'a AxisFn>,
 }
 
 /// What a light pass found.
@@ -125,6 +130,11 @@ pub struct LightPassResult {
     /// The bundled rasterizer's counters summed over the views (zero for
     /// views a host backend ran): what `culling: auto` weighs.
     pub raster: raster::RasterStats,
+    /// Per caster of the PSC, its fragment intervals when
+    /// [`PassInput::fragment_axes`] is set (else empty).
+    pub fragments: FragmentDepths,
+    /// Wall time spent on the fragment intervals, summed over the views (ms).
+    pub fragment_ms: f64,
 }
 
 /// One light view's persistent state: its culler, its query buffers and
@@ -138,6 +148,12 @@ struct ViewSlot {
     result: CullResult,
     /// The bundled rasterizer's counters of the last traversal.
     raster: raster::RasterStats,
+    /// The fragment intervals of the last traversal's casters, and the
+    /// per-pixel ranges they are merged from.
+    fragments: Vec<(u32, [f64; 2])>,
+    ranges: Vec<[f64; 2]>,
+    fragment_pixels: u64,
+    fragment_ms: f64,
 }
 
 /// A depth target and a receiver target (one light view's worth, 8 bytes
@@ -415,6 +431,7 @@ impl LightPass {
             meshes,
             camera,
             receivers,
+            fragment_axes,
         } = *input;
         let bounds = scene.bounds();
         intersection_body_into(
@@ -463,6 +480,12 @@ impl LightPass {
             diameter,
             casting: &casting,
             options,
+            fragments: fragment_axes.map(|axes| ViewFragments {
+                scene,
+                light,
+                axes,
+                diameter,
+            }),
         };
         let frame = self.frame;
         self.frame = frame.saturating_add(1);
@@ -513,11 +536,17 @@ impl LightPass {
         out.raster = raster::RasterStats::default();
         self.in_psc.clear();
         self.in_psc.resize(scene.objects().len(), false);
+        out.fragments.clear();
+        out.fragment_ms = 0.0;
         for slot in &mut self.slots[..views.len()] {
             let slot = slot_mut(slot);
             let r = &slot.result;
             add_stats(&mut out.stats, &r.stats);
             out.raster.add(&slot.raster);
+            if fragment_axes.is_some() {
+                out.fragments.pixels += slot.fragment_pixels;
+                out.fragment_ms += slot.fragment_ms;
+            }
             for id in &r.visible {
                 if !self.in_psc[id.0 as usize] {
                     self.in_psc[id.0 as usize] = true;
@@ -526,6 +555,16 @@ impl LightPass {
             }
         }
         out.psc.sort_unstable();
+        if fragment_axes.is_some() {
+            let t = std::time::Instant::now();
+            let slots = &mut self.slots[..views.len()];
+            let lists: Vec<&[(u32, [f64; 2])]> = slots
+                .iter_mut()
+                .map(|s| &slot_mut(s).fragments[..])
+                .collect();
+            out.fragments.gather(lists);
+            out.fragment_ms += t.elapsed().as_secs_f64() * 1e3;
+        }
         Ok(())
     }
 }
@@ -542,6 +581,8 @@ struct ViewsInput<'a> {
     /// The casting triangles of an object drawn as an occluder.
     casting: &'a (dyn Fn(ObjectId) -> Arc<[[u32; 3]]> + Sync),
     options: &'a LightPassOptions,
+    /// Fragment receivers: what each view reads its casters' intervals with.
+    fragments: Option<ViewFragments<'a>>,
 }
 
 impl ViewSlot {
@@ -562,8 +603,11 @@ impl ViewSlot {
             diameter,
             casting,
             options,
+            ref fragments,
         } = *input;
         let m = view.clip_from_world;
+        self.fragments.clear();
+        (self.fragment_pixels, self.fragment_ms) = (0, 0.0);
         let clip_from_origin = (m * DMat4::from_translation(origin)).as_mat4();
         let size = (view.resolution, view.resolution);
         let mut target = match set.target.take() {
@@ -583,6 +627,7 @@ impl ViewSlot {
         let Some(marks_mut) = Arc::get_mut(&mut marks) else {
             unreachable!("a fresh or unshared receiver target")
         };
+        marks_mut.set_track_nearest(fragments.is_some());
         marks_mut.clear();
         let (eps, draw_coverage) = match options.sampling {
             Sampling::Conservative => (
@@ -647,6 +692,17 @@ impl ViewSlot {
             .culler
             .cull_into(objects, &setup, options.culling, backend, &mut self.result);
         backend.set_receivers(None)?;
+        if let (Some(f), true) = (fragments, r.is_ok()) {
+            let t = std::time::Instant::now();
+            self.fragment_pixels = f.read(
+                view,
+                &marks,
+                &self.result.visible,
+                &mut self.fragments,
+                &mut self.ranges,
+            );
+            self.fragment_ms = t.elapsed().as_secs_f64() * 1e3;
+        }
         set.target = match (bundled, target) {
             (Some(b), _) => {
                 let (mut t, queries) = b.into_parts();

@@ -311,7 +311,7 @@ def test_lights_before_the_first_frame():
         p.frame(64, 48, camera=CAMERA, clip_depth="sideways")
 
 
-@pytest.mark.parametrize("receivers", ["all", "psr"])
+@pytest.mark.parametrize("receivers", ["all", "psr", "fragment"])
 def test_clamping_keeps_the_mask_and_numbers_segments(receivers):
     plain, cubes, lamp, sun = box_scene(stencil="bf", culling="chcpp")
     clamped, _, _, _ = box_scene(

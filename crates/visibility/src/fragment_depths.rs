@@ -1,0 +1,448 @@
+//! Fragment receivers for clamping [Steiner §4.4.1, Fig. 4.16; Lloyd et al.,
+//! CC shadow volumes]: per caster, the depths along its clamping axis where
+//! the eye's visible surface may lie in its shadow, read from the light
+//! views' receiver targets instead of from receiver objects' bounds.
+//!
+//! # The rule
+//! A receiver point r in caster C's shadow lies on a light ray through C. In
+//! a light view that marked r (every point lies in the view holding it), r
+//! projects where that ray's point of C does, so r's marks lie within the
+//! footprint margin of C's projected box. Each marked light pixel there
+//! holds the farthest and the nearest receiver depth over it
+//! ([`raster::ReceiverTarget::set_track_nearest`]); the receivers of that
+//! pixel lie in the region between those depths over the pixel's square
+//! widened by the footprint. Depth along C's axis is a ratio of two affine
+//! functions of the view's (x, y, z), so over that box its extremes are at
+//! the eight corners: they bound the pixel's receivers along the axis. Cut
+//! at C's nearest depth (no shadow of C lies nearer the light) and merged
+//! where they overlap, these ranges are C's fragment intervals in this
+//! view; the union over the light's views is C's set.
+//!
+//! # Margins
+//! Conservative receivers are pushed away from the light by
+//! [`crate::RECEIVER_PUSH`] before they are marked, which keeps the farthest
+//! depth beyond the true one but the nearest not: each range's near end is
+//! pulled back by twice the push (scaled towards the light for a positional
+//! light, shifted along the direction for a directional one). A corner at or
+//! behind the centre of projection, or any non-finite value, makes the range
+//! unbounded. The segments' own margins (`shadowgen`'s `SEGMENT_MARGIN`)
+//! come on top.
+
+use crate::light_view::LightView;
+use crate::receivers::RECEIVER_PUSH;
+use glam::{DMat4, DVec3, DVec4};
+use raster::{ReceiverTarget, TileMarks, RECEIVER_EPS_PX, SEGMENT_SLACK_PX};
+use scene::{Aabb, Light, ObjectId, Scene};
+
+/// A caster's clamping axis: depth of world point `p` is `axis·(p − origin)`
+/// (`axis` a unit vector).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DepthAxis {
+    /// Depth 0.
+    pub origin: DVec3,
+    /// Unit direction of increasing depth.
+    pub axis: DVec3,
+}
+
+/// Gives the clamping axis of a caster with world bounds `bounds` under a
+/// light, or `None` for a caster that is not clamped.
+pub type AxisFn = dyn Fn(&Light, &Aabb) -> Option<DepthAxis> + Sync;
+
+/// Per caster, its fragment intervals along its [`DepthAxis`]: sorted,
+/// disjoint depth intervals, the union over one light's views. A caster
+/// without an entry has no axis or was found in no view.
+#[derive(Clone, Debug, Default)]
+pub struct FragmentDepths {
+    /// Casters with an entry, ascending.
+    ids: Vec<u32>,
+    /// `intervals[starts[k]..starts[k + 1]]` are `ids[k]`'s.
+    starts: Vec<u32>,
+    intervals: Vec<[f64; 2]>,
+    /// The per-view ranges while they are gathered.
+    gather: Vec<(u32, [f64; 2])>,
+    /// Marked light pixels read, summed over casters and views.
+    pub pixels: u64,
+}
+
+impl FragmentDepths {
+    /// The fragment intervals of `caster`, `None` without an entry.
+    pub fn get(&self, caster: ObjectId) -> Option<&[[f64; 2]]> {
+        let k = self.ids.binary_search(&caster.0).ok()?;
+        Some(&self.intervals[self.starts[k] as usize..self.starts[k + 1] as usize])
+    }
+
+    /// Casters with an entry.
+    pub fn len(&self) -> usize {
+        self.ids.len()
+    }
+
+    /// True when no caster has an entry.
+    pub fn is_empty(&self) -> bool {
+        self.ids.is_empty()
+    }
+
+    /// Forgets every entry (keeping the buffers).
+    pub fn clear(&mut self) {
+        self.ids.clear();
+        self.starts.clear();
+        self.intervals.clear();
+        self.pixels = 0;
+    }
+
+    /// Sets the entries from per-view lists of `(caster, interval)` (each
+    /// caster's intervals of one view sorted and disjoint): per caster, the
+    /// union of its views' intervals, merged where they overlap.
+    pub(crate) fn gather<'a>(&mut self, views: impl IntoIterator<Item = &'a [(u32, [f64; 2])]>) {
+        self.ids.clear();
+        self.starts.clear();
+        self.intervals.clear();
+        let mut all = std::mem::take(&mut self.gather);
+        all.clear();
+        for v in views {
+            all.extend_from_slice(v);
+        }
+        all.sort_unstable_by(|a, b| a.0.cmp(&b.0).then(a.1[0].total_cmp(&b.1[0])));
+        for &(id, r) in &all {
+            if self.ids.last() != Some(&id) {
+                self.ids.push(id);
+                self.starts.push(self.intervals.len() as u32);
+                self.intervals.push(r);
+                continue;
+            }
+            let last = self.intervals.last_mut().expect("an entry has an interval");
+            if r[0] <= last[1] {
+                last[1] = last[1].max(r[1]);
+            } else {
+                self.intervals.push(r);
+            }
+        }
+        self.starts.push(self.intervals.len() as u32);
+        self.gather = all;
+    }
+}
+
+/// What one view's fragment intervals are read from.
+pub(crate) struct ViewFragments<'a> {
+    pub scene: &'a Scene,
+    pub light: &'a Light,
+    pub axes: &'a AxisFn,
+    /// The scene's diameter (a directional light's push).
+    pub diameter: f64,
+}
+
+impl ViewFragments<'_> {
+    /// Appends to `out` the fragment intervals of each of `casters` (those
+    /// that cast and have an axis) in `view`, whose receivers `marks` holds
+    /// with nearest depths; `ranges` is scratch. Returns the marked pixels
+    /// read one by one.
+    pub fn read(
+        &self,
+        view: &LightView,
+        marks: &ReceiverTarget,
+        casters: &[ObjectId],
+        out: &mut Vec<(u32, [f64; 2])>,
+        ranges: &mut Vec<[f64; 2]>,
+    ) -> u64 {
+        let m = view.clip_from_world;
+        let world_from_clip = m.inverse();
+        let size = marks.size();
+        let mut pixels = 0;
+        for &id in casters {
+            let o = self.scene.object(id);
+            if !o.flags.casts {
+                continue;
+            }
+            let bounds = o.world_bounds;
+            let Some(axis) = (self.axes)(self.light, &bounds) else {
+                continue;
+            };
+            let Some((xs, ys)) = pixel_rect(&m, &bounds, size.0, size.1) else {
+                continue;
+            };
+            let near = box_near(&axis, &bounds);
+            let depth = AxisDepth::new(&world_from_clip, &axis, self.light, self.diameter, size);
+            let narrow = f64::from(bounds.size().length()) * TILE_SPREAD;
+            ranges.clear();
+            // Neighbouring pixels' ranges mostly overlap: a range that meets
+            // the last one kept grows it, so the sort below sees few.
+            let mut keep = |[lo, hi]: [f64; 2]| {
+                if hi < near {
+                    return;
+                }
+                let r = [lo.max(near), hi];
+                match ranges.last_mut() {
+                    Some(last) if r[0] <= last[1] && last[0] <= r[1] => {
+                        *last = [last[0].min(r[0]), last[1].max(r[1])];
+                    }
+                    _ => ranges.push(r),
+                }
+            };
+            marks.for_each_tile_in(xs, ys, |t| {
+                let whole = depth.range(t.x, t.y, t.far, t.near);
+                if whole[1] < near {
+                    return;
+                }
+                if whole[1] - whole[0] <= narrow {
+                    keep(whole);
+                    return;
+                }
+                pixels += depth.pixel_ranges(t, &mut keep);
+            });
+            ranges.sort_unstable_by(|a, b| a[0].total_cmp(&b[0]));
+            let first = out.len();
+            for &r in ranges.iter() {
+                match out[first..].last_mut() {
+                    Some((_, last)) if r[0] <= last[1] => last[1] = last[1].max(r[1]),
+                    _ => out.push((id.0, r)),
+                }
+            }
+        }
+        pixels
+    }
+}
+
+/// A tile of marks whose depth range along a caster's axis spans at most
+/// this fraction of the caster's bounding diagonal is read as one range
+/// (its pixels' ranges lie within it); a wider one pixel by pixel, so that
+/// gaps between receivers at different depths (a roof and the street
+/// below) stay open.
+pub const TILE_SPREAD: f64 = 1.0 / 16.0;
+
+/// The inclusive pixel ranges of `b`'s projection widened by a pixel (the
+/// receivers' footprints and the query's coverage lie within), the whole
+/// target when a corner lies at or behind the centre of projection; `None`
+/// when the projection misses the target.
+fn pixel_rect(m: &DMat4, b: &Aabb, w: u32, h: u32) -> Option<((u32, u32), (u32, u32))> {
+    let whole = Some(((0, w.saturating_sub(1)), (0, h.saturating_sub(1))));
+    let (lo, hi) = (b.min.as_dvec3(), b.max.as_dvec3());
+    let (mut x, mut y) = (
+        [f64::INFINITY, f64::NEG_INFINITY],
+        [f64::INFINITY, f64::NEG_INFINITY],
+    );
+    for k in 0..8 {
+        let p = DVec3::new(
+            if k & 1 != 0 { hi.x } else { lo.x },
+            if k & 2 != 0 { hi.y } else { lo.y },
+            if k & 4 != 0 { hi.z } else { lo.z },
+        );
+        let c = *m * p.extend(1.0);
+        if !(c.w > 0.0 && c.is_finite()) {
+            return whole;
+        }
+        let px = (c.x / c.w + 1.0) * 0.5 * f64::from(w);
+        let py = (1.0 - c.y / c.w) * 0.5 * f64::from(h);
+        x = [x[0].min(px), x[1].max(px)];
+        y = [y[0].min(py), y[1].max(py)];
+    }
+    let range = |r: [f64; 2], n: u32| {
+        let a = (r[0] - 1.0).floor().max(0.0);
+        let b = (r[1] + 1.0).ceil().min(f64::from(n) - 1.0);
+        (a <= b).then_some((a as u32, b as u32))
+    };
+    Some((range(x, w)?, range(y, h)?))
+}
+
+/// The depth of `b`'s nearest corner along `axis`.
+fn box_near(axis: &DepthAxis, b: &Aabb) -> f64 {
+    let (lo, hi) = (b.min.as_dvec3(), b.max.as_dvec3());
+    let p = DVec3::select(axis.axis.cmpge(DVec3::ZERO), lo, hi);
+    axis.axis.dot(p - axis.origin)
+}
+
+/// Depth along one caster's axis as a function of a light view's pixel
+/// coordinates `(px, py)` and depth `z`: `num·c / den·c` for the normalized
+/// device coordinates `c = (x, y, z, 1)`.
+struct AxisDepth {
+    num: DVec4,
+    den: DVec4,
+    /// NDC per pixel and at pixel 0, per axis.
+    scale: [f64; 2],
+    offset: [f64; 2],
+    /// `den` does not depend on x and y (a perspective or orthographic
+    /// view): the depth is affine in them at each z.
+    affine_xy: bool,
+    /// Positional light: the light's depth on the axis (the push scales
+    /// depths towards it); directional: `None`.
+    light_depth: Option<f64>,
+    /// Directional light: the push along the axis.
+    shift: f64,
+}
+
+/// Footprint of a marked pixel beyond its square, in pixels.
+const FOOTPRINT_PX: f64 = RECEIVER_EPS_PX + SEGMENT_SLACK_PX;
+
+impl AxisDepth {
+    fn new(
+        world_from_clip: &DMat4,
+        axis: &DepthAxis,
+        light: &Light,
+        diameter: f64,
+        (w, h): (u32, u32),
+    ) -> Self {
+        let t = world_from_clip.transpose();
+        let a = axis.axis;
+        // depth = a·(p − o) with p = (I c).xyz / (I c).w.
+        let num = t * a.extend(-a.dot(axis.origin));
+        let den = t * DVec4::W;
+        // x and y terms below 1e-12 of the rest change the depth by less
+        // than that: far inside the margins.
+        let affine_xy = den.x.abs().max(den.y.abs()) <= 1e-12 * (den.z.abs() + den.w.abs());
+        let (w, h) = (f64::from(w), f64::from(h));
+        let light_depth = light.position().map(|l| a.dot(l - axis.origin));
+        AxisDepth {
+            num,
+            den,
+            scale: [2.0 / w, -2.0 / h],
+            offset: [-1.0, 1.0],
+            affine_xy,
+            light_depth,
+            shift: if light_depth.is_some() {
+                0.0
+            } else {
+                2.0 * RECEIVER_PUSH * diameter
+            },
+        }
+    }
+
+    /// Calls `f` with the depth range of every marked pixel of `t`, as
+    /// [`AxisDepth::range`] gives it for the pixel alone; returns how many.
+    fn pixel_ranges(&self, t: &TileMarks<'_>, mut f: impl FnMut([f64; 2])) -> u64 {
+        let mut n = 0;
+        if !self.affine_xy {
+            t.for_each_marked(|x, y, far, near| {
+                n += 1;
+                f(self.range((x, x), (y, y), far, near));
+            });
+            return n;
+        }
+        // The x and y terms of the corners `range` picks, at the tile's
+        // first pixel and per pixel step: the pick does not change along a
+        // row or column (the sign of num's coefficient decides it).
+        let (x0, y0) = (t.x.0, t.y.0);
+        let [lo0, hi0] = self.xy_terms((x0, x0), (y0, y0));
+        let (sx, sy) = (self.num.x * self.scale[0], self.num.y * self.scale[1]);
+        t.for_each_marked(|x, y, far, near| {
+            n += 1;
+            let step = sx * f64::from(x - x0) + sy * f64::from(y - y0);
+            f(self.finish(lo0 + step, hi0 + step, far, near));
+        });
+        n
+    }
+
+    /// `num.w` plus the x and y terms of the corners of the inclusive pixel
+    /// rectangle where the depth (affine in x and y) is least and greatest.
+    fn xy_terms(&self, xs: (u32, u32), ys: (u32, u32)) -> [f64; 2] {
+        let e = FOOTPRINT_PX;
+        let ndc = |k: usize, a: u32, b: u32| {
+            let (p, q) = (f64::from(a) - e, f64::from(b) + 1.0 + e);
+            [
+                p * self.scale[k] + self.offset[k],
+                q * self.scale[k] + self.offset[k],
+            ]
+        };
+        let pick = |c: f64, r: [f64; 2]| {
+            let (p, q) = (c * r[0], c * r[1]);
+            [p.min(q), p.max(q)]
+        };
+        let (x, y) = (
+            pick(self.num.x, ndc(0, xs.0, xs.1)),
+            pick(self.num.y, ndc(1, ys.0, ys.1)),
+        );
+        [self.num.w + x[0] + y[0], self.num.w + x[1] + y[1]]
+    }
+
+    /// The range from the least and greatest x, y terms (affine case), over
+    /// depths `far` to `near`, with the push's margin.
+    #[inline(always)]
+    fn finish(&self, base_lo: f64, base_hi: f64, far: f32, near: f32) -> [f64; 2] {
+        let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+        for z in [f64::from(far), f64::from(near)] {
+            let d = self.den.z * z + self.den.w;
+            let inv = 1.0 / d;
+            let (a, b) = (
+                (base_lo + self.num.z * z) * inv,
+                (base_hi + self.num.z * z) * inv,
+            );
+            if !(d > 0.0 && a.is_finite() && b.is_finite()) {
+                return [f64::NEG_INFINITY, f64::INFINITY];
+            }
+            lo = lo.min(a);
+            hi = hi.max(b);
+        }
+        self.pulled([lo, hi])
+    }
+
+    /// `r` with its near end pulled back by the push (module docs, "Margins").
+    fn pulled(&self, [lo, hi]: [f64; 2]) -> [f64; 2] {
+        let lo = match self.light_depth {
+            // Unpushed: l + (p − l)/(1 + push), so depths scale towards the
+            // light's.
+            Some(dl) if lo > dl => dl + (lo - dl) / (1.0 + 2.0 * RECEIVER_PUSH),
+            Some(_) => lo,
+            None => lo - self.shift,
+        };
+        [lo, hi]
+    }
+
+    /// The depth range along the axis of the receivers over the inclusive
+    /// pixel rectangle `xs × ys` whose depths lie between `far` and `near`
+    /// (module docs, "The rule" and "Margins").
+    fn range(&self, xs: (u32, u32), ys: (u32, u32), far: f32, near: f32) -> [f64; 2] {
+        if self.affine_xy {
+            // At each z the depth is affine in x and y: its extremes over
+            // the square are at the corners the signs of num pick; along z
+            // it is monotone (a ratio of affine functions).
+            let [lo, hi] = self.xy_terms(xs, ys);
+            return self.finish(lo, hi, far, near);
+        }
+        let e = FOOTPRINT_PX;
+        let ndc = |k: usize, a: u32, b: u32| {
+            let (p, q) = (f64::from(a) - e, f64::from(b) + 1.0 + e);
+            [
+                p * self.scale[k] + self.offset[k],
+                q * self.scale[k] + self.offset[k],
+            ]
+        };
+        let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+        for cx in ndc(0, xs.0, xs.1) {
+            for cy in ndc(1, ys.0, ys.1) {
+                for cz in [f64::from(far), f64::from(near)] {
+                    let c = DVec4::new(cx, cy, cz, 1.0);
+                    let (n, d) = (self.num.dot(c), self.den.dot(c));
+                    let v = n / d;
+                    if !(d > 0.0 && v.is_finite()) {
+                        return [f64::NEG_INFINITY, f64::INFINITY];
+                    }
+                    lo = lo.min(v);
+                    hi = hi.max(v);
+                }
+            }
+        }
+        self.pulled([lo, hi])
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Gathering unions each caster's per-view intervals, merging overlaps
+    /// and keeping gaps.
+    #[test]
+    fn gathered_intervals_are_the_union_over_views() {
+        let mut f = FragmentDepths::default();
+        let a = [(3, [1.0, 2.0]), (3, [5.0, 6.0]), (7, [0.0, 1.0])];
+        let b = [(3, [1.5, 3.0]), (4, [2.0, 2.5]), (3, [7.0, 8.0])];
+        f.gather([&a[..], &b[..]]);
+        assert_eq!(f.len(), 3);
+        assert_eq!(
+            f.get(ObjectId(3)),
+            Some(&[[1.0, 3.0], [5.0, 6.0], [7.0, 8.0]][..])
+        );
+        assert_eq!(f.get(ObjectId(4)), Some(&[[2.0, 2.5]][..]));
+        assert_eq!(f.get(ObjectId(7)), Some(&[[0.0, 1.0]][..]));
+        assert_eq!(f.get(ObjectId(5)), None);
+        f.gather(std::iter::empty());
+        assert!(f.is_empty());
+    }
+}
