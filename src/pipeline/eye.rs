@@ -305,7 +305,15 @@ pub fn visible_points(
     sampling: visibility::Sampling,
 ) -> visibility::ReceiverPoints {
     let mut bands = Vec::new();
-    visible_points_into(scene, camera, eye, sampling, &mut bands, &mut Vec::new());
+    visible_points_into(
+        scene,
+        camera,
+        eye,
+        sampling,
+        false,
+        &mut bands,
+        &mut Vec::new(),
+    );
     let mut out = visibility::ReceiverPoints::default();
     for band in bands {
         out.points.extend(band.points);
@@ -320,11 +328,20 @@ const BAND_ROWS: usize = 16;
 /// [`visible_points`] in bands of [`BAND_ROWS`] rows, built in parallel
 /// into `bands` (their buffers reused from frame to frame: no allocation
 /// once they have grown): the parts the light pass takes.
+///
+/// With `stored`, each run's kept pixels also give, as a second line after
+/// the run's, the points on their rays at the eye target's stored depth:
+/// the surface as the stencil tests it, which at grazing angles lies off
+/// the triangle's plane by more than the segments' margins (the ground
+/// 350 m away at 1.7 m eye height: a metre along the ray). Fragment
+/// receivers mark both, so that a segment holds the stencil's surface
+/// point as well as the exact one.
 pub(crate) fn visible_points_into(
     scene: &Scene,
     camera: &Camera,
     eye: &EyePass,
     sampling: visibility::Sampling,
+    stored: bool,
     bands: &mut Vec<visibility::ReceiverPoints>,
     runs: &mut Vec<RunRows<Option<RayPlane>>>,
 ) {
@@ -337,6 +354,15 @@ pub(crate) fn visible_points_into(
     let rays = camera.rays(w as u32, h as u32);
     let e = camera.position;
     let surface = eye.surface();
+    let clip = camera.clip_from_eye_relative();
+    // The eye-relative point on ray `d` at stored depth `z`: `clip·(t·d, 1)`
+    // has z/w = z where t = (b_z − z·b_w) / (z·a_w − a_z), a = clip·(d, 0),
+    // b = clip·(0, 0, 0, 1).
+    let at_depth = |d: glam::DVec3, z: f32| {
+        let (a, b, z) = (clip * d.extend(0.0), clip.col(3), f64::from(z));
+        let t = (b.z - z * b.w) / (z * a.w - a.z);
+        (t.is_finite() && t > 0.0).then(|| e + d * t)
+    };
     bands.resize_with(h.div_ceil(BAND_ROWS), Default::default);
     runs.resize_with(bands.len(), Default::default);
     // Per visible triangle: its plane, `None` for surfaces that cannot be
@@ -356,6 +382,9 @@ pub(crate) fn visible_points_into(
             band.points.clear();
             band.joined.clear();
             let rows = (b * BAND_ROWS) as u32..((b + 1) * BAND_ROWS).min(h) as u32;
+            // A run's stored-depth points, each with whether it is joined
+            // to the one before.
+            let mut stored_points: Vec<(glam::DVec3, bool)> = Vec::new();
             surface.for_each_run_in_rows(rows, runs, plane_of, |y, x0, x1, _, plane| {
                 let Some(plane) = plane else { return };
                 let (base, step) = rays.row(f64::from(y) + 0.5);
@@ -380,17 +409,33 @@ pub(crate) fn visible_points_into(
                         && (a > 0.0) == (b > 0.0)
                 };
                 let parallel = |x: u32| plane.hit(dir(x)).is_none();
+                // Whether the last point emitted has a stored-depth point.
+                let mut chained = false;
                 run_points(x0..x1, stride, never_parallel, parallel, |px, joined| {
                     let p = match px {
                         Some(x) => {
                             let d = dir(x);
+                            if stored {
+                                let q = surface.depth(x, y).and_then(|z| at_depth(d, z));
+                                if let Some(q) = q {
+                                    stored_points.push((q, joined && chained));
+                                }
+                                chained = q.is_some();
+                            }
                             e + d * plane.hit(d).unwrap_or(0.0)
                         }
-                        None => e,
+                        None => {
+                            chained = false;
+                            e
+                        }
                     };
                     band.points.push(p);
                     band.joined.push(joined);
                 });
+                for (q, joined) in stored_points.drain(..) {
+                    band.points.push(q);
+                    band.joined.push(joined);
+                }
             });
         });
 }

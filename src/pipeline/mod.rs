@@ -486,6 +486,11 @@ impl Pipeline {
             }
             (eye, 0, 0)
         };
+        // Clamping to fragment receivers: the light passes read each
+        // caster's intervals along its clamping axis, from the eye's surface
+        // points and the stencil's (the stored depths).
+        let fragment_model = (o.clamping == ClampingSpec::Continuous || o.count_fill)
+            && o.clamping_receivers == options::ClampReceiversSpec::Fragment;
         // The culling lights mark the eye's visible surface points.
         if lights_culled {
             visible_points_into(
@@ -493,6 +498,7 @@ impl Pipeline {
                 camera,
                 &eye,
                 o.coverage.sampling(),
+                fragment_model,
                 &mut self.receivers,
                 &mut self.receiver_runs,
             );
@@ -523,10 +529,6 @@ impl Pipeline {
             );
         }
 
-        // Clamping to fragment receivers: the light passes read each
-        // caster's intervals along its clamping axis.
-        let fragment_model = (o.clamping == ClampingSpec::Continuous || o.count_fill)
-            && o.clamping_receivers == options::ClampReceiversSpec::Fragment;
         let axes = |l: &scene::Light, b: &scene::Aabb| {
             shadowgen::SegmentAxis::new(l, b).map(|a| visibility::DepthAxis {
                 origin: a.origin,
