@@ -928,7 +928,11 @@ fn count_fill_counts_what_brute_force_processes() -> Result<()> {
     use shadowcull::pipeline::{ClampReceiversSpec, ClampingSpec};
     let (scene, path) = city();
     let lights = lights(&scene, &path);
-    for receivers in [ClampReceiversSpec::All, ClampReceiversSpec::Psr] {
+    for receivers in [
+        ClampReceiversSpec::All,
+        ClampReceiversSpec::Psr,
+        ClampReceiversSpec::Fragment,
+    ] {
         let with = |stencil, clamping, count_fill| PipelineOptions {
             clamping,
             clamping_receivers: receivers,

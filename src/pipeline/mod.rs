@@ -488,9 +488,11 @@ impl Pipeline {
         };
         // Clamping to fragment receivers: the light passes read each
         // caster's intervals along its clamping axis, from the eye's surface
-        // points and the stencil's (the stored depths).
-        let fragment_model = (o.clamping == ClampingSpec::Continuous || o.count_fill)
-            && o.clamping_receivers == options::ClampReceiversSpec::Fragment;
+        // points and the stencil's (the stored depths). Their marks are
+        // tighter and hold more points, so the PSC may differ from the other
+        // receiver models': they are taken whenever the model is chosen, so
+        // that `count_fill` and `clamping` change no PSC.
+        let fragment_model = o.clamping_receivers == options::ClampReceiversSpec::Fragment;
         // The culling lights mark the eye's visible surface points.
         if lights_culled {
             visible_points_into(

@@ -64,9 +64,12 @@ pub enum ClampReceiversSpec {
     /// the light pass marks it, with the nearest and farthest depth per
     /// light pixel, read over each caster's light-view footprint
     /// (`visibility::FragmentDepths`). The tightest, recomputed every
-    /// frame. A light the frame does not cull (`culling: none`, or `auto`
-    /// choosing none) has no light pass and clamps to every receiving
-    /// object, as `all`.
+    /// frame. The light pass then marks tighter depths (per light pixel,
+    /// the part of a receiver segment over it) and also the eye's surface
+    /// as the stencil tests it (the stored depths), so its PSC may differ
+    /// from the other models' (conservative all the same). A light the
+    /// frame does not cull (`culling: none`, or `auto` choosing none) has
+    /// no light pass and clamps to every receiving object, as `all`.
     Fragment,
 }
 

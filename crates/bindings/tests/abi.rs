@@ -901,8 +901,12 @@ fn clamping_through_the_options() {
     o.clamping = SC_CLAMPING_CONTINUOUS;
     o.clamping_receivers = SC_CLAMP_RECEIVERS_PSR;
     let clamped = run(&o);
+    let mut fragment = o;
+    fragment.clamping_receivers = SC_CLAMP_RECEIVERS_FRAGMENT;
+    let clamped_fragment = run(&fragment);
     let mut segments = 0;
-    for ((pm, pr, _), (cm, cr, cs)) in plain.iter().zip(&clamped) {
+    let both = clamped.iter().chain(&clamped_fragment);
+    for ((pm, pr, _), (cm, cr, cs)) in plain.iter().cycle().zip(both) {
         assert!(pr.iter().all(|r| r.segment == 0 && r.far_plane == [0.0; 4]));
         segments += cs.segments;
         assert_eq!(cs.segments as usize, cr.len());
@@ -914,6 +918,15 @@ fn clamping_through_the_options() {
         assert!(differ as u32 <= W * H / 10_000, "{differ} pixels differ");
     }
     assert!(segments > 0, "the cubes are clamped");
+    let mut bad = c_options();
+    bad.clamping_receivers = 7;
+    let mut p = 0;
+    assert_eq!(sc_pipeline_create(&bad, &mut p), SC_INVALID_ARGUMENT);
+    assert!(
+        last_error().contains("options.clamping_receivers"),
+        "{}",
+        last_error()
+    );
     let mut bad = c_options();
     bad.clamping = 9;
     let mut p = 0;

@@ -134,7 +134,8 @@ impl ViewFragments<'_> {
     /// Appends to `out` the fragment intervals of each of `casters` (those
     /// that cast and have an axis) in `view`, whose receivers `marks` holds
     /// with nearest depths; `ranges` is scratch. Returns the marked pixels
-    /// read one by one.
+    /// read one by one. Many casters are read in parallel, in chunks whose
+    /// lists are joined in order: the result is the sequential one.
     pub fn read(
         &self,
         view: &LightView,
@@ -143,63 +144,106 @@ impl ViewFragments<'_> {
         out: &mut Vec<(u32, [f64; 2])>,
         ranges: &mut Vec<[f64; 2]>,
     ) -> u64 {
-        let m = view.clip_from_world;
-        let world_from_clip = m.inverse();
+        let world_from_clip = view.clip_from_world.inverse();
+        let read = |id, out: &mut Vec<_>, ranges: &mut Vec<_>| {
+            self.caster(id, view, &world_from_clip, marks, out, ranges)
+        };
+        #[cfg(feature = "parallel")]
+        if casters.len() >= 2 * PARALLEL_CHUNK && rayon::current_num_threads() > 1 {
+            use rayon::prelude::*;
+            let parts: Vec<(Intervals, u64)> = casters
+                .par_chunks(PARALLEL_CHUNK)
+                .map(|chunk| {
+                    let (mut out, mut ranges) = (Vec::new(), Vec::new());
+                    let n = chunk
+                        .iter()
+                        .map(|&id| read(id, &mut out, &mut ranges))
+                        .sum();
+                    (out, n)
+                })
+                .collect();
+            return parts
+                .into_iter()
+                .map(|(part, n)| {
+                    out.extend_from_slice(&part);
+                    n
+                })
+                .sum();
+        }
+        casters.iter().map(|&id| read(id, out, ranges)).sum()
+    }
+
+    /// Appends caster `id`'s fragment intervals in `view` to `out`
+    /// ([`ViewFragments::read`]); returns the pixels read one by one.
+    fn caster(
+        &self,
+        id: ObjectId,
+        view: &LightView,
+        world_from_clip: &DMat4,
+        marks: &ReceiverTarget,
+        out: &mut Vec<(u32, [f64; 2])>,
+        ranges: &mut Vec<[f64; 2]>,
+    ) -> u64 {
+        let o = self.scene.object(id);
+        if !o.flags.casts {
+            return 0;
+        }
+        let bounds = o.world_bounds;
+        let Some(axis) = (self.axes)(self.light, &bounds) else {
+            return 0;
+        };
         let size = marks.size();
+        let Some((xs, ys)) = pixel_rect(&view.clip_from_world, &bounds, size.0, size.1) else {
+            return 0;
+        };
+        let near = box_near(&axis, &bounds);
+        let depth = AxisDepth::new(world_from_clip, &axis, self.light, self.diameter, size);
+        let narrow = f64::from(bounds.size().length()) * TILE_SPREAD;
         let mut pixels = 0;
-        for &id in casters {
-            let o = self.scene.object(id);
-            if !o.flags.casts {
-                continue;
+        ranges.clear();
+        // Neighbouring pixels' ranges mostly overlap: a range that meets
+        // the last one kept grows it, so the sort below sees few.
+        let mut keep = |[lo, hi]: [f64; 2]| {
+            if hi < near {
+                return;
             }
-            let bounds = o.world_bounds;
-            let Some(axis) = (self.axes)(self.light, &bounds) else {
-                continue;
-            };
-            let Some((xs, ys)) = pixel_rect(&m, &bounds, size.0, size.1) else {
-                continue;
-            };
-            let near = box_near(&axis, &bounds);
-            let depth = AxisDepth::new(&world_from_clip, &axis, self.light, self.diameter, size);
-            let narrow = f64::from(bounds.size().length()) * TILE_SPREAD;
-            ranges.clear();
-            // Neighbouring pixels' ranges mostly overlap: a range that meets
-            // the last one kept grows it, so the sort below sees few.
-            let mut keep = |[lo, hi]: [f64; 2]| {
-                if hi < near {
-                    return;
+            let r = [lo.max(near), hi];
+            match ranges.last_mut() {
+                Some(last) if r[0] <= last[1] && last[0] <= r[1] => {
+                    *last = [last[0].min(r[0]), last[1].max(r[1])];
                 }
-                let r = [lo.max(near), hi];
-                match ranges.last_mut() {
-                    Some(last) if r[0] <= last[1] && last[0] <= r[1] => {
-                        *last = [last[0].min(r[0]), last[1].max(r[1])];
-                    }
-                    _ => ranges.push(r),
-                }
-            };
-            marks.for_each_tile_in(xs, ys, |t| {
-                let whole = depth.range(t.x, t.y, t.far, t.near);
-                if whole[1] < near {
-                    return;
-                }
-                if whole[1] - whole[0] <= narrow {
-                    keep(whole);
-                    return;
-                }
-                pixels += depth.pixel_ranges(t, &mut keep);
-            });
-            ranges.sort_unstable_by(|a, b| a[0].total_cmp(&b[0]));
-            let first = out.len();
-            for &r in ranges.iter() {
-                match out[first..].last_mut() {
-                    Some((_, last)) if r[0] <= last[1] => last[1] = last[1].max(r[1]),
-                    _ => out.push((id.0, r)),
-                }
+                _ => ranges.push(r),
+            }
+        };
+        marks.for_each_tile_in(xs, ys, |t| {
+            let whole = depth.range(t.x, t.y, t.far, t.near);
+            if whole[1] < near {
+                return;
+            }
+            if whole[1] - whole[0] <= narrow {
+                keep(whole);
+                return;
+            }
+            pixels += depth.pixel_ranges(t, &mut keep);
+        });
+        ranges.sort_unstable_by(|a, b| a[0].total_cmp(&b[0]));
+        let first = out.len();
+        for &r in ranges.iter() {
+            match out[first..].last_mut() {
+                Some((_, last)) if r[0] <= last[1] => last[1] = last[1].max(r[1]),
+                _ => out.push((id.0, r)),
             }
         }
         pixels
     }
 }
+
+/// Per caster, its intervals in one view: `(caster id, interval)`.
+type Intervals = Vec<(u32, [f64; 2])>;
+
+/// Casters per parallel task of [`ViewFragments::read`].
+#[cfg(feature = "parallel")]
+const PARALLEL_CHUNK: usize = 32;
 
 /// A tile of marks whose depth range along a caster's axis spans at most
 /// this fraction of the caster's bounding diagonal is read as one range
@@ -425,6 +469,79 @@ impl AxisDepth {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    proptest::proptest! {
+        /// A pixel's range holds the axis depth of every point over it: the
+        /// points of the pixel's square, widened by the footprint, between
+        /// its farthest and nearest depth, in a perspective view (reversed
+        /// Z, infinite far plane; sheared as fitted views are) and an
+        /// orthographic one, for any axis — on the affine path and on the
+        /// general one (a view whose depth depends on x).
+        #[test]
+        fn pixel_ranges_hold_the_points_over_the_pixel(
+            pixel in (0u32..64, 0u32..64),
+            depths in (0.01f32..1.0, 0.01f32..1.0),
+            axis in (-1.0f64..1.0, -1.0f64..1.0, -1.0f64..1.0),
+            origin in (-5.0f64..5.0, -5.0f64..5.0, -5.0f64..5.0),
+            kind in 0usize..3,
+            shear in -0.5f64..0.5,
+            samples in proptest::collection::vec((-0.02f64..1.02, -0.02f64..1.02, 0.0f64..1.0), 1..12),
+        ) {
+            let a = DVec3::new(axis.0, axis.1, axis.2);
+            proptest::prop_assume!(a.length() > 0.1);
+            let axis = DepthAxis { origin: DVec3::new(origin.0, origin.1, origin.2), axis: a.normalize() };
+            // From (0.5, 8, 0.5) looking down −y (view −z).
+            let view = DMat4::from_rotation_x(std::f64::consts::FRAC_PI_2)
+                * DMat4::from_translation(DVec3::new(-0.5, -8.0, -0.5));
+            // Reversed Z: depth n/(−z), infinite far plane; orthographic:
+            // depth 1 at z = 0, 0 at z = −20.
+            let perspective = DMat4::from_cols(
+                DVec4::new(1.5, 0.0, 0.0, 0.0),
+                DVec4::new(0.0, 1.5, 0.0, 0.0),
+                DVec4::new(0.0, 0.0, 0.0, -1.0),
+                DVec4::new(0.0, 0.0, 0.5, 0.0),
+            );
+            let proj = match kind {
+                0 => perspective,
+                1 => DMat4::from_cols(
+                    DVec4::new(0.1, 0.0, 0.0, 0.0),
+                    DVec4::new(0.0, 0.1, 0.0, 0.0),
+                    DVec4::new(0.0, 0.0, 0.05, 0.0),
+                    DVec4::new(0.0, 0.0, 1.0, 1.0),
+                ),
+                // Depth, so the inverse's w, depends on x: the general path.
+                _ => {
+                    let mut m = perspective;
+                    m.x_axis.z = 0.05;
+                    m
+                }
+            };
+            let shear = DMat4::from_cols_array(&[1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, shear, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0]);
+            let clip_from_world = shear * proj * view;
+            let world_from_clip = clip_from_world.inverse();
+            let light = match kind {
+                1 => Light::Directional { direction: DVec3::NEG_Y },
+                _ => Light::Point { position: DVec3::new(0.5, 8.0, 0.5), range: None },
+            };
+            let d = AxisDepth::new(&world_from_clip, &axis, &light, 30.0, (64, 64));
+            proptest::prop_assert_eq!(d.affine_xy, kind != 2);
+            let (far, near) = (depths.0.min(depths.1), depths.0.max(depths.1));
+            let (x, y) = pixel;
+            let [lo, hi] = d.range((x, x), (y, y), far, near);
+            let e = FOOTPRINT_PX;
+            for (sx, sy, sz) in samples {
+                let px = f64::from(x) - e + sx * (1.0 + 2.0 * e);
+                let py = f64::from(y) - e + sy * (1.0 + 2.0 * e);
+                let z = f64::from(far) + sz * f64::from(near - far);
+                let c = DVec4::new(px / 32.0 - 1.0, 1.0 - py / 32.0, z, 1.0);
+                let h = world_from_clip * c;
+                let p = h.truncate() / h.w;
+                let depth = axis.axis.dot(p - axis.origin);
+                let tol = 1e-9 * (depth.abs() + 1.0);
+                proptest::prop_assert!(lo <= depth + tol && depth <= hi + tol, "{} not in [{}, {}]", depth, lo, hi);
+            }
+        }
+    }
 
     /// Gathering unions each caster's per-view intervals, merging overlaps
     /// and keeping gaps.

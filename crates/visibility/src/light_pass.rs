@@ -19,6 +19,12 @@
 //!
 //! PSC is the union over the light's views of the objects found visible.
 //!
+//! With [`PassInput::fragment_axes`] (fragment receivers for clamping) each
+//! view's receiver target also keeps the nearest receiver depth per pixel,
+//! and after its traversal the view reads the depth intervals of the casters
+//! it found along their clamping axes (`fragment_depths.rs`); the pass
+//! gathers them per caster ([`LightPassResult::fragments`]).
+//!
 //! With [`Sampling::Point`] (aggressive) receivers mark only the pixels
 //! holding their projection, unpushed, and occluders and queries sample
 //! pixel centres.
