@@ -918,32 +918,20 @@ fn clamping_through_the_options() {
         assert!(differ as u32 <= W * H / 10_000, "{differ} pixels differ");
     }
     assert!(segments > 0, "the cubes are clamped");
-    let mut bad = c_options();
-    bad.clamping_receivers = 7;
-    let mut p = 0;
-    assert_eq!(sc_pipeline_create(&bad, &mut p), SC_INVALID_ARGUMENT);
-    assert!(
-        last_error().contains("options.clamping_receivers"),
-        "{}",
-        last_error()
-    );
-    let mut bad = c_options();
-    bad.clamping = 9;
-    let mut p = 0;
-    assert_eq!(sc_pipeline_create(&bad, &mut p), SC_INVALID_ARGUMENT);
-    assert!(
-        last_error().contains("options.clamping"),
-        "{}",
-        last_error()
-    );
-    let mut bad = c_options();
-    bad.clamp_pixel_cost = -1.0;
-    assert_eq!(sc_pipeline_create(&bad, &mut p), SC_INVALID_ARGUMENT);
-    assert!(
-        last_error().contains("clamp_pixel_cost"),
-        "{}",
-        last_error()
-    );
+    // Bad clamping fields are refused, naming the field.
+    type Spoil = fn(&mut sc_pipeline_options);
+    let bad_fields: [(&str, Spoil); 3] = [
+        ("options.clamping_receivers", |o| o.clamping_receivers = 7),
+        ("options.clamping", |o| o.clamping = 9),
+        ("clamp_pixel_cost", |o| o.clamp_pixel_cost = -1.0),
+    ];
+    for (field, spoil) in bad_fields {
+        let mut bad = c_options();
+        spoil(&mut bad);
+        let mut p = 0;
+        assert_eq!(sc_pipeline_create(&bad, &mut p), SC_INVALID_ARGUMENT);
+        assert!(last_error().contains(field), "{}", last_error());
+    }
     let mut old = o;
     old.struct_size = 40;
     let before = run(&old);
