@@ -60,7 +60,8 @@ pub struct FragmentDepths {
     intervals: Vec<[f64; 2]>,
     /// The per-view ranges while they are gathered.
     gather: Vec<(u32, [f64; 2])>,
-    /// Marked light pixels read, summed over casters and views.
+    /// Marked light pixels read one by one (a narrow tile read whole counts
+    /// none), summed over casters and views.
     pub pixels: u64,
 }
 
