@@ -97,7 +97,7 @@ pub struct VariantRow {
     pub waits: u64,
     /// Shadow-volume clamping (`none`, `continuous`).
     pub clamping: String,
-    /// Clamping's receivers (`all`, `psr`).
+    /// Clamping's receivers (`all`, `psr`, `fragment`).
     pub clamping_receivers: String,
     /// Median clamping time (ms).
     pub clamp_ms: f64,
@@ -178,9 +178,9 @@ fn write_csv(rows: &[VariantRow]) -> std::io::Result<Vec<u8>> {
 /// with CHC, CHC++, point-sampled (aggressive) CHC++, point-sampled CHC++
 /// in 256² light views (`h_chcpp_point_lr256`, a trade point) and `auto` culling,
 /// `auto` culling with `auto` stencil (`auto`), and brute
-/// force with continuous clamping (receivers `all`, `psr`; both count the
-/// fill without and with clamping, `count_fill`), each otherwise like
-/// `pipeline`.
+/// force with continuous clamping (receivers `all`, `psr`, and `fragment`
+/// with CHC++; each counts the fill without and with clamping,
+/// `count_fill`), each otherwise like `pipeline`.
 pub fn variants(job: &Job) -> Vec<NamedPipeline> {
     if !job.pipelines.is_empty() {
         return job.pipelines.clone();

@@ -298,7 +298,7 @@ pub struct PipelineOptions {
     pub finite_extrusion: bool,
     /// Shadow-volume clamping (`none` or `continuous`).
     pub clamping: ClampingSpec,
-    /// The receivers clamping fits volumes to (`all` or `psr`).
+    /// The receivers clamping fits volumes to (`all`, `psr` or `fragment`).
     pub clamping_receivers: ClampReceiversSpec,
     /// Clamping's cost per volume vertex, v in V = (2C + 2S)·v
     /// [Steiner eq. 4.2]: a gap between occupied intervals becomes a break
