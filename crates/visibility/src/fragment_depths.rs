@@ -259,18 +259,12 @@ pub const TILE_SPREAD: f64 = 1.0 / 16.0;
 /// when the projection misses the target.
 fn pixel_rect(m: &DMat4, b: &Aabb, w: u32, h: u32) -> Option<((u32, u32), (u32, u32))> {
     let whole = Some(((0, w.saturating_sub(1)), (0, h.saturating_sub(1))));
-    let (lo, hi) = (b.min.as_dvec3(), b.max.as_dvec3());
     let (mut x, mut y) = (
         [f64::INFINITY, f64::NEG_INFINITY],
         [f64::INFINITY, f64::NEG_INFINITY],
     );
-    for k in 0..8 {
-        let p = DVec3::new(
-            if k & 1 != 0 { hi.x } else { lo.x },
-            if k & 2 != 0 { hi.y } else { lo.y },
-            if k & 4 != 0 { hi.z } else { lo.z },
-        );
-        let c = *m * p.extend(1.0);
+    for p in b.corners() {
+        let c = *m * p.as_dvec3().extend(1.0);
         if !(c.w > 0.0 && c.is_finite()) {
             return whole;
         }
@@ -374,24 +368,27 @@ impl AxisDepth {
         n
     }
 
+    /// The normalized device coordinates along axis `k` (0: x, 1: y) of the
+    /// edges of the inclusive pixel range `a..=b`, widened by the footprint.
+    fn ndc(&self, k: usize, (a, b): (u32, u32)) -> [f64; 2] {
+        let e = FOOTPRINT_PX;
+        let (p, q) = (f64::from(a) - e, f64::from(b) + 1.0 + e);
+        [
+            p * self.scale[k] + self.offset[k],
+            q * self.scale[k] + self.offset[k],
+        ]
+    }
+
     /// `num.w` plus the x and y terms of the corners of the inclusive pixel
     /// rectangle where the depth (affine in x and y) is least and greatest.
     fn xy_terms(&self, xs: (u32, u32), ys: (u32, u32)) -> [f64; 2] {
-        let e = FOOTPRINT_PX;
-        let ndc = |k: usize, a: u32, b: u32| {
-            let (p, q) = (f64::from(a) - e, f64::from(b) + 1.0 + e);
-            [
-                p * self.scale[k] + self.offset[k],
-                q * self.scale[k] + self.offset[k],
-            ]
-        };
         let pick = |c: f64, r: [f64; 2]| {
             let (p, q) = (c * r[0], c * r[1]);
             [p.min(q), p.max(q)]
         };
         let (x, y) = (
-            pick(self.num.x, ndc(0, xs.0, xs.1)),
-            pick(self.num.y, ndc(1, ys.0, ys.1)),
+            pick(self.num.x, self.ndc(0, xs)),
+            pick(self.num.y, self.ndc(1, ys)),
         );
         [self.num.w + x[0] + y[0], self.num.w + x[1] + y[1]]
     }
@@ -440,17 +437,9 @@ impl AxisDepth {
             let [lo, hi] = self.xy_terms(xs, ys);
             return self.finish(lo, hi, far, near);
         }
-        let e = FOOTPRINT_PX;
-        let ndc = |k: usize, a: u32, b: u32| {
-            let (p, q) = (f64::from(a) - e, f64::from(b) + 1.0 + e);
-            [
-                p * self.scale[k] + self.offset[k],
-                q * self.scale[k] + self.offset[k],
-            ]
-        };
         let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
-        for cx in ndc(0, xs.0, xs.1) {
-            for cy in ndc(1, ys.0, ys.1) {
+        for cx in self.ndc(0, xs) {
+            for cy in self.ndc(1, ys) {
                 for cz in [f64::from(far), f64::from(near)] {
                     let c = DVec4::new(cx, cy, cz, 1.0);
                     let (n, d) = (self.num.dot(c), self.den.dot(c));
