@@ -4,7 +4,8 @@
 //! [--scissor on|off] [--method auto|zpass|zfail|zpplus] [--counters 8|wide] [--tile 4|8|16]
 //! [--full-shadow on|off] [--map N] [--culling none|frustum|exact|chc|chcpp|auto]
 //! [--coverage conservative|point] [--threshold T] [--light-res N]
-//! [--clamping none|continuous] [--clamping-receivers all|psr|fragment] [--count-fill]
+//! [--clamping none|continuous|discrete] [--slices N]
+//! [--clamping-receivers all|psr|fragment] [--count-fill]
 //! [--two-sided] [--reference] [--mask OUT.png] [--reps R | --path NAME [--frames N]]`
 //! (defaults `--tile 8 --counters 8 --map 2048 --full-shadow on --culling none
 //! --coverage conservative --threshold 0 --light-res 1024 --reps 5`; `--threshold` is the
@@ -107,6 +108,7 @@ const COUNTERS: &[(&str, StencilBits)] = &[("8", StencilBits::Eight), ("wide", S
 const CLAMPINGS: &[(&str, ClampingSpec)] = &[
     ("none", ClampingSpec::None),
     ("continuous", ClampingSpec::Continuous),
+    ("discrete", ClampingSpec::Discrete),
 ];
 const CLAMP_RECEIVERS: &[(&str, ClampReceiversSpec)] = &[
     ("all", ClampReceiversSpec::All),
@@ -203,6 +205,9 @@ struct Cli {
     #[arg(long = "clamping-receivers", value_parser = one_of(CLAMP_RECEIVERS),
           default_value = name_of(CLAMP_RECEIVERS, &PipelineOptions::default().clamping_receivers))]
     clamping_receivers: ClampReceiversSpec,
+    /// Discrete clamping's number of slices (1 to 64).
+    #[arg(long, default_value_t = PipelineOptions::default().slices)]
+    slices: u32,
     /// Counts `bf_fill_unclamped` and `bf_fill_clamped` on any backend by
     /// extra brute-force passes (in `wall_ms`, not in `pipeline_frame_ms`).
     #[arg(long = "count-fill")]
@@ -303,6 +308,7 @@ impl From<Cli> for Args {
                 culling: c.culling,
                 clamping: c.clamping,
                 clamping_receivers: c.clamping_receivers,
+                slices: c.slices,
                 count_fill: c.count_fill,
                 coverage: c.coverage,
                 query_threshold: c.query_threshold,
@@ -511,6 +517,7 @@ fn settings(a: &Args, row: &FrameRow) -> Map<String, Value> {
         "coverage": name_of(COVERAGES, &p.coverage),
         "clamping": name_of(CLAMPINGS, &p.clamping),
         "clamping_receivers": name_of(CLAMP_RECEIVERS, &p.clamping_receivers),
+        "slices": p.slices,
         "count_fill": p.count_fill,
         "query_threshold": p.query_threshold,
         "light_resolution": p.light_resolution,

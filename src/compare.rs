@@ -256,6 +256,25 @@ pub fn variants(job: &Job) -> Vec<NamedPipeline> {
                 ..clamped("", ClampReceiversSpec::Fragment).pipeline
             },
         },
+        // Discrete clamping [Steiner §4.4.2], 10 slices: exact with
+        // conservative light views, aggressive with point-sampled ones.
+        NamedPipeline {
+            name: "bf_clamp_discrete".into(),
+            pipeline: PipelineOptions {
+                culling: CullingSpec::Chcpp,
+                clamping: ClampingSpec::Discrete,
+                ..clamped("", ClampReceiversSpec::All).pipeline
+            },
+        },
+        NamedPipeline {
+            name: "bf_clamp_discrete_point".into(),
+            pipeline: PipelineOptions {
+                culling: CullingSpec::Chcpp,
+                coverage: CoverageSpec::Point,
+                clamping: ClampingSpec::Discrete,
+                ..clamped("", ClampReceiversSpec::All).pipeline
+            },
+        },
     ]
 }
 

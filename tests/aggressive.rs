@@ -7,14 +7,17 @@
 //! whose mask differs from the unculled (exact) mask, the frames with any
 //! such pixel (an artifact that comes and goes: popping), the mismatches
 //! against the ray-cast reference on reference frames, the potential casters
-//! and queries. It asserts what the options promise: they cull at least as
+//! and queries. Discrete clamping runs with conservative coverage (exact)
+//! and with point coverage (aggressive). It asserts what the options promise: they cull at least as
 //! much as the conservative CHC++ (their point of existing), and their error
 //! stays a small fraction of the image (a budget of 0.5 % of the shaded
 //! surface pixels; the numbers are printed so a change shows).
 
 use shadowcull::frame::FrameRunner;
 use shadowcull::mask::PixelClass;
-use shadowcull::pipeline::{CoverageSpec, CullingSpec, PipelineOptions, StencilBackend};
+use shadowcull::pipeline::{
+    ClampingSpec, CoverageSpec, CullingSpec, PipelineOptions, StencilBackend,
+};
 
 #[derive(Debug, Default)]
 struct Tally {
@@ -74,6 +77,28 @@ fn aggressive_options_are_measured_against_the_exact_mask() {
                 ..base
             },
         ),
+        // Discrete clamping [Steiner §4.4.2]: exact with conservative
+        // coverage; with point-sampled light views a receiver between
+        // samples may leave its slice unoccupied (aggressive).
+        (
+            "chcpp_discrete10",
+            PipelineOptions {
+                culling: CullingSpec::Chcpp,
+                clamping: ClampingSpec::Discrete,
+                slices: 10,
+                ..base
+            },
+        ),
+        (
+            "chcpp_point_discrete10",
+            PipelineOptions {
+                culling: CullingSpec::Chcpp,
+                coverage: CoverageSpec::Point,
+                clamping: ClampingSpec::Discrete,
+                slices: 10,
+                ..base
+            },
+        ),
     ];
     let mut runners: Vec<FrameRunner> = variants
         .iter()
@@ -126,10 +151,23 @@ fn aggressive_options_are_measured_against_the_exact_mask() {
     // the shadowgen tests require (mismatches only on its boundary rule).
     assert_eq!(tally[1].differ_pixels, 0, "{:?}", tally[1]);
     assert_eq!(tally[1].mismatch_pixels, tally[0].mismatch_pixels);
+    // Discrete clamping with conservative coverage changes no pixel but
+    // ones within snapping distance of a shadow boundary.
+    let discrete = variants
+        .iter()
+        .position(|v| v.0 == "chcpp_discrete10")
+        .unwrap();
+    assert!(
+        tally[discrete].differ_pixels * 10_000 <= shaded,
+        "{:?}",
+        tally[discrete]
+    );
     for k in 2..variants.len() {
         let t = &tally[k];
+        // Clamping changes what the light pass marks, not what it culls.
+        let clamps = variants[k].1.clamping != ClampingSpec::None;
         assert!(
-            t.psc <= tally[1].psc,
+            clamps || t.psc <= tally[1].psc,
             "{}: aggressive culls no less ({} vs {} casters)",
             variants[k].0,
             t.psc,

@@ -823,6 +823,12 @@ fn clamping_keeps_the_mask_on_the_culling_cases() {
                     culling: CullingSpec::Chcpp,
                     ..base
                 },
+                PipelineOptions {
+                    clamping: ClampingSpec::Discrete,
+                    slices: 10,
+                    culling: CullingSpec::Chcpp,
+                    ..base
+                },
             ];
             let mut plain = FrameRunner::new(fx.scene.clone());
             let mut runners: Vec<FrameRunner> = variants
@@ -880,10 +886,11 @@ fn clamping_keeps_the_mask_on_the_culling_cases() {
                                 .map(|&i| (i, p[i], q[i], r.mask.pixels[i], r.ambiguous[i]))
                                 .collect();
                             failures.push(format!(
-                                "{} {view} light {li} {} {:?}/{:?}: {} pixels differ, {} not ambiguous; (pixel, unclamped, clamped, reference, ambiguous): {:?}",
+                                "{} {view} light {li} {} {:?}/{:?}/{:?}: {} pixels differ, {} not ambiguous; (pixel, unclamped, clamped, reference, ambiguous): {:?}",
                                 case.label,
                                 side(two_sided),
                                 o.culling,
+                                o.clamping,
                                 o.clamping_receivers,
                                 differ.len(),
                                 clear.len(),
@@ -910,7 +917,8 @@ fn clamping_keeps_the_mask_on_the_culling_cases() {
     );
 }
 
-/// Fragment receivers hold every shadowed visible sample: on the city
+/// Fragment receivers, and discrete clamping's occupied slices, hold every
+/// shadowed visible sample: on the city
 /// street path (every 5th of its 100 frames, both lights) and on the Cornell
 /// box and the closed box, with light views of 1024² and 64², every gap kept
 /// (no vertex cost), every eye sample (one per pixel centre, as the mask
@@ -926,9 +934,24 @@ fn clamping_keeps_the_mask_on_the_culling_cases() {
 /// cannot pass empty.
 #[test]
 fn fragment_segments_hold_every_shadowed_eye_sample() {
-    use shadowcull::pipeline::{
-        visible_points, ClampReceiversSpec, ClampingSpec, FrameInput, Pipeline,
-    };
+    use shadowcull::pipeline::ClampingSpec;
+    segments_hold_every_shadowed_eye_sample(ClampingSpec::Continuous, "fragment");
+}
+
+/// As [`fragment_segments_hold_every_shadowed_eye_sample`] for discrete
+/// clamping (10 slices): the slicing planes pass through the eye, and a
+/// sample's pixel centre lies half a pixel from every boundary.
+#[test]
+fn discrete_segments_hold_every_shadowed_eye_sample() {
+    use shadowcull::pipeline::ClampingSpec;
+    segments_hold_every_shadowed_eye_sample(ClampingSpec::Discrete, "discrete");
+}
+
+fn segments_hold_every_shadowed_eye_sample(
+    clamping: shadowcull::pipeline::ClampingSpec,
+    label: &str,
+) {
+    use shadowcull::pipeline::{visible_points, ClampReceiversSpec, FrameInput, Pipeline};
     use std::collections::HashMap;
     let t = Instant::now();
     let (mut shadowed, mut clamped_casters) = (0u64, 0u64);
@@ -947,8 +970,9 @@ fn fragment_segments_hold_every_shadowed_eye_sample() {
             let options = PipelineOptions {
                 stencil: StencilBackend::None,
                 culling: CullingSpec::Chcpp,
-                clamping: ClampingSpec::Continuous,
+                clamping,
                 clamping_receivers: ClampReceiversSpec::Fragment,
+                slices: 10,
                 clamp_vertex_cost: 0.0,
                 light_resolution,
                 reference_every: 0,
@@ -1060,7 +1084,7 @@ fn fragment_segments_hold_every_shadowed_eye_sample() {
         }
     }
     eprintln!(
-        "fragment segments: {shadowed} shadowed samples, {clamped_casters} clamped casters, {:.1} s",
+        "{label} segments: {shadowed} shadowed samples, {clamped_casters} clamped casters, {:.1} s",
         t.elapsed().as_secs_f64()
     );
     assert!(

@@ -167,6 +167,7 @@ fn try_run(
             receivers: ClampReceiversSpec::All,
             vertex_cost: DEFAULT_CLAMP_VERTEX_COST,
             pixel_cost: DEFAULT_CLAMP_PIXEL_COST,
+            slices: None,
         }),
         ..opts
     };

@@ -633,10 +633,11 @@ fn hierarchical_stencil_matches_brute_force_on_every_shared_view() {
 /// (job, one- or two-sided) runs its frames in order on its own runners (CHC's
 /// temporal coherence); those runs go in parallel.
 ///
-/// A third runner adds continuous clamping to fragment receivers: it keeps
-/// every pixel but ones the reference calls ambiguous (a segment's new
-/// vertices snap on their own), of which at most 0.01% of the image may
-/// differ from the reference's class.
+/// A third runner adds continuous clamping to fragment receivers, a fourth
+/// discrete clamping (10 slices): each keeps every pixel but ones the
+/// reference calls ambiguous (a segment's new vertices snap on their own),
+/// of which at most 0.01% of the image may differ from the reference's
+/// class.
 #[test]
 fn culling_keeps_every_shared_job_mask() {
     use shadowcull::config::resolve_lights;
@@ -647,12 +648,12 @@ fn culling_keeps_every_shared_job_mask() {
     let runs: Vec<(&SharedJob, bool)> = (shared_jobs().iter())
         .flat_map(|j| [(j, false), (j, true)])
         .collect();
-    // Per run: casters without and with culling, fragment segments, and
-    // the failures.
-    let per_run: Vec<(u64, u64, u64, Vec<String>)> = (runs.into_par_iter())
+    // Per run: casters without and with culling, fragment and discrete
+    // segments, and the failures.
+    let per_run: Vec<(u64, u64, [u64; 2], Vec<String>)> = (runs.into_par_iter())
         .map(|(j, two_sided)| {
             let (mut casters, mut culled, mut failures) = (0u64, 0u64, Vec::new());
-            let mut segments = 0u64;
+            let mut segments = [0u64; 2];
             let (w, h) = j.size();
             let lights =
                 resolve_lights(&j.job, &j.loaded, &j.scene.bounds(), &j.file).unwrap();
@@ -672,11 +673,19 @@ fn culling_keeps_every_shared_job_mask() {
                 clamping_receivers: ClampReceiversSpec::Fragment,
                 ..culled_opts
             };
-            let (mut plain, mut cull, mut clamp) = (
-                FrameRunner::new(j.scene.clone()),
+            let discrete_opts = PipelineOptions {
+                clamping: ClampingSpec::Discrete,
+                slices: 10,
+                ..culled_opts
+            };
+            let (mut plain, mut cull) = (
                 FrameRunner::new(j.scene.clone()),
                 FrameRunner::new(j.scene.clone()),
             );
+            let mut clamps = [
+                (FrameRunner::new(j.scene.clone()), fragment_opts, "fragment"),
+                (FrameRunner::new(j.scene.clone()), discrete_opts, "discrete"),
+            ];
             for frame in 0..j.job.frame_count() {
                 let cam = (j.path.at(frame).unwrap())
                     .camera(f64::from(w) / f64::from(h))
@@ -687,30 +696,32 @@ fn culling_keeps_every_shared_job_mask() {
                 let b = cull
                     .frame(frame, &cam, &lights, (w, h), &culled_opts, false)
                     .unwrap();
-                let c = clamp
-                    .frame(frame, &cam, &lights, (w, h), &fragment_opts, false)
-                    .unwrap();
-                for (li, (x, z)) in a.iter().zip(&c).enumerate() {
-                    segments += z.row.shadow.volumes.segments as u64;
-                    let (p, q) = (&x.mask().pixels, &z.mask().pixels);
-                    let differ: Vec<usize> = (0..p.len()).filter(|&i| p[i] != q[i]).collect();
-                    if differ.is_empty() {
-                        continue;
-                    }
-                    let ropts = ReferenceOptions {
-                        two_sided,
-                        ..Default::default()
-                    };
-                    let eye = &j.eye(frame).1;
-                    let r = reference_mask(j.bvh(), &cam, &lights[li], w, h, &ropts, Some(eye.surface()));
-                    let clear = differ.iter().filter(|&&i| !r.ambiguous[i]).count();
-                    let astray = differ.iter().filter(|&&i| q[i] != r.mask.pixels[i]).count();
-                    if clear > 0 || astray as u64 > u64::from(w * h) / 10_000 {
-                        failures.push(format!(
-                            "{} camera {frame} light {li} two_sided {two_sided}, fragment clamping: {} pixels differ, {clear} not ambiguous, {astray} not the reference's",
-                            j.name,
-                            differ.len()
-                        ));
+                for (clamp, opts, label) in &mut clamps {
+                    let c = clamp.frame(frame, &cam, &lights, (w, h), opts, false).unwrap();
+                    for (li, (x, z)) in a.iter().zip(&c).enumerate() {
+                        let s = z.row.shadow.volumes.segments as u64;
+                        segments[usize::from(*label == "discrete")] += s;
+                        let (p, q) = (&x.mask().pixels, &z.mask().pixels);
+                        let differ: Vec<usize> =
+                            (0..p.len()).filter(|&i| p[i] != q[i]).collect();
+                        if differ.is_empty() {
+                            continue;
+                        }
+                        let ropts = ReferenceOptions {
+                            two_sided,
+                            ..Default::default()
+                        };
+                        let eye = &j.eye(frame).1;
+                        let r = reference_mask(j.bvh(), &cam, &lights[li], w, h, &ropts, Some(eye.surface()));
+                        let clear = differ.iter().filter(|&&i| !r.ambiguous[i]).count();
+                        let astray = differ.iter().filter(|&&i| q[i] != r.mask.pixels[i]).count();
+                        if clear > 0 || astray as u64 > u64::from(w * h) / 10_000 {
+                            failures.push(format!(
+                                "{} camera {frame} light {li} two_sided {two_sided}, {label} clamping: {} pixels differ, {clear} not ambiguous, {astray} not the reference's",
+                                j.name,
+                                differ.len()
+                            ));
+                        }
                     }
                 }
                 for (li, (x, y)) in a.iter().zip(&b).enumerate() {
@@ -734,17 +745,23 @@ fn culling_keeps_every_shared_job_mask() {
             (casters, culled, segments, failures)
         })
         .collect();
-    let (mut casters, mut culled, mut segments, mut failures) = (0u64, 0u64, 0u64, Vec::new());
+    let (mut casters, mut culled, mut segments, mut failures) = (0u64, 0u64, [0u64; 2], Vec::new());
     for (a, b, s, f) in per_run {
         casters += a;
         culled += b;
-        segments += s;
+        segments[0] += s[0];
+        segments[1] += s[1];
         failures.extend(f);
     }
-    println!("casters without culling {casters}, with {culled}; {segments} fragment segments");
+    let [fragment, discrete] = segments;
+    println!("casters without culling {casters}, with {culled}; {fragment} fragment segments, {discrete} discrete segments");
     assert!(
-        segments > casters / 4 || shared_jobs().is_empty(),
-        "{segments} fragment segments"
+        fragment > casters / 4 || shared_jobs().is_empty(),
+        "{fragment} fragment segments"
+    );
+    assert!(
+        discrete > casters / 8 || shared_jobs().is_empty(),
+        "{discrete} discrete segments"
     );
     assert!(
         culled < casters || shared_jobs().is_empty(),
@@ -778,6 +795,7 @@ fn check_clamping(views: Vec<HViewSpec>) -> (u64, u64) {
                             receivers: ClampReceiversSpec::All,
                             vertex_cost,
                             pixel_cost,
+                            slices: None,
                         }),
                         ..base
                     };

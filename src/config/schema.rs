@@ -424,6 +424,8 @@ mod tests {
         for (text, field) in [
             ("chcpp: (batch: 0)", "pipeline.chcpp"),
             ("light_resolution: 4", "pipeline.light_resolution"),
+            ("slices: 0", "pipeline.slices"),
+            ("slices: 65", "pipeline.slices"),
             ("auto: (probe: 0)", "pipeline.auto.probe"),
             ("auto: (margin: 0.5)", "pipeline.auto.margin"),
             ("auto: (eye_tile: -1.0)", "pipeline.auto"),

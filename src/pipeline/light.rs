@@ -8,7 +8,9 @@ use crate::Result;
 use rayon::iter::ParallelIterator;
 use scene::Light;
 use std::time::Instant;
-use visibility::{LightPass, LightPassOptions, LightPassResult, PassInput};
+use visibility::{
+    FragmentSource, LightPass, LightPassOptions, LightPassResult, PassInput, SliceRatio,
+};
 
 /// One light's light-pass state and its last result.
 #[derive(Debug, Default)]
@@ -31,6 +33,10 @@ pub(crate) struct LightPassInput<'a> {
     pub options: &'a LightPassOptions,
     /// The job frame number.
     pub frame: u32,
+    /// Discrete clamping: the viewport and the number of slices; each
+    /// light reads its casters' occupied slices of its own
+    /// [`shadowgen::EyeSlices`] (none without them).
+    pub slices: Option<((u32, u32), u32)>,
 }
 
 /// Runs the light pass of every light concurrently: each item is a light, its
@@ -47,8 +53,22 @@ pub(crate) fn light_passes<'l>(
         .map(|(light, key, c)| {
             let t = Instant::now();
             c.pass.set_frame(input.frame);
+            let mut edges = [0.0; visibility::MAX_SLICES + 1];
+            let mut pass = input.pass;
+            if let Some((viewport, n)) = input.slices {
+                pass.fragments = None;
+                if let Some(s) = shadowgen::EyeSlices::new(pass.camera, viewport, &light, n) {
+                    let edges = &mut edges[..=n as usize];
+                    for (i, e) in edges.iter_mut().enumerate() {
+                        *e = s.edge(i as u32);
+                    }
+                    let (num, den) = s.world_ratio();
+                    let edges = &*edges;
+                    pass.fragments = Some(FragmentSource::Slices(SliceRatio { num, den, edges }));
+                }
+            }
             c.pass.run_into(
-                &input.pass,
+                &pass,
                 &light,
                 input.options,
                 input.backends.map(|f| (f, key)),

@@ -492,7 +492,9 @@ impl Pipeline {
         // tighter and hold more points, so the PSC may differ from the other
         // receiver models': they are taken whenever the model is chosen, so
         // that `count_fill` and `clamping` change no PSC.
-        let fragment_model = o.clamping_receivers == options::ClampReceiversSpec::Fragment;
+        let discrete = o.clamping == options::ClampingSpec::Discrete;
+        let fragment_model =
+            o.clamping_receivers == options::ClampReceiversSpec::Fragment || discrete;
         // The culling lights mark the eye's visible surface points.
         if lights_culled {
             visible_points_into(
@@ -555,11 +557,12 @@ impl Pipeline {
                     meshes,
                     camera,
                     receivers: &self.receivers,
-                    fragment_axes: fragment_model.then_some(&axes as &visibility::AxisFn),
+                    fragments: fragment_model.then_some(visibility::FragmentSource::Axes(&axes)),
                 },
                 backends: self.backends.as_deref(),
                 options: &o.light_pass_options(),
                 frame,
+                slices: discrete.then_some(((w, h), o.slices)),
             };
             light::light_passes(lights, &input)?;
         }

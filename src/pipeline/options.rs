@@ -91,7 +91,24 @@ pub enum ClampingSpec {
     /// the depth intervals its receivers occupy in the light's view
     /// (sweep-and-prune, [`shadowgen::LightClamp`]). The mask is unchanged.
     Continuous,
+    /// Discrete clamping [Steiner §4.4.2]: the view is cut into `slices`
+    /// strips by planes through the eye that face the light
+    /// ([`shadowgen::EyeSlices`]), and each caster's volume is drawn only
+    /// in the strips where the light pass finds the eye's visible surface
+    /// in its shadow (`visibility::SliceRatio`). The planes are edge-on for
+    /// the eye, so the segments' caps cost no fill. With `coverage:
+    /// conservative` the mask is unchanged; with `coverage: point` a
+    /// receiver between the light view's samples may be missed
+    /// (aggressive). A light whose image lies on the screen (in front of
+    /// or straight behind the eye) has no such planes, and a light the
+    /// frame does not cull has no light pass: their volumes stay
+    /// unclamped, as does a caster not wholly in front of the eye.
+    Discrete,
 }
+
+/// Default [`PipelineOptions::slices`]: "10 slices are usually sufficient"
+/// at a 60° field of view [Steiner §4.4.2].
+pub const DEFAULT_SLICES: u32 = 10;
 
 /// CHC++ parameters (`chcpp: (batch: 50, revisit: 5, seed: 1)`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize, Serialize)]
@@ -296,8 +313,11 @@ pub struct PipelineOptions {
     pub two_sided: bool,
     /// Lights with a range extrude their shadow volumes finitely (always closed).
     pub finite_extrusion: bool,
-    /// Shadow-volume clamping (`none` or `continuous`).
+    /// Shadow-volume clamping (`none`, `continuous` or `discrete`).
     pub clamping: ClampingSpec,
+    /// Discrete clamping's number of slices (strips of the image), 1 to
+    /// [`visibility::MAX_SLICES`].
+    pub slices: u32,
     /// The receivers clamping fits volumes to (`all`, `psr` or `fragment`).
     pub clamping_receivers: ClampReceiversSpec,
     /// Clamping's cost per volume vertex, v in V = (2C + 2S)·v
@@ -355,6 +375,7 @@ impl Default for PipelineOptions {
             two_sided: false,
             finite_extrusion: false,
             clamping: ClampingSpec::None,
+            slices: DEFAULT_SLICES,
             clamping_receivers: ClampReceiversSpec::All,
             clamp_vertex_cost: DEFAULT_CLAMP_VERTEX_COST,
             clamp_pixel_cost: DEFAULT_CLAMP_PIXEL_COST,
@@ -415,7 +436,14 @@ impl PipelineOptions {
             scissor: self.scissor,
             depth_bounds: self.depth_bounds || self.stencil == StencilBackend::Db,
             finite_extrusion: self.finite_extrusion,
-            clamping: (self.clamping == ClampingSpec::Continuous).then(|| self.clamp_options()),
+            clamping: match self.clamping {
+                ClampingSpec::None => None,
+                ClampingSpec::Continuous => Some(self.clamp_options()),
+                ClampingSpec::Discrete => Some(super::shadow_options::ClampOptions {
+                    slices: Some(self.slices),
+                    ..self.clamp_options()
+                }),
+            },
         }
     }
 
@@ -426,6 +454,7 @@ impl PipelineOptions {
             receivers: self.clamping_receivers,
             vertex_cost: self.clamp_vertex_cost,
             pixel_cost: self.clamp_pixel_cost,
+            slices: None,
         }
     }
 
@@ -536,6 +565,12 @@ impl PipelineOptions {
             return bad(
                 "map_size",
                 format!("{} is not in 16..={}", p.map_size, raster::MAX_TARGET_SIZE),
+            );
+        }
+        if !(1..=visibility::MAX_SLICES as u32).contains(&p.slices) {
+            return bad(
+                "slices",
+                format!("{} is not in 1..={}", p.slices, visibility::MAX_SLICES),
             );
         }
         if p.threads > 1024 {

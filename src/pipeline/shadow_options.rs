@@ -46,7 +46,7 @@ pub struct ShadowOptions {
     /// Point and spot lights with a range extrude their volumes finitely
     /// ([`shadowgen::BuildOptions::finite_extrusion`]).
     pub finite_extrusion: bool,
-    /// Continuous clamping [Steiner §4.4]; `None`: off.
+    /// Continuous or discrete clamping [Steiner §4.4]; `None`: off.
     pub clamping: Option<ClampOptions>,
 }
 
@@ -82,6 +82,8 @@ pub struct ClampOptions {
     pub vertex_cost: f64,
     /// r of the gap cost model.
     pub pixel_cost: f64,
+    /// Discrete clamping's number of slices; `None`: continuous clamping.
+    pub slices: Option<u32>,
 }
 
 impl Default for ShadowOptions {

@@ -11,8 +11,8 @@ use crate::Result;
 use raster::VolumeBuffer;
 use scene::{Aabb, Camera, ObjectId, Scene};
 use shadowgen::{
-    build_clamped_volumes, build_volumes, BuildOptions, ClampInput, ClampPlan, GapCost, GapModel,
-    LightClamp, ReceiverDepths, SegmentAxis, SilhouetteCache, VolumeRequest, VolumeStats,
+    build_clamped_volumes, build_volumes, BuildOptions, ClampInput, ClampPlan, EyeSlices, GapCost,
+    GapModel, LightClamp, ReceiverDepths, SegmentAxis, SilhouetteCache, VolumeRequest, VolumeStats,
 };
 use std::time::Instant;
 use visibility::FragmentDepths;
@@ -86,13 +86,33 @@ pub(crate) fn build_for(
                 receives,
                 cost: Some(&model),
             };
-            let cs = match fragments {
-                Some(f) => {
+            let slices = clamp
+                .slices
+                .and_then(|n| EyeSlices::new(camera, viewport, light, n));
+            let cs = match (fragments, clamp.slices) {
+                (Some(f), Some(_)) => match &slices {
+                    Some(s) => {
+                        scratch
+                            .clamp
+                            .plan_sliced(&clamp_input, s, &Fragments(f), &mut scratch.plan)
+                    }
+                    // No pencil for this light and view: unclamped.
+                    None => {
+                        scratch.plan.clear();
+                        Default::default()
+                    }
+                },
+                // Discrete clamping without a light pass: unclamped.
+                (None, Some(_)) => {
+                    scratch.plan.clear();
+                    Default::default()
+                }
+                (Some(f), None) => {
                     scratch
                         .clamp
                         .plan_from_depths(&clamp_input, &Fragments(f), &mut scratch.plan)
                 }
-                None => scratch.clamp.plan(&clamp_input, &mut scratch.plan)?,
+                (None, None) => scratch.clamp.plan(&clamp_input, &mut scratch.plan)?,
             };
             let clamp_ms = t.elapsed().as_secs_f64() * 1e3;
             let plan = &scratch.plan;

@@ -161,6 +161,14 @@
 // depths its receivers occupy; `sc_volume_range.segment` numbers them.
 #define SC_CLAMPING_CONTINUOUS 1
 
+// Discrete clamping [Steiner §4.4.2]: each caster's volume drawn only in
+// the strips of the image (`sc_pipeline_options.slices` of them, cut by
+// planes through the eye) where the light pass finds a receiver in its
+// shadow. Exact with `SC_COVERAGE_CONSERVATIVE`, aggressive with
+// `SC_COVERAGE_POINT`; a light the frame does not cull, or whose image
+// lies on the screen for a caster its plane cuts, stays unclamped there.
+#define SC_CLAMPING_DISCRETE 2
+
 // Every receiving object is a receiver for clamping (the default).
 #define SC_CLAMP_RECEIVERS_ALL 0
 
@@ -254,8 +262,10 @@ typedef struct sc_pipeline_options {
   // any stencil; a measurement left out of every time. (Added with the
   // 72-byte layout; an older host's struct means 0.)
   uint32_t count_fill;
-  // Zero.
-  uint32_t reserved;
+  // Discrete clamping's number of slices, 1 to 64; 0: the library's
+  // default (10). (Added in the 72-byte layout's last field, which was
+  // reserved as zero: an older host means the default.)
+  uint32_t slices;
 } sc_pipeline_options;
 
 // A pipeline: 0 is the null handle.

@@ -62,6 +62,14 @@ pub const SC_CLAMPING_NONE: u32 = 0;
 /// depths its receivers occupy; `sc_volume_range.segment` numbers them.
 pub const SC_CLAMPING_CONTINUOUS: u32 = 1;
 
+/// Discrete clamping [Steiner §4.4.2]: each caster's volume drawn only in
+/// the strips of the image (`sc_pipeline_options.slices` of them, cut by
+/// planes through the eye) where the light pass finds a receiver in its
+/// shadow. Exact with `SC_COVERAGE_CONSERVATIVE`, aggressive with
+/// `SC_COVERAGE_POINT`; a light the frame does not cull, or whose image
+/// lies on the screen for a caster its plane cuts, stays unclamped there.
+pub const SC_CLAMPING_DISCRETE: u32 = 2;
+
 /// Every receiving object is a receiver for clamping (the default).
 pub const SC_CLAMP_RECEIVERS_ALL: u32 = 0;
 /// The eye pass's potentially visible receivers (with culling).
@@ -135,8 +143,10 @@ pub struct sc_pipeline_options {
     /// any stencil; a measurement left out of every time. (Added with the
     /// 72-byte layout; an older host's struct means 0.)
     pub count_fill: u32,
-    /// Zero.
-    pub reserved: u32,
+    /// Discrete clamping's number of slices, 1 to 64; 0: the library's
+    /// default (10). (Added in the 72-byte layout's last field, which was
+    /// reserved as zero: an older host means the default.)
+    pub slices: u32,
 }
 
 /// A mesh in the host's memory: positions `vertex_count` times, `stride`
@@ -266,7 +276,7 @@ impl Versioned for sc_pipeline_options {
             clamp_vertex_cost: 0.0,
             clamp_pixel_cost: 0.0,
             count_fill: 0,
-            reserved: 0,
+            slices: 0,
         }
     }
 }
@@ -352,6 +362,7 @@ impl sc_pipeline_options {
         let clamping = match self.clamping {
             SC_CLAMPING_NONE => ClampingSpec::None,
             SC_CLAMPING_CONTINUOUS => ClampingSpec::Continuous,
+            SC_CLAMPING_DISCRETE => ClampingSpec::Discrete,
             v => {
                 return Err(Failure::invalid(format!(
                     "options.clamping: {v} is no SC_CLAMPING_*"
@@ -401,6 +412,10 @@ impl sc_pipeline_options {
             threads: self.threads,
             two_sided: self.two_sided != 0,
             count_fill: self.count_fill != 0,
+            slices: match self.slices {
+                0 => defaults.slices,
+                n => n,
+            },
             max_memory: (self.max_memory > 0)
                 .then_some(shadowcull::byte_size::ByteSize(self.max_memory)),
             ..PipelineOptions::default()

@@ -904,25 +904,47 @@ fn clamping_through_the_options() {
     let mut fragment = o;
     fragment.clamping_receivers = SC_CLAMP_RECEIVERS_FRAGMENT;
     let clamped_fragment = run(&fragment);
+    let mut discrete = c_options();
+    discrete.clamping = SC_CLAMPING_DISCRETE;
+    discrete.slices = 12;
+    let clamped_discrete = run(&discrete);
     let mut segments = 0;
-    let both = clamped.iter().chain(&clamped_fragment);
-    for ((pm, pr, _), (cm, cr, cs)) in plain.iter().cycle().zip(both) {
+    let all = clamped
+        .iter()
+        .chain(&clamped_fragment)
+        .chain(&clamped_discrete);
+    for ((pm, pr, _), (cm, cr, cs)) in plain.iter().cycle().zip(all) {
         assert!(pr.iter().all(|r| r.segment == 0 && r.far_plane == [0.0; 4]));
         segments += cs.segments;
+        // Discrete clamping leaves a caster unclamped where the light's
+        // plane cuts it: one range without planes.
+        let clamped = |r: &&sc_volume_range| r.segment > 0 || r.far_plane != [0.0; 4];
+        let cr: Vec<_> = cr.iter().filter(clamped).collect();
         assert_eq!(cs.segments as usize, cr.len());
-        for r in cr {
-            assert_ne!(r.far_plane, [0.0; 4], "a segment has its far plane");
+        for (k, r) in cr.iter().enumerate() {
+            // Only a caster's last segment may extrude to infinity
+            // (discrete clamping, beyond a plane its rays never reach).
+            let last = cr.get(k + 1).is_none_or(|n| n.segment == 0);
+            assert!(
+                r.far_plane != [0.0; 4] || (last && r.segment > 0),
+                "a segment has its far plane"
+            );
             assert_eq!(r.near_plane == [0.0; 4], r.segment == 0);
         }
         let differ = pm.iter().zip(cm).filter(|(a, b)| a != b).count();
         assert!(differ as u32 <= W * H / 10_000, "{differ} pixels differ");
     }
     assert!(segments > 0, "the cubes are clamped");
+    assert!(
+        clamped_discrete.iter().any(|(_, _, s)| s.segments > 0),
+        "discrete clamping cuts the cubes"
+    );
     // Bad clamping fields are refused, naming the field.
     type Spoil = fn(&mut sc_pipeline_options);
-    let bad_fields: [(&str, Spoil); 3] = [
+    let bad_fields: [(&str, Spoil); 4] = [
         ("options.clamping_receivers", |o| o.clamping_receivers = 7),
         ("options.clamping", |o| o.clamping = 9),
+        ("slices", |o| o.slices = 65),
         ("clamp_pixel_cost", |o| o.clamp_pixel_cost = -1.0),
     ];
     for (field, spoil) in bad_fields {

@@ -2,7 +2,7 @@
 //! method choice and volume construction into a caller-owned
 //! [`raster::VolumeBuffer`] (DESIGN.md "One frame, per light", steps 5 and 7).
 
-use crate::segments::{append_segments, ClampPlan, SegmentScratch};
+use crate::segments::{append_segments, ClampPlan, SegmentFrame, SegmentScratch};
 use crate::volume::{append_volume, CasterGeometry, LocalLight};
 use crate::{Error, MethodChoice, NearLightHull, Result, SilhouetteCache};
 use raster::{VolumeBuffer, VolumeMethod};
@@ -220,7 +220,7 @@ fn append_all(
         let sil = cache.get(id, light).expect("update() cached every caster");
         let object = scene.object(id);
         let mesh = scene.object_mesh(id);
-        let segments = clamp.and_then(|p| p.get(id));
+        let segments = clamp.and_then(|p| p.frame(id));
         // Worst case per caster and segment: 2 vertices per mesh vertex,
         // 3·(2·caps + 2·edges) indices.
         let k = segments.map_or(1, |(_, i)| i.len());
@@ -253,20 +253,30 @@ fn append_all(
         };
         stats.silhouette_edges += sil.edge_count();
         stats.cap_source_triangles += sil.caps.len();
-        if let Some((axis, intervals)) = segments {
+        if let Some((frame, intervals)) = segments {
             let seg_scratch = &mut scratch.segments;
             let before = out.ranges.len();
             // The rule on the segment's own bounds; but a segment lies in the
             // caster's shadow, so where the caster's rule allows zpass (the
             // near rectangle is not in its shadow) every segment may use it.
+            // Slices take the caster's rule: a segment is a closed part of
+            // the volume, counted as the volume is.
             let whole = choose(&object.world_bounds);
-            let c = append_segments(out, seg_scratch, caster, axis, intervals, |k, near, far| {
-                let near = (k > 0).then_some(near);
-                match choose(&axis.segment_bounds(&object.world_bounds, near, far)) {
-                    _ if whole == VolumeMethod::ZPass => VolumeMethod::ZPass,
-                    own => own,
-                }
-            });
+            let c = append_segments(
+                out,
+                seg_scratch,
+                caster,
+                frame,
+                light,
+                intervals,
+                |k, near, far| match frame {
+                    SegmentFrame::Axis(axis) if whole != VolumeMethod::ZPass => {
+                        let near = (k > 0).then_some(near);
+                        choose(&axis.segment_bounds(&object.world_bounds, near, far))
+                    }
+                    _ => whole,
+                },
+            );
             for r in &out.ranges[before..] {
                 count_method(stats, r.method);
             }

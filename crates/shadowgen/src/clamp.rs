@@ -21,7 +21,7 @@
 
 use crate::bounds::{corner, round_down, round_up};
 use crate::{occupied_intervals, ClampPlan, GapArea, GapCost, Result, SegmentAxis, SweepPrune};
-use crate::{ImageRect, SapStats};
+use crate::{EyeSlices, ImageRect, SapStats};
 use glam::DVec3;
 use scene::{Aabb, Light, ObjectId, Scene};
 
@@ -229,14 +229,8 @@ impl LightClamp {
     ) -> ClampStats {
         plan.clear();
         let mut stats = ClampStats::default();
-        let objects = input.scene.objects();
-        for &c in input.casters {
-            let Some(bounds) = objects.get(c.0 as usize).map(|o| o.world_bounds) else {
-                continue;
-            };
-            let (Some(axis), Some(found)) =
-                (SegmentAxis::new(input.light, &bounds), depths.depths(c))
-            else {
+        for (c, bounds, found) in with_depths(input, depths) {
+            let Some(axis) = SegmentAxis::new(input.light, &bounds) else {
                 continue;
             };
             let model = input.cost.map(|m| (m.cost(c), m));
@@ -251,6 +245,75 @@ impl LightClamp {
             stats.clamped += 1;
             stats.intervals += self.intervals.len() as u64;
             plan.set(c, axis, &self.intervals);
+        }
+        stats
+    }
+
+    /// Discrete clamping [Steiner §4.4.2, Listing 4.3]: fills `plan`
+    /// (cleared first) with `slices` and, per caster of `input` that lies in
+    /// front of the eye and has an entry in `depths` (its receivers' `g`
+    /// ranges, see [`EyeSlices`]), the slices its receivers occupy and the
+    /// slices of its own box, merged where they touch. Every gap is kept: a
+    /// segment's caps are edge-on and cost no fill. From the first interval
+    /// end some ray of the caster's box does not reach, its segment
+    /// extrudes to infinity (from the last plane every ray reaches, `+∞`
+    /// far end); a caster whose first interval is such stays unclamped, as
+    /// does any other. `input.receives` and `input.cost` are not read.
+    pub fn plan_sliced(
+        &mut self,
+        input: &ClampInput<'_>,
+        slices: &EyeSlices,
+        depths: &dyn ReceiverDepths,
+        plan: &mut ClampPlan,
+    ) -> ClampStats {
+        plan.clear();
+        let mut stats = ClampStats::default();
+        for (c, bounds, found) in with_depths(input, depths) {
+            // Oriented so that g grows along the caster's rays; `depths`
+            // counts in the base orientation.
+            let Some(slices) = slices.for_caster(&bounds) else {
+                continue;
+            };
+            let oriented = |r: [f64; 2]| {
+                let r = if slices.flip() {
+                    slices.from_other(r)
+                } else {
+                    r
+                };
+                slices.widened(r)
+            };
+            let own = slices.box_range(&bounds);
+            let first = match slices.widened(own) {
+                Some([_, hi]) => [own[0], hi.max(own[1])],
+                None => own,
+            };
+            occupied_intervals(
+                first,
+                found.iter().filter_map(|&r| oriented(r)),
+                None,
+                &mut self.intervals,
+            );
+            let iv = &mut self.intervals;
+            if let Some(k) = iv
+                .iter()
+                .position(|&[_, b]| !slices.box_reaches(&bounds, b))
+            {
+                // The segment from the last plane every ray reaches goes on
+                // to infinity.
+                let j = if k > 0 && slices.box_reaches(&bounds, iv[k][0]) {
+                    k
+                } else {
+                    k.saturating_sub(1)
+                };
+                if j == 0 {
+                    continue;
+                }
+                iv.truncate(j + 1);
+                iv[j][1] = f64::INFINITY;
+            }
+            stats.clamped += 1;
+            stats.intervals += iv.len() as u64;
+            plan.set_sliced(c, slices, iv);
         }
         stats
     }
@@ -351,6 +414,19 @@ impl LightClamp {
         }
         Ok(())
     }
+}
+
+/// The casters of `input` that `depths` has an entry for, with their world
+/// bounds and that entry.
+fn with_depths<'a>(
+    input: &'a ClampInput<'_>,
+    depths: &'a dyn ReceiverDepths,
+) -> impl Iterator<Item = (ObjectId, Aabb, &'a [[f64; 2]])> + 'a {
+    let objects = input.scene.objects();
+    (input.casters.iter()).filter_map(move |&c| {
+        let bounds = objects.get(c.0 as usize)?.world_bounds;
+        Some((c, bounds, depths.depths(c)?))
+    })
 }
 
 /// The objects whose receiver flag or part in the sweeps (receiving, or a

@@ -32,6 +32,9 @@
 //!   volume must cover [Steiner §4.4.1, Listing 4.2].
 //! - [`ClampPlan`], [`SegmentAxis`], `segments.rs`: a caster's volume cut to
 //!   its occupied intervals, one closed segment each [Steiner §4.4.3].
+//! - [`EyeSlices`], [`LightClamp::plan_sliced`]: discrete clamping's
+//!   slicing planes through the eye and each caster's occupied slices
+//!   [Steiner §4.4.2].
 //! - [`build_volumes`]: all of the above for one light, with [`VolumeStats`].
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
@@ -45,6 +48,7 @@ mod method;
 mod segments;
 mod silhouette;
 mod silhouette_cache;
+mod slicing;
 mod sweep_prune;
 mod volume;
 
@@ -57,6 +61,7 @@ pub use method::{choose_method, zpass_is_safe, MethodChoice, NearLightHull, ZPAS
 pub use segments::{ClampPlan, SegmentAxis, SEGMENT_MARGIN};
 pub use silhouette::{silhouette, Silhouette, SilhouetteEdge};
 pub use silhouette_cache::SilhouetteCache;
+pub use slicing::EyeSlices;
 pub use sweep_prune::{
     sweep_pairs, ImageRect, SapStats, SweepPrune, DEFAULT_SWAPS_PER_BOX, MAX_BOX_ID,
 };

@@ -33,6 +33,7 @@
 
 use crate::bounds::{corner, round_down, round_up};
 use crate::volume::CasterGeometry;
+use crate::EyeSlices;
 use glam::{DMat4, DVec3};
 use raster::{VolumeBuffer, VolumeMethod, VolumeRange};
 use scene::{Aabb, Light, ObjectId};
@@ -160,13 +161,45 @@ impl SegmentAxis {
 }
 
 /// Where each caster's volume is clamped [Steiner §4.4]: its depth axis and
-/// its occupied intervals, widened by the margins. Casters without an entry
-/// are built unclamped. Filled per light and frame by the clamping stage, read
-/// by [`crate::build_clamped_volumes`].
+/// its occupied intervals, widened by the margins (continuous clamping), or
+/// its eye slices and occupied slices (discrete clamping). Casters without
+/// an entry are built unclamped. Filled per light and frame by the clamping
+/// stage, read by [`crate::build_clamped_volumes`].
 #[derive(Clone, Debug, Default)]
 pub struct ClampPlan {
-    entries: std::collections::HashMap<u32, (SegmentAxis, Vec<[f64; 2]>)>,
+    entries: std::collections::HashMap<u32, (Frame, Vec<[f64; 2]>)>,
     widened: Vec<[f64; 2]>,
+}
+
+/// What an entry's intervals are measured along.
+#[derive(Clone, Copy, Debug)]
+enum Frame {
+    Axis(SegmentAxis),
+    Eye(EyeSlices),
+}
+
+/// How one caster's segments are cut: planes of constant depth along an
+/// axis, or the eye's slicing planes.
+#[derive(Clone, Copy, Debug)]
+pub(crate) enum SegmentFrame<'a> {
+    Axis(&'a SegmentAxis),
+    Eye(&'a EyeSlices),
+}
+
+impl SegmentFrame<'_> {
+    fn project(&self, v: DVec3, plane: f64) -> DVec3 {
+        match self {
+            SegmentFrame::Axis(a) => a.project(v, plane),
+            SegmentFrame::Eye(e) => e.project(v, plane),
+        }
+    }
+
+    fn plane(&self, plane: f64) -> [f64; 4] {
+        match self {
+            SegmentFrame::Axis(a) => a.plane(plane),
+            SegmentFrame::Eye(e) => e.plane(plane),
+        }
+    }
 }
 
 impl ClampPlan {
@@ -190,14 +223,54 @@ impl ClampPlan {
             return;
         }
         axis.widened(intervals, &mut self.widened);
-        let e = self.entries.entry(caster.0).or_insert((axis, Vec::new()));
-        e.0 = axis;
+        let e = (self.entries.entry(caster.0)).or_insert((Frame::Axis(axis), Vec::new()));
+        e.0 = Frame::Axis(axis);
         e.1.clone_from(&self.widened);
     }
 
-    /// The axis and widened intervals of `caster`, if it is clamped.
+    /// Clamps `caster` to `intervals` of `slices`' `g` (oriented for the
+    /// caster, [`EyeSlices::for_caster`]; sorted and disjoint, the first
+    /// starting at or before the caster's least `g`, every other end a
+    /// plane every ray of the caster reaches; the last may end at `+∞`:
+    /// that segment extrudes to infinity). No margins: the boundaries are
+    /// edge-on for the eye. An empty list removes the entry.
+    pub fn set_sliced(&mut self, caster: ObjectId, slices: EyeSlices, intervals: &[[f64; 2]]) {
+        if intervals.is_empty() {
+            self.entries.remove(&caster.0);
+            return;
+        }
+        let e = (self.entries.entry(caster.0)).or_insert((Frame::Eye(slices), Vec::new()));
+        e.0 = Frame::Eye(slices);
+        e.1.clear();
+        e.1.extend_from_slice(intervals);
+    }
+
+    /// The axis and widened intervals of `caster`, if continuous clamping
+    /// clamps it.
     pub fn get(&self, caster: ObjectId) -> Option<(&SegmentAxis, &[[f64; 2]])> {
-        self.entries.get(&caster.0).map(|(a, i)| (a, i.as_slice()))
+        match self.entries.get(&caster.0) {
+            Some((Frame::Axis(a), i)) => Some((a, i.as_slice())),
+            _ => None,
+        }
+    }
+
+    /// The oriented slices and intervals of `caster`, if discrete clamping
+    /// clamps it.
+    pub fn get_sliced(&self, caster: ObjectId) -> Option<(&EyeSlices, &[[f64; 2]])> {
+        match self.entries.get(&caster.0) {
+            Some((Frame::Eye(e), i)) => Some((e, i.as_slice())),
+            _ => None,
+        }
+    }
+
+    /// How `caster` is cut and where, if it is clamped.
+    pub(crate) fn frame(&self, caster: ObjectId) -> Option<(SegmentFrame<'_>, &[[f64; 2]])> {
+        let (f, i) = self.entries.get(&caster.0)?;
+        let f = match f {
+            Frame::Axis(a) => SegmentFrame::Axis(a),
+            Frame::Eye(e) => SegmentFrame::Eye(e),
+        };
+        Some((f, i.as_slice()))
     }
 
     /// Number of clamped casters.
@@ -231,15 +304,22 @@ pub struct SegmentScratch {
 const UNSET: u32 = u32::MAX;
 
 /// Appends `caster`'s segments over `intervals` (after
-/// [`SegmentAxis::widened`]; depths along `axis`, sorted and disjoint, the
-/// first starting at or before the caster's nearest depth) to `out`, one
-/// range per interval numbered `0..k` in [`VolumeRange::segment`], each with
-/// its planes and the method `method(segment, near, far)` chooses.
+/// [`SegmentAxis::widened`] or from discrete clamping; `g` values of
+/// `frame`, sorted and disjoint, the first starting at or before the
+/// caster's least `g`; the last may end at `+∞`) to `out`, one range per
+/// interval numbered `0..k` in [`VolumeRange::segment`], each with its
+/// planes and the method `method(segment, near, far)` chooses.
+///
+/// A segment ending at `+∞` (beyond a plane some light ray never reaches)
+/// extrudes to infinity from its near cap as an unclamped volume does
+/// (`volume.rs`): sides to `w = 0`, and for a positional light a dark cap
+/// unless the method is zpass.
 pub(crate) fn append_segments(
     out: &mut VolumeBuffer,
     scratch: &mut SegmentScratch,
     caster: CasterGeometry<'_>,
-    axis: &SegmentAxis,
+    frame: SegmentFrame<'_>,
+    light: &Light,
     intervals: &[[f64; 2]],
     mut method: impl FnMut(u32, f64, f64) -> VolumeMethod,
 ) -> SegmentCounts {
@@ -251,30 +331,57 @@ pub(crate) fn append_segments(
     } = caster;
     let local_from_world = world_from_local.inverse();
     let world = |v: u32| scene::transform::world_point(world_from_local, positions[v as usize]);
+    // Extrusion to infinity: the local direction of each vertex's light ray.
+    let to_infinity = |v: u32| -> [f32; 4] {
+        let d = match *light {
+            Light::Directional { direction } => direction,
+            Light::Point { position, .. } | Light::Spot { position, .. } => world(v) - position,
+        };
+        let d = local_from_world.transform_vector3(d).as_vec3();
+        [d.x, d.y, d.z, 0.0]
+    };
     let mut counts = SegmentCounts::default();
     for (k, &[near, far]) in intervals.iter().enumerate() {
         let k = k as u32;
         let method = method(k, near, far);
+        let infinite = far == f64::INFINITY;
         let first_vertex = out.positions.len() as u32;
         let first_index = out.indices.len() as u32;
         for table in [&mut scratch.near, &mut scratch.far] {
             table.clear();
             table.resize(positions.len(), UNSET);
         }
+        // Segment 0's near end is the caster (the light cap itself).
+        let near_plane = (k > 0).then_some(near);
         let slot = |out: &mut VolumeBuffer, table: &mut Vec<u32>, v: u32, plane: Option<f64>| {
             let s = &mut table[v as usize];
             if *s == UNSET {
                 let p = match plane {
                     None => positions[v as usize],
-                    Some(p) => to_local(&local_from_world, axis.project(world(v), p)),
+                    Some(p) => to_local(&local_from_world, frame.project(world(v), p)),
                 };
                 out.positions.push([p.x, p.y, p.z, 1.0]);
                 *s = out.positions.len() as u32 - 1;
             }
             *s
         };
-        // Segment 0's near end is the caster (the light cap itself).
-        let near_plane = (k > 0).then_some(near);
+        // A directional light's rays meet in one point at infinity: one
+        // vertex for all, so that the sides close on it.
+        let mut directional_slot = UNSET;
+        let mut far_slot = |out: &mut VolumeBuffer, table: &mut Vec<u32>, v: u32| {
+            if !infinite {
+                return slot(out, table, v, Some(far));
+            }
+            let s = match light {
+                Light::Directional { .. } => &mut directional_slot,
+                _ => &mut table[v as usize],
+            };
+            if *s == UNSET {
+                out.positions.push(to_infinity(v));
+                *s = out.positions.len() as u32 - 1;
+            }
+            *s
+        };
         let light_start = out.indices.len() as u32;
         if k > 0 || method != VolumeMethod::ZPass {
             for c in &silhouette.caps {
@@ -283,9 +390,12 @@ pub(crate) fn append_segments(
             }
         }
         let light_cap = light_start..out.indices.len() as u32;
-        for c in &silhouette.caps {
-            let [a, b, c] = c.map(|v| slot(out, &mut scratch.far, v, Some(far)));
-            out.indices.extend_from_slice(&[a, c, b]);
+        let dark = !infinite || (light.position().is_some() && method != VolumeMethod::ZPass);
+        if dark {
+            for c in &silhouette.caps {
+                let [a, b, c] = c.map(|v| far_slot(out, &mut scratch.far, v));
+                out.indices.extend_from_slice(&[a, c, b]);
+            }
         }
         let dark_cap = light_cap.end..out.indices.len() as u32;
         for e in &silhouette.edges {
@@ -294,11 +404,16 @@ pub(crate) fn append_segments(
                 slot(out, &mut scratch.near, e.to, near_plane),
             );
             let (af, bf) = (
-                slot(out, &mut scratch.far, e.from, Some(far)),
-                slot(out, &mut scratch.far, e.to, Some(far)),
+                far_slot(out, &mut scratch.far, e.from),
+                far_slot(out, &mut scratch.far, e.to),
             );
             for _ in 0..e.multiplicity {
-                out.indices.extend_from_slice(&[b, a, af, b, af, bf]);
+                if infinite && light.position().is_none() {
+                    // One point at infinity: the side is a triangle.
+                    out.indices.extend_from_slice(&[b, a, af]);
+                } else {
+                    out.indices.extend_from_slice(&[b, a, af, b, af, bf]);
+                }
             }
         }
         let index_count = out.indices.len() as u32 - first_index;
@@ -318,7 +433,10 @@ pub(crate) fn append_segments(
             depth_near: 1.0,
             depth_far: 0.0,
             scissor: VolumeRange::FULL_SCISSOR,
-            planes: [near_plane.map(|p| axis.plane(p)), Some(axis.plane(far))],
+            planes: [
+                near_plane.map(|p| frame.plane(p)),
+                (!infinite).then(|| frame.plane(far)),
+            ],
         });
     }
     counts

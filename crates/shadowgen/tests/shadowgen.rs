@@ -1034,6 +1034,203 @@ proptest! {
     }
 }
 
+proptest! {
+    #![proptest_config(testkit::proptest_config(384))]
+
+    /// Discrete clamping [Steiner §4.4.2]: a caster's segments between the
+    /// eye's slicing planes count as the unclamped volume does inside its
+    /// occupied slices and nothing beyond the last (unless it extrudes to
+    /// infinity); each range is closed. Any mesh, transform, light, slice
+    /// count and occupied slices; zfail, so that every range is closed.
+    #[test]
+    fn sliced_segments_count_as_the_unclamped_volume_within_their_slices(
+        radii in prop::collection::vec(0.5f32..1.5, 7..20),
+        w in transform(),
+        l in light(),
+        n in 1u32..24,
+        occupied in any::<u32>(),
+        q in prop::array::uniform3(-0.4f64..0.4),
+        pick in 0usize..8,
+        frac in 0.0f64..1.0,
+    ) {
+        struct Found(Vec<[f64; 2]>);
+        impl shadowgen::ReceiverDepths for Found {
+            fn depths(&self, _: ObjectId) -> Option<&[[f64; 2]]> {
+                Some(&self.0)
+            }
+        }
+        let s = scene_with(star_sphere(&radii, 4, 5), w);
+        let bounds = s.object(ObjectId(0)).world_bounds;
+        let cam = camera();
+        let base = shadowgen::EyeSlices::new(&cam, (64, 48), &l, n).unwrap();
+        let Some(axis) = shadowgen::SegmentAxis::new(&l, &bounds) else { return Ok(()) };
+        // Occupied slices in the base orientation, as the light pass gives them.
+        let found = Found(
+            (0..n)
+                .filter(|i| occupied >> (i % 32) & 1 == 1)
+                .map(|i| [base.edge(i), base.edge(i + 1)])
+                .collect(),
+        );
+        let input = shadowgen::ClampInput {
+            scene: &s, light: &l, casters: &[ObjectId(0)], receives: &[true], cost: None,
+        };
+        let mut plan = shadowgen::ClampPlan::new();
+        shadowgen::LightClamp::new().plan_sliced(&input, &base, &found, &mut plan);
+        let Some((slices, intervals)) = plan.get_sliced(ObjectId(0)) else { return Ok(()) };
+        let (slices, intervals) = (*slices, intervals.to_vec());
+        prop_assert!(intervals.windows(2).all(|w| w[0][1] < w[1][0]));
+        prop_assert!(intervals[..intervals.len() - 1].iter().all(|i| i[1].is_finite()));
+        let opts = BuildOptions { method: MethodChoice::ZFail, ..Default::default() };
+        let (mut unclamped, mut clamped) = (VolumeBuffer::new(), VolumeBuffer::new());
+        let mut cache = SilhouetteCache::new();
+        build_volumes(&mut unclamped, &s, &cam, &l, &[ObjectId(0)], opts, &mut cache).unwrap();
+        let request = shadowgen::VolumeRequest {
+            scene: &s, camera: &cam, light: &l, casters: &[ObjectId(0)], options: opts,
+        };
+        let st = shadowgen::build_clamped_volumes(&mut clamped, &request, &mut cache, &plan).unwrap();
+        clamped.check().unwrap();
+        prop_assert_eq!(st.segments, intervals.len());
+        for (k, r) in clamped.ranges.iter().enumerate() {
+            prop_assert_eq!(r.segment as usize, k);
+            prop_assert!(boundary(&clamped, r).is_empty(), "segment {} is not closed", k);
+        }
+        // e: nearer the light than the caster, outside every volume.
+        let [c0, _] = axis.box_depths(&bounds);
+        let e = match l {
+            Light::Directional { direction } => axis.origin - direction.normalize() * (2.0 * axis.size + 1.0),
+            _ => axis.origin + axis.axis * (0.5 * c0),
+        };
+        // A point inside the caster moved along its light ray to a g in an
+        // interval (`pick` < their count) or past the last.
+        let p = w.transform_point3(DVec3::from(q));
+        let last = intervals.len() - 1;
+        let target = match intervals.get(pick % (intervals.len() + 1)) {
+            Some(i) if i[1].is_finite() => i[0] + frac * (i[1] - i[0]),
+            Some(i) => i[0] + frac * 100.0,
+            None if intervals[last][1].is_finite() => intervals[last][1] + frac * 100.0,
+            None => return Ok(()),
+        };
+        if !(slices.depth(p) < target && slices.reaches(p, target)) {
+            return Ok(());
+        }
+        let q = slices.project(p, target);
+        let g = slices.depth(q);
+        // Points within rounding of a plane decide nothing.
+        let tol = 1e-6 * (1.0 + g.abs());
+        if intervals.iter().any(|i| (g - i[0]).abs() < tol || (g - i[1]).abs() < tol) {
+            return Ok(());
+        }
+        let (Some(u), Some(c)) = (buffer_crossings(&unclamped, e, q), buffer_crossings(&clamped, e, q)) else {
+            return Ok(());
+        };
+        if intervals.iter().any(|i| i[0] < g && g < i[1]) {
+            prop_assert_eq!(c, u, "g {} in {:?}", g, intervals);
+        } else if g > intervals[last][1] {
+            prop_assert_eq!(c, 0, "g {} beyond {:?}", g, intervals);
+        }
+    }
+}
+
+/// Discrete clamping where the caster's rays never reach the lowest slices
+/// (a light behind and above the eye, rays running down towards the
+/// horizon): the plan ends in a segment that extrudes to infinity, which
+/// is closed and counts as the unclamped volume along a ray through it.
+#[test]
+fn sliced_segments_extrude_to_infinity_past_the_rays_reach() {
+    struct Found(Vec<[f64; 2]>);
+    impl shadowgen::ReceiverDepths for Found {
+        fn depths(&self, _: ObjectId) -> Option<&[[f64; 2]]> {
+            Some(&self.0)
+        }
+    }
+    let s = scene_with(
+        unit_box(),
+        DMat4::from_translation(DVec3::new(-0.5, 3.0, -0.5)),
+    );
+    let cam = camera();
+    let l = point(DVec3::new(0.0, 10.0, 40.0));
+    let base = shadowgen::EyeSlices::new(&cam, (64, 48), &l, 8).unwrap();
+    assert!(base.rows());
+    let input = shadowgen::ClampInput {
+        scene: &s,
+        light: &l,
+        casters: &[ObjectId(0)],
+        receives: &[true],
+        cost: None,
+    };
+    let opts = BuildOptions {
+        method: MethodChoice::ZFail,
+        ..Default::default()
+    };
+    let (mut unclamped, mut clamped) = (VolumeBuffer::new(), VolumeBuffer::new());
+    let mut cache = SilhouetteCache::new();
+    build_volumes(
+        &mut unclamped,
+        &s,
+        &cam,
+        &l,
+        &[ObjectId(0)],
+        opts,
+        &mut cache,
+    )
+    .unwrap();
+    let request = shadowgen::VolumeRequest {
+        scene: &s,
+        camera: &cam,
+        light: &l,
+        casters: &[ObjectId(0)],
+        options: opts,
+    };
+    let (mut tails, mut checked) = (0, 0);
+    // One occupied slice at a time.
+    for i in 0..8 {
+        let found = Found(vec![[base.edge(i), base.edge(i + 1)]]);
+        let mut plan = shadowgen::ClampPlan::new();
+        shadowgen::LightClamp::new().plan_sliced(&input, &base, &found, &mut plan);
+        let Some((slices, intervals)) = plan.get_sliced(ObjectId(0)) else {
+            continue;
+        };
+        let (slices, intervals) = (*slices, intervals.to_vec());
+        shadowgen::build_clamped_volumes(&mut clamped, &request, &mut cache, &plan).unwrap();
+        clamped.check().unwrap();
+        let tail = intervals.last().unwrap()[1] == f64::INFINITY;
+        tails += usize::from(tail);
+        let last = clamped.ranges.last().unwrap();
+        assert_eq!(last.planes[1].is_none(), tail);
+        for r in &clamped.ranges {
+            assert!(
+                boundary(&clamped, r).is_empty(),
+                "slice {i}: segment {} is not closed",
+                r.segment
+            );
+        }
+        // Points along the light ray through the box's centre, out to far
+        // beyond it: in the box's shadow at every distance.
+        let (lp, c) = (l.position().unwrap(), DVec3::new(0.0, 3.5, 0.0));
+        let e = lp + (c - lp) * 0.5;
+        for t in [1.5, 2.0, 3.0, 10.0, 100.0, 1000.0] {
+            let q = lp + (c - lp) * t;
+            let g = slices.depth(q);
+            if !intervals.iter().any(|r| r[0] + 1e-6 < g && g < r[1] - 1e-6) {
+                continue;
+            }
+            let (Some(u), Some(k)) = (
+                buffer_crossings(&unclamped, e, q),
+                buffer_crossings(&clamped, e, q),
+            ) else {
+                continue;
+            };
+            assert_eq!(k, u, "slice {i}, t {t}, g {g}, {intervals:?}");
+            assert_ne!(u, 0);
+            checked += 1;
+        }
+    }
+    assert!(
+        tails >= 1 && checked >= 3,
+        "{tails} tails, {checked} points checked"
+    );
+}
+
 /// Clamping's plan for a row of boxes under a point light: a caster's
 /// intervals cover the boxes behind it; the plan is reused (no sweep) while
 /// nothing moves and recomputed when a box moves or the receivers change.

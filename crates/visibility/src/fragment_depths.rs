@@ -28,10 +28,12 @@
 //! unbounded. The segments' own margins (`shadowgen`'s `SEGMENT_MARGIN`)
 //! come on top.
 
+use crate::footprint::{pixel_rect, FOOTPRINT_PX};
 use crate::light_view::LightView;
 use crate::receivers::RECEIVER_PUSH;
+use crate::slice_occupancy::SliceRatio;
 use glam::{DMat4, DVec3, DVec4};
-use raster::{ReceiverTarget, TileMarks, RECEIVER_EPS_PX, SEGMENT_SLACK_PX};
+use raster::{ReceiverTarget, TileMarks};
 use scene::{Aabb, Light, ObjectId, Scene};
 
 /// A caster's clamping axis: depth of world point `p` is `axis·(p − origin)`
@@ -47,6 +49,16 @@ pub struct DepthAxis {
 /// Gives the clamping axis of a caster with world bounds `bounds` under a
 /// light, or `None` for a caster that is not clamped.
 pub type AxisFn = dyn Fn(&Light, &Aabb) -> Option<DepthAxis> + Sync;
+
+/// What the light pass reads fragment receivers along.
+#[derive(Clone, Copy)]
+pub enum FragmentSource<'a> {
+    /// Continuous clamping: each caster's depth intervals along its axis.
+    Axes(&'a AxisFn),
+    /// Discrete clamping: each caster's occupied eye slices
+    /// (`slice_occupancy.rs`), as intervals between slice boundaries.
+    Slices(SliceRatio<'a>),
+}
 
 /// Per caster, its fragment intervals along its [`DepthAxis`]: sorted,
 /// disjoint depth intervals, the union over one light's views. A caster
@@ -126,7 +138,7 @@ impl FragmentDepths {
 pub(crate) struct ViewFragments<'a> {
     pub scene: &'a Scene,
     pub light: &'a Light,
-    pub axes: &'a AxisFn,
+    pub source: FragmentSource<'a>,
     /// The scene's diameter (a directional light's push).
     pub diameter: f64,
 }
@@ -190,7 +202,23 @@ impl ViewFragments<'_> {
             return 0;
         }
         let bounds = o.world_bounds;
-        let Some(axis) = (self.axes)(self.light, &bounds) else {
+        let axes = match self.source {
+            FragmentSource::Axes(axes) => axes,
+            FragmentSource::Slices(r) => {
+                let m = (&view.clip_from_world, world_from_clip);
+                return crate::slice_occupancy::read_caster(
+                    &r,
+                    id.0,
+                    &bounds,
+                    self.light,
+                    self.diameter,
+                    m,
+                    marks,
+                    out,
+                );
+            }
+        };
+        let Some(axis) = axes(self.light, &bounds) else {
             return 0;
         };
         let size = marks.size();
@@ -253,34 +281,6 @@ const PARALLEL_CHUNK: usize = 32;
 /// below) stay open.
 pub const TILE_SPREAD: f64 = 1.0 / 16.0;
 
-/// The inclusive pixel ranges of `b`'s projection widened by a pixel (the
-/// receivers' footprints and the query's coverage lie within), the whole
-/// target when a corner lies at or behind the centre of projection; `None`
-/// when the projection misses the target.
-fn pixel_rect(m: &DMat4, b: &Aabb, w: u32, h: u32) -> Option<((u32, u32), (u32, u32))> {
-    let whole = Some(((0, w.saturating_sub(1)), (0, h.saturating_sub(1))));
-    let (mut x, mut y) = (
-        [f64::INFINITY, f64::NEG_INFINITY],
-        [f64::INFINITY, f64::NEG_INFINITY],
-    );
-    for p in b.corners() {
-        let c = *m * p.as_dvec3().extend(1.0);
-        if !(c.w > 0.0 && c.is_finite()) {
-            return whole;
-        }
-        let px = (c.x / c.w + 1.0) * 0.5 * f64::from(w);
-        let py = (1.0 - c.y / c.w) * 0.5 * f64::from(h);
-        x = [x[0].min(px), x[1].max(px)];
-        y = [y[0].min(py), y[1].max(py)];
-    }
-    let range = |r: [f64; 2], n: u32| {
-        let a = (r[0] - 1.0).floor().max(0.0);
-        let b = (r[1] + 1.0).ceil().min(f64::from(n) - 1.0);
-        (a <= b).then_some((a as u32, b as u32))
-    };
-    Some((range(x, w)?, range(y, h)?))
-}
-
 /// The depth of `b`'s nearest corner along `axis`.
 fn box_near(axis: &DepthAxis, b: &Aabb) -> f64 {
     let (lo, hi) = (b.min.as_dvec3(), b.max.as_dvec3());
@@ -306,9 +306,6 @@ struct AxisDepth {
     /// Directional light: the push along the axis.
     shift: f64,
 }
-
-/// Footprint of a marked pixel beyond its square, in pixels.
-const FOOTPRINT_PX: f64 = RECEIVER_EPS_PX + SEGMENT_SLACK_PX;
 
 impl AxisDepth {
     fn new(

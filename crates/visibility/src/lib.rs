@@ -34,6 +34,7 @@
 mod chcpp;
 mod culler;
 mod error;
+mod footprint;
 mod fragment_depths;
 mod hierarchy;
 mod intersection_body;
@@ -41,13 +42,14 @@ mod light_pass;
 mod light_view;
 mod polyhedron;
 mod receivers;
+mod slice_occupancy;
 mod traverse;
 mod view_setup;
 
 pub use chcpp::ChcppOptions;
 pub use culler::{CullResult, Objects, TraversalStats, ViewCuller};
 pub use error::{Error, Result};
-pub use fragment_depths::{AxisFn, DepthAxis, FragmentDepths};
+pub use fragment_depths::{AxisFn, DepthAxis, FragmentDepths, FragmentSource};
 pub use hierarchy::{BvhNodeId, Hierarchy};
 pub use intersection_body::{intersection_body, Face, Polyhedron};
 pub use light_pass::{
@@ -55,5 +57,6 @@ pub use light_pass::{
 };
 pub use light_view::{fit_light_views, LightView, LightViewKind, DEFAULT_LIGHT_VIEW_RESOLUTION};
 pub use receivers::{ReceiverPoints, PIECE_STEPS, RECEIVER_PUSH};
+pub use slice_occupancy::{SliceRatio, MAX_SLICES};
 pub use traverse::Culling;
 pub use view_setup::{MeshData, Sampling, ViewSetup};

@@ -19,7 +19,7 @@
 //!
 //! PSC is the union over the light's views of the objects found visible.
 //!
-//! With [`PassInput::fragment_axes`] (fragment receivers for clamping) each
+//! With [`PassInput::fragments`] (fragment receivers for clamping) each
 //! view's receiver target also keeps the nearest receiver depth per pixel,
 //! and after its traversal the view reads the depth intervals of the casters
 //! it found along their clamping axes (`fragment_depths.rs`); the pass
@@ -36,7 +36,7 @@
 //! the segments of `receivers.rs`, which mark a superset.
 
 use crate::culler::{CullResult, Objects, TraversalStats, ViewCuller};
-use crate::fragment_depths::{AxisFn, FragmentDepths, ViewFragments};
+use crate::fragment_depths::{FragmentDepths, FragmentSource, ViewFragments};
 use crate::hierarchy::Hierarchy;
 use crate::intersection_body::{intersection_body_into, BodyScratch, Polyhedron};
 use crate::light_view::{fit_light_views_into, FitScratch, LightView};
@@ -118,10 +118,10 @@ pub struct PassInput<'a> {
     /// The eye's visible surface points, in parts (any split that keeps
     /// each joined point in the part of the point it is joined to).
     pub receivers: &'a [ReceiverPoints],
-    /// Fragment receivers for clamping: with a caster's clamping axis, the
-    /// pass also finds each caster's fragment intervals
-    /// ([`LightPassResult::fragments`]); `None` skips them.
-    pub fragment_axes: Option<&'a AxisFn>,
+    /// Fragment receivers for clamping: along each caster's clamping axis
+    /// or the eye slices, the pass also finds each caster's fragment
+    /// intervals ([`LightPassResult::fragments`]); `None` skips them.
+    pub fragments: Option<FragmentSource<'a>>,
 }
 
 /// What a light pass found.
@@ -137,7 +137,7 @@ pub struct LightPassResult {
     /// views a host backend ran): what `culling: auto` weighs.
     pub raster: raster::RasterStats,
     /// Per caster of the PSC, its fragment intervals when
-    /// [`PassInput::fragment_axes`] is set (else empty).
+    /// [`PassInput::fragments`] is set (else empty).
     pub fragments: FragmentDepths,
     /// Wall time spent on the fragment intervals, summed over the views (ms).
     pub fragment_ms: f64,
@@ -437,7 +437,7 @@ impl LightPass {
             meshes,
             camera,
             receivers,
-            fragment_axes,
+            fragments: fragment_source,
         } = *input;
         let bounds = scene.bounds();
         intersection_body_into(
@@ -486,10 +486,10 @@ impl LightPass {
             diameter,
             casting: &casting,
             options,
-            fragments: fragment_axes.map(|axes| ViewFragments {
+            fragments: fragment_source.map(|source| ViewFragments {
                 scene,
                 light,
-                axes,
+                source,
                 diameter,
             }),
         };
@@ -549,7 +549,7 @@ impl LightPass {
             let r = &slot.result;
             add_stats(&mut out.stats, &r.stats);
             out.raster.add(&slot.raster);
-            if fragment_axes.is_some() {
+            if fragment_source.is_some() {
                 out.fragments.pixels += slot.fragment_pixels;
                 out.fragment_ms += slot.fragment_ms;
             }
@@ -561,7 +561,7 @@ impl LightPass {
             }
         }
         out.psc.sort_unstable();
-        if fragment_axes.is_some() {
+        if fragment_source.is_some() {
             let t = std::time::Instant::now();
             let slots = &mut self.slots[..views.len()];
             let lists: Vec<&[(u32, [f64; 2])]> = slots
