@@ -492,9 +492,13 @@ impl Pipeline {
         // tighter and hold more points, so the PSC may differ from the other
         // receiver models': they are taken whenever the model is chosen, so
         // that `count_fill` and `clamping` change no PSC.
+        // Discrete clamping reads occupied slices the same way; a sample's
+        // slice is its pixel's, whatever its depth, so it needs no stored
+        // points.
         let discrete = o.clamping == options::ClampingSpec::Discrete;
         let fragment_model =
             o.clamping_receivers == options::ClampReceiversSpec::Fragment || discrete;
+        let stored_points = fragment_model && !discrete;
         // The culling lights mark the eye's visible surface points.
         if lights_culled {
             visible_points_into(
@@ -502,7 +506,7 @@ impl Pipeline {
                 camera,
                 &eye,
                 o.coverage.sampling(),
-                fragment_model,
+                stored_points,
                 &mut self.receivers,
                 &mut self.receiver_runs,
             );
