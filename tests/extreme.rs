@@ -2,7 +2,9 @@
 //! (`eye_pass` + `shadow_mask`) against the ray-cast reference fed with the
 //! same primitive ids. Every compared pixel agrees except ambiguous ones and at
 //! most 0.01% of the image more, each on a reference shadow boundary; where
-//! several counting methods are legal they give the same mask.
+//! several counting methods are legal they give the same mask. Continuous
+//! clamping (`shadow_mask`) and discrete clamping (the culled pipeline)
+//! change only ambiguous pixels.
 
 use crate::common::{boxes_on_ground, scene_of};
 use glam::{DMat4, DQuat, DVec3, Vec3};
@@ -11,8 +13,9 @@ use scene::procedural::analytic;
 use scene::{Camera, Light, Mesh, ObjectId, Scene, SceneGraph, Transform};
 use shadowcull::mask::{compare, Comparison, Mask, PixelClass};
 use shadowcull::pipeline::{
-    eye_pass, shadow_mask, ClampOptions, ClampReceiversSpec, EyePass, MeshCache, ShadowOptions,
-    ShadowScratch, DEFAULT_CLAMP_PIXEL_COST, DEFAULT_CLAMP_VERTEX_COST,
+    eye_pass, shadow_mask, ClampOptions, ClampReceiversSpec, ClampingSpec, CullingSpec, EyePass,
+    FrameInput, MeshCache, Pipeline, PipelineOptions, ShadowOptions, ShadowScratch, StencilBackend,
+    DEFAULT_CLAMP_PIXEL_COST, DEFAULT_CLAMP_VERTEX_COST,
 };
 use shadowcull::reference::{reference_mask, ReferenceMask, ReferenceOptions, TriangleBvh};
 use shadowgen::{MethodChoice, VolumeStats};
@@ -183,6 +186,43 @@ fn try_run(
         assert!(
             a == b || reference.ambiguous[i],
             "clamping changed pixel {i} ({a:?} to {b:?}), which the reference does not call ambiguous"
+        );
+    }
+    // Discrete clamping (slicing planes through the eye, occupancy from the
+    // light pass) keeps the culled pipeline's mask but for ambiguous pixels
+    // (where the method is legal: a forced zpass with the eye in a shadow
+    // is wrong both ways, differently).
+    if method == MethodChoice::ZPass && !zpass_legal(scene, cam, light) {
+        return Ok(Run {
+            mask: frame.mask,
+            reference,
+            cmp,
+            volumes: frame.volumes,
+        });
+    }
+    let culled = |clamping| -> shadowcull::Result<Option<Mask>> {
+        let options = PipelineOptions {
+            stencil: StencilBackend::Bf,
+            method,
+            two_sided,
+            culling: CullingSpec::Chcpp,
+            clamping,
+            slices: 10,
+            light_resolution: 256,
+            reference_every: 0,
+            ..Default::default()
+        };
+        let mut p = Pipeline::new(scene.clone(), options)?;
+        let id = p.add_light(*light)?;
+        let out = p.frame(&FrameInput::new(W, H, *cam))?;
+        Ok(out.light(id).and_then(|l| l.mask().cloned()))
+    };
+    let (plain, sliced) = (culled(ClampingSpec::None)?, culled(ClampingSpec::Discrete)?);
+    let (plain, sliced) = (plain.expect("a mask"), sliced.expect("a mask"));
+    for (i, (a, b)) in plain.pixels.iter().zip(&sliced.pixels).enumerate() {
+        assert!(
+            a == b || reference.ambiguous[i],
+            "discrete clamping changed pixel {i} ({a:?} to {b:?}), which the reference does not call ambiguous ({light:?}, {method:?}, two-sided {two_sided})"
         );
     }
     Ok(Run {
