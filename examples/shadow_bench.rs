@@ -4,7 +4,7 @@
 //! [--scissor on|off] [--method auto|zpass|zfail|zpplus] [--counters 8|wide] [--tile 4|8|16]
 //! [--full-shadow on|off] [--map N] [--culling none|frustum|exact|chc|chcpp|auto]
 //! [--coverage conservative|point] [--threshold T] [--light-res N]
-//! [--clamping none|continuous|discrete] [--slices N]
+//! [--clamping none|continuous|discrete|auto] [--slices N]
 //! [--clamping-receivers all|psr|fragment] [--count-fill]
 //! [--two-sided] [--reference] [--mask OUT.png] [--reps R | --path NAME [--frames N]]`
 //! (defaults `--tile 8 --counters 8 --map 2048 --full-shadow on --culling none
@@ -109,6 +109,7 @@ const CLAMPINGS: &[(&str, ClampingSpec)] = &[
     ("none", ClampingSpec::None),
     ("continuous", ClampingSpec::Continuous),
     ("discrete", ClampingSpec::Discrete),
+    ("auto", ClampingSpec::Auto),
 ];
 const CLAMP_RECEIVERS: &[(&str, ClampReceiversSpec)] = &[
     ("all", ClampReceiversSpec::All),

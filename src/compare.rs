@@ -267,6 +267,14 @@ pub fn variants(job: &Job) -> Vec<NamedPipeline> {
             },
         },
         NamedPipeline {
+            name: "bf_clamp_auto".into(),
+            pipeline: PipelineOptions {
+                culling: CullingSpec::Chcpp,
+                clamping: ClampingSpec::Auto,
+                ..clamped("", ClampReceiversSpec::Fragment).pipeline
+            },
+        },
+        NamedPipeline {
             name: "bf_clamp_discrete_point".into(),
             pipeline: PipelineOptions {
                 culling: CullingSpec::Chcpp,

@@ -775,13 +775,15 @@ fn street_path_100_frames_culling_keeps_mask() {
 /// Continuous clamping keeps the mask: on the assembled Cornell box and the
 /// closed box with the light inside (one- and two-sided) and on the city
 /// street path (100 frames, one-sided), runners with clamping with
-/// receivers `all`, `psr` and `fragment` give the unclamped mask on
+/// receivers `all`, `psr` and `fragment`, discrete clamping (10 slices) and
+/// `clamping: auto` (fragment receivers) give the unclamped mask on
 /// every pixel but ones the reference calls ambiguous (a segment's new
 /// vertices snap on their own), of which at most 0.01% of the image may
 /// differ from the reference's class (a flip to it is no error: tighter
 /// fragment segments meet more boundaries through pixel centres). The reference
 /// runs only on a frame whose masks differ. The small cases run without
-/// culling against the unculled mask (`psr` and `fragment` with CHC++); the street path
+/// culling against the unculled mask (`psr`, `fragment`, discrete and
+/// `auto` with CHC++); the street path
 /// runs CHC++ throughout (culling keeps the mask: the tests above), so that
 /// it stays cheap.
 #[test]
@@ -826,6 +828,13 @@ fn clamping_keeps_the_mask_on_the_culling_cases() {
                 PipelineOptions {
                     clamping: ClampingSpec::Discrete,
                     slices: 10,
+                    culling: CullingSpec::Chcpp,
+                    ..base
+                },
+                // Per light and frame none, continuous or discrete.
+                PipelineOptions {
+                    clamping: ClampingSpec::Auto,
+                    clamping_receivers: ClampReceiversSpec::Fragment,
                     culling: CullingSpec::Chcpp,
                     ..base
                 },

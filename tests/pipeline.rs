@@ -1105,6 +1105,94 @@ fn auto_stencil_chooses_per_light_and_keeps_masks() -> Result<()> {
     Ok(())
 }
 
+/// `clamping: auto` chooses per light and frame between none, continuous
+/// and discrete clamping from its cost model: two runs choose alike with
+/// the same counters, the masks stay the unclamped pipeline's (but for at
+/// most 0.01% of the image: a segment's new vertices snap on their own,
+/// checked against the reference in `culling_matrix`), the first frame
+/// clamps by slices and the second probes the unclamped mode, and the
+/// constants decide: with segment triangles priced out the lights stop
+/// clamping, with brute-force fragments priced out they keep clamping.
+#[test]
+fn auto_clamping_chooses_per_light_and_keeps_masks() -> Result<()> {
+    use shadowcull::pipeline::{ClampReceiversSpec, ClampingSpec};
+    let (scene, path) = city();
+    let lights = lights(&scene, &path);
+    let base = options(CullingSpec::Chcpp, StencilBackend::Bf);
+    let (mut plain, _) = pipeline(&scene, base, &lights)?;
+    let o = PipelineOptions {
+        clamping: ClampingSpec::Auto,
+        clamping_receivers: ClampReceiversSpec::Fragment,
+        auto: shadowcull::pipeline::AutoSpec {
+            probe: 2,
+            ..base.auto
+        },
+        ..base
+    };
+    // Per frame and light, the clamping that ran: none (no segment),
+    // discrete (a segment plane through the eye) or continuous.
+    let mut run = |o: PipelineOptions, frames: u32| -> Result<Vec<Vec<ClampingSpec>>> {
+        let (mut a, _) = pipeline(&scene, o, &lights)?;
+        let (mut b, _) = pipeline(&scene, o, &lights)?;
+        let mut modes = Vec::new();
+        for frame in 0..frames {
+            let input = input(&path, frame % 8);
+            let eye = input.camera.position;
+            let mode = |l: &shadowcull::pipeline::LightOutput<'_>| {
+                let planes = l.volumes().ranges.iter().flat_map(|r| r.planes).flatten();
+                let mut kind = ClampingSpec::None;
+                for [x, y, z, d] in planes {
+                    let at_eye = (x * eye.x + y * eye.y + z * eye.z + d).abs();
+                    kind = if at_eye < 1e-6 * (1.0 + eye.length()) {
+                        ClampingSpec::Discrete
+                    } else {
+                        ClampingSpec::Continuous
+                    };
+                }
+                (
+                    kind,
+                    l.stats().volumes.segments,
+                    l.stats().stencil.pixels_processed,
+                )
+            };
+            let x: Vec<_> = a.frame(&input)?.lights().map(|l| mode(&l)).collect();
+            let y: Vec<_> = b.frame(&input)?.lights().map(|l| mode(&l)).collect();
+            assert_eq!(x, y, "frame {frame}: the same choices and counters");
+            let out = plain.frame(&input)?;
+            let clamped = a.last_output().unwrap();
+            for (li, (l, p)) in clamped.lights().zip(out.lights()).enumerate() {
+                let (l, p) = (&l.mask().unwrap().pixels, &p.mask().unwrap().pixels);
+                let differ = l.iter().zip(p).filter(|(a, b)| a != b).count() as u32;
+                assert!(
+                    differ <= W * H / 10_000,
+                    "frame {frame} light {li}: {differ} pixels"
+                );
+            }
+            modes.push(x.iter().map(|m| m.0).collect());
+        }
+        Ok(modes)
+    };
+    let count = |modes: &[Vec<ClampingSpec>], li: usize, m: ClampingSpec| {
+        modes.iter().filter(|f| f[li] == m).count()
+    };
+    let (none, discrete) = (ClampingSpec::None, ClampingSpec::Discrete);
+    let mut dear_volumes = o;
+    dear_volumes.auto.segment_triangle = 1e6;
+    let modes = run(dear_volumes, 12)?;
+    for li in 0..lights.len() {
+        assert_eq!([modes[0][li], modes[1][li]], [discrete, none], "light {li}");
+        assert!(count(&modes, li, none) >= 8, "light {li}: {modes:?}");
+    }
+    let mut dear_fill = o;
+    dear_fill.auto.bf_fragment = 1e6;
+    let modes = run(dear_fill, 12)?;
+    for li in 0..lights.len() {
+        assert_eq!([modes[0][li], modes[1][li]], [discrete, none], "light {li}");
+        assert!(count(&modes, li, none) <= 3, "light {li}: {modes:?}");
+    }
+    Ok(())
+}
+
 #[test]
 fn auto_culling_chooses_per_view_and_keeps_masks() -> Result<()> {
     let (scene, path) = city();

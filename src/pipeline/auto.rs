@@ -17,6 +17,16 @@
 //! while the depth bounds and scissors reject most of their fragments
 //! [Aila04 §5, EK].
 //!
+//! `clamping: auto`, for each light, chooses between no clamping,
+//! continuous and discrete clamping [Steiner §4.4]: two such choices in a
+//! row, clamping or not (first mode: clamping), and on clamped frames
+//! discrete or continuous (first mode: discrete). A frame's cost is the
+//! light's whole modeled cost ([`LightCosts`]: light pass, volumes,
+//! stencil), its receiver points counted twice where fragment receivers
+//! mark the stored depths too, plus `receiver_pixel` per marked pixel read
+//! for clamping. Segments cost volume triangles and save stencil
+//! fragments; the reading costs its pixels.
+//!
 //! The decision reads counters of earlier frames and the cost constants of
 //! [`AutoSpec`], never a timer, so a run's choices — and so its counters —
 //! are a function of its inputs: repeated runs choose alike, and so do

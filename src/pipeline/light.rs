@@ -33,29 +33,43 @@ pub(crate) struct LightPassInput<'a> {
     pub options: &'a LightPassOptions,
     /// The job frame number.
     pub frame: u32,
-    /// Discrete clamping: the viewport and the number of slices; each
-    /// light reads its casters' occupied slices of its own
-    /// [`shadowgen::EyeSlices`] (none without them).
+    /// Discrete clamping: the viewport and the number of slices; a light
+    /// reading [`Reading::Slices`] reads its casters' occupied slices of
+    /// its own [`shadowgen::EyeSlices`] (none without them).
     pub slices: Option<((u32, u32), u32)>,
 }
 
+/// What one light's pass reads for clamping.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Reading {
+    /// Nothing.
+    None,
+    /// Fragment intervals along each caster's axis (`pass.fragments`).
+    Axes,
+    /// Occupied slices of the light's [`shadowgen::EyeSlices`].
+    Slices,
+}
+
 /// Runs the light pass of every light concurrently: each item is a light, its
-/// key for the host's backend factory, and its culling state, whose `result`
-/// and `ms` are replaced.
+/// key for the host's backend factory, its culling state, whose `result`
+/// and `ms` are replaced, and what it reads for clamping.
 ///
 /// # Errors
 /// The first light's error.
 pub(crate) fn light_passes<'l>(
-    lights: impl ParallelIterator<Item = (Light, u32, &'l mut LightCulling)>,
+    lights: impl ParallelIterator<Item = (Light, u32, &'l mut LightCulling, Reading)>,
     input: &LightPassInput<'_>,
 ) -> Result<()> {
     lights
-        .map(|(light, key, c)| {
+        .map(|(light, key, c, reading)| {
             let t = Instant::now();
             c.pass.set_frame(input.frame);
             let mut edges = [0.0; visibility::MAX_SLICES + 1];
             let mut pass = input.pass;
-            if let Some((viewport, n)) = input.slices {
+            if reading == Reading::None {
+                pass.fragments = None;
+            }
+            if let (Reading::Slices, Some((viewport, n))) = (reading, input.slices) {
                 pass.fragments = None;
                 if let Some(s) = shadowgen::EyeSlices::new(pass.camera, viewport, &light, n) {
                     let edges = &mut edges[..=n as usize];

@@ -111,6 +111,11 @@ struct LightState {
     /// light pass culls and one for frames that draw every caster: the two
     /// stencils' costs compare only over the same casters.
     stencil_auto: [auto::AutoView; 2],
+    /// `clamping: auto`'s choice states: clamping or not, and among
+    /// clamped frames discrete or continuous.
+    clamp_auto: [auto::AutoView; 2],
+    /// This frame's clamping.
+    clamping: ClampingSpec,
     /// Whether this frame runs the light pass (culls the casters).
     culled: bool,
     /// The last PSC as public ids (slot and generation), ascending.
@@ -129,6 +134,8 @@ impl LightState {
             culling: LightCulling::default(),
             auto: auto::AutoView::culling(),
             stencil_auto: [auto::AutoView::stencil(), auto::AutoView::stencil()],
+            clamp_auto: [auto::AutoView::stencil(), auto::AutoView::stencil()],
+            clamping: ClampingSpec::None,
             culled: false,
             psc: Vec::new(),
             scratch: ShadowScratch::default(),
@@ -360,6 +367,7 @@ impl Pipeline {
             s.culling.pass.reset_history();
             s.auto.reset();
             s.stencil_auto.iter_mut().for_each(auto::AutoView::reset);
+            s.clamp_auto.iter_mut().for_each(auto::AutoView::reset);
             s.scratch.volume.cache.clear();
         }
     }
@@ -422,6 +430,13 @@ impl Pipeline {
         for s in self.lights.iter_mut().filter_map(|s| s.state.as_mut()) {
             s.culled = may_cull && (!auto || s.auto.choose(&o.auto));
             lights_culled |= s.culled;
+            // `clamping: auto`: clamp or not, then discrete or continuous.
+            s.clamping = match o.clamping {
+                ClampingSpec::Auto if !s.clamp_auto[0].choose(&o.auto) => ClampingSpec::None,
+                ClampingSpec::Auto if s.clamp_auto[1].choose(&o.auto) => ClampingSpec::Discrete,
+                ClampingSpec::Auto => ClampingSpec::Continuous,
+                fixed => fixed,
+            };
         }
 
         // 1. Eye pass (PSR) and, for the light pass, the visible surface points.
@@ -494,11 +509,22 @@ impl Pipeline {
         // that `count_fill` and `clamping` change no PSC.
         // Discrete clamping reads occupied slices the same way; a sample's
         // slice is its pixel's, whatever its depth, so it needs no stored
-        // points.
-        let discrete = o.clamping == options::ClampingSpec::Discrete;
-        let fragment_model =
-            o.clamping_receivers == options::ClampReceiversSpec::Fragment || discrete;
-        let stored_points = fragment_model && !discrete;
+        // points. What a light reads is per light (`clamping: auto`).
+        let fragment_receivers = o.clamping_receivers == options::ClampReceiversSpec::Fragment;
+        let reading = |s: &LightState| match s.clamping {
+            ClampingSpec::Discrete => light::Reading::Slices,
+            // Fragment receivers are read whenever the model is chosen
+            // (`count_fill` counts them on unclamped frames), but under
+            // `auto` only by a light that clamps continuously this frame.
+            ClampingSpec::Continuous if fragment_receivers => light::Reading::Axes,
+            ClampingSpec::None if fragment_receivers && o.clamping != ClampingSpec::Auto => {
+                light::Reading::Axes
+            }
+            _ => light::Reading::None,
+        };
+        let stored_points = (self.lights.iter())
+            .filter_map(|s| s.state.as_ref())
+            .any(|s| s.culled && reading(s) == light::Reading::Axes);
         // The culling lights mark the eye's visible surface points.
         if lights_culled {
             visible_points_into(
@@ -553,7 +579,10 @@ impl Pipeline {
                 .par_iter_mut()
                 .filter_map(|slot| slot.state.as_mut())
                 .filter(|state| state.culled)
-                .map(|state| (state.light, state.id.0, &mut state.culling));
+                .map(|state| {
+                    let r = reading(state);
+                    (state.light, state.id.0, &mut state.culling, r)
+                });
             let input = light::LightPassInput {
                 pass: visibility::PassInput {
                     hierarchy,
@@ -561,12 +590,12 @@ impl Pipeline {
                     meshes,
                     camera,
                     receivers: &self.receivers,
-                    fragments: fragment_model.then_some(visibility::FragmentSource::Axes(&axes)),
+                    fragments: Some(visibility::FragmentSource::Axes(&axes)),
                 },
                 backends: self.backends.as_deref(),
                 options: &o.light_pass_options(),
                 frame,
-                slices: discrete.then_some(((w, h), o.slices)),
+                slices: Some(((w, h), o.slices)),
             };
             light::light_passes(lights, &input)?;
         }
@@ -575,7 +604,7 @@ impl Pipeline {
         let shadow_options = o.shadow_options();
         // Clamping's receivers under `psr`: the receiving objects the eye
         // pass drew (every receiving object without culling).
-        let psr_model = (shadow_options.clamping.is_some() || o.count_fill)
+        let psr_model = (o.clamping != ClampingSpec::None || o.count_fill)
             && o.clamping_receivers == options::ClampReceiversSpec::Psr;
         let receives = match (&self.culling, culled && psr_model) {
             (Some(state), true) => {
@@ -620,14 +649,19 @@ impl Pipeline {
             // `stencil: auto`: this light's stencil this frame.
             let stencil_view = usize::from(s.culled);
             let hierarchical = !stencil_auto || s.stencil_auto[stencil_view].choose(&o.auto);
-            let light_options = if hierarchical {
-                shadow_options
-            } else {
-                auto::db_options(shadow_options)
+            let light_options = ShadowOptions {
+                clamping: o.clamping_options(s.clamping),
+                ..if hierarchical {
+                    shadow_options
+                } else {
+                    auto::db_options(shadow_options)
+                }
             };
-            // Fragment receivers come from this frame's light pass; a light
-            // not culled this frame clamps to every receiving object.
-            let fragments = (s.culled && fragment_model).then_some(&s.culling.result.fragments);
+            // Fragment receivers and slices come from this frame's light
+            // pass; a light not culled this frame clamps to every receiving
+            // object (discrete: not at all).
+            let fragments = (s.culled && reading(s) != light::Reading::None)
+                .then_some(&s.culling.result.fragments);
             let mut volumes = volume::build_for(
                 input,
                 casters,
@@ -735,6 +769,53 @@ impl Pipeline {
                     tile_tests = f.stencil.tile_tests,
                     h_fragments = f.stencil.h_fragments,
                     pixels_processed = f.stencil.pixels_processed,
+                );
+            }
+            if o.clamping == ClampingSpec::Auto {
+                // The frame's modeled cost: light pass (its receiver points
+                // marked twice with the stored depths), volumes, stencil,
+                // and the marked pixels read for clamping.
+                let r = reading(s);
+                let marks = 1 + u64::from(stored_points && r == light::Reading::Axes);
+                let costs = auto::LightCosts {
+                    caster_triangles: triangles_of(scene, casters),
+                    all_caster_triangles: 0,
+                    volume_triangles: s.stats.volume_triangles,
+                    stencil: s.shadow.as_ref().map(|f| f.stencil).unwrap_or_default(),
+                    hierarchical: matches!(light_options.backend, Backend::Hierarchical { .. }),
+                    pass: s.culled.then_some(auto::LightPassWork {
+                        traversal: light,
+                        raster: s.culling.result.raster,
+                        host: self.backends.is_some(),
+                        eye_pixels: u64::from(w) * u64::from(h) * marks,
+                    }),
+                };
+                let read = match (s.culled, r) {
+                    (true, light::Reading::Axes | light::Reading::Slices) => {
+                        s.culling.result.fragments.pixels
+                    }
+                    _ => 0,
+                };
+                // Segment triangles at their own price.
+                let segments = s.stats.volumes.segment_triangles as f64;
+                let cost = costs.costs(&o.auto).0
+                    + (o.auto.segment_triangle - o.auto.volume_triangle) * segments
+                    + o.auto.receiver_pixel * read as f64;
+                let clamped = s.clamping != ClampingSpec::None;
+                s.clamp_auto[0].observe(&o.auto, clamped, cost, None);
+                if clamped {
+                    let discrete = s.clamping == ClampingSpec::Discrete;
+                    s.clamp_auto[1].observe(&o.auto, discrete, cost, None);
+                }
+                tracing::debug!(
+                    target: "shadowcull::auto",
+                    view = "clamping",
+                    light = s.id.0,
+                    clamping = ?s.clamping,
+                    cost,
+                    read,
+                    segments = s.stats.volumes.segments,
+                    pixels_processed = costs.stencil.pixels_processed,
                 );
             }
             if auto && may_cull {

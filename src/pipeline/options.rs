@@ -104,6 +104,11 @@ pub enum ClampingSpec {
     /// frame does not cull has no light pass: their volumes stay
     /// unclamped, as does a caster not wholly in front of the eye.
     Discrete,
+    /// Per light and per frame, none, continuous (with
+    /// `clamping_receivers`) or discrete, whichever a cost model of earlier
+    /// frames' counters finds cheaper (`auto.rs`, "Clamping"): never from
+    /// timers, so results are deterministic. The mask is unchanged.
+    Auto,
 }
 
 /// Default [`PipelineOptions::slices`]: "10 slices are usually sufficient"
@@ -172,6 +177,10 @@ pub struct AutoSpec {
     pub caster_triangle: f64,
     /// Per shadow-volume triangle drawn by the stencil.
     pub volume_triangle: f64,
+    /// `clamping: auto`: per triangle of a clamped caster's segments, in
+    /// place of `volume_triangle` (their caps are small or, between slices,
+    /// edge-on; the hierarchical stencil's extra tile tests count apart).
+    pub segment_triangle: f64,
     /// Per hierarchical-stencil tile test.
     pub stencil_tile: f64,
     /// Per hierarchical-stencil fragment (in boundary tiles).
@@ -236,6 +245,7 @@ impl Default for AutoSpec {
             receiver_pixel: 10.0,
             caster_triangle: 253.0,
             volume_triangle: 424.0,
+            segment_triangle: 190.0,
             stencil_tile: 55.0,
             h_fragment: 16.0,
             bf_fragment: 7.7,
@@ -313,7 +323,7 @@ pub struct PipelineOptions {
     pub two_sided: bool,
     /// Lights with a range extrude their shadow volumes finitely (always closed).
     pub finite_extrusion: bool,
-    /// Shadow-volume clamping (`none`, `continuous` or `discrete`).
+    /// Shadow-volume clamping (`none`, `continuous`, `discrete` or `auto`).
     pub clamping: ClampingSpec,
     /// Discrete clamping's number of slices (strips of the image), 1 to
     /// [`visibility::MAX_SLICES`].
@@ -436,14 +446,23 @@ impl PipelineOptions {
             scissor: self.scissor,
             depth_bounds: self.depth_bounds || self.stencil == StencilBackend::Db,
             finite_extrusion: self.finite_extrusion,
-            clamping: match self.clamping {
-                ClampingSpec::None => None,
-                ClampingSpec::Continuous => Some(self.clamp_options()),
-                ClampingSpec::Discrete => Some(super::shadow_options::ClampOptions {
-                    slices: Some(self.slices),
-                    ..self.clamp_options()
-                }),
-            },
+            clamping: self.clamping_options(self.clamping),
+        }
+    }
+
+    /// The shadow stage's clamping for `clamping` (`auto`: none; each light
+    /// sets its own).
+    pub(crate) fn clamping_options(
+        &self,
+        clamping: ClampingSpec,
+    ) -> Option<super::shadow_options::ClampOptions> {
+        match clamping {
+            ClampingSpec::None | ClampingSpec::Auto => None,
+            ClampingSpec::Continuous => Some(self.clamp_options()),
+            ClampingSpec::Discrete => Some(super::shadow_options::ClampOptions {
+                slices: Some(self.slices),
+                ..self.clamp_options()
+            }),
         }
     }
 
@@ -529,6 +548,7 @@ impl PipelineOptions {
                     a.receiver_pixel,
                     a.caster_triangle,
                     a.volume_triangle,
+                    a.segment_triangle,
                     a.stencil_tile,
                     a.h_fragment,
                     a.bf_fragment,

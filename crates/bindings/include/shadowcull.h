@@ -169,6 +169,10 @@
 // lies on the screen for a caster its plane cuts, stays unclamped there.
 #define SC_CLAMPING_DISCRETE 2
 
+// Per light and frame none, continuous or discrete clamping, whichever a
+// cost model of earlier frames' counters finds cheaper (deterministic).
+#define SC_CLAMPING_AUTO 3
+
 // Every receiving object is a receiver for clamping (the default).
 #define SC_CLAMP_RECEIVERS_ALL 0
 

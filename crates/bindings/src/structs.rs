@@ -69,6 +69,9 @@ pub const SC_CLAMPING_CONTINUOUS: u32 = 1;
 /// `SC_COVERAGE_POINT`; a light the frame does not cull, or whose image
 /// lies on the screen for a caster its plane cuts, stays unclamped there.
 pub const SC_CLAMPING_DISCRETE: u32 = 2;
+/// Per light and frame none, continuous or discrete clamping, whichever a
+/// cost model of earlier frames' counters finds cheaper (deterministic).
+pub const SC_CLAMPING_AUTO: u32 = 3;
 
 /// Every receiving object is a receiver for clamping (the default).
 pub const SC_CLAMP_RECEIVERS_ALL: u32 = 0;
@@ -363,6 +366,7 @@ impl sc_pipeline_options {
             SC_CLAMPING_NONE => ClampingSpec::None,
             SC_CLAMPING_CONTINUOUS => ClampingSpec::Continuous,
             SC_CLAMPING_DISCRETE => ClampingSpec::Discrete,
+            SC_CLAMPING_AUTO => ClampingSpec::Auto,
             v => {
                 return Err(Failure::invalid(format!(
                     "options.clamping: {v} is no SC_CLAMPING_*"

@@ -908,11 +908,13 @@ fn clamping_through_the_options() {
     discrete.clamping = SC_CLAMPING_DISCRETE;
     discrete.slices = 12;
     let clamped_discrete = run(&discrete);
+    let mut automatic = discrete;
+    automatic.clamping = SC_CLAMPING_AUTO;
+    let clamped_auto = run(&automatic);
     let mut segments = 0;
-    let all = clamped
-        .iter()
-        .chain(&clamped_fragment)
-        .chain(&clamped_discrete);
+    let all = (clamped.iter().chain(&clamped_fragment))
+        .chain(&clamped_discrete)
+        .chain(&clamped_auto);
     for ((pm, pr, _), (cm, cr, cs)) in plain.iter().cycle().zip(all) {
         assert!(pr.iter().all(|r| r.segment == 0 && r.far_plane == [0.0; 4]));
         segments += cs.segments;
@@ -941,9 +943,10 @@ fn clamping_through_the_options() {
     );
     // Bad clamping fields are refused, naming the field.
     type Spoil = fn(&mut sc_pipeline_options);
-    let bad_fields: [(&str, Spoil); 4] = [
+    let bad_fields: [(&str, Spoil); 5] = [
         ("options.clamping_receivers", |o| o.clamping_receivers = 7),
         ("options.clamping", |o| o.clamping = 9),
+        ("options.clamping", |o| o.clamping = 4),
         ("slices", |o| o.slices = 65),
         ("clamp_pixel_cost", |o| o.clamp_pixel_cost = -1.0),
     ];

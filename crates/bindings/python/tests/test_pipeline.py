@@ -318,6 +318,7 @@ def test_lights_before_the_first_frame():
         ("continuous", "psr"),
         ("continuous", "fragment"),
         ("discrete", "all"),
+        ("auto", "fragment"),
     ],
 )
 def test_clamping_keeps_the_mask_and_numbers_segments(clamping, receivers):
