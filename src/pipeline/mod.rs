@@ -771,15 +771,12 @@ impl Pipeline {
                     pixels_processed = f.stencil.pixels_processed,
                 );
             }
-            if o.clamping == ClampingSpec::Auto {
-                // The frame's modeled cost: light pass (its receiver points
-                // marked twice with the stored depths), volumes, stencil,
-                // and the marked pixels read for clamping.
-                let r = reading(s);
-                let marks = 1 + u64::from(stored_points && r == light::Reading::Axes);
-                let costs = auto::LightCosts {
+            // The light's modeled costs, for `culling: auto` and `clamping:
+            // auto`.
+            let costs = (o.clamping == ClampingSpec::Auto || (auto && may_cull)).then(|| {
+                auto::LightCosts {
                     caster_triangles: triangles_of(scene, casters),
-                    all_caster_triangles: 0,
+                    all_caster_triangles,
                     volume_triangles: s.stats.volume_triangles,
                     stencil: s.shadow.as_ref().map(|f| f.stencil).unwrap_or_default(),
                     hierarchical: matches!(light_options.backend, Backend::Hierarchical { .. }),
@@ -787,9 +784,18 @@ impl Pipeline {
                         traversal: light,
                         raster: s.culling.result.raster,
                         host: self.backends.is_some(),
-                        eye_pixels: u64::from(w) * u64::from(h) * marks,
+                        eye_pixels: u64::from(w) * u64::from(h),
                     }),
-                };
+                }
+            });
+            if let (ClampingSpec::Auto, Some(mut costs)) = (o.clamping, costs) {
+                // The frame's modeled cost: light pass (its receiver points
+                // marked twice with the stored depths), volumes, stencil,
+                // and the marked pixels read for clamping.
+                let r = reading(s);
+                if let Some(p) = &mut costs.pass {
+                    p.eye_pixels *= 1 + u64::from(stored_points && r == light::Reading::Axes);
+                }
                 let read = match (s.culled, r) {
                     (true, light::Reading::Axes | light::Reading::Slices) => {
                         s.culling.result.fragments.pixels
@@ -818,20 +824,7 @@ impl Pipeline {
                     pixels_processed = costs.stencil.pixels_processed,
                 );
             }
-            if auto && may_cull {
-                let costs = auto::LightCosts {
-                    caster_triangles: triangles_of(scene, casters),
-                    all_caster_triangles,
-                    volume_triangles: s.stats.volume_triangles,
-                    stencil: s.shadow.as_ref().map(|f| f.stencil).unwrap_or_default(),
-                    hierarchical: matches!(light_options.backend, Backend::Hierarchical { .. }),
-                    pass: s.culled.then_some(auto::LightPassWork {
-                        traversal: light,
-                        raster: s.culling.result.raster,
-                        host: self.backends.is_some(),
-                        eye_pixels: u64::from(w) * u64::from(h),
-                    }),
-                };
+            if let (true, true, Some(costs)) = (auto, may_cull, costs) {
                 let (cost, unculled) = costs.costs(&o.auto);
                 s.auto.observe(&o.auto, s.culled, cost, unculled);
                 let st = &s.stats;
