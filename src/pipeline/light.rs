@@ -33,10 +33,10 @@ pub(crate) struct LightPassInput<'a> {
     pub options: &'a LightPassOptions,
     /// The job frame number.
     pub frame: u32,
-    /// Discrete clamping: the viewport and the number of slices; a light
-    /// reading [`Reading::Slices`] reads its casters' occupied slices of
-    /// its own [`shadowgen::EyeSlices`] (none without them).
-    pub slices: Option<((u32, u32), u32)>,
+    /// The viewport and the number of slices: a light reading
+    /// [`Reading::Slices`] reads its casters' occupied slices of its own
+    /// [`shadowgen::EyeSlices`].
+    pub slices: ((u32, u32), u32),
 }
 
 /// What one light's pass reads for clamping.
@@ -44,7 +44,8 @@ pub(crate) struct LightPassInput<'a> {
 pub(crate) enum Reading {
     /// Nothing.
     None,
-    /// Fragment intervals along each caster's axis (`pass.fragments`).
+    /// Fragment intervals along each caster's axis (`pass.fragments`, the
+    /// axes).
     Axes,
     /// Occupied slices of the light's [`shadowgen::EyeSlices`].
     Slices,
@@ -66,21 +67,22 @@ pub(crate) fn light_passes<'l>(
             c.pass.set_frame(input.frame);
             let mut edges = [0.0; visibility::MAX_SLICES + 1];
             let mut pass = input.pass;
-            if reading == Reading::None {
-                pass.fragments = None;
-            }
-            if let (Reading::Slices, Some((viewport, n))) = (reading, input.slices) {
-                pass.fragments = None;
-                if let Some(s) = shadowgen::EyeSlices::new(pass.camera, viewport, &light, n) {
-                    let edges = &mut edges[..=n as usize];
-                    for (i, e) in edges.iter_mut().enumerate() {
-                        *e = s.edge(i as u32);
-                    }
-                    let (num, den) = s.world_ratio();
-                    let edges = &*edges;
-                    pass.fragments = Some(FragmentSource::Slices(SliceRatio { num, den, edges }));
+            let (viewport, n) = input.slices;
+            pass.fragments = match reading {
+                Reading::None => None,
+                Reading::Axes => input.pass.fragments,
+                Reading::Slices => {
+                    shadowgen::EyeSlices::new(pass.camera, viewport, &light, n).map(|s| {
+                        let edges = &mut edges[..=n as usize];
+                        for (i, e) in edges.iter_mut().enumerate() {
+                            *e = s.edge(i as u32);
+                        }
+                        let (num, den) = s.world_ratio();
+                        let edges = &*edges;
+                        FragmentSource::Slices(SliceRatio { num, den, edges })
+                    })
                 }
-            }
+            };
             c.pass.run_into(
                 &pass,
                 &light,

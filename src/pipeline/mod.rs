@@ -595,7 +595,7 @@ impl Pipeline {
                 backends: self.backends.as_deref(),
                 options: &o.light_pass_options(),
                 frame,
-                slices: Some(((w, h), o.slices)),
+                slices: ((w, h), o.slices),
             };
             light::light_passes(lights, &input)?;
         }

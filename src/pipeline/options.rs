@@ -99,10 +99,11 @@ pub enum ClampingSpec {
     /// the eye, so the segments' caps cost no fill. With `coverage:
     /// conservative` the mask is unchanged; with `coverage: point` a
     /// receiver between the light view's samples may be missed
-    /// (aggressive). A light whose image lies on the screen (in front of
-    /// or straight behind the eye) has no such planes, and a light the
-    /// frame does not cull has no light pass: their volumes stay
-    /// unclamped, as does a caster not wholly in front of the eye.
+    /// (aggressive). A caster that the plane through the eye, the light
+    /// and the strips' direction cuts (its rays run both ways through the
+    /// strips), or that is not wholly in front of the eye, stays unclamped,
+    /// as does every caster of a light the frame does not cull (no light
+    /// pass).
     Discrete,
     /// Per light and per frame, none, continuous (with
     /// `clamping_receivers`) or discrete, whichever a cost model of earlier

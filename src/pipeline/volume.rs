@@ -86,24 +86,16 @@ pub(crate) fn build_for(
                 receives,
                 cost: Some(&model),
             };
-            let slices = clamp
-                .slices
-                .and_then(|n| EyeSlices::new(camera, viewport, light, n));
-            let cs = match (fragments, clamp.slices) {
-                (Some(f), Some(_)) => match &slices {
-                    Some(s) => {
-                        scratch
-                            .clamp
-                            .plan_sliced(&clamp_input, s, &Fragments(f), &mut scratch.plan)
-                    }
-                    // No pencil for this light and view: unclamped.
-                    None => {
-                        scratch.plan.clear();
-                        Default::default()
-                    }
-                },
-                // Discrete clamping without a light pass: unclamped.
-                (None, Some(_)) => {
+            let slices = (clamp.slices).map(|n| EyeSlices::new(camera, viewport, light, n));
+            let cs = match (fragments, slices) {
+                (Some(f), Some(Some(s))) => {
+                    scratch
+                        .clamp
+                        .plan_sliced(&clamp_input, &s, &Fragments(f), &mut scratch.plan)
+                }
+                // Discrete clamping without a light pass (or with a
+                // viewport or values no pencil fits): unclamped.
+                (_, Some(_)) => {
                     scratch.plan.clear();
                     Default::default()
                 }

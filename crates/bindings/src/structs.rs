@@ -66,8 +66,9 @@ pub const SC_CLAMPING_CONTINUOUS: u32 = 1;
 /// the strips of the image (`sc_pipeline_options.slices` of them, cut by
 /// planes through the eye) where the light pass finds a receiver in its
 /// shadow. Exact with `SC_COVERAGE_CONSERVATIVE`, aggressive with
-/// `SC_COVERAGE_POINT`; a light the frame does not cull, or whose image
-/// lies on the screen for a caster its plane cuts, stays unclamped there.
+/// `SC_COVERAGE_POINT`. A caster cut by the plane through eye, light and
+/// strip direction, or not wholly in front of the eye, stays unclamped, as
+/// does every caster of a light the frame does not cull.
 pub const SC_CLAMPING_DISCRETE: u32 = 2;
 /// Per light and frame none, continuous or discrete clamping, whichever a
 /// cost model of earlier frames' counters finds cheaper (deterministic).

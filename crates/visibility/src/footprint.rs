@@ -36,3 +36,35 @@ pub(crate) fn pixel_rect(m: &DMat4, b: &Aabb, w: u32, h: u32) -> Option<((u32, u
     };
     Some((range(x, w)?, range(y, h)?))
 }
+
+/// A light view's pixel coordinates in normalized device coordinates.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct PixelNdc {
+    /// NDC per pixel, per axis (0: x, 1: y).
+    pub scale: [f64; 2],
+    /// NDC at pixel 0, per axis.
+    pub offset: [f64; 2],
+}
+
+impl PixelNdc {
+    /// The mapping of a `w × h` target (row 0 at the top).
+    pub fn new((w, h): (u32, u32)) -> Self {
+        PixelNdc {
+            scale: [2.0 / f64::from(w), -2.0 / f64::from(h)],
+            offset: [-1.0, 1.0],
+        }
+    }
+
+    /// The NDC along axis `k` (0: x, 1: y) of the edges of the inclusive
+    /// pixel range `a..=b`, widened by the footprint.
+    pub fn edges(&self, k: usize, (a, b): (u32, u32)) -> [f64; 2] {
+        let (p, q) = (
+            f64::from(a) - FOOTPRINT_PX,
+            f64::from(b) + 1.0 + FOOTPRINT_PX,
+        );
+        [
+            p * self.scale[k] + self.offset[k],
+            q * self.scale[k] + self.offset[k],
+        ]
+    }
+}

@@ -28,7 +28,7 @@
 //! unbounded. The segments' own margins (`shadowgen`'s `SEGMENT_MARGIN`)
 //! come on top.
 
-use crate::footprint::{pixel_rect, FOOTPRINT_PX};
+use crate::footprint::{pixel_rect, PixelNdc};
 use crate::light_view::LightView;
 use crate::receivers::RECEIVER_PUSH;
 use crate::slice_occupancy::SliceRatio;
@@ -294,9 +294,8 @@ fn box_near(axis: &DepthAxis, b: &Aabb) -> f64 {
 struct AxisDepth {
     num: DVec4,
     den: DVec4,
-    /// NDC per pixel and at pixel 0, per axis.
-    scale: [f64; 2],
-    offset: [f64; 2],
+    /// The view's pixels in NDC.
+    pixels: PixelNdc,
     /// `den` does not depend on x and y (a perspective or orthographic
     /// view): the depth is affine in them at each z.
     affine_xy: bool,
@@ -313,7 +312,7 @@ impl AxisDepth {
         axis: &DepthAxis,
         light: &Light,
         diameter: f64,
-        (w, h): (u32, u32),
+        size: (u32, u32),
     ) -> Self {
         let t = world_from_clip.transpose();
         let a = axis.axis;
@@ -323,13 +322,11 @@ impl AxisDepth {
         // x and y terms below 1e-12 of the rest change the depth by less
         // than that: far inside the margins.
         let affine_xy = den.x.abs().max(den.y.abs()) <= 1e-12 * (den.z.abs() + den.w.abs());
-        let (w, h) = (f64::from(w), f64::from(h));
         let light_depth = light.position().map(|l| a.dot(l - axis.origin));
         AxisDepth {
             num,
             den,
-            scale: [2.0 / w, -2.0 / h],
-            offset: [-1.0, 1.0],
+            pixels: PixelNdc::new(size),
             affine_xy,
             light_depth,
             shift: if light_depth.is_some() {
@@ -356,24 +353,14 @@ impl AxisDepth {
         // row or column (the sign of num's coefficient decides it).
         let (x0, y0) = (t.x.0, t.y.0);
         let [lo0, hi0] = self.xy_terms((x0, x0), (y0, y0));
-        let (sx, sy) = (self.num.x * self.scale[0], self.num.y * self.scale[1]);
+        let scale = self.pixels.scale;
+        let (sx, sy) = (self.num.x * scale[0], self.num.y * scale[1]);
         t.for_each_marked(|x, y, far, near| {
             n += 1;
             let step = sx * f64::from(x - x0) + sy * f64::from(y - y0);
             f(self.finish(lo0 + step, hi0 + step, far, near));
         });
         n
-    }
-
-    /// The normalized device coordinates along axis `k` (0: x, 1: y) of the
-    /// edges of the inclusive pixel range `a..=b`, widened by the footprint.
-    fn ndc(&self, k: usize, (a, b): (u32, u32)) -> [f64; 2] {
-        let e = FOOTPRINT_PX;
-        let (p, q) = (f64::from(a) - e, f64::from(b) + 1.0 + e);
-        [
-            p * self.scale[k] + self.offset[k],
-            q * self.scale[k] + self.offset[k],
-        ]
     }
 
     /// `num.w` plus the x and y terms of the corners of the inclusive pixel
@@ -384,8 +371,8 @@ impl AxisDepth {
             [p.min(q), p.max(q)]
         };
         let (x, y) = (
-            pick(self.num.x, self.ndc(0, xs)),
-            pick(self.num.y, self.ndc(1, ys)),
+            pick(self.num.x, self.pixels.edges(0, xs)),
+            pick(self.num.y, self.pixels.edges(1, ys)),
         );
         [self.num.w + x[0] + y[0], self.num.w + x[1] + y[1]]
     }
@@ -435,8 +422,8 @@ impl AxisDepth {
             return self.finish(lo, hi, far, near);
         }
         let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
-        for cx in self.ndc(0, xs) {
-            for cy in self.ndc(1, ys) {
+        for cx in self.pixels.edges(0, xs) {
+            for cy in self.pixels.edges(1, ys) {
                 for cz in [f64::from(far), f64::from(near)] {
                     let c = DVec4::new(cx, cy, cz, 1.0);
                     let (n, d) = (self.num.dot(c), self.den.dot(c));
@@ -515,7 +502,7 @@ mod tests {
             let (far, near) = (depths.0.min(depths.1), depths.0.max(depths.1));
             let (x, y) = pixel;
             let [lo, hi] = d.range((x, x), (y, y), far, near);
-            let e = FOOTPRINT_PX;
+            let e = crate::footprint::FOOTPRINT_PX;
             for (sx, sy, sz) in samples {
                 let px = f64::from(x) - e + sx * (1.0 + 2.0 * e);
                 let py = f64::from(y) - e + sy * (1.0 + 2.0 * e);

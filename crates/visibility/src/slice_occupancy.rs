@@ -21,7 +21,7 @@
 //! occupied: the mask does not change. With point-sampled marks (`coverage:
 //! point`) a receiver between samples may be missed: aggressive.
 
-use crate::footprint::{pixel_rect, FOOTPRINT_PX};
+use crate::footprint::{pixel_rect, PixelNdc};
 use crate::receivers::RECEIVER_PUSH;
 use glam::{DMat4, DVec4};
 use raster::ReceiverTarget;
@@ -51,9 +51,8 @@ struct ClipRatio {
     pushed: [DVec4; 2],
     unpushed: [DVec4; 2],
     w: DVec4,
-    /// NDC per pixel and at pixel 0, per axis.
-    scale: [f64; 2],
-    offset: [f64; 2],
+    /// The view's pixels in NDC.
+    pixels: PixelNdc,
 }
 
 impl ClipRatio {
@@ -62,7 +61,7 @@ impl ClipRatio {
         world_from_clip: &DMat4,
         light: &Light,
         diameter: f64,
-        (w, h): (u32, u32),
+        size: (u32, u32),
     ) -> Self {
         // Undoing twice the push is linear on homogeneous points: a
         // positional light scales towards it, a directional one shifts.
@@ -83,8 +82,7 @@ impl ClipRatio {
             pushed: [t * r.num, t * r.den],
             unpushed: [u * r.num, u * r.den],
             w: t * DVec4::W,
-            scale: [2.0 / f64::from(w), -2.0 / f64::from(h)],
-            offset: [-1.0, 1.0],
+            pixels: PixelNdc::new(size),
         }
     }
 
@@ -93,19 +91,9 @@ impl ClipRatio {
     /// unbounded where a corner is not in front of the eye or the light.
     fn range(&self, xs: (u32, u32), ys: (u32, u32), far: f32, near: f32) -> [f64; 2] {
         const ALL: [f64; 2] = [f64::NEG_INFINITY, f64::INFINITY];
-        let ndc = |k: usize, (a, b): (u32, u32)| {
-            let (p, q) = (
-                f64::from(a) - FOOTPRINT_PX,
-                f64::from(b) + 1.0 + FOOTPRINT_PX,
-            );
-            [
-                p * self.scale[k] + self.offset[k],
-                q * self.scale[k] + self.offset[k],
-            ]
-        };
         let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
-        for cx in ndc(0, xs) {
-            for cy in ndc(1, ys) {
+        for cx in self.pixels.edges(0, xs) {
+            for cy in self.pixels.edges(1, ys) {
                 for cz in [f64::from(far), f64::from(near)] {
                     let c = DVec4::new(cx, cy, cz, 1.0);
                     // NaN fails too.
