@@ -175,6 +175,37 @@ struct TargetSet {
     marks: Option<Arc<ReceiverTarget>>,
 }
 
+impl TargetSet {
+    /// The set's targets for a `size` view: its own, unless the size
+    /// changed or a host backend kept a reference to the receivers; new
+    /// ones otherwise.
+    fn take(&mut self, size: (u32, u32)) -> Result<(DepthTarget, Arc<ReceiverTarget>)> {
+        let target = match self.target.take() {
+            Some(t) if (t.width(), t.height()) == size => t,
+            _ => DepthTarget::new(size.0, size.1, TileSize::T8, false)?,
+        };
+        let marks = match self.marks.take() {
+            Some(r)
+                if r.size() == size && Arc::strong_count(&r) == 1 && Arc::weak_count(&r) == 0 =>
+            {
+                r
+            }
+            _ => Arc::new(ReceiverTarget::for_target(&target)),
+        };
+        Ok((target, marks))
+    }
+
+    /// Holds targets for a `size` view, before the views are claimed: a
+    /// group that claims its first view in a later frame (the other
+    /// groups claimed them all until then) would otherwise allocate its
+    /// set in that frame.
+    fn prepare(&mut self, size: (u32, u32)) -> Result<()> {
+        let (target, marks) = self.take(size)?;
+        (self.target, self.marks) = (Some(target), Some(marks));
+        Ok(())
+    }
+}
+
 /// One light's persistent light-pass state: a slot per light view, the
 /// receiver buffers (reused, not reallocated, from frame to frame) and the
 /// casting triangles of the objects drawn as occluders.
@@ -511,6 +542,12 @@ impl LightPass {
         if self.sets.len() < groups {
             self.sets.resize_with(groups, TargetSet::default);
         }
+        // Every view of a light has one resolution.
+        if let Some(v) = views.first() {
+            for set in &mut self.sets[..groups] {
+                set.prepare((v.resolution, v.resolution))?;
+            }
+        }
         let next = AtomicUsize::new(0);
         let slots = &self.slots;
         let group = |set: &mut TargetSet| -> Result<()> {
@@ -616,20 +653,8 @@ impl ViewSlot {
         (self.fragment_pixels, self.fragment_ms) = (0, 0.0);
         let clip_from_origin = (m * DMat4::from_translation(origin)).as_mat4();
         let size = (view.resolution, view.resolution);
-        let mut target = match set.target.take() {
-            Some(t) if (t.width(), t.height()) == size => t,
-            _ => DepthTarget::new(size.0, size.1, TileSize::T8, false)?,
-        };
+        let (mut target, mut marks) = set.take(size)?;
         target.set_instruction_set(options.instruction_set);
-        // Reused unless the size changed or a host backend kept a reference.
-        let mut marks = match set.marks.take() {
-            Some(r)
-                if r.size() == size && Arc::strong_count(&r) == 1 && Arc::weak_count(&r) == 0 =>
-            {
-                r
-            }
-            _ => Arc::new(ReceiverTarget::for_target(&target)),
-        };
         let Some(marks_mut) = Arc::get_mut(&mut marks) else {
             unreachable!("a fresh or unshared receiver target")
         };
