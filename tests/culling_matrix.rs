@@ -25,6 +25,7 @@ use shadowcull::frame::{FrameRunner, LightFrame};
 use shadowcull::mask::{compare, ClassCounts, Mask};
 use shadowcull::pipeline::{eye_pass, MeshCache};
 use shadowcull::pipeline::{CoverageSpec, CullingSpec, PipelineOptions, StencilBackend};
+use shadowcull::raster;
 use shadowcull::reference::{reference_mask, ReferenceMask, ReferenceOptions, TriangleBvh};
 use std::sync::OnceLock;
 use std::time::Instant;
@@ -934,7 +935,8 @@ fn clamping_keeps_the_mask_on_the_culling_cases() {
 /// reads) that the reference shadows (not ambiguously) lies, with the
 /// point on its ray at the eye's stored depth (the surface the stencil
 /// tests), in the unclamped volume or between the near and far planes of a
-/// segment of a
+/// segment of a drawn caster, its pixel inside that range's band (the eye
+/// slices the caster's receivers occupy; `shadowgen`'s `bands.rs`), of a
 /// drawn caster whose light-facing triangles its segment to the light
 /// crosses — the light pass, which marks fragment receivers with tighter
 /// depths, kept a caster for it — and a sample whose segment crosses a
@@ -963,7 +965,7 @@ fn segments_hold_every_shadowed_eye_sample(
     use shadowcull::pipeline::{visible_points, ClampReceiversSpec, FrameInput, Pipeline};
     use std::collections::HashMap;
     let t = Instant::now();
-    let (mut shadowed, mut clamped_casters) = (0u64, 0u64);
+    let (mut shadowed, mut clamped_casters, mut banded) = (0u64, 0u64, 0u64);
     let mut failures = Vec::new();
     for (case, stride) in [
         (street_case(), 5),
@@ -1004,13 +1006,16 @@ fn segments_hold_every_shadowed_eye_sample(
                     let lo = out.light(*id).unwrap();
                     let light = lo.light();
                     // Per caster (slot) drawn, its segments' planes
-                    // ([None, None] for an unclamped volume).
-                    let mut segments: HashMap<u32, Vec<[Option<[f64; 4]>; 2]>> = HashMap::new();
+                    // ([None, None] for an unclamped volume) and bands.
+                    type Planes = [Option<[f64; 4]>; 2];
+                    let mut segments: HashMap<u32, Vec<(Planes, [u32; 4])>> = HashMap::new();
                     for r in &lo.volumes().ranges {
-                        segments.entry(slots[&r.object]).or_default().push(r.planes);
+                        let s = segments.entry(slots[&r.object]).or_default();
+                        s.push((r.planes, r.band));
+                        banded += u64::from(r.band != raster::VolumeRange::FULL_SCISSOR);
                     }
                     clamped_casters +=
-                        segments.values().filter(|v| v[0] != [None, None]).count() as u64;
+                        segments.values().filter(|v| v[0].0 != [None, None]).count() as u64;
                     let drawn: Vec<(Vec<[DVec3; 3]>, scene::Aabb, &Vec<_>)> = (segments.iter())
                         .map(|(&c, planes)| {
                             let id = scene::ObjectId(c);
@@ -1062,15 +1067,20 @@ fn segments_hold_every_shadowed_eye_sample(
                             {
                                 continue;
                             }
-                            let within = |p: DVec3| {
-                                let side =
-                                    |q: &[f64; 4]| q[0] * p.x + q[1] * p.y + q[2] * p.z + q[3];
-                                planes.iter().any(|[near, far]| {
+                            // In one segment (between its planes, the
+                            // pixel inside its band) at both points.
+                            let (x, y) = (px.floor() as u32, py.floor() as u32);
+                            let inside = planes.iter().any(|([near, far], b)| {
+                                let within = |p: DVec3| {
+                                    let side =
+                                        |q: &[f64; 4]| q[0] * p.x + q[1] * p.y + q[2] * p.z + q[3];
                                     near.is_none_or(|q| side(&q) >= 0.0)
                                         && far.is_none_or(|q| side(&q) <= 0.0)
-                                })
-                            };
-                            let inside = within(p) && within(stored);
+                                };
+                                let in_band =
+                                    (b[0]..b[2]).contains(&x) && (b[1]..b[3]).contains(&y);
+                                in_band && within(p) && within(stored)
+                            });
                             held |= inside;
                             // A clear crossing of a clamped caster must lie in its segments.
                             if !inside && tris.iter().any(|t| crosses(p, d, end, t, 1e-9)) {
@@ -1093,7 +1103,7 @@ fn segments_hold_every_shadowed_eye_sample(
         }
     }
     eprintln!(
-        "{label} segments: {shadowed} shadowed samples, {clamped_casters} clamped casters, {:.1} s",
+        "{label} segments: {shadowed} shadowed samples, {clamped_casters} clamped casters, {banded} banded ranges, {:.1} s",
         t.elapsed().as_secs_f64()
     );
     assert!(
@@ -1102,8 +1112,8 @@ fn segments_hold_every_shadowed_eye_sample(
         &failures[..failures.len().min(10)].join("\n")
     );
     assert!(
-        shadowed > 10_000 && clamped_casters > 100,
-        "{shadowed} samples, {clamped_casters} casters"
+        shadowed > 10_000 && clamped_casters > 100 && banded > 100,
+        "{shadowed} samples, {clamped_casters} casters, {banded} banded ranges"
     );
 }
 

@@ -309,8 +309,9 @@ int main(int argc, char **argv) {
       const sc_light_output *lo = &out.lights[l];
       psc[f] += lo->psc_count;
       for (size_t r = 0; r < lo->range_count; r++) {
-        /* Bind world_from_local, set the method's stencil ops, scissor and
-           depth bounds, and draw this range's triangles: */
+        /* Bind world_from_local, set the method's stencil ops, the scissor
+           (the band, cut to the optional scissor) and depth bounds, and draw
+           this range's triangles: */
         tris[f] += lo->ranges[r].index_count / 3;
       }
       if (masks) write_mask(masks, f, l, lo->mask);

@@ -48,7 +48,7 @@ pub(crate) struct ClampedVariant<'a> {
     /// The receiver set, as in [`build_for`].
     pub(crate) receives: Option<&'a [bool]>,
     /// The fragment receivers, as in [`build_for`].
-    pub(crate) fragments: Option<&'a visibility::FragmentDepths>,
+    pub(crate) fragments: Option<super::volume::Readings<'a>>,
 }
 
 /// Counts the brute-force fill of `drawn` and of the variant the frame did

@@ -39,13 +39,17 @@ pub(crate) struct LightPassInput<'a> {
     pub slices: ((u32, u32), u32),
 }
 
+// The bands are read as slices.
+const _: () = assert!(shadowgen::BAND_SLICES as usize <= visibility::MAX_SLICES);
+
 /// What one light's pass reads for clamping.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) enum Reading {
     /// Nothing.
     None,
     /// Fragment intervals along each caster's axis (`pass.fragments`, the
-    /// axes).
+    /// axes), and its bands: its occupied slices of the light's
+    /// [`shadowgen::EyeSlices`] of [`shadowgen::BAND_SLICES`].
     Axes,
     /// Occupied slices of the light's [`shadowgen::EyeSlices`].
     Slices,
@@ -68,21 +72,28 @@ pub(crate) fn light_passes<'l>(
             let mut edges = [0.0; visibility::MAX_SLICES + 1];
             let mut pass = input.pass;
             let (viewport, n) = input.slices;
-            pass.fragments = match reading {
-                Reading::None => None,
-                Reading::Axes => input.pass.fragments,
-                Reading::Slices => {
-                    shadowgen::EyeSlices::new(pass.camera, viewport, &light, n).map(|s| {
-                        let edges = &mut edges[..=n as usize];
-                        for (i, e) in edges.iter_mut().enumerate() {
-                            *e = s.edge(i as u32);
-                        }
-                        let (num, den) = s.world_ratio();
-                        let edges = &*edges;
-                        FragmentSource::Slices(SliceRatio { num, den, edges })
-                    })
-                }
+            // Continuous clamping also reads each caster's bands: its
+            // occupied slices at the finest count (`shadowgen`'s `bands.rs`).
+            let (axes, count) = match reading {
+                Reading::None => (None, None),
+                Reading::Axes => (
+                    input.pass.fragments.and_then(|f| f.axes),
+                    Some(shadowgen::BAND_SLICES),
+                ),
+                Reading::Slices => (None, Some(n)),
             };
+            let slices = count.and_then(|n| {
+                shadowgen::EyeSlices::new(pass.camera, viewport, &light, n).map(|s| {
+                    let edges = &mut edges[..=n as usize];
+                    for (i, e) in edges.iter_mut().enumerate() {
+                        *e = s.edge(i as u32);
+                    }
+                    let (num, den) = s.world_ratio();
+                    let edges = &*edges;
+                    SliceRatio { num, den, edges }
+                })
+            });
+            pass.fragments = (reading != Reading::None).then_some(FragmentSource { axes, slices });
             c.pass.run_into(
                 &pass,
                 &light,

@@ -590,7 +590,10 @@ impl Pipeline {
                     meshes,
                     camera,
                     receivers: &self.receivers,
-                    fragments: Some(visibility::FragmentSource::Axes(&axes)),
+                    fragments: Some(visibility::FragmentSource {
+                        axes: Some(&axes),
+                        slices: None,
+                    }),
                 },
                 backends: self.backends.as_deref(),
                 options: &o.light_pass_options(),
@@ -661,7 +664,7 @@ impl Pipeline {
             // pass; a light not culled this frame clamps to every receiving
             // object (discrete: not at all).
             let fragments = (s.culled && reading(s) != light::Reading::None)
-                .then_some(&s.culling.result.fragments);
+                .then(|| volume::Readings::of(&s.culling.result));
             let mut volumes = volume::build_for(
                 input,
                 casters,
@@ -798,7 +801,7 @@ impl Pipeline {
                 }
                 let read = match (s.culled, r) {
                     (true, light::Reading::Axes | light::Reading::Slices) => {
-                        s.culling.result.fragments.pixels
+                        s.culling.result.fragments.pixels + s.culling.result.slices.pixels
                     }
                     _ => 0,
                 };

@@ -11,8 +11,9 @@ use crate::Result;
 use raster::VolumeBuffer;
 use scene::{Aabb, Camera, ObjectId, Scene};
 use shadowgen::{
-    build_clamped_volumes, build_volumes, BuildOptions, ClampInput, ClampPlan, EyeSlices, GapCost,
-    GapModel, LightClamp, ReceiverDepths, SegmentAxis, SilhouetteCache, VolumeRequest, VolumeStats,
+    build_clamped_volumes, build_volumes, split_into_bands, BuildOptions, ClampInput, ClampPlan,
+    EyeSlices, GapCost, GapModel, LightClamp, ReceiverDepths, SegmentAxis, SilhouetteCache,
+    VolumeRequest, VolumeStats, BAND_SLICES,
 };
 use std::time::Instant;
 use visibility::FragmentDepths;
@@ -27,6 +28,28 @@ pub(crate) struct VolumeScratch {
     /// Continuous clamping's sweep state for this light, and its plan.
     pub(crate) clamp: LightClamp,
     pub(crate) plan: ClampPlan,
+    /// The ranges while they are split into bands.
+    pub(crate) bands: Vec<raster::VolumeRange>,
+}
+
+/// What this frame's light pass read of the fragment receivers
+/// ([`visibility::LightPassResult`]).
+#[derive(Clone, Copy)]
+pub(crate) struct Readings<'a> {
+    /// Each caster's intervals along its axis (continuous clamping).
+    pub axes: &'a FragmentDepths,
+    /// Each caster's occupied eye slices: discrete clamping's, or the
+    /// bands of [`BAND_SLICES`] under continuous clamping.
+    pub slices: &'a FragmentDepths,
+}
+
+impl<'a> Readings<'a> {
+    pub(crate) fn of(result: &'a visibility::LightPassResult) -> Self {
+        Readings {
+            axes: &result.fragments,
+            slices: &result.slices,
+        }
+    }
 }
 
 /// Builds the volumes of `casters` for `light` into `scratch.buffer`
@@ -35,7 +58,10 @@ pub(crate) struct VolumeScratch {
 /// stencil test uses them (they cost time), for a `viewport` of `(width,
 /// height)` pixels. Clamping's receivers are `fragments` (the light pass's
 /// fragment intervals) when given, else the objects `receives[id]`
-/// (internal ids), `None`: every receiving object.
+/// (internal ids), `None`: every receiving object. With `fragments`, the
+/// casters' ranges are also split into their bands (`shadowgen`'s
+/// `bands.rs`): every range under continuous clamping, the unclamped ones
+/// under discrete clamping (its segments already lie in their slices).
 ///
 /// # Errors
 /// An invalid light or caster id ([`crate::Error::Shadowgen`]).
@@ -45,7 +71,7 @@ pub(crate) fn build_for(
     options: &ShadowOptions,
     viewport: (u32, u32),
     receives: Option<&[bool]>,
-    fragments: Option<&FragmentDepths>,
+    fragments: Option<Readings<'_>>,
     scratch: &mut VolumeScratch,
 ) -> Result<VolumeStats> {
     let ShadowInput {
@@ -88,22 +114,23 @@ pub(crate) fn build_for(
             };
             let slices = (clamp.slices).map(|n| EyeSlices::new(camera, viewport, light, n));
             let cs = match (fragments, slices) {
-                (Some(f), Some(Some(s))) => {
-                    scratch
-                        .clamp
-                        .plan_sliced(&clamp_input, &s, &Fragments(f), &mut scratch.plan)
-                }
+                (Some(f), Some(Some(s))) => scratch.clamp.plan_sliced(
+                    &clamp_input,
+                    &s,
+                    &Fragments(f.slices),
+                    &mut scratch.plan,
+                ),
                 // Discrete clamping without a light pass (or with a
                 // viewport or values no pencil fits): unclamped.
                 (_, Some(_)) => {
                     scratch.plan.clear();
                     Default::default()
                 }
-                (Some(f), None) => {
-                    scratch
-                        .clamp
-                        .plan_from_depths(&clamp_input, &Fragments(f), &mut scratch.plan)
-                }
+                (Some(f), None) => scratch.clamp.plan_from_depths(
+                    &clamp_input,
+                    &Fragments(f.axes),
+                    &mut scratch.plan,
+                ),
                 (None, None) => scratch.clamp.plan(&clamp_input, &mut scratch.plan)?,
             };
             let clamp_ms = t.elapsed().as_secs_f64() * 1e3;
@@ -116,7 +143,21 @@ pub(crate) fn build_for(
                 options: build,
             };
             let mut stats = build_clamped_volumes(out, &request, cache, plan)?;
-            stats.clamp_ms = clamp_ms;
+            let t = Instant::now();
+            let count = clamp.slices.unwrap_or(BAND_SLICES);
+            let pencil = EyeSlices::new(camera, viewport, light, count);
+            if let (Some(f), Some(pencil)) = (fragments, pencil) {
+                let discrete = clamp.slices.is_some();
+                split_into_bands(
+                    out,
+                    0,
+                    &pencil,
+                    |id| f.slices.get(id),
+                    |r| !discrete || r.planes == [None, None],
+                    &mut scratch.bands,
+                );
+            }
+            stats.clamp_ms = clamp_ms + t.elapsed().as_secs_f64() * 1e3;
             stats.sap_pairs = cs.sap_pairs as usize;
             stats.sap_swaps = cs.sap_swaps as usize;
             stats

@@ -379,6 +379,12 @@ typedef struct sc_volume_range {
   float near_plane[4];
   // See `near_plane`.
   float far_plane[4];
+  // Band `[x0, y0, x1, y1)` in pixels, row 0 at the top: the only pixels
+  // the range may be drawn at. Unlike `scissor` it is not optional: a
+  // caster's volume drawn once per band of the eye slices its receivers
+  // occupy (several ranges sharing one geometry) counts right only
+  // inside each band. `{0, 0, UINT32_MAX, UINT32_MAX}` when unbanded.
+  uint32_t band[4];
 } sc_volume_range;
 
 // One light's counters of a frame.

@@ -65,6 +65,12 @@ pub struct sc_volume_range {
     pub near_plane: [f32; 4],
     /// See `near_plane`.
     pub far_plane: [f32; 4],
+    /// Band `[x0, y0, x1, y1)` in pixels, row 0 at the top: the only pixels
+    /// the range may be drawn at. Unlike `scissor` it is not optional: a
+    /// caster's volume drawn once per band of the eye slices its receivers
+    /// occupy (several ranges sharing one geometry) counts right only
+    /// inside each band. `{0, 0, UINT32_MAX, UINT32_MAX}` when unbanded.
+    pub band: [u32; 4],
 }
 
 /// One light's counters of a frame.
@@ -234,6 +240,7 @@ fn range_of(r: &VolumeRange) -> sc_volume_range {
         world_from_local: r.world_from_local.to_cols_array(),
         near_plane: plane_of(r.planes[0]),
         far_plane: plane_of(r.planes[1]),
+        band: r.band,
     }
 }
 

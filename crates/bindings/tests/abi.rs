@@ -288,6 +288,7 @@ fn output_equals_the_rust_pipeline() {
                 );
                 assert_eq!(a.world_from_local, b.world_from_local.to_cols_array());
                 assert_eq!(a.scissor, b.scissor);
+                assert_eq!(a.band, b.band);
             }
             let mask = l.mask().expect("h stencil draws a mask");
             let bytes: Vec<u8> = mask.pixels.iter().map(|&p| p as u8).collect();
@@ -921,7 +922,13 @@ fn clamping_through_the_options() {
         // Discrete clamping leaves a caster unclamped where the light's
         // plane cuts it: one range without planes.
         let clamped = |r: &&sc_volume_range| r.segment > 0 || r.far_plane != [0.0; 4];
-        let cr: Vec<_> = cr.iter().filter(clamped).collect();
+        // With fragment receivers a segment comes once per band of its
+        // caster: consecutive ranges that share its geometry.
+        let mut cr: Vec<_> = cr.iter().filter(clamped).collect();
+        assert!(cr
+            .iter()
+            .all(|r| r.band[0] < r.band[2] && r.band[1] < r.band[3]));
+        cr.dedup_by_key(|r| r.first_index);
         assert_eq!(cs.segments as usize, cr.len());
         for (k, r) in cr.iter().enumerate() {
             // Only a caster's last segment may extrude to infinity
@@ -937,6 +944,10 @@ fn clamping_through_the_options() {
         assert!(differ as u32 <= W * H / 10_000, "{differ} pixels differ");
     }
     assert!(segments > 0, "the cubes are clamped");
+    // Fragment receivers draw the volumes in bands.
+    let full = [0, 0, u32::MAX, u32::MAX];
+    let banded = clamped_fragment.iter().flat_map(|(_, r, _)| r);
+    assert!(banded.filter(|r| r.band != full).count() > 0, "no band");
     assert!(
         clamped_discrete.iter().any(|(_, _, s)| s.segments > 0),
         "discrete clamping cuts the cubes"

@@ -81,6 +81,13 @@ pub struct VolumeRange {
     /// be inside. [`VolumeRange::FULL_SCISSOR`] when unbounded (the consumer
     /// clamps it to its viewport).
     pub scissor: [u32; 4],
+    /// Band `[x0, y0, x1, y1)` in pixels, row 0 at the top: the only pixels
+    /// the range may be drawn at, whatever the stencil tests. A caster's
+    /// volume drawn once per eye-slice band its receivers occupy counts,
+    /// inside each band, exactly as the whole volume does, and nothing
+    /// outside them (`shadowgen`'s `bands.rs`); a consumer must apply it as
+    /// a scissor. [`VolumeRange::FULL_SCISSOR`] when unbanded.
+    pub band: [u32; 4],
     /// Clamped volumes [Steiner §4.4.3]: the segment's bounding planes in
     /// world space as `[a, b, c, d]`, `a·x + b·y + c·z + d = 0`, `(a, b, c)`
     /// a unit normal towards greater light depth. The near plane is `None` for
@@ -200,6 +207,9 @@ impl VolumeBuffer {
             if r.scissor[0] > r.scissor[2] || r.scissor[1] > r.scissor[3] {
                 return Err(format!("range {i}: inverted scissor"));
             }
+            if r.band[0] > r.band[2] || r.band[1] > r.band[3] {
+                return Err(format!("range {i}: inverted band"));
+            }
         }
         Ok(())
     }
@@ -230,6 +240,7 @@ mod tests {
             depth_near: 1.0,
             depth_far: 0.0,
             scissor: VolumeRange::FULL_SCISSOR,
+            band: VolumeRange::FULL_SCISSOR,
             planes: [None, None],
         });
         assert!(b.check().is_ok());

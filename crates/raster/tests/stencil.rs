@@ -49,6 +49,7 @@ fn volume(
         depth_near: 1.0,
         depth_far: 0.0,
         scissor: VolumeRange::FULL_SCISSOR,
+        band: VolumeRange::FULL_SCISSOR,
         planes: [None, None],
     };
     buf.ranges.push(range.clone());
@@ -1186,4 +1187,68 @@ fn hierarchical_checks_are_not_vacuous() {
         "{seen:?}"
     );
     assert!(seen.saved > 10_000, "{seen:?}");
+}
+
+/// A range's band applies whatever the tests: drawn in a band of rows, a
+/// volume counts as the whole volume inside it and nothing outside, with
+/// the scissor and depth-bounds tests off or on; two bands that tile the
+/// image count as the whole volume.
+#[test]
+fn bands_cut_the_pixels_whatever_the_tests() {
+    let sc = SceneSpec {
+        eye: [0.0, 0.8, 0.5],
+        look: [0.05, -0.35],
+        shapes: vec![Shape::Box {
+            c: [0.3, -0.2, -3.0],
+            h: [0.6, 0.5, 0.7],
+        }],
+        receivers: vec![([0.0, -1.0, 0.0], 1.0), ([0.0, 0.0, -1.0], 8.5)],
+    };
+    let b = build_scene(&sc);
+    let v = &b.volumes[0];
+    let mut shadowed = 0;
+    for tests in [
+        StencilTests::default(),
+        StencilTests {
+            scissor: true,
+            depth_bounds: true,
+        },
+    ] {
+        for method in [VolumeMethod::ZPass, VolumeMethod::ZFail] {
+            let (buf, range) = volume(&v.pos, &v.tris, method);
+            let draw = |bands: &[[u32; 4]]| {
+                let mut s = StencilTarget::new(W, H, StencilBits::Wide).unwrap();
+                let mut st = StencilStats::default();
+                for &band in bands {
+                    let r = VolumeRange {
+                        band,
+                        ..range.clone()
+                    };
+                    s.draw_volume(&b.eye, b.m, &buf, &r, tests, &mut st)
+                        .unwrap();
+                }
+                (s, st.pixels_processed)
+            };
+            let (whole, whole_px) = draw(&[VolumeRange::FULL_SCISSOR]);
+            // Split at the middle of the shadowed rows.
+            let rows: Vec<u32> = (0..H)
+                .filter(|&y| (0..W).any(|x| whole.nonzero(x, y)))
+                .collect();
+            let split = rows[rows.len() / 2];
+            let (top, top_px) = draw(&[[0, 0, u32::MAX, split]]);
+            let (tiled, tiled_px) = draw(&[[0, 0, u32::MAX, split], [0, split, W, H]]);
+            for y in 0..H {
+                for x in 0..W {
+                    let want = if y < split { whole.value(x, y) } else { 0 };
+                    assert_eq!(top.value(x, y), want, "{method:?} ({x}, {y})");
+                    assert_eq!(tiled.value(x, y), whole.value(x, y));
+                    shadowed += usize::from(whole.nonzero(x, y) && y >= split);
+                }
+            }
+            assert_eq!(tiled_px, whole_px);
+            assert!(top_px < whole_px);
+        }
+    }
+    // The volume's shadow reaches below the split: the cut is not vacuous.
+    assert!(shadowed > 0);
 }

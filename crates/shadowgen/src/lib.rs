@@ -35,10 +35,13 @@
 //! - [`EyeSlices`], [`LightClamp::plan_sliced`]: discrete clamping's
 //!   slicing planes through the eye and each caster's occupied slices
 //!   [Steiner §4.4.2].
+//! - [`split_into_bands`]: each caster's ranges drawn only in the eye
+//!   slices its receivers occupy (`bands.rs`).
 //! - [`build_volumes`]: all of the above for one light, with [`VolumeStats`].
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
+mod bands;
 mod bounds;
 mod build;
 mod clamp;
@@ -52,6 +55,7 @@ mod slicing;
 mod sweep_prune;
 mod volume;
 
+pub use bands::{split_into_bands, BAND_SLICES};
 pub use bounds::{volume_bounds, VolumeBounds, BOUNDS_MARGIN};
 pub use build::{build_clamped_volumes, build_volumes, BuildOptions, VolumeRequest, VolumeStats};
 pub use clamp::{ClampInput, ClampStats, GapModel, LightClamp, ReceiverDepths};

@@ -433,6 +433,7 @@ pub(crate) fn append_segments(
             depth_near: 1.0,
             depth_far: 0.0,
             scissor: VolumeRange::FULL_SCISSOR,
+            band: VolumeRange::FULL_SCISSOR,
             planes: [
                 near_plane.map(|p| frame.plane(p)),
                 (!infinite).then(|| frame.plane(far)),

@@ -281,6 +281,7 @@ pub fn append_volume(
         depth_near: 1.0,
         depth_far: 0.0,
         scissor: VolumeRange::FULL_SCISSOR,
+        band: VolumeRange::FULL_SCISSOR,
         planes: [None, None],
     });
     counts

@@ -50,14 +50,17 @@ pub struct DepthAxis {
 /// light, or `None` for a caster that is not clamped.
 pub type AxisFn = dyn Fn(&Light, &Aabb) -> Option<DepthAxis> + Sync;
 
-/// What the light pass reads fragment receivers along.
-#[derive(Clone, Copy)]
-pub enum FragmentSource<'a> {
-    /// Continuous clamping: each caster's depth intervals along its axis.
-    Axes(&'a AxisFn),
-    /// Discrete clamping: each caster's occupied eye slices
-    /// (`slice_occupancy.rs`), as intervals between slice boundaries.
-    Slices(SliceRatio<'a>),
+/// What the light pass reads fragment receivers along: either or both.
+#[derive(Clone, Copy, Default)]
+pub struct FragmentSource<'a> {
+    /// Continuous clamping: each caster's depth intervals along its axis
+    /// ([`LightPassResult::fragments`](crate::LightPassResult::fragments)).
+    pub axes: Option<&'a AxisFn>,
+    /// Each caster's occupied eye slices (`slice_occupancy.rs`), as
+    /// intervals between slice boundaries: discrete clamping's slices, and
+    /// the bands a caster's volume is drawn in
+    /// ([`LightPassResult::slices`](crate::LightPassResult::slices)).
+    pub slices: Option<SliceRatio<'a>>,
 }
 
 /// Per caster, its fragment intervals along its [`DepthAxis`]: sorted,
@@ -143,81 +146,130 @@ pub(crate) struct ViewFragments<'a> {
     pub diameter: f64,
 }
 
+/// One view's per-caster intervals, `(caster id, interval)`: along the
+/// casters' axes and in the eye slices.
+#[derive(Debug, Default)]
+pub(crate) struct ViewIntervals {
+    pub axes: Intervals,
+    pub slices: Intervals,
+    /// Marked light pixels read one by one, per kind.
+    pub pixels: [u64; 2],
+}
+
+impl ViewIntervals {
+    pub fn clear(&mut self) {
+        self.axes.clear();
+        self.slices.clear();
+        self.pixels = [0, 0];
+    }
+
+    fn append(&mut self, other: &ViewIntervals) {
+        self.axes.extend_from_slice(&other.axes);
+        self.slices.extend_from_slice(&other.slices);
+        self.pixels[0] += other.pixels[0];
+        self.pixels[1] += other.pixels[1];
+    }
+}
+
 impl ViewFragments<'_> {
     /// Appends to `out` the fragment intervals of each of `casters` (those
-    /// that cast and have an axis) in `view`, whose receivers `marks` holds
-    /// with nearest depths; `ranges` is scratch. Returns the marked pixels
-    /// read one by one. Many casters are read in parallel, in chunks whose
-    /// lists are joined in order: the result is the sequential one.
+    /// that cast, and for the axes have one) in `view`, whose receivers
+    /// `marks` holds with nearest depths; `ranges` is scratch. Many casters
+    /// are read in parallel, in chunks whose lists are joined in order: the
+    /// result is the sequential one.
     pub fn read(
         &self,
         view: &LightView,
         marks: &ReceiverTarget,
         casters: &[ObjectId],
-        out: &mut Vec<(u32, [f64; 2])>,
+        out: &mut ViewIntervals,
         ranges: &mut Vec<[f64; 2]>,
-    ) -> u64 {
+    ) {
         let world_from_clip = view.clip_from_world.inverse();
-        let read = |id, out: &mut Vec<_>, ranges: &mut Vec<_>| {
+        let read = |id, out: &mut ViewIntervals, ranges: &mut Vec<_>| {
             self.caster(id, view, &world_from_clip, marks, out, ranges)
         };
         #[cfg(feature = "parallel")]
         if casters.len() >= 2 * PARALLEL_CHUNK && rayon::current_num_threads() > 1 {
             use rayon::prelude::*;
-            let parts: Vec<(Intervals, u64)> = casters
+            let parts: Vec<ViewIntervals> = casters
                 .par_chunks(PARALLEL_CHUNK)
                 .map(|chunk| {
-                    let (mut out, mut ranges) = (Vec::new(), Vec::new());
-                    let n = chunk
-                        .iter()
-                        .map(|&id| read(id, &mut out, &mut ranges))
-                        .sum();
-                    (out, n)
+                    let (mut out, mut ranges) = (ViewIntervals::default(), Vec::new());
+                    for &id in chunk {
+                        read(id, &mut out, &mut ranges);
+                    }
+                    out
                 })
                 .collect();
-            return parts
-                .into_iter()
-                .map(|(part, n)| {
-                    out.extend_from_slice(&part);
-                    n
-                })
-                .sum();
+            for part in &parts {
+                out.append(part);
+            }
+            return;
         }
-        casters.iter().map(|&id| read(id, out, ranges)).sum()
+        for &id in casters {
+            read(id, out, ranges);
+        }
     }
 
     /// Appends caster `id`'s fragment intervals in `view` to `out`
-    /// ([`ViewFragments::read`]); returns the pixels read one by one.
+    /// ([`ViewFragments::read`]).
     fn caster(
         &self,
         id: ObjectId,
         view: &LightView,
         world_from_clip: &DMat4,
         marks: &ReceiverTarget,
-        out: &mut Vec<(u32, [f64; 2])>,
+        out: &mut ViewIntervals,
         ranges: &mut Vec<[f64; 2]>,
-    ) -> u64 {
+    ) {
         let o = self.scene.object(id);
         if !o.flags.casts {
-            return 0;
+            return;
         }
         let bounds = o.world_bounds;
-        let axes = match self.source {
-            FragmentSource::Axes(axes) => axes,
-            FragmentSource::Slices(r) => {
-                let m = (&view.clip_from_world, world_from_clip);
-                return crate::slice_occupancy::read_caster(
-                    &r,
-                    id.0,
-                    &bounds,
-                    self.light,
-                    self.diameter,
-                    m,
-                    marks,
-                    out,
-                );
-            }
-        };
+        if let Some(r) = &self.source.slices {
+            let m = (&view.clip_from_world, world_from_clip);
+            out.pixels[1] += crate::slice_occupancy::read_caster(
+                r,
+                id.0,
+                &bounds,
+                self.light,
+                self.diameter,
+                m,
+                marks,
+                &mut out.slices,
+            );
+        }
+        if let Some(axes) = self.source.axes {
+            out.pixels[0] += self.axis_caster(
+                id,
+                axes,
+                &bounds,
+                view,
+                world_from_clip,
+                marks,
+                &mut out.axes,
+                ranges,
+            );
+        }
+    }
+
+    /// Appends caster `id`'s intervals along its axis in `view` to `out`;
+    /// returns the pixels read one by one.
+    #[allow(clippy::too_many_arguments)]
+    fn axis_caster(
+        &self,
+        id: ObjectId,
+        axes: &AxisFn,
+        bounds: &Aabb,
+        view: &LightView,
+        world_from_clip: &DMat4,
+        marks: &ReceiverTarget,
+        out: &mut Intervals,
+        ranges: &mut Vec<[f64; 2]>,
+    ) -> u64 {
+        let bounds = *bounds;
         let Some(axis) = axes(self.light, &bounds) else {
             return 0;
         };

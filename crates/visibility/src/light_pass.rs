@@ -36,7 +36,7 @@
 //! the segments of `receivers.rs`, which mark a superset.
 
 use crate::culler::{CullResult, Objects, TraversalStats, ViewCuller};
-use crate::fragment_depths::{FragmentDepths, FragmentSource, ViewFragments};
+use crate::fragment_depths::{FragmentDepths, FragmentSource, ViewFragments, ViewIntervals};
 use crate::hierarchy::Hierarchy;
 use crate::intersection_body::{intersection_body_into, BodyScratch, Polyhedron};
 use crate::light_view::{fit_light_views_into, FitScratch, LightView};
@@ -119,8 +119,9 @@ pub struct PassInput<'a> {
     /// each joined point in the part of the point it is joined to).
     pub receivers: &'a [ReceiverPoints],
     /// Fragment receivers for clamping: along each caster's clamping axis
-    /// or the eye slices, the pass also finds each caster's fragment
-    /// intervals ([`LightPassResult::fragments`]); `None` skips them.
+    /// and in the eye slices, the pass also finds each caster's fragment
+    /// intervals ([`LightPassResult::fragments`], [`LightPassResult::slices`]);
+    /// `None` skips them.
     pub fragments: Option<FragmentSource<'a>>,
 }
 
@@ -136,9 +137,12 @@ pub struct LightPassResult {
     /// The bundled rasterizer's counters summed over the views (zero for
     /// views a host backend ran): what `culling: auto` weighs.
     pub raster: raster::RasterStats,
-    /// Per caster of the PSC, its fragment intervals when
-    /// [`PassInput::fragments`] is set (else empty).
+    /// Per caster of the PSC, its fragment intervals along its axis when
+    /// [`PassInput::fragments`] reads the axes (else empty).
     pub fragments: FragmentDepths,
+    /// Per caster of the PSC, its occupied eye slices when
+    /// [`PassInput::fragments`] reads the slices (else empty).
+    pub slices: FragmentDepths,
     /// Wall time spent on the fragment intervals, summed over the views (ms).
     pub fragment_ms: f64,
 }
@@ -156,9 +160,8 @@ struct ViewSlot {
     raster: raster::RasterStats,
     /// The fragment intervals of the last traversal's casters, and the
     /// per-pixel ranges they are merged from.
-    fragments: Vec<(u32, [f64; 2])>,
+    fragments: ViewIntervals,
     ranges: Vec<[f64; 2]>,
-    fragment_pixels: u64,
     fragment_ms: f64,
 }
 
@@ -580,6 +583,7 @@ impl LightPass {
         self.in_psc.clear();
         self.in_psc.resize(scene.objects().len(), false);
         out.fragments.clear();
+        out.slices.clear();
         out.fragment_ms = 0.0;
         for slot in &mut self.slots[..views.len()] {
             let slot = slot_mut(slot);
@@ -587,7 +591,8 @@ impl LightPass {
             add_stats(&mut out.stats, &r.stats);
             out.raster.add(&slot.raster);
             if fragment_source.is_some() {
-                out.fragments.pixels += slot.fragment_pixels;
+                out.fragments.pixels += slot.fragments.pixels[0];
+                out.slices.pixels += slot.fragments.pixels[1];
                 out.fragment_ms += slot.fragment_ms;
             }
             for id in &r.visible {
@@ -601,11 +606,10 @@ impl LightPass {
         if fragment_source.is_some() {
             let t = std::time::Instant::now();
             let slots = &mut self.slots[..views.len()];
-            let lists: Vec<&[(u32, [f64; 2])]> = slots
-                .iter_mut()
-                .map(|s| &slot_mut(s).fragments[..])
-                .collect();
-            out.fragments.gather(lists);
+            let lists: Vec<&ViewIntervals> =
+                slots.iter_mut().map(|s| &slot_mut(s).fragments).collect();
+            out.fragments.gather(lists.iter().map(|l| &l.axes[..]));
+            out.slices.gather(lists.iter().map(|l| &l.slices[..]));
             out.fragment_ms += t.elapsed().as_secs_f64() * 1e3;
         }
         Ok(())
@@ -650,7 +654,7 @@ impl ViewSlot {
         } = *input;
         let m = view.clip_from_world;
         self.fragments.clear();
-        (self.fragment_pixels, self.fragment_ms) = (0, 0.0);
+        self.fragment_ms = 0.0;
         let clip_from_origin = (m * DMat4::from_translation(origin)).as_mat4();
         let size = (view.resolution, view.resolution);
         let (mut target, mut marks) = set.take(size)?;
@@ -725,7 +729,7 @@ impl ViewSlot {
         backend.set_receivers(None)?;
         if let (Some(f), true) = (fragments, r.is_ok()) {
             let t = std::time::Instant::now();
-            self.fragment_pixels = f.read(
+            f.read(
                 view,
                 &marks,
                 &self.result.visible,

@@ -1,6 +1,7 @@
 //! Discrete clamping's occupancy test [Steiner §4.4.2, Listing 4.3; Lloyd et
 //! al., CC shadow volumes]: per caster, the eye slices that hold a receiver
-//! in its shadow.
+//! in its shadow (discrete clamping's slices, and the bands every caster's
+//! volume is drawn in under continuous clamping).
 //!
 //! Listing 4.3 marks each caster's shadow in the light's view once, then
 //! counts, per slice, the receivers drawn there. Here the light pass has
@@ -8,7 +9,8 @@
 //! nearest and farthest depth per light pixel), and a receiver in the
 //! caster's shadow lies within the footprint of the caster's projected box
 //! (`fragment_depths.rs`, "The rule"). Over each marked tile there, and
-//! where a tile spans more than one slice over each marked pixel, the slice
+//! where a tile spans more than a few slices ([`WHOLE_TILE_DIVISOR`]) over
+//! each marked pixel, the slice
 //! coordinate `g` of the receivers is bounded at the corners of the
 //! region's box (a ratio of affine functions of the light view's x, y and
 //! z, with a positive denominator: its extremes lie at corners), the nearer
@@ -43,6 +45,13 @@ pub struct SliceRatio<'a> {
 
 /// Most slices a [`SliceRatio`] may have.
 pub const MAX_SLICES: usize = 64;
+
+/// A marked tile whose `g` range meets at most `max(1, slices / 16)`
+/// slices marks them all; a wider one is read pixel by pixel. At 64 slices
+/// (the bands) a tile of four slices is marked whole: on the city bird view
+/// that reads about half as long, and the street view's banded fill grows
+/// by 1.4 %.
+const WHOLE_TILE_DIVISOR: usize = 16;
 
 /// `g` over one light view's clip space: for corner `c = (x, y, z, 1)` in
 /// NDC, `num·c / den·c` as marked (`pushed`) and with the push undone
@@ -155,6 +164,7 @@ pub(crate) fn read_caster(
     };
     let ratio = ClipRatio::new(r, world_from_clip, light, diameter, size);
     let full = if n == 64 { u64::MAX } else { (1u64 << n) - 1 };
+    let whole = (n / WHOLE_TILE_DIVISOR).max(1) as u32;
     let (mut occupied, mut pixels) = (0u64, 0u64);
     marks.for_each_tile_in(xs, ys, |t| {
         if occupied == full {
@@ -164,7 +174,7 @@ pub(crate) fn read_caster(
         if bits & !occupied == 0 {
             return;
         }
-        if bits.count_ones() <= 1 {
+        if bits.count_ones() <= whole {
             occupied |= bits;
             return;
         }

@@ -167,6 +167,10 @@ fn ranges<'py>(py: Python<'py>, v: &VolumeBuffer) -> PyResult<Bound<'py, PyDict>
         vec2(py, r.iter().flat_map(|r| r.scissor).collect(), n, 4)?,
     )?;
     d.set_item(
+        "band",
+        vec2(py, r.iter().flat_map(|r| r.band).collect(), n, 4)?,
+    )?;
+    d.set_item(
         "depth_near",
         vec1(py, r.iter().map(|r| r.depth_near).collect()),
     )?;

@@ -386,11 +386,18 @@ impl StencilTarget {
     pub(crate) fn window(&self, range: &VolumeRange, tests: StencilTests) -> Option<Window> {
         let (w, h) = (self.width, self.height);
         let [x0, y0, x1, y1] = if tests.scissor {
-            let [x0, y0, x1, y1] = range.scissor;
-            [x0.min(w), y0.min(h), x1.min(w), y1.min(h)]
+            range.scissor
         } else {
-            [0, 0, w, h]
+            VolumeRange::FULL_SCISSOR
         };
+        // The band applies whatever the tests.
+        let [bx0, by0, bx1, by1] = range.band;
+        let [x0, y0, x1, y1] = [
+            x0.max(bx0).min(w),
+            y0.max(by0).min(h),
+            x1.min(bx1).min(w),
+            y1.min(by1).min(h),
+        ];
         let (dlo, dhi) = if tests.depth_bounds {
             (range.depth_far, range.depth_near)
         } else {
@@ -493,6 +500,7 @@ mod tests {
                     depth_near: 1.0,
                     depth_far: 0.0,
                     scissor: VolumeRange::FULL_SCISSOR,
+                    band: VolumeRange::FULL_SCISSOR,
                     planes: [None, None],
                 });
             }

@@ -79,7 +79,10 @@ ZPASS, ZFAIL, ZPPLUS = 0, 1, 2
 #: One shadow-volume range per caster and segment: the fields of Rust's
 #: ``raster::VolumeRange``. ``first_index``/``index_count`` select the range's
 #: triangles in ``Volumes.indices``; ``light_cap``/``dark_cap`` are ``[begin,
-#: end)`` index ranges; ``scissor`` is ``[x0, y0, x1, y1)`` in pixels;
+#: end)`` index ranges; ``scissor`` is ``[x0, y0, x1, y1)`` in pixels
+#: (optional: pixels outside cannot change); ``band`` likewise, but not
+#: optional: the range must be drawn only inside it (a caster's volume drawn
+#: once per band of the eye slices its receivers occupy);
 #: ``world_from_local`` places the range's local-space positions;
 #: ``near_plane``/``far_plane`` are a clamped segment's bounding planes
 #: ``(a, b, c, d)`` in world space (NaN where there is none: the near plane
@@ -96,6 +99,7 @@ RANGE_DTYPE = np.dtype(
         ("light_cap", np.uint32, (2,)),
         ("dark_cap", np.uint32, (2,)),
         ("scissor", np.uint32, (4,)),
+        ("band", np.uint32, (4,)),
         ("depth_near", np.float32),
         ("depth_far", np.float32),
         ("world_from_local", np.float64, (4, 4)),
