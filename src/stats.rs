@@ -272,6 +272,7 @@ impl FrameRow {
         "segment_triangles",
         "bf_fill_unclamped",
         "bf_fill_clamped",
+        "tiles_scanned",
     ];
 
     /// The row's cells in [`FrameRow::COLUMNS`] order.
@@ -502,7 +503,7 @@ mod tests {
              map_ms,psr,psc,queries,waits,light_ms,mismatch_pixels,\
              mismatch_off_boundary,ambiguous_pixels,compared_pixels,frame_ms,\
              pipeline_frame_ms,clamp_ms,sap_pairs,sap_swaps,segments,segment_triangles,\
-             bf_fill_unclamped,bf_fill_clamped"
+             bf_fill_unclamped,bf_fill_clamped,tiles_scanned"
         );
     }
 
@@ -598,6 +599,7 @@ mod tests {
                 "segment_triangles",
                 "bf_fill_unclamped",
                 "bf_fill_clamped",
+                "tiles_scanned",
             ]
         );
         assert_eq!(c.get("zfail_casters"), Some(&Cell::Count(4)));

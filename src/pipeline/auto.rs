@@ -143,6 +143,14 @@ impl AutoView {
         preferred
     }
 
+    /// The lower of the two modes' known costs; `None` before any.
+    pub fn best(&self) -> Option<f64> {
+        match (self.culled, self.unculled) {
+            (Some(a), Some(b)) => Some(a.value.min(b.value)),
+            (a, b) => a.or(b).map(|c| c.value),
+        }
+    }
+
     /// Records the frame just run: whether it culled, its modeled cost, and
     /// (a light's culled frame) the estimated unculled cost.
     pub fn observe(&mut self, spec: &AutoSpec, culled: bool, cost: f64, unculled: Option<f64>) {
@@ -250,6 +258,7 @@ impl LightCosts {
             spec.h_fragment * self.stencil.h_fragments as f64
         } else {
             spec.bf_fragment * self.stencil.pixels_processed as f64
+                + spec.fill_tile * self.stencil.tiles_scanned as f64
         };
         spec.caster_triangle * self.caster_triangles as f64
             + spec.volume_triangle * self.volume_triangles as f64
@@ -344,6 +353,22 @@ mod tests {
                 c
             })
             .collect()
+    }
+
+    /// `clamping: auto`'s first state sees a clamped frame at the cost of
+    /// the cheaper clamped mode (`best`), so a probe of the dearer one does
+    /// not turn clamping off.
+    #[test]
+    fn best_is_the_cheaper_known_mode() {
+        let spec = AutoSpec::default();
+        let mut v = AutoView::stencil();
+        assert_eq!(v.best(), None);
+        v.observe(&spec, true, 29.0, None);
+        assert_eq!(v.best(), Some(29.0));
+        v.observe(&spec, false, 31.0, None);
+        assert_eq!(v.best(), Some(29.0));
+        v.observe(&spec, true, 33.0, None);
+        assert_eq!(v.best(), Some(31.0));
     }
 
     #[test]

@@ -810,12 +810,16 @@ impl Pipeline {
                 let cost = costs.costs(&o.auto).0
                     + (o.auto.segment_triangle - o.auto.volume_triangle) * segments
                     + o.auto.receiver_pixel * read as f64;
+                // Clamping costs what its cheapest known mode does: a probe
+                // of the dearer one does not count against clamping.
                 let clamped = s.clamping != ClampingSpec::None;
-                s.clamp_auto[0].observe(&o.auto, clamped, cost, None);
+                let mut clamp_cost = cost;
                 if clamped {
                     let discrete = s.clamping == ClampingSpec::Discrete;
                     s.clamp_auto[1].observe(&o.auto, discrete, cost, None);
+                    clamp_cost = s.clamp_auto[1].best().unwrap_or(cost);
                 }
+                s.clamp_auto[0].observe(&o.auto, clamped, clamp_cost, None);
                 tracing::debug!(
                     target: "shadowcull::auto",
                     view = "clamping",

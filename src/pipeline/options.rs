@@ -188,6 +188,10 @@ pub struct AutoSpec {
     pub h_fragment: f64,
     /// Per brute-force stencil fragment (pixels processed; also `db`).
     pub bf_fragment: f64,
+    /// Per tile the brute-force fill scans for written depth inside the
+    /// depth window (`tiles_scanned`; also `db`): where the depth-bounds
+    /// test rejects whole tiles, a long volume triangle costs these.
+    pub fill_tile: f64,
     /// Frames before the mode not chosen is tried again; doubles (up to 8×)
     /// each time a try confirms the choice.
     pub probe: u32,
@@ -250,6 +254,7 @@ impl Default for AutoSpec {
             stencil_tile: 55.0,
             h_fragment: 16.0,
             bf_fragment: 7.7,
+            fill_tile: 15.0,
             probe: 8,
             margin: 2.0,
             min_objects: 16,
@@ -553,6 +558,7 @@ impl PipelineOptions {
                     a.stencil_tile,
                     a.h_fragment,
                     a.bf_fragment,
+                    a.fill_tile,
                 ][..],
             ),
             (

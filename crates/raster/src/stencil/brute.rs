@@ -326,6 +326,7 @@ impl StencilTarget {
         }
         for p in &band_stats {
             st.pixels_processed += p.pixels_processed;
+            st.tiles_scanned += p.tiles_scanned;
             st.stencil_updates += p.stencil_updates;
             st.pixels_touched += p.pixels_touched;
         }

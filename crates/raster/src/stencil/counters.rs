@@ -46,6 +46,13 @@ pub struct StencilStats {
     /// [`StencilTests`] — inside the scissor, and inside the depth bounds. Each is
     /// depth-tested. Fragments the tests reject are not counted.
     pub pixels_processed: u64,
+    /// Tiles the fill scans for written depth inside the depth window: per
+    /// band of tile rows a volume triangle crosses, the tiles its span
+    /// there reaches (inside the scissor). Where the depth-bounds test
+    /// rejects whole tiles, a long volume triangle costs these, not
+    /// fragments.
+    #[cfg_attr(feature = "serde", serde(default))]
+    pub tiles_scanned: u64,
     /// Fragments that changed a stencil value (incremented or decremented).
     pub stencil_updates: u64,
     /// Volume triangles submitted (before clipping and culling; zp+ near-cap fan
@@ -85,6 +92,7 @@ impl StencilStats {
     /// Adds `other` to `self`.
     pub fn add(&mut self, other: &StencilStats) {
         self.pixels_processed += other.pixels_processed;
+        self.tiles_scanned += other.tiles_scanned;
         self.stencil_updates += other.stencil_updates;
         self.triangles += other.triangles;
         self.pixels_touched += other.pixels_touched;

@@ -193,6 +193,7 @@ fn fill_rows<C: Counter>(f: Fill<'_, C>, st: &mut StencilStats) {
     let (dlo, dhi) = (win.dlo, win.dhi);
     let zero = C::default();
     let (mut processed, mut updates, mut first) = (0u64, 0u64, 0u64);
+    let mut scanned = 0u64;
     let walker = SpanWalker::new(tri, &off, rect.x0, rect.x1, rect.y0);
     let tile = 1i64 << layout.shift;
     let active = |tb: &crate::layout::TileBounds| !(tb.zmax < dlo.max(0.0) || tb.zmin > dhi);
@@ -215,6 +216,7 @@ fn fill_rows<C: Counter>(f: Fill<'_, C>, st: &mut StencilStats) {
             hi = hi.min(rect.x1);
             let (mut t0, mut t1) = (lo.max(0) >> layout.shift, hi.max(-1) >> layout.shift);
             t1 = t1.min(tiles_x - 1);
+            scanned += (t1 - t0 + 1).max(0) as u64;
             while t0 <= t1 && !active(&eye.tiles[layout.tile_index(t0 as u32, ty)]) {
                 t0 += 1;
             }
@@ -287,6 +289,7 @@ fn fill_rows<C: Counter>(f: Fill<'_, C>, st: &mut StencilStats) {
         }
     }
     st.pixels_processed += processed;
+    st.tiles_scanned += scanned;
     st.stencil_updates += updates;
     st.pixels_touched += first;
 }

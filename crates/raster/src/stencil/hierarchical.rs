@@ -1283,6 +1283,7 @@ impl HBand<'_, '_> {
             self.px.fill_piece_within(eye, p, win, r, &mut frag);
         }
         st.h_fragments += frag.pixels_processed;
+        st.tiles_scanned += frag.tiles_scanned;
         st.stencil_updates += frag.stencil_updates;
         st.pixels_touched += frag.pixels_touched;
         st.pixel_bytes += pass_bytes(g.options.bits, frag.pixels_processed, frag.stencil_updates);
