@@ -112,26 +112,30 @@ pub(crate) fn build_for(
                 receives,
                 cost: Some(&model),
             };
-            let slices = (clamp.slices).map(|n| EyeSlices::new(camera, viewport, light, n));
-            let cs = match (fragments, slices) {
-                (Some(f), Some(Some(s))) => scratch.clamp.plan_sliced(
+            // The light's pencil, with a light pass: discrete clamping's
+            // slices, or the bands' (their runs need only its orientation).
+            let discrete = clamp.slices.is_some();
+            let count = clamp.slices.unwrap_or(BAND_SLICES);
+            let pencil = fragments.and_then(|_| EyeSlices::new(camera, viewport, light, count));
+            let cs = match (fragments, &pencil) {
+                (Some(f), Some(s)) if discrete => scratch.clamp.plan_sliced(
                     &clamp_input,
-                    &s,
+                    s,
                     &Fragments(f.slices),
                     &mut scratch.plan,
                 ),
                 // Discrete clamping without a light pass (or with a
                 // viewport or values no pencil fits): unclamped.
-                (_, Some(_)) => {
+                _ if discrete => {
                     scratch.plan.clear();
                     Default::default()
                 }
-                (Some(f), None) => scratch.clamp.plan_from_depths(
+                (Some(f), _) => scratch.clamp.plan_from_depths(
                     &clamp_input,
                     &Fragments(f.axes),
                     &mut scratch.plan,
                 ),
-                (None, None) => scratch.clamp.plan(&clamp_input, &mut scratch.plan)?,
+                (None, _) => scratch.clamp.plan(&clamp_input, &mut scratch.plan)?,
             };
             let clamp_ms = t.elapsed().as_secs_f64() * 1e3;
             let plan = &scratch.plan;
@@ -144,14 +148,11 @@ pub(crate) fn build_for(
             };
             let mut stats = build_clamped_volumes(out, &request, cache, plan)?;
             let t = Instant::now();
-            let count = clamp.slices.unwrap_or(BAND_SLICES);
-            let pencil = EyeSlices::new(camera, viewport, light, count);
-            if let (Some(f), Some(pencil)) = (fragments, pencil) {
-                let discrete = clamp.slices.is_some();
+            if let (Some(f), Some(pencil)) = (fragments, &pencil) {
                 split_into_bands(
                     out,
                     0,
-                    &pencil,
+                    pencil,
                     |id| f.slices.get(id),
                     |r| !discrete || r.planes == [None, None],
                     &mut scratch.bands,

@@ -245,7 +245,7 @@ impl ViewFragments<'_> {
             out.pixels[0] += self.axis_caster(
                 id,
                 axes,
-                &bounds,
+                bounds,
                 view,
                 world_from_clip,
                 marks,
@@ -262,14 +262,13 @@ impl ViewFragments<'_> {
         &self,
         id: ObjectId,
         axes: &AxisFn,
-        bounds: &Aabb,
+        bounds: Aabb,
         view: &LightView,
         world_from_clip: &DMat4,
         marks: &ReceiverTarget,
         out: &mut Intervals,
         ranges: &mut Vec<[f64; 2]>,
     ) -> u64 {
-        let bounds = *bounds;
         let Some(axis) = axes(self.light, &bounds) else {
             return 0;
         };
