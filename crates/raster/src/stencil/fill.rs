@@ -4,12 +4,12 @@
 //! bands in parallel.
 
 use super::counters::{tiled_index, Counter, CountersMut, StencilStats};
-use super::pieces::{Piece, Window};
+use super::pieces::{Fill, Piece, Window};
 use super::run::{run_masks, RunPlane};
 use super::span::{band_extent, SpanWalker};
+use super::tile_fill::fill_tiles;
 use crate::coverage::{edge_offsets, pixel_bounds, Coverage, Rect};
 use crate::depth_target::DepthTarget;
-use crate::edge::Tri;
 use crate::setup::SUBPIXEL;
 
 /// The rows `y0..=y1` of a [`StencilTarget`]: whole tile rows, whose counters
@@ -80,7 +80,7 @@ impl CounterRows<'_> {
         let base = self.base;
         macro_rules! fill {
             ($c:expr, $delta:expr) => {
-                fill_rows_dispatch(
+                fill_piece_dispatch(
                     Fill {
                         counters: $c,
                         touched,
@@ -124,33 +124,38 @@ macro_rules! for_each_band {
 }
 pub(crate) use for_each_band;
 
-/// One triangle's fill in one band: where it writes, what it tests and adds.
-struct Fill<'a, C> {
-    /// The band's counters and touched flags, from tiled index `base`.
-    counters: &'a mut [C],
-    touched: &'a mut [u8],
-    base: usize,
-    width: u32,
-    eye: &'a DepthTarget,
-    tri: &'a Tri,
-    rect: Rect,
-    win: &'a Window,
-    zfail: bool,
-    delta: C,
-}
-
-/// [`fill_rows`], in its AVX2 build when the CPU has it: the run kernel
-/// ([`crate::stencil_run`]) then inlines into the row loop.
+/// The fill of one piece: by 8×8 tiles ([`fill_tiles`]) when the eye target's
+/// tiles are the counters' 8×8 tiles, else by row spans ([`fill_rows`]); each
+/// in the build of the target's instruction-set level (the same results).
 #[inline(always)]
-fn fill_rows_dispatch<C: Counter>(f: Fill<'_, C>, st: &mut StencilStats) {
+pub(super) fn fill_piece_dispatch<C: Counter>(f: Fill<'_, C>, st: &mut StencilStats) {
+    let tiles = f.eye.layout.shift == 3;
     #[cfg(target_arch = "x86_64")]
-    if f.eye.isa >= crate::InstructionSet::Avx2 {
-        // SAFETY: `fill_rows_avx2` only requires AVX2; the target's level is at
-        // most the detected one.
-        unsafe { fill_rows_avx2(f, st) };
-        return;
+    match f.eye.isa.capped() {
+        crate::InstructionSet::Avx512 if tiles => {
+            // SAFETY: `capped` is at most the detected level: this CPU has
+            // AVX-512 F/VL/BW/DQ and AVX2.
+            unsafe { fill_tiles_avx512(f, st) };
+            return;
+        }
+        crate::InstructionSet::Avx512 | crate::InstructionSet::Avx2 => {
+            // SAFETY: as above, this CPU has AVX2.
+            unsafe {
+                if tiles {
+                    fill_tiles_avx2(f, st)
+                } else {
+                    fill_rows_avx2(f, st)
+                }
+            };
+            return;
+        }
+        crate::InstructionSet::Portable => {}
     }
-    fill_rows(f, st);
+    if tiles {
+        fill_tiles(f, st);
+    } else {
+        fill_rows(f, st);
+    }
 }
 
 /// [`fill_rows`] compiled with AVX2 enabled.
@@ -158,6 +163,21 @@ fn fill_rows_dispatch<C: Counter>(f: Fill<'_, C>, st: &mut StencilStats) {
 #[target_feature(enable = "avx2")]
 unsafe fn fill_rows_avx2<C: Counter>(f: Fill<'_, C>, st: &mut StencilStats) {
     fill_rows(f, st);
+}
+
+/// [`fill_tiles`] compiled with AVX2 enabled.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn fill_tiles_avx2<C: Counter>(f: Fill<'_, C>, st: &mut StencilStats) {
+    fill_tiles(f, st);
+}
+
+/// [`fill_tiles`] compiled with AVX-512 enabled: a tile row of f64 lanes is
+/// one register.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f,avx512vl,avx512bw,avx512dq,avx2")]
+unsafe fn fill_tiles_avx512<C: Counter>(f: Fill<'_, C>, st: &mut StencilStats) {
+    fill_tiles(f, st);
 }
 
 /// The per-pixel loop of [`CounterRows::fill_piece`], monomorphized per counter type:
@@ -170,7 +190,7 @@ unsafe fn fill_rows_avx2<C: Counter>(f: Fill<'_, C>, st: &mut StencilStats) {
 /// in f64 is exact and the depth `Σ E_i·z_i / area` is bit-identical to the eye
 /// pass's.
 #[inline(always)]
-fn fill_rows<C: Counter>(f: Fill<'_, C>, st: &mut StencilStats) {
+pub(super) fn fill_rows<C: Counter>(f: Fill<'_, C>, st: &mut StencilStats) {
     let Fill {
         counters,
         touched,

@@ -5,7 +5,8 @@
 //!
 //! Files bottom-up: `counters` (storage and stats), `near_cap` and `pieces`
 //! (volumes to set-up pieces), `span` and `run` (the per-row span walk and run
-//! kernel), `fill` (pieces into a band of counters, and the band runner),
+//! kernel), `tile_fill` (the same fill by 8×8 tiles), `fill` (pieces into a
+//! band of counters, and the band runner),
 //! `brute`, then `tile_class` and `open_edges` (the hierarchical pass's tile
 //! classification) and `hierarchical`.
 
@@ -19,6 +20,7 @@ mod pieces;
 mod run;
 mod span;
 mod tile_class;
+mod tile_fill;
 
 pub use brute::StencilTarget;
 pub use counters::{StencilBits, StencilStats, StencilTests};

@@ -6,6 +6,7 @@
 
 use super::near_cap::fan_triangle;
 use crate::coverage::Rect;
+use crate::depth_target::DepthTarget;
 use crate::edge::Tri;
 use crate::setup::{setup_into, setup_near_plane_into, Setup, SnappedVertex, Viewport, SUBPIXEL};
 use crate::volume_buffer::{VolumeBuffer, VolumeMethod, VolumeRange};
@@ -35,6 +36,21 @@ impl Window {
             y1: self.y1,
         }
     }
+}
+
+/// One triangle's fill in one band: where it writes, what it tests and adds.
+pub(super) struct Fill<'a, C> {
+    /// The band's counters and touched flags, from tiled index `base`.
+    pub counters: &'a mut [C],
+    pub touched: &'a mut [u8],
+    pub base: usize,
+    pub width: u32,
+    pub eye: &'a DepthTarget,
+    pub tri: &'a Tri,
+    pub rect: Rect,
+    pub win: &'a Window,
+    pub zfail: bool,
+    pub delta: C,
 }
 
 /// Fan pieces set up before the bands fill them (bounded memory).
