@@ -14,19 +14,19 @@ use crate::setup::{Viewport, SUBPIXEL};
 use crate::stats::RasterStats;
 
 /// Tile classification against the triangle's edges.
-pub(crate) struct TileClass {
+struct TileClass {
     /// Raw edge values at the tile's first pixel centre.
     e00: [i64; 3],
     /// Raw edge values at the four corner pixel centres.
     corners: [[i64; 3]; 4],
     /// Every in-target pixel of the tile is covered.
-    pub full: bool,
+    full: bool,
 }
 
 /// Classifies the in-target pixel rectangle `(x0, x1, y0, y1)`; `None` when no pixel
 /// can be covered.
 #[inline(always)]
-pub(crate) fn classify(tri: &Tri, off: &[i64; 3], r: (u32, u32, u32, u32)) -> Option<TileClass> {
+fn classify(tri: &Tri, off: &[i64; 3], r: (u32, u32, u32, u32)) -> Option<TileClass> {
     let (x0, x1, y0, y1) = (r.0 as i64, r.1 as i64, r.2 as i64, r.3 as i64);
     let mut e00 = [0i64; 3];
     let mut corners = [[0i64; 3]; 4];

@@ -125,6 +125,14 @@ impl StripExtents {
     /// [`band_extent`]).
     #[inline(always)]
     pub fn extent(&self, ya: i64, yb: i64) -> Option<(i64, i64)> {
+        self.extents(ya, yb).map(|(wide, _)| wide)
+    }
+
+    /// [`StripExtents::extent`] (`.0`, widened by two pixels each side) and the
+    /// tight pixel columns (`.1`, widened by 1/64 pixel for the rounding of
+    /// the f64 intersections, far above it): both hold every covered pixel.
+    #[inline(always)]
+    pub fn extents(&self, ya: i64, yb: i64) -> Option<((i64, i64), (i64, i64))> {
         let half = SUBPIXEL / 2;
         let (ylo, yhi) = ((ya * SUBPIXEL + half) as f64, (yb * SUBPIXEL + half) as f64);
         let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
@@ -148,9 +156,12 @@ impl StripExtents {
             return None;
         }
         let s = SUBPIXEL as f64;
+        // Pixel x is covered only if its centre x·s + half lies in [lo, hi].
+        let (qlo, qhi) = ((lo - half as f64) / s, (hi - half as f64) / s);
+        const MARGIN: f64 = 1.0 / 64.0;
         Some((
-            ((lo - half as f64) / s) as i64 - 2,
-            ((hi - half as f64) / s) as i64 + 2,
+            (qlo as i64 - 2, qhi as i64 + 2),
+            ((qlo - MARGIN).ceil() as i64, (qhi + MARGIN).floor() as i64),
         ))
     }
 }
@@ -175,11 +186,15 @@ mod tests {
             let off = edge_offsets(&tri, Coverage::Standard);
             let yb = ya + rows;
             let ext = band_extent(&tri, ya, yb);
+            let both = StripExtents::new(&tri).extents(ya, yb);
+            prop_assert_eq!(ext, both.map(|(wide, _)| wide));
             for y in ya..=yb {
                 for x in -10i64..1600 {
                     if tri.e.iter().zip(&off).all(|(e, o)| e.at_pixel(x, y) + o >= 0) {
                         let (a, b) = ext.expect("a covered pixel in the band");
                         prop_assert!(a <= x && x <= b, "pixel {x},{y} outside {a}..={b}");
+                        let (_, (a, b)) = both.expect("a covered pixel in the band");
+                        prop_assert!(a <= x && x <= b, "pixel {x},{y} outside tight {a}..={b}");
                     }
                 }
             }

@@ -24,7 +24,6 @@ use super::span::StripExtents;
 use crate::coverage::{edge_offsets, Coverage};
 use crate::layout::{TileBounds, BACKGROUND};
 use crate::setup::SUBPIXEL;
-use crate::tile_walk::classify;
 
 /// Tile edge of the counters and of the eye targets this fill serves.
 const T: usize = 8;
@@ -45,12 +44,17 @@ struct Plane<C> {
     delta: C,
 }
 
-/// One tile's share of a piece: the raw edge values at lane 0 of its first
-/// row, the lanes inside the piece's columns, whether every pixel is covered.
+/// Pixels of a tile.
+const TILE: usize = T * T;
+
+/// One tile's share of a piece: the raw edge values at its first pixel, the
+/// columns (bit `k`: lane `k`) and rows (`rows.0..=rows.1`) inside the
+/// piece's window, whether every pixel of the tile is covered.
 #[derive(Clone, Copy)]
 struct Block {
     e: [f64; 3],
-    lanes: (usize, usize),
+    lanes: u32,
+    rows: (usize, usize),
     full: bool,
 }
 
@@ -63,41 +67,48 @@ struct Counts {
     first: [u32; T],
 }
 
-/// Fills the rows of one tile (`depth`, `counters` and `touched` hold the
-/// same whole 8-pixel rows): a fixed-width, branch-free loop per row.
+/// Fills one tile: all eight rows, those outside `b.rows` masked off (the
+/// pieces nearly always span the tile's rows; a fixed trip count unrolls),
+/// each row a fixed-width, branch-free loop.
 #[inline(always)]
 fn fill_block<C: Counter>(
     p: &Plane<C>,
     b: Block,
-    depth: &[f32],
-    counters: &mut [C],
-    touched: &mut [u8],
+    depth: &[f32; TILE],
+    counters: &mut [C; TILE],
+    touched: &mut [u8; TILE],
     n: &mut Counts,
 ) {
-    let Block { e, lanes, full } = b;
-    let bits = ((2u32 << lanes.1) - 1) & !((1u32 << lanes.0) - 1);
-    let eligible: [bool; T] = std::array::from_fn(|k| (bits >> k) & 1 != 0);
+    let Block {
+        e,
+        lanes,
+        rows,
+        full,
+    } = b;
+    let eligible: [bool; T] = std::array::from_fn(|k| (lanes >> k) & 1 != 0);
     let zero = C::default();
     let (z0, z1, z2, inv) = (p.z[0], p.z[1], p.z[2], p.inv);
     // Per lane the edge values of the current row, stepped a row at a time:
     // sums of exact integers below 2⁵³, so equal to the span walk's.
     let mut ev: [[f64; T]; 3] =
         std::array::from_fn(|i| std::array::from_fn(|k| e[i] + p.kstep[i][k]));
-    let rows = depth
-        .chunks_exact(T)
-        .zip(counters.chunks_exact_mut(T))
-        .zip(touched.chunks_exact_mut(T));
-    for ((d, c), t) in rows {
-        let d: &[f32; T] = d.try_into().expect("tile row");
-        let c: &mut [C; T] = c.try_into().expect("tile row");
-        let t: &mut [u8; T] = t.try_into().expect("tile row");
+    for r in 0..T {
+        let row_ok = (r >= rows.0) & (r <= rows.1);
+        let d: &[f32; T] = depth[r * T..r * T + T].try_into().expect("tile row");
+        let c: &mut [C; T] = (&mut counters[r * T..r * T + T])
+            .try_into()
+            .expect("tile row");
+        let t: &mut [u8; T] = (&mut touched[r * T..r * T + T])
+            .try_into()
+            .expect("tile row");
         let mut cout = [zero; T];
         let mut tout = [0u8; T];
         for k in 0..T {
             let (a, b, cc) = (ev[0][k], ev[1][k], ev[2][k]);
             // `E_i + off_i ≥ 0`, exact in integers: `E_i ≥ −off_i`.
-            let covered =
-                eligible[k] & (full | ((a >= p.noff[0]) & (b >= p.noff[1]) & (cc >= p.noff[2])));
+            let covered = row_ok
+                & eligible[k]
+                & (full | ((a >= p.noff[0]) & (b >= p.noff[1]) & (cc >= p.noff[2])));
             let zp = ((a * z0 + b * z1 + cc * z2) * inv) as f32;
             let dk = d[k];
             let ins = covered & (dk != BACKGROUND) & (dk >= p.dlo) & (dk <= p.dhi);
@@ -139,10 +150,11 @@ pub(super) fn fill_tiles<C: Counter>(f: Fill<'_, C>, st: &mut StencilStats) {
     debug_assert_eq!(1usize << layout.shift, T);
     let off = edge_offsets(tri, Coverage::Standard);
     let step_x = tri.e.map(|e| e.a * SUBPIXEL);
+    let step_y = tri.e.map(|e| e.b * SUBPIXEL);
     let plane = Plane {
         noff: off.map(|o| -o as f64),
         kstep: step_x.map(|s| std::array::from_fn(|k| (k as i64 * s) as f64)),
-        stepy: tri.e.map(|e| (e.b * SUBPIXEL) as f64),
+        stepy: step_y.map(|s| s as f64),
         z: tri.z,
         inv: tri.inv_area,
         dlo: win.dlo,
@@ -150,6 +162,15 @@ pub(super) fn fill_tiles<C: Counter>(f: Fill<'_, C>, st: &mut StencilStats) {
         zfail,
         delta,
     };
+    // Over a whole tile from its first pixel, the largest and smallest
+    // change of each edge value plus its offset: the tile is missed when an
+    // edge stays negative, wholly covered when all stay non-negative.
+    let last = (T - 1) as i64;
+    let reach_max: [i64; 3] =
+        std::array::from_fn(|i| (last * step_x[i]).max(0) + (last * step_y[i]).max(0) + off[i]);
+    let reach_min: [i64; 3] =
+        std::array::from_fn(|i| (last * step_x[i]).min(0) + (last * step_y[i]).min(0) + off[i]);
+    let step_tile = step_x.map(|s| s * T as i64);
     let (dlo, dhi) = (win.dlo, win.dhi);
     let active = |tb: &TileBounds| !(tb.zmax < dlo.max(0.0) || tb.zmin > dhi);
     let tiles_x = i64::from(layout.tiles_x);
@@ -159,44 +180,54 @@ pub(super) fn fill_tiles<C: Counter>(f: Fill<'_, C>, st: &mut StencilStats) {
     let mut n = Counts::default();
     let mut scanned = 0u64;
     for ty in rect.y0 >> 3..=rect.y1 >> 3 {
-        let ya = rect.y0.max(ty << 3);
-        let yb = rect.y1.min((ty << 3) + 7);
-        // The columns the piece can reach on these rows: as the span walk
-        // narrows them (narrow pieces keep their own; `band_extent` is
-        // `StripExtents::extent`).
-        let (lo, hi) = if rect.x1 - rect.x0 < 32 {
+        let y0 = ty << 3;
+        let ya = rect.y0.max(y0);
+        let yb = rect.y1.min(y0 + 7);
+        // The tiles the span walk scans on these rows (counted as it counts
+        // them: narrow pieces keep their own columns, others the widened
+        // extent) and the columns the piece can reach there (the tight extent).
+        let ext = strips.extents(ya, yb);
+        let (wlo, whi) = if rect.x1 - rect.x0 < 32 {
             (rect.x0, rect.x1)
         } else {
-            strips.extent(ya, yb).unwrap_or((1, 0))
+            ext.map_or((1, 0), |(wide, _)| wide)
         };
+        let (wlo, whi) = (wlo.max(rect.x0), whi.min(rect.x1));
+        scanned += ((whi.max(-1) >> 3).min(tiles_x - 1) - (wlo.max(0) >> 3) + 1).max(0) as u64;
+        let (lo, hi) = ext.map_or((1, 0), |(_, tight)| tight);
         let (lo, hi) = (lo.max(rect.x0), hi.min(rect.x1));
         let (t0, t1) = (lo.max(0) >> 3, (hi.max(-1) >> 3).min(tiles_x - 1));
-        scanned += (t1 - t0 + 1).max(0) as u64;
+        if t0 > t1 {
+            continue;
+        }
+        let rows = ((ya - y0) as usize, (yb - y0) as usize);
+        // Edge values at the first pixel of tile t0, stepped a tile at a time.
+        let mut e: [i64; 3] = std::array::from_fn(|i| tri.e[i].at_pixel(t0 << 3, y0));
         for tx in t0..=t1 {
+            let et = e;
+            for i in 0..3 {
+                e[i] += step_tile[i];
+            }
             let tb = &eye.tiles[layout.tile_index(tx as u32, ty as u32)];
-            if !active(tb) {
+            if !active(tb) || (0..3).any(|i| et[i] + reach_max[i] < 0) {
                 continue;
             }
             let x0 = tx << 3;
-            let (px0, px1) = (lo.max(x0), hi.min(x0 + 7));
-            let r = (px0 as u32, px1 as u32, ya as u32, yb as u32);
-            let Some(c) = classify(tri, &off, r) else {
-                continue;
-            };
+            let (px0, px1) = (lo.max(x0) - x0, hi.min(x0 + 7) - x0);
             let block = Block {
-                e: [0, 1, 2].map(|i| tri.e[i].at_pixel(x0, ya) as f64),
-                lanes: ((px0 - x0) as usize, (px1 - x0) as usize),
-                full: c.full,
+                e: et.map(|v| v as f64),
+                lanes: ((2u32 << px1) - 1) & !((1u32 << px0) - 1),
+                rows,
+                full: (0..3).all(|i| et[i] + reach_min[i] >= 0),
             };
-            let len = (yb - ya + 1) as usize * T;
-            let di = layout.pixel_index(x0 as u32, ya as u32);
-            let ci = tiled_index(width, x0 as u32, ya as u32) - base;
+            let di = layout.pixel_index(x0 as u32, y0 as u32);
+            let ci = tiled_index(width, x0 as u32, y0 as u32) - base;
             fill_block(
                 &plane,
                 block,
-                &eye.depth[di..di + len],
-                &mut counters[ci..ci + len],
-                &mut touched[ci..ci + len],
+                (&eye.depth[di..di + TILE]).try_into().expect("a tile"),
+                (&mut counters[ci..ci + TILE]).try_into().expect("a tile"),
+                (&mut touched[ci..ci + TILE]).try_into().expect("a tile"),
                 &mut n,
             );
         }
