@@ -81,6 +81,9 @@ struct Prep {
     stepyf: [f64; 3],
     /// The triangle is small: use the vertex depth range for every tile.
     single_tile: bool,
+    /// The conservative coverages' constants ([`cons_pick`]); `None` for the
+    /// standard coverage.
+    cons: Option<(f64, bool)>,
     /// Bounds of every depth it produces.
     zlo: f32,
     zhi: f32,
@@ -105,6 +108,7 @@ fn prep(tri: &Tri, pb: Rect, cov: Coverage, l: &Layout) -> Prep {
         // Small triangles (at most two tiles across): the vertex depth range is
         // nearly as tight as the per-tile corner range and much cheaper.
         single_tile: (pb.x1 - pb.x0) < 2 << l.shift && (pb.y1 - pb.y0) < 2 << l.shift,
+        cons: (cov != Coverage::Standard).then(|| cons_pick(tri, cov)),
         zlo: f32_down(tri.zlo),
         zhi: f32_up(tri.zhi),
         tiles,
@@ -205,25 +209,42 @@ fn eval_row_cons_n<const N: usize>(
 ) {
     let RowSpan { e, n, full } = row;
     let (zs, mask) = (&mut out.zs, &mut out.mask);
-    let (z0, z1, z2, inv) = (tri.z[0], tri.z[1], tri.z[2], tri.inv_area);
-    let half = 0.5 * (tri.dzdx.abs() + tri.dzdy.abs()) * (1.0 + PLANE_EPS);
-    let nearest = matches!(
-        cov,
-        Coverage::Outer(DepthPick::Nearest) | Coverage::Inner(DepthPick::Nearest)
-    );
+    let (half, nearest) = cons_pick(tri, cov);
     for k in 0..N {
         let kf = k as f64;
         let a = e[0] + kf * p.stepf[0];
         let b = e[1] + kf * p.stepf[1];
         let c = e[2] + kf * p.stepf[2];
         mask[k] = k < n && (full || (a + p.offf[0]).min(b + p.offf[1]).min(c + p.offf[2]) >= 0.0);
-        let zc = (a * z0 + b * z1 + c * z2) * inv;
-        let slack = PLANE_EPS * ((a.abs() * z0 + b.abs() * z1 + c.abs() * z2) * inv);
-        zs[k] = if nearest {
-            f32_up((zc + half + slack).min(tri.zhi))
-        } else {
-            f32_down((zc - half - slack).max(tri.zlo))
-        };
+        zs[k] = cons_depth(tri, half, nearest, a, b, c);
+    }
+}
+
+/// The conservative coverages' per-triangle constants: half the depth change
+/// over a pixel square (with the plane allowance), and whether the nearest
+/// depth is picked.
+#[inline(always)]
+fn cons_pick(tri: &Tri, cov: Coverage) -> (f64, bool) {
+    let half = 0.5 * (tri.dzdx.abs() + tri.dzdy.abs()) * (1.0 + PLANE_EPS);
+    let nearest = matches!(
+        cov,
+        Coverage::Outer(DepthPick::Nearest) | Coverage::Inner(DepthPick::Nearest)
+    );
+    (half, nearest)
+}
+
+/// The nearest (or farthest) depth over the pixel square whose centre has the
+/// raw edge values `(a, b, c)`, as [`pixel_depth`] computes it: the one
+/// expression every conservative row loop uses.
+#[inline(always)]
+fn cons_depth(tri: &Tri, half: f64, nearest: bool, a: f64, b: f64, c: f64) -> f32 {
+    let (z0, z1, z2, inv) = (tri.z[0], tri.z[1], tri.z[2], tri.inv_area);
+    let zc = (a * z0 + b * z1 + c * z2) * inv;
+    let slack = PLANE_EPS * ((a.abs() * z0 + b.abs() * z1 + c.abs() * z2) * inv);
+    if nearest {
+        f32_up((zc + half + slack).min(tri.zhi))
+    } else {
+        f32_down((zc - half - slack).max(tri.zlo))
     }
 }
 
@@ -263,8 +284,9 @@ struct RowAcc {
     hit_min: bool,
 }
 
-/// Standard-coverage GREATER writes (no id target) of the whole tile rows of
-/// width `T` in `depth` over `span`: fixed-width, branch-free loops the
+/// GREATER writes (no id target) of the whole tile rows of width `T` in
+/// `depth` over `span`, at the standard depth or, with `p.cons`, at the
+/// conservative coverages' ([`cons_depth`]): fixed-width, branch-free loops the
 /// compiler vectorizes. `no_test`: every covered pixel wins; `zmin`: the
 /// tile's minimum depth before the draw (overwriting it asks for a rescan).
 /// The arithmetic is that of [`eval_row_n`], so results are bit-identical.
@@ -308,7 +330,10 @@ fn rows_std<const T: usize>(
                 & ((b + p.offf[1] >= 0.0) as u32)
                 & ((c + p.offf[2] >= 0.0) as u32);
             let m = eligible[k] & (fullm | inside);
-            let z = ((a * z0 + b * z1 + c * z2) * inv) as f32;
+            let z = match p.cons {
+                None => ((a * z0 + b * z1 + c * z2) * inv) as f32,
+                Some((half, nearest)) => cons_depth(tri, half, nearest, a, b, c),
+            };
             let d = row[k];
             let win = m & (no_testm | ((z > d) as u32));
             tested[k] += m;
@@ -540,8 +565,9 @@ fn draw_tri_as<const FAST: bool>(
                 };
                 continue;
             }
-            if FAST {
-                // Fast path: whole tile rows, fixed width.
+            if FAST || band.ids.is_none() {
+                // Whole tile rows, fixed width (any coverage without ids: the
+                // conservative depth per pixel is `eval_row_cons_n`'s).
                 let mut acc = RowAcc {
                     new_min: f32::INFINITY,
                     new_max: tb.zmax,
@@ -846,6 +872,64 @@ fn query_tri_as<const STANDARD: bool>(
 mod tests {
     use super::*;
     use crate::coverage::pixel_depth;
+
+    /// Conservative draws through the fixed-width rows (no id target) write
+    /// the depths and tile bounds of the per-row path (an id target), bit for
+    /// bit, on every coverage and tile size.
+    #[test]
+    fn conservative_rows_equal_the_row_path() {
+        use crate::{DrawItem, TileSize};
+        use glam::{Mat4, Vec4};
+        let mut seed = 11u64;
+        let mut rnd = || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 11) as f32 / (1u64 << 53) as f32
+        };
+        for tile in [TileSize::T4, TileSize::T8, TileSize::T16] {
+            for cov in [
+                Coverage::Inner(DepthPick::Farthest),
+                Coverage::Outer(DepthPick::Nearest),
+                Coverage::Inner(DepthPick::Nearest),
+                Coverage::Outer(DepthPick::Farthest),
+            ] {
+                let (w, h) = (91u32, 67u32);
+                let mut rows = crate::DepthTarget::new(w, h, tile, false).unwrap();
+                let mut per_row = crate::DepthTarget::new(w, h, tile, true).unwrap();
+                for k in 0..300u32 {
+                    // Small to large triangles, in front of each other.
+                    let s = [0.05f32, 0.4, 2.0][k as usize % 3];
+                    let c = (rnd() * 2.0 - 1.0, rnd() * 2.0 - 1.0);
+                    let v: Vec<Vec4> = (0..3)
+                        .map(|_| {
+                            let p = (c.0 + s * (rnd() - 0.5), c.1 + s * (rnd() - 0.5));
+                            Vec4::new(p.0, p.1, 0.05 + 0.9 * rnd(), 1.0)
+                        })
+                        .collect();
+                    let item = DrawItem {
+                        clip_from_local: Mat4::IDENTITY,
+                        positions: &v,
+                        triangles: &[[0, 1, 2], [0, 2, 1]],
+                        object: k,
+                    };
+                    rows.draw(&item, cov).unwrap();
+                    per_row.draw(&item, cov).unwrap();
+                }
+                let bits = |t: &crate::DepthTarget| {
+                    t.depth.iter().map(|d| d.to_bits()).collect::<Vec<_>>()
+                };
+                assert_eq!(bits(&rows), bits(&per_row), "{tile:?} {cov:?}");
+                assert_eq!(rows.tiles, per_row.tiles, "{tile:?} {cov:?}");
+                let written = rows
+                    .depth
+                    .iter()
+                    .filter(|&&d| d != crate::BACKGROUND)
+                    .count();
+                assert!(written > (w * h / 2) as usize, "{written}");
+            }
+        }
+    }
 
     /// Conservative rows give `pixel_depth` bit for bit on every covered pixel.
     #[test]
