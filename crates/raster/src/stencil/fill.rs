@@ -1,7 +1,8 @@
-//! Filling pieces into a band of counters: the per-row span walk, the strict
-//! depth test against the eye target and the counting rule, with the AVX2 run
-//! kernel when the eye target's level has it; and the one runner that fills
-//! bands in parallel.
+//! Filling pieces into a band of counters: by 8×8 tiles ([`fill_tiles`],
+//! when the eye target's tiles are 8×8) or by the per-row span walk (other
+//! tile sizes), each with the strict depth test against the eye target and the
+//! counting rule, built for the eye target's instruction-set level; and the
+//! one runner that fills bands in parallel.
 
 use super::counters::{tiled_index, Counter, CountersMut, StencilStats};
 use super::pieces::{Fill, Piece, Window};
