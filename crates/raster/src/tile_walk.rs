@@ -209,7 +209,8 @@ fn eval_row_cons_n<const N: usize>(
 ) {
     let RowSpan { e, n, full } = row;
     let (zs, mask) = (&mut out.zs, &mut out.mask);
-    let (half, nearest) = cons_pick(tri, cov);
+    // Set by `prep` for every conservative coverage.
+    let (half, nearest) = p.cons.unwrap_or_else(|| cons_pick(tri, cov));
     for k in 0..N {
         let kf = k as f64;
         let a = e[0] + kf * p.stepf[0];
@@ -595,7 +596,8 @@ fn draw_tri_as<const FAST: bool>(
                 new_min = acc.new_min;
                 new_max = acc.new_max;
                 rescan = acc.hit_min;
-            } else {
+            } else if let Some(all_ids) = band.ids.as_deref_mut() {
+                // An id target: per row, ties go to the smaller id.
                 for y in py0..py1 + 1 {
                     let span = RowSpan {
                         e: erow,
@@ -606,48 +608,22 @@ fn draw_tri_as<const FAST: bool>(
                     let (zs, mask) = (&samples.zs, &samples.mask);
                     let row = tile_base + (((y - rect.2) << l.shift) + (px0 - rect.0)) as usize;
                     let depth = &mut band.depth[row..row + n];
-                    match band.ids.as_deref_mut() {
-                        None => {
-                            // Branch-free (selects), so the compiler can vectorize it.
-                            let (mut bgw, mut wr, mut te) = (0u32, 0u32, 0u32);
-                            let mut hit_min = false;
-                            for k in 0..n {
-                                let (z, d) = (zs[k], depth[k]);
-                                let m = mask[k];
-                                let win = m & (no_test | (z > d));
-                                te += u32::from(m);
-                                wr += u32::from(win);
-                                depth[k] = if win { z } else { d };
-                                new_max = if win { new_max.max(z) } else { new_max };
-                                let from_bg = win & (d == BACKGROUND);
-                                bgw += u32::from(from_bg);
-                                new_min = if from_bg { new_min.min(z) } else { new_min };
-                                hit_min |= win & (d == tb.zmin);
-                            }
-                            tested += u64::from(te);
-                            written += u64::from(wr);
-                            bg_written += bgw;
-                            rescan |= hit_min;
-                        }
-                        Some(ids) => {
-                            let ids = &mut ids[row..row + n];
-                            for k in 0..n {
-                                let (z, d) = (zs[k], depth[k]);
-                                let m = mask[k];
-                                tested += u64::from(m);
-                                let win = m && (no_test || z > d || (z == d && id < ids[k]));
-                                if win {
-                                    depth[k] = z;
-                                    ids[k] = id;
-                                    written += 1;
-                                    new_max = new_max.max(z);
-                                    if d == BACKGROUND {
-                                        bg_written += 1;
-                                        new_min = new_min.min(z);
-                                    } else if d == tb.zmin {
-                                        rescan = true;
-                                    }
-                                }
+                    let ids = &mut all_ids[row..row + n];
+                    for k in 0..n {
+                        let (z, d) = (zs[k], depth[k]);
+                        let m = mask[k];
+                        tested += u64::from(m);
+                        let win = m && (no_test || z > d || (z == d && id < ids[k]));
+                        if win {
+                            depth[k] = z;
+                            ids[k] = id;
+                            written += 1;
+                            new_max = new_max.max(z);
+                            if d == BACKGROUND {
+                                bg_written += 1;
+                                new_min = new_min.min(z);
+                            } else if d == tb.zmin {
+                                rescan = true;
                             }
                         }
                     }

@@ -217,7 +217,7 @@ pub(super) fn fill_rows<C: Counter>(f: Fill<'_, C>, st: &mut StencilStats) {
     let mut scanned = 0u64;
     let walker = SpanWalker::new(tri, &off, rect.x0, rect.x1, rect.y0);
     let tile = 1i64 << layout.shift;
-    let active = |tb: &crate::layout::TileBounds| !(tb.zmax < dlo.max(0.0) || tb.zmin > dhi);
+    let active = |tb: &crate::layout::TileBounds| win.reaches(tb);
     let mut band_lo = rect.x0;
     let mut band_hi = rect.x1;
     for y in rect.y0..=rect.y1 {

@@ -8,6 +8,7 @@ use super::near_cap::fan_triangle;
 use crate::coverage::Rect;
 use crate::depth_target::DepthTarget;
 use crate::edge::Tri;
+use crate::layout::TileBounds;
 use crate::setup::{setup_into, setup_near_plane_into, Setup, SnappedVertex, Viewport, SUBPIXEL};
 use crate::volume_buffer::{VolumeBuffer, VolumeMethod, VolumeRange};
 use crate::{Error, Result};
@@ -35,6 +36,13 @@ impl Window {
             y0: self.y0,
             y1: self.y1,
         }
+    }
+
+    /// Whether the tile with bounds `tb` may hold written depth inside the
+    /// depth window (a tile all background, or outside it, holds none).
+    #[inline(always)]
+    pub fn reaches(&self, tb: &TileBounds) -> bool {
+        !(tb.zmax < self.dlo.max(0.0) || tb.zmin > self.dhi)
     }
 }
 

@@ -22,7 +22,7 @@ use super::counters::{tiled_index, Counter, StencilStats};
 use super::pieces::Fill;
 use super::span::StripExtents;
 use crate::coverage::{edge_offsets, Coverage};
-use crate::layout::{TileBounds, BACKGROUND};
+use crate::layout::BACKGROUND;
 use crate::setup::SUBPIXEL;
 
 /// Tile edge of the counters and of the eye targets this fill serves.
@@ -171,8 +171,6 @@ pub(super) fn fill_tiles<C: Counter>(f: Fill<'_, C>, st: &mut StencilStats) {
     let reach_min: [i64; 3] =
         std::array::from_fn(|i| (last * step_x[i]).min(0) + (last * step_y[i]).min(0) + off[i]);
     let step_tile = step_x.map(|s| s * T as i64);
-    let (dlo, dhi) = (win.dlo, win.dhi);
-    let active = |tb: &TileBounds| !(tb.zmax < dlo.max(0.0) || tb.zmin > dhi);
     let tiles_x = i64::from(layout.tiles_x);
     let strips = StripExtents::new(tri);
     // Per lane at most one count per pixel of a 1/8 of the target: no
@@ -209,7 +207,7 @@ pub(super) fn fill_tiles<C: Counter>(f: Fill<'_, C>, st: &mut StencilStats) {
                 e[i] += step_tile[i];
             }
             let tb = &eye.tiles[layout.tile_index(tx as u32, ty as u32)];
-            if !active(tb) || (0..3).any(|i| et[i] + reach_max[i] < 0) {
+            if !win.reaches(tb) || (0..3).any(|i| et[i] + reach_max[i] < 0) {
                 continue;
             }
             let x0 = tx << 3;
