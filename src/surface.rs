@@ -138,6 +138,12 @@ impl<'a> EyeSurface<'a> {
         y: u32,
         mut f: impl FnMut(u32, u32, Option<PrimitiveId>),
     ) {
+        if let Source::Target(t) = self.source {
+            t.for_each_id_run_in_row(y, |x0, x1, id| {
+                f(x0, x1, id.map(|(o, k)| (ObjectId(o), k)));
+            });
+            return;
+        }
         let mut run: Option<(u32, Option<PrimitiveId>)> = None;
         let mut end = 0;
         self.for_each_in_row(y, |x, p| {

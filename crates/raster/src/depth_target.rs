@@ -290,6 +290,43 @@ impl DepthTarget {
         }
     }
 
+    /// Calls `f(x0, x1, id)` for every run of pixels `x0..x1` of row `y`
+    /// that hold one id (`None` for background, and for the whole row
+    /// without an id buffer), left to right: [`DepthTarget::for_each_in_row`]
+    /// for consumers that decide once per visible triangle. Whole tile rows
+    /// of the current run's id are skipped with one branch-free compare.
+    ///
+    /// # Panics
+    /// When `y` lies outside the target.
+    pub fn for_each_id_run_in_row(&self, y: u32, mut f: impl FnMut(u32, u32, Option<(u32, u32)>)) {
+        assert!(y < self.height(), "row {y} outside the target");
+        let l = self.layout;
+        let decode = |id: u64| (id != u64::MAX).then_some(((id >> 32) as u32, id as u32));
+        let Some(ids) = &self.ids else {
+            f(0, l.width, None);
+            return;
+        };
+        let s = 1u32 << l.shift;
+        let mut cur = ids[l.pixel_index(0, y)];
+        let mut start = 0;
+        for tx in 0..l.tiles_x {
+            let x0 = tx * s;
+            let i = l.pixel_index(x0, y);
+            let row = &ids[i..i + s.min(l.width - x0) as usize];
+            if row.iter().fold(0, |a, &v| a | (v ^ cur)) == 0 {
+                continue;
+            }
+            for (k, &v) in row.iter().enumerate() {
+                if v != cur {
+                    let x = x0 + k as u32;
+                    f(start, x, decode(cur));
+                    (cur, start) = (v, x);
+                }
+            }
+        }
+        f(start, l.width, decode(cur));
+    }
+
     /// Depths in row-major order (row 0 at the top), [`BACKGROUND`] for background.
     pub fn depth_rows(&self) -> Vec<f32> {
         let (w, h) = (self.width(), self.height());
@@ -445,6 +482,36 @@ mod tests {
                 assert_eq!(next, t.width());
             }
             assert!(background > 0 && background < 37 * 29);
+        }
+    }
+
+    /// Id runs tile each row left to right, neighbours differ, and every
+    /// pixel of a run has the run's id; without ids a row is one run.
+    #[test]
+    fn id_runs_match_pixel_accessors() {
+        for with_ids in [false, true] {
+            let t = drawn(with_ids);
+            let mut runs = 0;
+            for y in 0..t.height() {
+                let mut next = 0;
+                let mut last = None;
+                t.for_each_id_run_in_row(y, |x0, x1, id| {
+                    assert_eq!(x0, next);
+                    assert!(x1 > x0);
+                    assert_ne!(last, Some(id), "neighbouring runs of one id");
+                    for x in x0..x1 {
+                        assert_eq!(id, t.id_at(x, y), "({x}, {y})");
+                    }
+                    (next, last) = (x1, Some(id));
+                    runs += 1;
+                });
+                assert_eq!(next, t.width());
+            }
+            if with_ids {
+                assert!(runs > t.height() as usize, "the drawn triangles split rows");
+            } else {
+                assert_eq!(runs, t.height() as usize);
+            }
         }
     }
 
