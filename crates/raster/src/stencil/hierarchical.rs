@@ -515,22 +515,43 @@ impl HierarchicalStencil {
         );
         let size = 1u32 << shift;
         let nb = blocks_per_row(self.tiles_x);
+        // The eye target's tiles are ours: its exact incremental bounds
+        // and background counts are the tiles' depth boxes and written
+        // counts, and a tile's pixels are contiguous in row order.
+        let same_tiles = eye.layout.shift == shift;
         let row = |ty: u32, hot: &mut [Hot], cold: &mut [Cold], blocks: &mut [[f32; 2]]| {
             for (tx, (t, c)) in hot.iter_mut().zip(cold.iter_mut()).enumerate() {
                 let tx = tx as u32;
                 let (mut zmin, mut zmax, mut written) = (f32::INFINITY, BACKGROUND, 0u32);
                 let (mut sx, mut sy) = (tx * size, ty * size);
                 let (x1, y1) = (((tx + 1) * size).min(w), ((ty + 1) * size).min(h));
-                for y in ty * size..y1 {
-                    for x in tx * size..x1 {
-                        let d = eye.depth[eye.layout.pixel_index(x, y)];
-                        if d != BACKGROUND {
-                            if written == 0 {
-                                (sx, sy) = (x, y);
+                if same_tiles {
+                    let i = eye.layout.tile_index(tx, ty);
+                    let tb = eye.tiles[i];
+                    written = (x1 - sx) * (y1 - sy) - tb.background;
+                    if written > 0 {
+                        (zmin, zmax) = (tb.zmin, tb.zmax);
+                    }
+                    if tb.background > 0 && written > 0 {
+                        let tp = 1usize << (2 * shift);
+                        let pixels = &eye.depth[i * tp..(i + 1) * tp];
+                        if let Some(k) = pixels.iter().position(|&d| d != BACKGROUND) {
+                            sx += k as u32 & (size - 1);
+                            sy += (k >> shift) as u32;
+                        }
+                    }
+                } else {
+                    for y in ty * size..y1 {
+                        for x in tx * size..x1 {
+                            let d = eye.depth[eye.layout.pixel_index(x, y)];
+                            if d != BACKGROUND {
+                                if written == 0 {
+                                    (sx, sy) = (x, y);
+                                }
+                                written += 1;
+                                zmin = zmin.min(d);
+                                zmax = zmax.max(d);
                             }
-                            written += 1;
-                            zmin = zmin.min(d);
-                            zmax = zmax.max(d);
                         }
                     }
                 }
