@@ -267,16 +267,38 @@ fn execute(
     None
 }
 
-/// The query-result list of a bundled backend, kept between frames
-/// ([`SyncBackend::into_parts`], [`SyncBackend::reusing`]) so that a steady
-/// frame allocates nothing.
+/// An empty vector of `U` in `v`'s allocation: for element types of one
+/// layout (here draw items differing only in lifetime) the standard
+/// library's in-place collection keeps the buffer.
+fn recycle<T, U>(mut v: Vec<T>) -> Vec<U> {
+    v.clear();
+    v.into_iter().map(|_| unreachable!("empty")).collect()
+}
+
+/// The query-result list and the held-draw lists of a bundled backend,
+/// kept between frames ([`SyncBackend::into_parts`],
+/// [`SyncBackend::reusing`]) so that a steady frame allocates nothing.
 #[derive(Debug, Default)]
-pub struct QueryBuffers(Vec<(u32, u64)>);
+pub struct QueryBuffers {
+    results: Vec<(u32, u64)>,
+    pending: Vec<DrawCommand>,
+    items: Vec<DrawItem<'static>>,
+}
 
 /// Deterministic backend: executes at once, reveals a result `k` commands later.
+///
+/// Draws are held until the next command that reads or changes the target
+/// otherwise (a query, a clear, new receivers, a read of the target) and
+/// then drawn as one batch ([`DepthTarget::draw_batch`]: bands of tile rows
+/// in parallel). Depth, ids and query results are those of drawing each at
+/// once: the depth test's winner does not depend on the order.
 #[derive(Debug)]
 pub struct SimulatedBackend {
     target: DepthTarget,
+    /// Draws submitted since the last command of another kind.
+    pending: Vec<DrawCommand>,
+    /// The held draws' item list, empty between flushes (its buffer kept).
+    items: Vec<DrawItem<'static>>,
     receivers: Option<Arc<ReceiverTarget>>,
     latency: Latency,
     /// Per query: (result, command count when it becomes visible).
@@ -291,23 +313,32 @@ impl SimulatedBackend {
         SimulatedBackend::new_empty(target, latency)
     }
 
-    /// The depth target.
-    pub fn target(&self) -> &DepthTarget {
+    /// The depth target, with every draw submitted so far.
+    pub fn target(&mut self) -> &DepthTarget {
+        self.flush();
         &self.target
     }
 
     /// The depth target, giving up the backend.
-    pub fn into_target(self) -> DepthTarget {
+    pub fn into_target(mut self) -> DepthTarget {
+        self.flush();
         self.target
     }
 
     /// A backend drawing into `target`, with the result list of an earlier
     /// one (emptied): as [`SimulatedBackend::new`], without its allocations.
     pub fn reusing(target: DepthTarget, latency: Latency, buffers: QueryBuffers) -> Self {
-        let mut results = buffers.0;
+        let QueryBuffers {
+            mut results,
+            mut pending,
+            items,
+        } = buffers;
         results.clear();
+        pending.clear();
         SimulatedBackend {
             results,
+            pending,
+            items,
             ..SimulatedBackend::new_empty(target, latency)
         }
     }
@@ -315,6 +346,8 @@ impl SimulatedBackend {
     fn new_empty(target: DepthTarget, latency: Latency) -> Self {
         SimulatedBackend {
             target,
+            pending: Vec::new(),
+            items: Vec::new(),
             receivers: None,
             latency,
             results: Vec::new(),
@@ -324,8 +357,14 @@ impl SimulatedBackend {
     }
 
     /// The depth target and the result list, giving up the backend.
-    pub fn into_parts(self) -> (DepthTarget, QueryBuffers) {
-        (self.target, QueryBuffers(self.results))
+    pub fn into_parts(mut self) -> (DepthTarget, QueryBuffers) {
+        self.flush();
+        let buffers = QueryBuffers {
+            results: self.results,
+            pending: self.pending,
+            items: self.items,
+        };
+        (self.target, buffers)
     }
 
     /// Records a query result `n` as [`SimulatedBackend::run`] does.
@@ -337,9 +376,40 @@ impl SimulatedBackend {
 
     fn run(&mut self, cmd: Command) {
         self.commands += 1;
+        if let Command::Draw(d) = cmd {
+            self.pending.push(d);
+            return;
+        }
+        self.flush();
         if let Some((id, n)) = execute(&mut self.target, &mut self.receivers, cmd) {
             self.push_result(id, n);
         }
+    }
+
+    /// Draws the held draws: each run of one coverage as one batch.
+    fn flush(&mut self) {
+        let mut items = recycle(std::mem::take(&mut self.items));
+        let mut rest = &self.pending[..];
+        while let Some(first) = rest.first() {
+            let n = rest
+                .iter()
+                .position(|d| d.coverage != first.coverage)
+                .unwrap_or(rest.len());
+            let (run, tail) = rest.split_at(n);
+            items.clear();
+            items.extend(run.iter().map(|d| DrawItem {
+                clip_from_local: d.clip_from_local,
+                positions: &d.positions,
+                triangles: &d.triangles,
+                object: d.object,
+            }));
+            self.target
+                .draw_batch(&items, first.coverage)
+                .expect("indices checked at submission");
+            rest = tail;
+        }
+        self.items = recycle(items);
+        self.pending.clear();
     }
 }
 
@@ -376,6 +446,7 @@ impl OcclusionBackend for SimulatedBackend {
         options: QueryOptions,
     ) -> Result<QueryId> {
         // As `issue_query(QueryCommand::Aabbs { .. })`, from the borrowed boxes.
+        self.flush();
         self.stats.queries += 1;
         let id = QueryId(self.results.len() as u32);
         self.commands += 1;
@@ -413,7 +484,7 @@ impl OcclusionBackend for SimulatedBackend {
 
 impl ReadTarget for SimulatedBackend {
     fn read_target(&mut self, f: &mut dyn FnMut(&DepthTarget)) {
-        f(&self.target)
+        f(self.target())
     }
 }
 
@@ -427,8 +498,8 @@ impl SyncBackend {
         SyncBackend(SimulatedBackend::new(target, Latency::Commands(0)))
     }
 
-    /// The depth target.
-    pub fn target(&self) -> &DepthTarget {
+    /// The depth target, with every draw submitted so far.
+    pub fn target(&mut self) -> &DepthTarget {
         self.0.target()
     }
 

@@ -63,6 +63,9 @@ pub struct DepthTarget {
     pub(crate) isa: InstructionSet,
     /// Scratch of [`DepthTarget::draw`]'s hidden-row test (kept, not rebuilt per mesh).
     pub(crate) skip: Box<RowSkip>,
+    /// Buffers of [`DepthTarget::draw_batch`] (kept: no allocation per batch).
+    #[cfg_attr(not(feature = "parallel"), allow(dead_code))]
+    pub(crate) batch: crate::draw::BatchScratch,
 }
 
 impl DepthTarget {
@@ -112,6 +115,7 @@ impl DepthTarget {
             cull: CullMode::None,
             isa: InstructionSet::detected(),
             skip: Box::new(RowSkip::new()),
+            batch: Default::default(),
         };
         t.clear();
         Ok(t)
@@ -137,7 +141,8 @@ impl DepthTarget {
         (self.layout.tiles_x, self.layout.tiles_y)
     }
 
-    /// Restricts [`DepthTarget::draw`] to the tile rows `r0..r1` (clamped to
+    /// Restricts [`DepthTarget::draw`] and [`DepthTarget::draw_batch`] to
+    /// the tile rows `r0..r1` (clamped to
     /// the target; `None`: every row): the rest keeps its depth. For a target
     /// whose depth matters only there — a light view, whose queries count
     /// samples only over receiver-marked pixels, draws its occluders only in

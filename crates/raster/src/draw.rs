@@ -8,8 +8,9 @@ use crate::depth_target::DepthTarget;
 #[cfg(feature = "parallel")]
 use crate::dispatch::project_items;
 use crate::dispatch::{draw_mesh, BandTarget, DrawMode};
+use crate::hiz::Projected;
 #[cfg(feature = "parallel")]
-use crate::hiz::{hidden, Projected, RowSkip};
+use crate::hiz::{hidden, RowSkip};
 use crate::item::{aabb_corners, check_indices, DrawItem, AABB_TRIANGLES};
 #[cfg(feature = "parallel")]
 use crate::layout::Layout;
@@ -27,14 +28,20 @@ const PARALLEL_MIN_PIXELS: u64 = 256 * 256;
 /// unknown). Evenly sized bands left one thread with nearly all the work when the
 /// meshes crowd a few rows (a street view's horizon).
 #[cfg(feature = "parallel")]
-fn band_rows(projected: &[Projected], l: &Layout, bands: usize) -> Vec<u32> {
+fn band_rows(projected: &[Projected], l: &Layout, bands: usize, scratch: &mut BatchScratch) {
     const SETUP_TILES: u64 = 4;
+    let BatchScratch {
+        cuts, diff, prefix, ..
+    } = scratch;
+    cuts.clear();
     let rows = l.tiles_y as usize;
     if rows == 0 {
-        return vec![0, 0];
+        cuts.extend([0, 0]);
+        return;
     }
     // Difference array of the per-row work.
-    let mut diff = vec![0i64; rows + 1];
+    diff.clear();
+    diff.resize(rows + 1, 0);
     for p in projected {
         let (r0, r1, w) = match p {
             Projected::Offscreen => continue,
@@ -51,7 +58,7 @@ fn band_rows(projected: &[Projected], l: &Layout, bands: usize) -> Vec<u32> {
     }
     // Prefix sums of the per-row work; every row costs something (clearing,
     // bounds), so empty rows still split.
-    let mut prefix = Vec::with_capacity(rows + 1);
+    prefix.clear();
     prefix.push(0u64);
     let mut run = 0i64;
     for d in &diff[..rows] {
@@ -62,7 +69,7 @@ fn band_rows(projected: &[Projected], l: &Layout, bands: usize) -> Vec<u32> {
     let bands = bands.clamp(1, rows) as u64;
     // Cut k goes to the row boundary whose prefix is nearest k/bands of the total,
     // so a heavy row gets cuts on both sides.
-    let mut cuts = vec![0u32];
+    cuts.push(0);
     for k in 1..bands {
         let target = total * k / bands;
         let r = prefix.partition_point(|&p| p < target);
@@ -77,7 +84,51 @@ fn band_rows(projected: &[Projected], l: &Layout, bands: usize) -> Vec<u32> {
         }
     }
     cuts.push(l.tiles_y);
-    cuts
+}
+
+/// One band's output: its traversal counters, and per item set up there
+/// its setup counters `(item, clipped, culled)`.
+type BandOut = (RasterStats, Vec<(u32, u32, u32)>);
+
+/// Buffers of [`DepthTarget::draw_batch`]'s parallel path, kept in the
+/// target so that a steady frame's batches allocate nothing.
+#[derive(Clone, Debug, Default)]
+#[cfg_attr(not(feature = "parallel"), allow(dead_code))]
+pub(crate) struct BatchScratch {
+    /// Per item: its screen bounds.
+    projected: Vec<Projected>,
+    /// Tile-row cuts of the bands.
+    cuts: Vec<u32>,
+    /// [`band_rows`]' per-row work: differences and prefix sums.
+    diff: Vec<i64>,
+    prefix: Vec<u64>,
+    /// Per band: its output (never shortened, so each keeps its buffer).
+    bands: Vec<BandOut>,
+    /// Per item: some band set it up.
+    seen: Vec<bool>,
+}
+
+/// Runs `f` on the bands of `rows` cut at `cuts` (its first and last are
+/// the rows' ends), each with its own output, splitting in halves with
+/// `rayon::join` (no allocation, unlike collecting the bands).
+#[cfg(feature = "parallel")]
+fn for_each_band<F>(rows: TileRows<'_>, cuts: &[u32], outs: &mut [BandOut], f: &F)
+where
+    F: Fn(TileRows<'_>, &mut BandOut) + Sync,
+{
+    if cuts.len() <= 2 {
+        if let Some(out) = outs.first_mut() {
+            f(rows, out);
+        }
+        return;
+    }
+    let mid = cuts.len() / 2;
+    let (lo, hi) = rows.split_at(cuts[mid]);
+    let (olo, ohi) = outs.split_at_mut(mid);
+    rayon::join(
+        || for_each_band(lo, &cuts[..=mid], olo, f),
+        || for_each_band(hi, &cuts[mid..], ohi, f),
+    );
 }
 
 impl DepthTarget {
@@ -230,9 +281,12 @@ impl DepthTarget {
             cull: self.cull,
         };
         // (Indices were checked by `draw_batch`.)
+        let mut scratch = std::mem::take(&mut self.batch);
         // Screen bounds of every item (in parallel, order kept).
-        let mut projected = vec![Projected::Offscreen; items.len()];
-        projected
+        scratch.projected.clear();
+        scratch.projected.resize(items.len(), Projected::Offscreen);
+        scratch
+            .projected
             .par_chunks_mut(256)
             .zip(items.par_chunks(256))
             .for_each(|(out, its)| project_items(isa, &vp, its, out));
@@ -241,42 +295,40 @@ impl DepthTarget {
         // it. (Every band re-tests and sets up the items it shares with another:
         // four per thread measured slower on city_16384 street, 2 threads, 1080p,
         // occluders 2.4–3.3 against 2.9–4.2 ms in three interleaved rounds.)
-        let cuts = band_rows(&projected, &l, threads * 2);
-        let tile_px = l.tile_pixels();
-        let mut parts = Vec::with_capacity(cuts.len());
-        let (mut depth, mut tiles) = (&mut self.depth[..], &mut self.tiles[..]);
-        let mut ids = self.ids.as_deref_mut();
-        for w in cuts.windows(2) {
-            let n = ((w[1] - w[0]) * l.tiles_x) as usize;
-            let (d, dr) = std::mem::take(&mut depth).split_at_mut(n * tile_px);
-            let (t, tr) = std::mem::take(&mut tiles).split_at_mut(n);
-            let i = match ids.take() {
-                Some(all) => {
-                    let (i, ir) = all.split_at_mut(n * tile_px);
-                    ids = Some(ir);
-                    Some(i)
-                }
-                None => None,
-            };
-            (depth, tiles) = (dr, tr);
-            parts.push((w[0], w[1], d, t, i));
+        let projected = std::mem::take(&mut scratch.projected);
+        band_rows(&projected, &l, threads * 2, &mut scratch);
+        // Only the row window is drawn (`set_draw_rows`), as `draw` does:
+        // the bands are cut to it.
+        let (wy0, wy1) = self.draw_rows.unwrap_or((0, l.tiles_y));
+        let cuts = &mut scratch.cuts;
+        for c in cuts.iter_mut() {
+            *c = (*c).clamp(wy0, wy1);
         }
-        // Per band: traversal counters and, per item set up there, its setup counters
-        // (triangles clipped, culled); the first band that set an item up reports them.
-        type BandOut = (RasterStats, Vec<(u32, u32, u32)>);
-        let outs: Vec<BandOut> = parts
-            .into_par_iter()
-            .map(|(ty0, ty1, depth, tiles, ids)| {
-                let mut band = TileRows {
-                    layout: l,
-                    ty0,
-                    ty1,
-                    depth,
-                    ids,
-                    tiles,
-                };
-                let mut st = RasterStats::default();
-                let mut setups = Vec::new();
+        cuts.dedup();
+        let bands = cuts.len().saturating_sub(1);
+        // (Never shortened: each band's setup list keeps its buffer.)
+        if scratch.bands.len() < bands {
+            scratch.bands.resize_with(bands, Default::default);
+        }
+        if let (Some(&ty0), Some(&ty1), true) = (cuts.first(), cuts.last(), bands > 0) {
+            let tile_px = l.tile_pixels();
+            let (t0, t1) = ((ty0 * l.tiles_x) as usize, (ty1 * l.tiles_x) as usize);
+            let rows = TileRows {
+                layout: l,
+                ty0,
+                ty1,
+                depth: &mut self.depth[t0 * tile_px..t1 * tile_px],
+                ids: self
+                    .ids
+                    .as_deref_mut()
+                    .map(|ids| &mut ids[t0 * tile_px..t1 * tile_px]),
+                tiles: &mut self.tiles[t0..t1],
+            };
+            let band = |mut band: TileRows<'_>, out: &mut BandOut| {
+                let (ty0, ty1) = (band.ty0, band.ty1);
+                let (st, setups) = out;
+                *st = RasterStats::default();
+                setups.clear();
                 let mut skip = RowSkip::new();
                 for (k, (it, p)) in items.iter().zip(&projected).enumerate() {
                     if let Projected::Bounds(sb) = p {
@@ -293,7 +345,7 @@ impl DepthTarget {
                     let target = BandTarget {
                         rows: &mut band,
                         skip: &mut skip,
-                        st: &mut st,
+                        st,
                     };
                     // Indices were checked above.
                     let drawn = draw_mesh(isa, &vp, target, it, mode, Some(p), &mut sst);
@@ -306,11 +358,14 @@ impl DepthTarget {
                         sst.triangles_culled as u32,
                     ));
                 }
-                (st, setups)
-            })
-            .collect();
-        let mut seen = vec![false; items.len()];
-        for (st, setups) in &outs {
+            };
+            for_each_band(rows, &scratch.cuts, &mut scratch.bands[..bands], &band);
+        }
+        scratch.projected = projected;
+        let seen = &mut scratch.seen;
+        seen.clear();
+        seen.resize(items.len(), false);
+        for (st, setups) in &scratch.bands[..bands] {
             self.stats.add(st);
             for &(k, clipped, culled) in setups {
                 if !std::mem::replace(&mut seen[k as usize], true) {
@@ -320,7 +375,7 @@ impl DepthTarget {
             }
         }
         // Items no band set up: off screen or hidden wherever they reach.
-        for (it, seen) in items.iter().zip(&seen) {
+        for (it, &seen) in items.iter().zip(&scratch.seen) {
             if !seen {
                 self.stats.triangles_culled += it.triangles.len() as u64;
                 self.stats.meshes_rejected_hiz += 1;
@@ -330,6 +385,7 @@ impl DepthTarget {
             .iter()
             .map(|it| it.triangles.len() as u64)
             .sum::<u64>();
+        self.batch = scratch;
         Ok(())
     }
 }
@@ -338,6 +394,13 @@ impl DepthTarget {
 mod tests {
     use super::*;
     use crate::hiz::ScreenBounds;
+
+    /// [`band_rows`]' cuts.
+    fn cuts_of(projected: &[Projected], l: &Layout, bands: usize) -> Vec<u32> {
+        let mut scratch = BatchScratch::default();
+        band_rows(projected, l, bands, &mut scratch);
+        scratch.cuts
+    }
 
     fn layout(tiles_y: u32) -> Layout {
         Layout {
@@ -370,21 +433,21 @@ mod tests {
     fn bands_split_where_the_meshes_crowd() {
         let l = layout(100);
         // Nothing to draw: even split of the uniform row cost.
-        let cuts = band_rows(&[], &l, 4);
+        let cuts = cuts_of(&[], &l, 4);
         check(&cuts, &l, 4);
         assert_eq!(cuts, vec![0, 25, 50, 75, 100]);
         // A horizon: thousands of small meshes in tile rows 50 and 51, one tall one.
         let mut p = vec![rect(400, 415); 4000];
         p.push(rect(0, 799));
         p.push(Projected::Offscreen);
-        let cuts = band_rows(&p, &l, 8);
+        let cuts = cuts_of(&p, &l, 8);
         check(&cuts, &l, 8);
         // Each crowded row gets a band of its own; the light rows around them make
         // one band each.
         assert_eq!(cuts, vec![0, 50, 51, 52, 100]);
         // Unknown bounds cost every row; a single row makes one band.
         let one = layout(1);
-        let cuts = band_rows(&[Projected::Unknown], &one, 8);
+        let cuts = cuts_of(&[Projected::Unknown], &one, 8);
         assert_eq!(cuts, vec![0, 1]);
     }
 }

@@ -136,6 +136,43 @@ pub(crate) struct TileRows<'a> {
     pub tiles: &'a mut [TileBounds],
 }
 
+impl<'a> TileRows<'a> {
+    /// The rows before tile row `ty` and those from it on (`ty` within
+    /// the rows).
+    #[cfg(feature = "parallel")]
+    pub fn split_at(self, ty: u32) -> (TileRows<'a>, TileRows<'a>) {
+        debug_assert!((self.ty0..=self.ty1).contains(&ty));
+        let n = ((ty - self.ty0) * self.layout.tiles_x) as usize;
+        let px = n * self.layout.tile_pixels();
+        let (d0, d1) = self.depth.split_at_mut(px);
+        let (t0, t1) = self.tiles.split_at_mut(n);
+        let (i0, i1) = match self.ids {
+            Some(ids) => {
+                let (a, b) = ids.split_at_mut(px);
+                (Some(a), Some(b))
+            }
+            None => (None, None),
+        };
+        let lo = TileRows {
+            layout: self.layout,
+            ty0: self.ty0,
+            ty1: ty,
+            depth: d0,
+            ids: i0,
+            tiles: t0,
+        };
+        let hi = TileRows {
+            layout: self.layout,
+            ty0: ty,
+            ty1: self.ty1,
+            depth: d1,
+            ids: i1,
+            tiles: t1,
+        };
+        (lo, hi)
+    }
+}
+
 impl TileRows<'_> {
     /// Offset of this band's first tile in the whole target.
     #[inline(always)]

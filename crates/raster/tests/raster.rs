@@ -718,6 +718,57 @@ fn parallel_batch_equals_serial() {
     assert!(qa.contains(&0) && qa.iter().any(|&c| c > 0));
 }
 
+/// A parallel batch into a row window draws what the full batch draws
+/// there, and nothing elsewhere.
+#[test]
+fn parallel_batch_keeps_to_the_row_window() {
+    let (w, h) = (320u32, 256u32);
+    let m = perspective(1.0, w as f32 / h as f32, 0.5);
+    let corners: Vec<[Vec4; 8]> = (0..150)
+        .map(|k| {
+            let f = k as f32;
+            let c = Vec3::new(
+                (f * 1.37).sin() * 8.0,
+                (f * 0.71).cos() * 6.0,
+                -6.0 - (f * 0.53).sin().abs() * 20.0,
+            );
+            aabb_corners(c - Vec3::splat(0.7), c + Vec3::splat(0.9))
+        })
+        .collect();
+    let items: Vec<DrawItem> = corners
+        .iter()
+        .enumerate()
+        .map(|(k, c)| DrawItem {
+            clip_from_local: m,
+            positions: c,
+            triangles: &AABB_TRIANGLES,
+            object: k as u32,
+        })
+        .collect();
+    let mut full = DepthTarget::new(w, h, TileSize::T8, true).unwrap();
+    full.set_threads(3);
+    full.draw_batch(&items, Coverage::Standard).unwrap();
+    for rows in [(5, 17), (0, 3), (30, 32), (12, 12)] {
+        let mut part = DepthTarget::new(w, h, TileSize::T8, true).unwrap();
+        part.set_threads(3);
+        part.set_draw_rows(Some(rows));
+        part.draw_batch(&items, Coverage::Standard).unwrap();
+        check_hiz(&part).unwrap();
+        for y in 0..h {
+            let inside = (rows.0..rows.1).contains(&(y / 8));
+            for x in 0..w {
+                let want = if inside { full.depth_at(x, y) } else { None };
+                assert_eq!(part.depth_at(x, y), want, "({x}, {y}), rows {rows:?}");
+                let want = if inside { full.id_at(x, y) } else { None };
+                assert_eq!(part.id_at(x, y), want, "({x}, {y}), rows {rows:?}");
+            }
+        }
+    }
+    assert!(full.depth_rows()[..w as usize * 40]
+        .iter()
+        .any(|&d| d != BACKGROUND));
+}
+
 #[test]
 fn box_behind_wall_is_hidden_and_box_around_eye_is_visible() {
     let (w, h) = (64u32, 48u32);
@@ -934,6 +985,96 @@ fn backends_give_identical_counts() {
     assert_eq!(a, b);
     assert_eq!(a, c);
     assert!(a.iter().any(|&n| n > 0));
+}
+
+/// Runs of draws (1 to 9, some conservative among standard ones) between
+/// queries, on a target large enough for parallel batches: the bundled
+/// backends hold draws and draw each run as one batch before the next
+/// query; their counts and final depth and ids equal the threaded backend's,
+/// which draws each at once.
+#[test]
+fn held_draws_equal_immediate_draws() {
+    fn script(b: &mut (impl OcclusionBackend + ReadTarget)) -> (Vec<u32>, Vec<f32>, Vec<u64>) {
+        let m = perspective(1.0, 4.0 / 3.0, 0.5);
+        let boxes: Vec<(Vec3, Vec3)> = (0..90)
+            .map(|k| {
+                let f = k as f32;
+                let c = Vec3::new(
+                    (f * 1.37).sin() * 5.0,
+                    (f * 0.71).cos() * 3.5,
+                    -3.0 - (f * 0.53).sin().abs() * 25.0,
+                );
+                (c - Vec3::splat(0.7), c + Vec3::splat(0.9))
+            })
+            .collect();
+        let count = QueryOptions {
+            mode: QueryMode::Count,
+            ..Default::default()
+        };
+        let mut out = Vec::new();
+        b.clear();
+        let mut k = 0;
+        let mut run = 1;
+        while k < boxes.len() {
+            for (j, &(min, max)) in boxes.iter().enumerate().skip(k).take(run) {
+                b.draw(DrawCommand {
+                    clip_from_local: m,
+                    positions: aabb_corners(min, max).to_vec().into(),
+                    triangles: AABB_TRIANGLES.to_vec().into(),
+                    object: j as u32,
+                    coverage: if j % 5 == 2 {
+                        Coverage::Outer(DepthPick::Nearest)
+                    } else {
+                        Coverage::Standard
+                    },
+                })
+                .unwrap();
+            }
+            k += run;
+            run = run % 9 + 1;
+            let ids: Vec<QueryId> = boxes
+                .iter()
+                .map(|&(min, max)| {
+                    b.issue_query(QueryCommand::Aabb {
+                        clip_from_local: m,
+                        min,
+                        max,
+                        options: count,
+                    })
+                    .unwrap()
+                })
+                .collect();
+            out.extend(ids.into_iter().map(|id| b.wait(id)));
+        }
+        b.finish();
+        let (mut depth, mut ids) = (Vec::new(), Vec::new());
+        b.read_target(&mut |t| {
+            depth = t.depth_rows();
+            for y in 0..t.height() {
+                for x in 0..t.width() {
+                    ids.push(
+                        t.id_at(x, y)
+                            .map_or(u64::MAX, |(o, k)| u64::from(o) << 32 | u64::from(k)),
+                    );
+                }
+            }
+        });
+        (out, depth, ids)
+    }
+    let t = || DepthTarget::new(320, 256, TileSize::T8, true).unwrap();
+    let want = script(&mut ThreadedBackend::new(t()));
+    assert_eq!(script(&mut SyncBackend::new(t())), want);
+    assert_eq!(
+        script(&mut SimulatedBackend::new(t(), Latency::Commands(2))),
+        want
+    );
+    // Later runs' queries see earlier runs' depth: some counts shrink.
+    assert!(want.0.iter().any(|&n| n > 0));
+    assert!(want
+        .0
+        .chunks(90)
+        .zip(want.0.chunks(90).skip(1))
+        .any(|(a, b)| a != b));
 }
 
 #[test]
