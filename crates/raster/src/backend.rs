@@ -283,6 +283,10 @@ pub struct QueryBuffers {
     results: Vec<(u32, u64)>,
     pending: Vec<DrawCommand>,
     items: Vec<DrawItem<'static>>,
+    /// The batches' buffers ([`DepthTarget::draw_batch`]), lent to the
+    /// target while the backend holds it: they grow with this view's
+    /// batches, whichever target set the view draws into.
+    batch: crate::draw::BatchScratch,
 }
 
 /// Deterministic backend: executes at once, reveals a result `k` commands later.
@@ -332,9 +336,12 @@ impl SimulatedBackend {
             mut results,
             mut pending,
             items,
+            batch,
         } = buffers;
         results.clear();
         pending.clear();
+        let mut target = target;
+        target.batch = batch;
         SimulatedBackend {
             results,
             pending,
@@ -363,6 +370,7 @@ impl SimulatedBackend {
             results: self.results,
             pending: self.pending,
             items: self.items,
+            batch: std::mem::take(&mut self.target.batch),
         };
         (self.target, buffers)
     }
