@@ -54,6 +54,66 @@ impl ReceiverTarget {
         }
     }
 
+    /// An unmarked target with this one's size, tiling and nearest-depth
+    /// tracking: a second target to mark part of one set of receivers in,
+    /// in parallel, then [`ReceiverTarget::absorb`] it.
+    pub fn unmarked_like(&self) -> Self {
+        let mut r = ReceiverTarget {
+            layout: self.layout,
+            depth: vec![f32::INFINITY; self.depth.len()],
+            near: Vec::new(),
+            tile_near: Vec::new(),
+            tile_min: vec![f32::INFINITY; self.tile_min.len()],
+            scratch: Vec::new(),
+        };
+        r.set_track_nearest(self.tracks_nearest());
+        r
+    }
+
+    /// Takes `other`'s marks into this target and unmarks `other`: per pixel
+    /// the farther of the farthest depths and the nearer of the nearest.
+    /// Marks are minima and maxima, so marking receivers partly here and
+    /// partly in `other`, then absorbing, gives the marks of marking all of
+    /// them here. Only `other`'s marked tiles are read.
+    ///
+    /// # Errors
+    /// [`Error::SizeMismatch`] when the two differ in size or tiling, or one
+    /// tracks the nearest depths and the other does not.
+    pub fn absorb(&mut self, other: &mut ReceiverTarget) -> Result<()> {
+        let (a, b) = (self.layout, other.layout);
+        if (a.width, a.height, a.shift) != (b.width, b.height, b.shift)
+            || self.tracks_nearest() != other.tracks_nearest()
+        {
+            return Err(Error::SizeMismatch {
+                expected: self.size(),
+                got: other.size(),
+            });
+        }
+        let n = a.tile_pixels();
+        let tracking = self.tracks_nearest();
+        for t in 0..self.tile_min.len() {
+            if other.tile_min[t] == f32::INFINITY {
+                continue;
+            }
+            let px = t * n..(t + 1) * n;
+            for (d, &o) in self.depth[px.clone()]
+                .iter_mut()
+                .zip(&other.depth[px.clone()])
+            {
+                *d = d.min(o);
+            }
+            self.tile_min[t] = self.tile_min[t].min(other.tile_min[t]);
+            if tracking {
+                for (d, &o) in self.near[px.clone()].iter_mut().zip(&other.near[px]) {
+                    *d = d.max(o);
+                }
+                self.tile_near[t] = self.tile_near[t].max(other.tile_near[t]);
+            }
+        }
+        other.clear();
+        Ok(())
+    }
+
     /// Keeps (`true`) or stops keeping the nearest receiver depth per pixel
     /// beside the farthest, from the next mark on. Turning it on unmarks the
     /// target; off frees the nearest depths.
@@ -847,6 +907,19 @@ mod tests {
         }
     }
 
+    /// Absorbing needs one size and one tracking mode.
+    #[test]
+    fn absorb_rejects_other_targets() {
+        let t = DepthTarget::new(29, 21, TileSize::T8, false).unwrap();
+        let u = DepthTarget::new(30, 21, TileSize::T8, false).unwrap();
+        let mut a = ReceiverTarget::for_target(&t);
+        assert!(a.absorb(&mut ReceiverTarget::for_target(&u)).is_err());
+        let mut b = a.unmarked_like();
+        b.set_track_nearest(true);
+        assert!(a.absorb(&mut b).is_err());
+        assert!(a.absorb(&mut a.unmarked_like()).is_ok());
+    }
+
     /// A segment's ends and depths, or the "everywhere" depth, as bits.
     fn segment_bits(s: Option<Segment>) -> Option<Vec<u64>> {
         s.map(|s| match s {
@@ -891,6 +964,22 @@ mod tests {
             proptest::prop_assert_eq!(&chained.depth, &single.depth);
             proptest::prop_assert_eq!(&chained.near, &single.near);
             proptest::prop_assert_eq!(&chained.tile_min, &single.tile_min);
+            // Split between two targets, then absorbed: the same marks, and
+            // the absorbed target unmarked.
+            let half = pieces.len() / 2;
+            let mut first = ReceiverTarget::for_target(&t);
+            first.set_track_nearest(track);
+            let mut second = first.unmarked_like();
+            first.mark_segments_within(Mat4::IDENTITY, pieces[..half].iter().copied(), eps);
+            second.mark_segments_within(Mat4::IDENTITY, pieces[half..].iter().copied(), eps);
+            first.absorb(&mut second).unwrap();
+            proptest::prop_assert_eq!(&first.depth, &chained.depth);
+            proptest::prop_assert_eq!(&first.near, &chained.near);
+            proptest::prop_assert_eq!(&first.tile_min, &chained.tile_min);
+            proptest::prop_assert_eq!(&first.tile_near, &chained.tile_near);
+            proptest::prop_assert!(second.depth.iter().all(|z| z.is_infinite()));
+            proptest::prop_assert!(second.near.iter().all(|z| *z == f32::NEG_INFINITY));
+            proptest::prop_assert!(second.tile_min.iter().all(|z| z.is_infinite()));
             let pr = Projector::new(t.layout, Mat4::IDENTITY, eps);
             for (a, b) in pieces {
                 let (ea, eb) = (pr.clip_end(&a), pr.clip_end(&b));

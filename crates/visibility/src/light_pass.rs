@@ -218,6 +218,9 @@ pub struct LightPass {
     /// it (each view is claimed once per frame: never contended).
     slots: Vec<Mutex<ViewSlot>>,
     sets: Vec<TargetSet>,
+    /// A second receiver target, for the view whose many segments are
+    /// marked on two threads ([`Marks::mark`]); one per light.
+    spare: Mutex<Option<ReceiverTarget>>,
     receivers: Prepared,
     views: Vec<LightView>,
     casting: CastingCache,
@@ -514,6 +517,7 @@ impl LightPass {
         };
         let prepared = &self.receivers;
         let shared = ViewsInput {
+            spare: &self.spare,
             objects: Objects::new(h, scene, meshes),
             light,
             origin,
@@ -630,6 +634,8 @@ struct ViewsInput<'a> {
     options: &'a LightPassOptions,
     /// Fragment receivers: what each view reads its casters' intervals with.
     fragments: Option<ViewFragments<'a>>,
+    /// The light's spare receiver target (whichever view gets it first).
+    spare: &'a Mutex<Option<ReceiverTarget>>,
 }
 
 impl ViewSlot {
@@ -651,6 +657,7 @@ impl ViewSlot {
             casting,
             options,
             ref fragments,
+            spare,
         } = *input;
         let m = view.clip_from_world;
         self.fragments.clear();
@@ -671,7 +678,10 @@ impl ViewSlot {
             ),
             Sampling::Point => (0.0, Coverage::Standard),
         };
-        receivers.mark(marks_mut, clip_from_origin, eps);
+        // (A view that finds the spare taken marks on its own thread.)
+        let mut spare = spare.try_lock().ok();
+        receivers.mark(marks_mut, clip_from_origin, eps, spare.as_deref_mut());
+        drop(spare);
         // A view without receivers finds no caster: a caster's shadow on a
         // receiver point r crosses the segment from r to the light, which
         // lies in the view holding r (views are cones from the light, fitted

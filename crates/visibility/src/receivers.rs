@@ -75,34 +75,71 @@ pub(crate) enum Marks<'a> {
     },
 }
 
+/// Segments from which a view's marking is split between two threads.
+#[cfg(feature = "parallel")]
+const SPLIT_SEGMENTS: usize = 1 << 15;
+
 impl Marks<'_> {
     /// Marks these receivers in `target` (local points, clip
-    /// `clip_from_local · p`) within `eps_px`.
-    pub fn mark(&self, target: &mut raster::ReceiverTarget, clip_from_local: Mat4, eps_px: f64) {
-        match *self {
+    /// `clip_from_local · p`) within `eps_px`. With many segments, a pool
+    /// of more than one thread and a `spare` target (made like `target`
+    /// when missing or unlike it), half of them are marked in the spare on
+    /// another thread and absorbed ([`raster::ReceiverTarget::absorb`]):
+    /// the same marks, as marks are minima and maxima. A street view's
+    /// receivers crowd one cube face, whose marking was the light pass's
+    /// longest single-threaded step.
+    pub fn mark(
+        &self,
+        target: &mut raster::ReceiverTarget,
+        clip_from_local: Mat4,
+        eps_px: f64,
+        spare: Option<&mut Option<raster::ReceiverTarget>>,
+    ) {
+        let (points, pieces, only) = match *self {
             Marks::Points(p) => {
                 target.mark_points_within(clip_from_local, p, eps_px);
+                return;
             }
             Marks::Segments {
                 points,
                 pieces,
                 only,
-            } => {
-                let segment = |&(a, b): &(u32, u32)| (points[a as usize], points[b as usize]);
-                match only {
-                    Some(ix) => target.mark_segments_within(
-                        clip_from_local,
-                        ix.iter().map(|&i| segment(&pieces[i as usize])),
-                        eps_px,
-                    ),
-                    None => target.mark_segments_within(
-                        clip_from_local,
-                        pieces.iter().map(segment),
-                        eps_px,
-                    ),
+            } => (points, pieces, only),
+        };
+        let segment = |&(a, b): &(u32, u32)| (points[a as usize], points[b as usize]);
+        let count = only.map_or(pieces.len(), <[u32]>::len);
+        // Marks segments `range` (of `only`, or of every piece) in `t`.
+        let mark = |t: &mut raster::ReceiverTarget, range: std::ops::Range<usize>| match only {
+            Some(ix) => t.mark_segments_within(
+                clip_from_local,
+                ix[range].iter().map(|&i| segment(&pieces[i as usize])),
+                eps_px,
+            ),
+            None => {
+                t.mark_segments_within(clip_from_local, pieces[range].iter().map(segment), eps_px)
+            }
+        };
+        #[cfg(feature = "parallel")]
+        if let Some(spare) = spare {
+            if count >= SPLIT_SEGMENTS && rayon::current_num_threads() > 1 {
+                let other = match spare {
+                    Some(s)
+                        if s.size() == target.size()
+                            && s.tracks_nearest() == target.tracks_nearest() =>
+                    {
+                        s
+                    }
+                    _ => spare.insert(target.unmarked_like()),
                 };
+                let half = count / 2;
+                rayon::join(|| mark(target, 0..half), || mark(other, half..count));
+                target.absorb(other).expect("a spare made like the target");
+                return;
             }
         }
+        #[cfg(not(feature = "parallel"))]
+        let _ = spare;
+        mark(target, 0..count);
     }
 }
 
