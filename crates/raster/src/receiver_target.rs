@@ -44,12 +44,18 @@ pub struct ReceiverTarget {
 impl ReceiverTarget {
     /// An unmarked receiver target with the size and tiling of `target`.
     pub fn for_target(target: &DepthTarget) -> Self {
+        ReceiverTarget::unmarked(target.layout, target.depth.len(), target.tiles.len())
+    }
+
+    /// An unmarked target of `layout`, `pixels` and `tiles` long (the
+    /// padded tile-major sizes), without nearest depths.
+    fn unmarked(layout: Layout, pixels: usize, tiles: usize) -> Self {
         ReceiverTarget {
-            layout: target.layout,
-            depth: vec![f32::INFINITY; target.depth.len()],
+            layout,
+            depth: vec![f32::INFINITY; pixels],
             near: Vec::new(),
             tile_near: Vec::new(),
-            tile_min: vec![f32::INFINITY; target.tiles.len()],
+            tile_min: vec![f32::INFINITY; tiles],
             scratch: Vec::new(),
         }
     }
@@ -58,14 +64,7 @@ impl ReceiverTarget {
     /// tracking: a second target to mark part of one set of receivers in,
     /// in parallel, then [`ReceiverTarget::absorb`] it.
     pub fn unmarked_like(&self) -> Self {
-        let mut r = ReceiverTarget {
-            layout: self.layout,
-            depth: vec![f32::INFINITY; self.depth.len()],
-            near: Vec::new(),
-            tile_near: Vec::new(),
-            tile_min: vec![f32::INFINITY; self.tile_min.len()],
-            scratch: Vec::new(),
-        };
+        let mut r = ReceiverTarget::unmarked(self.layout, self.depth.len(), self.tile_min.len());
         r.set_track_nearest(self.tracks_nearest());
         r
     }

@@ -666,22 +666,24 @@ fn fan_rim_interior_is_covered_exactly_once() {
     assert!(inside_pixels > 100);
 }
 
-#[test]
-fn parallel_batch_equals_serial() {
-    let (w, h) = (300u32, 260u32);
-    let m = perspective(1.0, w as f32 / h as f32, 0.5);
-    let mut boxes = Vec::new();
-    for k in 0..200 {
-        let f = k as f32;
-        let c = Vec3::new(
-            (f * 1.37).sin() * 8.0,
-            (f * 0.71).cos() * 5.0,
-            -6.0 - (f * 0.53).sin().abs() * 20.0,
-        );
-        boxes.push((c - Vec3::splat(0.7), c + Vec3::splat(0.9)));
-    }
-    let corners: Vec<[Vec4; 8]> = boxes.iter().map(|(a, b)| aabb_corners(*a, *b)).collect();
-    let items: Vec<DrawItem> = corners
+/// `n` boxes scattered in front of the eye, `spread` high.
+fn scattered_boxes(n: usize, spread: f32) -> Vec<(Vec3, Vec3)> {
+    (0..n)
+        .map(|k| {
+            let f = k as f32;
+            let c = Vec3::new(
+                (f * 1.37).sin() * 8.0,
+                (f * 0.71).cos() * spread,
+                -6.0 - (f * 0.53).sin().abs() * 20.0,
+            );
+            (c - Vec3::splat(0.7), c + Vec3::splat(0.9))
+        })
+        .collect()
+}
+
+/// The boxes' corners, and draw items of them (object ids in order).
+fn box_items<'a>(m: Mat4, corners: &'a [[Vec4; 8]]) -> Vec<DrawItem<'a>> {
+    corners
         .iter()
         .enumerate()
         .map(|(k, c)| DrawItem {
@@ -690,7 +692,16 @@ fn parallel_batch_equals_serial() {
             triangles: &AABB_TRIANGLES,
             object: k as u32,
         })
-        .collect();
+        .collect()
+}
+
+#[test]
+fn parallel_batch_equals_serial() {
+    let (w, h) = (300u32, 260u32);
+    let m = perspective(1.0, w as f32 / h as f32, 0.5);
+    let boxes = scattered_boxes(200, 5.0);
+    let corners: Vec<[Vec4; 8]> = boxes.iter().map(|(a, b)| aabb_corners(*a, *b)).collect();
+    let items = box_items(m, &corners);
     let mut a = DepthTarget::new(w, h, TileSize::T8, true).unwrap();
     a.set_threads(1);
     a.draw_batch(&items, Coverage::Standard).unwrap();
@@ -724,27 +735,11 @@ fn parallel_batch_equals_serial() {
 fn parallel_batch_keeps_to_the_row_window() {
     let (w, h) = (320u32, 256u32);
     let m = perspective(1.0, w as f32 / h as f32, 0.5);
-    let corners: Vec<[Vec4; 8]> = (0..150)
-        .map(|k| {
-            let f = k as f32;
-            let c = Vec3::new(
-                (f * 1.37).sin() * 8.0,
-                (f * 0.71).cos() * 6.0,
-                -6.0 - (f * 0.53).sin().abs() * 20.0,
-            );
-            aabb_corners(c - Vec3::splat(0.7), c + Vec3::splat(0.9))
-        })
-        .collect();
-    let items: Vec<DrawItem> = corners
+    let corners: Vec<[Vec4; 8]> = scattered_boxes(150, 6.0)
         .iter()
-        .enumerate()
-        .map(|(k, c)| DrawItem {
-            clip_from_local: m,
-            positions: c,
-            triangles: &AABB_TRIANGLES,
-            object: k as u32,
-        })
+        .map(|(a, b)| aabb_corners(*a, *b))
         .collect();
+    let items = box_items(m, &corners);
     let mut full = DepthTarget::new(w, h, TileSize::T8, true).unwrap();
     full.set_threads(3);
     full.draw_batch(&items, Coverage::Standard).unwrap();
