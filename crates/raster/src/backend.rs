@@ -286,7 +286,7 @@ pub struct QueryBuffers {
     /// The batches' buffers ([`DepthTarget::draw_batch`]), lent to the
     /// target while the backend holds it: they grow with this view's
     /// batches, whichever target set the view draws into.
-    batch: crate::draw::BatchScratch,
+    batch: crate::batch_scratch::BatchScratch,
 }
 
 /// Deterministic backend: executes at once, reveals a result `k` commands later.

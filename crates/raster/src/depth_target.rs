@@ -65,7 +65,7 @@ pub struct DepthTarget {
     pub(crate) skip: Box<RowSkip>,
     /// Buffers of [`DepthTarget::draw_batch`] (kept: no allocation per batch).
     #[cfg_attr(not(feature = "parallel"), allow(dead_code))]
-    pub(crate) batch: crate::draw::BatchScratch,
+    pub(crate) batch: crate::batch_scratch::BatchScratch,
 }
 
 impl DepthTarget {

@@ -3,14 +3,15 @@
 //! (rayon), each band processing its triangles in submission order, so the
 //! output is identical to the single-threaded path.
 
+#[cfg(feature = "parallel")]
+use crate::batch_scratch::{BandOut, BatchScratch};
 use crate::coverage::Coverage;
 use crate::depth_target::DepthTarget;
 #[cfg(feature = "parallel")]
 use crate::dispatch::project_items;
 use crate::dispatch::{draw_mesh, BandTarget, DrawMode};
-use crate::hiz::Projected;
 #[cfg(feature = "parallel")]
-use crate::hiz::{hidden, RowSkip};
+use crate::hiz::{hidden, Projected, RowSkip};
 use crate::item::{aabb_corners, check_indices, DrawItem, AABB_TRIANGLES};
 #[cfg(feature = "parallel")]
 use crate::layout::Layout;
@@ -84,28 +85,6 @@ fn band_rows(projected: &[Projected], l: &Layout, bands: usize, scratch: &mut Ba
         }
     }
     cuts.push(l.tiles_y);
-}
-
-/// One band's output: its traversal counters, and per item set up there
-/// its setup counters `(item, clipped, culled)`.
-type BandOut = (RasterStats, Vec<(u32, u32, u32)>);
-
-/// Buffers of [`DepthTarget::draw_batch`]'s parallel path, kept in the
-/// target so that a steady frame's batches allocate nothing.
-#[derive(Clone, Debug, Default)]
-#[cfg_attr(not(feature = "parallel"), allow(dead_code))]
-pub(crate) struct BatchScratch {
-    /// Per item: its screen bounds.
-    projected: Vec<Projected>,
-    /// Tile-row cuts of the bands.
-    cuts: Vec<u32>,
-    /// [`band_rows`]' per-row work: differences and prefix sums.
-    diff: Vec<i64>,
-    prefix: Vec<u64>,
-    /// Per band: its output (never shortened, so each keeps its buffer).
-    bands: Vec<BandOut>,
-    /// Per item: some band set it up.
-    seen: Vec<bool>,
 }
 
 /// Runs `f` on the bands of `rows` cut at `cuts` (its first and last are

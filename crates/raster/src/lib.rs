@@ -62,6 +62,7 @@ mod edge;
 mod setup;
 mod volume_buffer;
 // Targets: the tile layout and hierarchical z, the depth and receiver targets.
+mod batch_scratch;
 mod depth_target;
 mod hiz;
 mod layout;
