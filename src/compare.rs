@@ -176,7 +176,9 @@ fn write_csv(rows: &[VariantRow]) -> std::io::Result<Vec<u8>> {
 /// depth bounds, scissor with depth bounds, the hierarchical stencil with
 /// tiles 4, 8 and 16, the shadow-map hybrid, and the hierarchical stencil
 /// with CHC, CHC++, point-sampled (aggressive) CHC++, point-sampled CHC++
-/// in 256² light views (`h_chcpp_point_lr256`, a trade point) and `auto` culling,
+/// in 256² light views (`h_chcpp_point_lr256`, a trade point), the hybrid
+/// reading point-sampled CHC++ light views of 1024² and 512²
+/// (`hybrid_chcpp_point`, `hybrid_chcpp_point_lr512`, trade points) and `auto` culling,
 /// `auto` culling with `auto` stencil (`auto`), and brute
 /// force with continuous clamping (receivers `all`, `psr`, and `fragment`
 /// with CHC++; each counts the fill without and with clamping,
@@ -236,6 +238,21 @@ pub fn variants(job: &Job) -> Vec<NamedPipeline> {
             CoverageSpec::Point,
             256,
         ),
+        // Trade points: the hybrid's maps are the light views.
+        NamedPipeline {
+            name: "hybrid_chcpp_point".into(),
+            pipeline: PipelineOptions {
+                stencil: StencilBackend::Hybrid,
+                ..culled("", CullingSpec::Chcpp, CoverageSpec::Point).pipeline
+            },
+        },
+        NamedPipeline {
+            name: "hybrid_chcpp_point_lr512".into(),
+            pipeline: PipelineOptions {
+                stencil: StencilBackend::Hybrid,
+                ..culled_at("", CullingSpec::Chcpp, CoverageSpec::Point, 512).pipeline
+            },
+        },
         culled("h_auto", CullingSpec::Auto, CoverageSpec::Conservative),
         NamedPipeline {
             name: "auto".into(),

@@ -16,10 +16,9 @@ use shadowcull::reference::{reference_mask, ReferenceOptions, TriangleBvh};
 const W: u32 = 320;
 const H: u32 = 240;
 
-/// Ground, a tower, and a row of thin poles (2 cm wide, 3 m tall) under a
-/// low sun: the poles' shadows are long lines a few pixels wide.
-fn poles() -> scene::Scene {
-    let mut meshes = vec![
+/// A 20 m ground and a 2 × 3 × 2 m tower at its centre.
+fn ground_and_tower() -> Vec<scene::Mesh> {
+    vec![
         analytic::horizontal_quad("ground", [-10.0, 10.0], [-10.0, 10.0], 0.0, true).unwrap(),
         analytic::box_mesh(
             "tower",
@@ -27,7 +26,13 @@ fn poles() -> scene::Scene {
             Vec3::new(1.0, 3.0, 1.0),
         )
         .unwrap(),
-    ];
+    ]
+}
+
+/// Ground, a tower, and a row of thin poles (2 cm wide, 3 m tall) under a
+/// low sun: the poles' shadows are long lines a few pixels wide.
+fn poles() -> scene::Scene {
+    let mut meshes = ground_and_tower();
     for k in 0..5 {
         let x = 2.0 + k as f32 * 0.8;
         meshes.push(
@@ -108,4 +113,106 @@ fn hybrid_misses_thin_shadows_at_low_map_resolution() {
     // A coarse map loses the poles' shadows; a fine one finds (nearly) all.
     assert!(missed[0].1 > 20, "{missed:?}");
     assert!(missed[3].0 < missed[0].0, "{missed:?}");
+}
+
+/// Ground, a tower and four blocks a metre or more across: no caster
+/// thinner than a light-view texel.
+fn blocks() -> scene::Scene {
+    let mut meshes = ground_and_tower();
+    for (k, (x, z)) in [(3.0, 1.0), (-4.0, 2.0), (1.5, -4.0), (-3.0, -3.5)]
+        .into_iter()
+        .enumerate()
+    {
+        meshes.push(
+            analytic::box_mesh(
+                format!("block{k}"),
+                Vec3::new(x, 0.0, z),
+                Vec3::new(x + 1.2, 1.0 + k as f32 * 0.5, z + 1.0),
+            )
+            .unwrap(),
+        );
+    }
+    scene_of(meshes, Transform::default())
+}
+
+/// In a culled pipeline the hybrid's shadow maps are the light pass's own
+/// light views (their depth after the traversal), not maps of its own: with
+/// a 16² `map_size` its own maps would leave most of the image to the
+/// volumes, the light views (point-sampled or conservative, 256² or 1024²)
+/// leave a thin band along the shadow boundaries, narrower in the finer
+/// views. Off the reference's shadow boundaries the masks agree but for a
+/// small fraction, in the first frame and in a steady one (where each view
+/// keeps its target from frame to frame).
+#[test]
+fn hybrid_reads_the_light_views_of_the_light_pass() {
+    use shadowcull::pipeline::{CoverageSpec, CullingSpec, Pipeline, PipelineOptions};
+    use shadowcull::pipeline::{FrameInput, StencilBackend};
+    let scene = std::sync::Arc::new(blocks());
+    let cam = overview_camera();
+    let lights = [
+        Light::Point {
+            position: DVec3::new(1.0, 7.0, 2.0),
+            range: None,
+        },
+        // Inside the scene's bounds: cube faces.
+        Light::Point {
+            position: DVec3::new(0.5, 2.5, 2.5),
+            range: None,
+        },
+        Light::Directional {
+            direction: DVec3::new(-0.5, -0.7, -0.3),
+        },
+    ];
+    for light in lights {
+        // (silhouette pixels, mask) of one configuration, per frame.
+        let run = |culling, coverage, light_resolution| {
+            let options = PipelineOptions {
+                stencil: StencilBackend::Hybrid,
+                culling,
+                coverage,
+                light_resolution,
+                map_size: 16,
+                ..Default::default()
+            };
+            let mut p = Pipeline::new(scene.clone(), options).unwrap();
+            let id = p.add_light(light).unwrap();
+            let mut out = Vec::new();
+            let mut views = 0;
+            for _ in 0..2 {
+                let f = p.frame(&FrameInput::new(W, H, cam)).unwrap();
+                let l = f.light(id).unwrap();
+                let shadow = l.shadow().unwrap();
+                views = l.views().len();
+                out.push((shadow.silhouette_pixels, shadow.mask.clone()));
+            }
+            let r = p.reference_mask(id).unwrap();
+            let off: Vec<u64> = out
+                .iter()
+                .map(|(_, m)| {
+                    let c = compare(&r.mask, &r.ambiguous, m);
+                    assert!(c.compared > 30_000, "{c:?}");
+                    c.mismatches - c.mismatches_on_boundary
+                })
+                .collect();
+            (out[1].0, off, out[0].0, views)
+        };
+        let (own, ..) = run(CullingSpec::None, CoverageSpec::Conservative, 1024);
+        for coverage in [CoverageSpec::Point, CoverageSpec::Conservative] {
+            let coarse = run(CullingSpec::Chcpp, coverage, 256);
+            let fine = run(CullingSpec::Chcpp, coverage, 1024);
+            println!(
+                "{light:?} {coverage:?}: silhouette own 16² maps {own}, {} views 256² {} \
+                 (off-boundary mismatches {:?}), 1024² {} ({:?})",
+                coarse.3, coarse.0, coarse.1, fine.0, fine.1
+            );
+            for (sil, off, first, _) in [coarse.clone(), fine.clone()] {
+                assert!(sil > 0 && sil == first, "{sil} {first}");
+                assert!(sil * 4 < own, "{sil} vs own maps {own}");
+                for o in off {
+                    assert!(o < 40, "{o} off-boundary mismatches");
+                }
+            }
+            assert!(fine.0 < coarse.0, "{} {}", fine.0, coarse.0);
+        }
+    }
 }

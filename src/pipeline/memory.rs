@@ -39,6 +39,11 @@ const PER_LIGHT_TEXEL: u64 = 32;
 const PER_PIXEL_LIGHT_FILL: u64 = 2;
 /// Per hybrid shadow-map texel and light.
 const PER_MAP_TEXEL: u64 = 8;
+/// Per light-view texel, view and light the hybrid keeps (each view's depth
+/// after the light pass: 4 bytes and its tiles' bounds).
+const PER_KEPT_VIEW_TEXEL: u64 = 5;
+/// Most light views a light has (the six cube faces).
+const MAX_VIEWS: u64 = 6;
 
 /// What a run holds, for [`estimate`].
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -78,7 +83,8 @@ pub fn estimate(options: &PipelineOptions, w: &Workload) -> MemoryEstimate {
     } else {
         0
     };
-    let map = if options.stencil == StencilBackend::Hybrid {
+    let hybrid = options.stencil == StencilBackend::Hybrid;
+    let map = if hybrid {
         m(m(lights, u64::from(options.map_size).pow(2)), PER_MAP_TEXEL)
     } else {
         0
@@ -100,7 +106,13 @@ pub fn estimate(options: &PipelineOptions, w: &Workload) -> MemoryEstimate {
             BASE.saturating_add(m(w.triangles, PER_TRIANGLE))
                 .saturating_add(m(w.objects, PER_OBJECT)),
         ),
-        ("light_resolution", m(m(lights, texels), PER_LIGHT_TEXEL)),
+        (
+            "light_resolution",
+            m(
+                m(lights, texels),
+                PER_LIGHT_TEXEL + u64::from(hybrid) * MAX_VIEWS * PER_KEPT_VIEW_TEXEL,
+            ),
+        ),
         (
             "frames",
             m(w.rows, std::mem::size_of::<crate::stats::FrameRow>() as u64),

@@ -687,6 +687,16 @@ impl Pipeline {
             }
             // The lights take turns on one set of stencil targets.
             std::mem::swap(&mut s.scratch.targets, &mut self.stencil_targets);
+            // The hybrid's shadow maps: this frame's light views, unless no
+            // light pass ran or a host's backends drew them (then it
+            // renders its own).
+            let hybrid = o.stencil == StencilBackend::Hybrid && s.culled && self.backends.is_none();
+            let light_views: Vec<_> = match hybrid {
+                true => (s.culling.pass.view_depths())
+                    .filter_map(|(v, t)| Some((v, t?)))
+                    .collect(),
+                false => Vec::new(),
+            };
             let shadow = match o.stencil {
                 StencilBackend::None => None,
                 _ => Some(stencil::stencil_volumes(
@@ -696,8 +706,10 @@ impl Pipeline {
                     &mut s.scratch,
                     volumes,
                     s.shadow.take(),
+                    hybrid.then_some(&light_views[..]),
                 )),
             };
+            drop(light_views);
             std::mem::swap(&mut s.scratch.targets, &mut self.stencil_targets);
             s.shadow = shadow.transpose()?;
             let (light, light_ms) = if s.culled {

@@ -21,7 +21,8 @@ pub enum StencilBackend {
     Db,
     /// Hierarchical shadow volumes \[Aila04\] (`tile`, `full_shadow`).
     H,
-    /// Shadow map plus volumes at its silhouette pixels \[ChanDurand04\] (`map_size`).
+    /// Shadow map plus volumes at its silhouette pixels \[ChanDurand04\]: the
+    /// light pass's light views as maps, or its own (`map_size`).
     Hybrid,
     /// No CPU stencil and no mask: PSR, PSC and the volumes only, for a host
     /// that draws the volumes on its GPU.
@@ -308,7 +309,10 @@ pub struct PipelineOptions {
     pub tile: u32,
     /// The hierarchical stencil's full-shadow bit [Aila04 §4.3.2].
     pub full_shadow: bool,
-    /// Shadow-map size of the hybrid (texels per side).
+    /// Shadow-map size of the hybrid (texels per side) when it renders its
+    /// own maps: for a light without a light pass this frame (no culling,
+    /// or a host's occlusion backends). A light pass's light views are the
+    /// maps otherwise, at `light_resolution`.
     pub map_size: u32,
     /// Occlusion culling of the eye pass (the objects it draws are the
     /// potentially shadowed receivers, PSR) and of the light pass (shadow
@@ -621,6 +625,8 @@ impl PipelineOptions {
             threshold: self.query_threshold,
             two_sided: self.two_sided,
             instruction_set: self.instruction_set.unwrap_or_default(),
+            // The hybrid's shadow maps are the light views' depth.
+            keep_depth: self.stencil == StencilBackend::Hybrid,
         }
     }
 }

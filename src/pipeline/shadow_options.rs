@@ -21,9 +21,10 @@ pub enum Backend {
     },
     /// A shadow map decides every pixel whose four nearest map comparisons
     /// agree; the volumes (hierarchical stencil, 8×8 tiles, FS on) run only at
-    /// the others \[ChanDurand04\]. Not exact.
+    /// the others \[ChanDurand04\]. Not exact. The maps are the light pass's
+    /// light views when the pipeline gives them, else its own.
     Hybrid {
-        /// Shadow-map texels per side (per cube face for point lights).
+        /// Its own maps' texels per side (per cube face for point lights).
         map_size: u32,
     },
 }

@@ -70,7 +70,8 @@ pub struct ShadowFrame {
     pub tiles: Option<TileImage>,
     /// Hybrid: pixels left to the volumes (the shadow map's silhouette pixels).
     pub silhouette_pixels: u64,
-    /// Hybrid: shadow-map rendering and classification (ms), inside `stencil_ms`.
+    /// Hybrid: shadow-map rendering (its own maps only) and classification
+    /// (ms), inside `stencil_ms`.
     pub map_ms: f64,
 }
 
@@ -153,13 +154,16 @@ pub fn shadow_mask_for(
         None,
         &mut scratch.volume,
     )?;
-    stencil_volumes(input, eye, options, scratch, volumes, None)
+    stencil_volumes(input, eye, options, scratch, volumes, None, None)
 }
 
 /// The stencil stage alone: draws the volumes already in `scratch` (built by
 /// [`super::volume::build_for`], whose counters `volumes` are) with
 /// `options.backend` and assembles the mask; `previous` (the last frame's
-/// output) lends its buffers.
+/// output) lends its buffers. The hybrid reads its shadow maps from
+/// `light_views` (this frame's light views with their kept depth,
+/// [`crate::hybrid::classify_with_views`]) when given, else renders its own
+/// ([`crate::hybrid::classify`]).
 ///
 /// # Errors
 /// Rasterizer errors; for the hybrid, an invalid light.
@@ -170,6 +174,7 @@ pub(crate) fn stencil_volumes(
     scratch: &mut ShadowScratch,
     volumes: VolumeStats,
     previous: Option<ShadowFrame>,
+    light_views: Option<&[(&visibility::LightView, &raster::DepthTarget)]>,
 ) -> Result<ShadowFrame> {
     let ShadowInput {
         scene,
@@ -264,15 +269,26 @@ pub(crate) fn stencil_volumes(
         }
         Backend::Hybrid { map_size } => {
             tiles = None;
-            let class = crate::hybrid::classify(
-                scene,
-                camera,
-                light,
-                eye.surface(),
-                (w, h),
-                map_size,
-                options.two_sided,
-            )?;
+            let class = match light_views {
+                Some(views) => crate::hybrid::classify_with_views(
+                    scene,
+                    camera,
+                    light,
+                    eye.surface(),
+                    (w, h),
+                    views,
+                    options.two_sided,
+                )?,
+                None => crate::hybrid::classify(
+                    scene,
+                    camera,
+                    light,
+                    eye.surface(),
+                    (w, h),
+                    map_size,
+                    options.two_sided,
+                )?,
+            };
             // The computation mask: volumes see only the silhouette pixels' depth.
             // The hierarchical stencil then skips every tile without one, as a
             // GPU's hierarchical z rejects them [ChanDurand04].
@@ -292,12 +308,12 @@ pub(crate) fn stencil_volumes(
             };
             stencil.draw_volumes(&masked, &ranges, &scratch.volume.buffer, tests, &mut stats)?;
             stencil.resolve(&masked, &mut raw_nonzero, &mut stats)?;
+            scratch.targets.hierarchical = Some(stencil);
             for (i, r) in raw_nonzero.iter_mut().enumerate() {
                 if !class.silhouette[i] {
                     *r = class.shadowed[i];
                 }
             }
-            scratch.targets.hierarchical = Some(stencil);
             silhouette_pixels = class.silhouette_pixels;
             map_ms = class.map_ms;
         }

@@ -101,6 +101,11 @@ pub struct LightPassOptions {
     pub sampling: Sampling,
     /// The light views' rasterizer level ([`DepthTarget::set_instruction_set`]).
     pub instruction_set: raster::InstructionSet,
+    /// Keep every view's depth target after the pass ([`LightPass::view_depths`]):
+    /// the casters the traversal drew, at the light's depth, as shadow maps
+    /// (the hybrid stencil's \[ChanDurand04\]). Costs one target per view
+    /// instead of one per thread.
+    pub keep_depth: bool,
 }
 
 /// What every light's pass of one frame reads: the objects, the eye and the
@@ -163,6 +168,10 @@ struct ViewSlot {
     fragments: ViewIntervals,
     ranges: Vec<[f64; 2]>,
     fragment_ms: f64,
+    /// With [`LightPassOptions::keep_depth`], the last traversal's depth
+    /// target (`depth_valid`: drawn by the bundled rasterizer this run).
+    depth: Option<DepthTarget>,
+    depth_valid: bool,
 }
 
 /// A depth target and a receiver target (one light view's worth, 8 bytes
@@ -395,6 +404,21 @@ impl LightPass {
     /// matrix, kind and resolution.
     pub fn views(&self) -> &[LightView] {
         &self.views
+    }
+
+    /// Per view of the last run, its depth target when the run kept it
+    /// ([`LightPassOptions::keep_depth`]) and the bundled rasterizer drew it:
+    /// the casting triangles of the objects the traversal found visible (with
+    /// conservative sampling inner-conservative at the farthest depth over
+    /// each pixel, else sampled at pixel centres), in the rows that hold
+    /// receivers; elsewhere the background. `None` for a view a host backend
+    /// ran, a view without receivers (nothing drawn), or when not kept.
+    pub fn view_depths(&mut self) -> impl Iterator<Item = (&LightView, Option<&DepthTarget>)> {
+        let n = self.views.len();
+        self.views.iter().zip(self.slots[..n].iter_mut().map(|s| {
+            let s = slot_mut(s);
+            s.depth.as_ref().filter(|_| s.depth_valid)
+        }))
     }
 
     /// Makes the next run job frame `frame`; later runs count on from it.
@@ -660,6 +684,7 @@ impl ViewSlot {
             spare,
         } = *input;
         let m = view.clip_from_world;
+        self.depth_valid = false;
         self.fragments.clear();
         self.fragment_ms = 0.0;
         let clip_from_origin = (m * DMat4::from_translation(origin)).as_mat4();
@@ -753,7 +778,14 @@ impl ViewSlot {
                 let (mut t, queries) = b.into_parts();
                 self.queries = queries;
                 self.raster = t.take_stats();
-                Some(t)
+                if options.keep_depth && r.is_ok() {
+                    // The set takes the target this view kept last time
+                    // (same size after the first frame: no allocation).
+                    self.depth_valid = true;
+                    self.depth.replace(t)
+                } else {
+                    Some(t)
+                }
             }
             (None, t) => {
                 self.raster = raster::RasterStats::default();

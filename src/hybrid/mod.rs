@@ -8,7 +8,14 @@
 //! other pixel and every tile without one.
 //!
 //! # Maps
-//! The maps are drawn with the project's own rasterizer ([`DepthTarget`],
+//! In a pipeline that runs a light pass, the maps are the light pass's own
+//! light views ([`classify_with_views`], `view_maps.rs`): fitted to the
+//! intersection body, and holding after the traversal the casting
+//! triangles of every caster that can shadow a visible receiver. Nothing is
+//! drawn for the hybrid then. Without a light pass ([`classify`]) it draws
+//! its own maps, as follows.
+//!
+//! Its own maps are drawn with the project's own rasterizer ([`DepthTarget`],
 //! reversed Z, nearer = greater, [`raster::BACKGROUND`] where nothing was
 //! drawn), `map_size × map_size` texels each:
 //! - **directional** light: one orthographic map over the scene bounds
@@ -83,6 +90,12 @@
 //! Points outside every map (nearer to the light than the near plane) or at
 //! infinite depth are silhouette pixels.
 
+mod bias;
+mod view_maps;
+
+use bias::GRAZING_TEXELS;
+pub use bias::{DEPTH_BIAS_REL, SLOPE_BIAS_TEXELS};
+
 use crate::mask::is_unlit;
 use crate::reference::EyeSurface;
 use crate::surface::RayPlane;
@@ -91,20 +104,6 @@ use glam::{DMat3, DMat4, DVec3, DVec4, Vec4};
 use raster::{Coverage, DepthTarget, DrawItem, RasterStats, TileSize};
 use rayon::prelude::*;
 use scene::{faces_light, Camera, Light, ObjectId, Scene};
-
-/// Footprint reach, in texels: a texel ray meeting the receiver plane farther
-/// than this from the surface point marks a grazing receiver, left to the
-/// volumes (see [`classify_point`]). A receiver facing the light meets its
-/// four rays within √2 texels; 4 admits planes up to about 70° from the
-/// light. Measured on city_16384 `street` at 1280×1024 with a 1024² cube: a
-/// wall lit at 85° was classified shadowed on 4,374 pixels without this rule.
-const GRAZING_TEXELS: f64 = 4.0;
-
-/// Depth-relative part of the comparison bias (see the module docs).
-pub const DEPTH_BIAS_REL: f64 = 1.0 / 65536.0;
-
-/// Slope part of the comparison bias, in texels of receiver-plane slope.
-pub const SLOPE_BIAS_TEXELS: f64 = 1.0 / 64.0;
 
 /// Texels added on each side of every map, so the 2×2 footprint of every point
 /// a map is meant to cover (the cone, the cube face, the scene bounds) lies
@@ -412,18 +411,9 @@ pub fn classify(
     map_size: u32,
     two_sided: bool,
 ) -> Result<ShadowMapClass> {
-    light.validate()?;
     let start = std::time::Instant::now();
+    check_input(light, &eye, (w, h))?;
     let n = w as usize * h as usize;
-    if !eye.has_depth() || !eye.fits(w, h) {
-        return Err(raster::Error::MaskLength {
-            expected: n,
-            got: if eye.has_depth() { eye.len() } else { 0 },
-            width: w,
-            height: h,
-        }
-        .into());
-    }
     // Tiny maps cannot hold the margin; 0 stays 0 for the rasterizer to reject.
     let map_size = if map_size == 0 {
         0
@@ -505,6 +495,92 @@ pub fn classify(
         map_stats.add(s);
     }
 
+    let (shadowed, silhouette, silhouette_pixels) =
+        classify_pixels(scene, camera, light, eye, (w, h), two_sided, |p, a, nrm| {
+            classify_point(&views, light, p, a, nrm)
+        });
+    Ok(ShadowMapClass {
+        shadowed,
+        silhouette,
+        silhouette_pixels,
+        map_texels: views.len() as u64 * u64::from(map_size) * u64::from(map_size),
+        maps: views.len() as u32,
+        map_stats,
+        map_ms: start.elapsed().as_secs_f64() * 1e3,
+    })
+}
+
+/// Refuses an invalid light, and an eye pass without depth or of another size.
+fn check_input(light: &Light, eye: &EyeSurface<'_>, (w, h): (u32, u32)) -> Result<()> {
+    light.validate()?;
+    if !eye.has_depth() || !eye.fits(w, h) {
+        return Err(raster::Error::MaskLength {
+            expected: w as usize * h as usize,
+            got: if eye.has_depth() { eye.len() } else { 0 },
+            width: w,
+            height: h,
+        }
+        .into());
+    }
+    Ok(())
+}
+
+/// [`classify`] with the light pass's own light views as the maps
+/// (`view_maps.rs`): `views` are the views of this frame's light pass with
+/// their kept depth ([`visibility::LightPass::view_depths`]), already
+/// fitted to the intersection body and holding the casting triangles the
+/// traversal drew, so no map is rendered here. `map_ms` is the
+/// classification alone; `map_stats` stay zero (the light pass counts the
+/// draws).
+///
+/// # Errors
+/// As [`classify`]; also [`crate::Error::Raster`] for a view whose target
+/// is not `resolution²`.
+pub fn classify_with_views(
+    scene: &Scene,
+    camera: &Camera,
+    light: &Light,
+    eye: EyeSurface<'_>,
+    (w, h): (u32, u32),
+    views: &[(&visibility::LightView, &DepthTarget)],
+    two_sided: bool,
+) -> Result<ShadowMapClass> {
+    let start = std::time::Instant::now();
+    check_input(light, &eye, (w, h))?;
+    let maps = view_maps::ViewMaps::new(views, light)?;
+    let (shadowed, silhouette, silhouette_pixels) =
+        classify_pixels(scene, camera, light, eye, (w, h), two_sided, |p, a, nrm| {
+            maps.classify(p, a, nrm)
+        });
+    Ok(ShadowMapClass {
+        shadowed,
+        silhouette,
+        silhouette_pixels,
+        map_texels: views
+            .iter()
+            .map(|(v, _)| u64::from(v.resolution).pow(2))
+            .sum(),
+        maps: views.len() as u32,
+        map_stats: RasterStats::default(),
+        map_ms: start.elapsed().as_secs_f64() * 1e3,
+    })
+}
+
+/// Per eye pixel of `eye`: `(shadowed, silhouette)` from `point(p, a, nrm)`
+/// (the map's answer for surface point `p` on the plane through `a` with
+/// normal `nrm`, `None` for silhouette), and the number of silhouette
+/// pixels. Background and unlit pixels are neither; a pixel at infinite
+/// depth is silhouette.
+fn classify_pixels(
+    scene: &Scene,
+    camera: &Camera,
+    light: &Light,
+    eye: EyeSurface<'_>,
+    (w, h): (u32, u32),
+    two_sided: bool,
+    point: impl Fn(DVec3, DVec3, DVec3) -> Option<bool> + Sync,
+) -> (Vec<bool>, Vec<bool>, u64) {
+    let n = w as usize * h as usize;
     let rays = camera.rays(w, h);
     let forward = camera.forward();
     let e = camera.position;
@@ -515,40 +591,35 @@ pub fn classify(
         .zip(silhouette.par_chunks_mut(w as usize))
         .enumerate()
         .for_each(|(y, (sh_row, si_row))| {
-            for x in 0..w as usize {
-                let Some((obj, t)) = eye.primitive(x as u32, y as u32) else {
-                    continue;
+            // The triangle and its plane once per run of one primitive.
+            eye.for_each_run_in_row(y as u32, |x0, x1, id| {
+                let Some((obj, t)) = id else {
+                    return;
                 };
                 let tri = scene.world_triangle(obj, t as usize);
-                let dir = rays.direction(x as f64 + 0.5, y as f64 + 0.5);
                 let plane = RayPlane::new(&tri, e);
                 let nrm = plane.normal;
-                // The unlit decision exactly as the mask assembly makes it.
-                if is_unlit(&tri, e, light, plane.point_or_origin(e, dir), two_sided) {
-                    continue;
+                for x in x0 as usize..x1 as usize {
+                    let dir = rays.direction(x as f64 + 0.5, y as f64 + 0.5);
+                    // The unlit decision exactly as the mask assembly makes it.
+                    if is_unlit(&tri, e, light, plane.point_or_origin(e, dir), two_sided) {
+                        continue;
+                    }
+                    let z = f64::from(eye.depth(x as u32, y as u32).unwrap_or(raster::BACKGROUND));
+                    if z.is_nan() || z <= 0.0 {
+                        si_row[x] = true;
+                        continue;
+                    }
+                    let p = e + dir * ((camera.near / z) / dir.dot(forward));
+                    match point(p, tri[0], nrm) {
+                        Some(s) => sh_row[x] = s,
+                        None => si_row[x] = true,
+                    }
                 }
-                let z = f64::from(eye.depth(x as u32, y as u32).unwrap_or(raster::BACKGROUND));
-                if z.is_nan() || z <= 0.0 {
-                    si_row[x] = true;
-                    continue;
-                }
-                let p = e + dir * ((camera.near / z) / dir.dot(forward));
-                match classify_point(&views, light, p, tri[0], nrm) {
-                    Some(s) => sh_row[x] = s,
-                    None => si_row[x] = true,
-                }
-            }
+            });
         });
     let silhouette_pixels = silhouette.iter().filter(|&&s| s).count() as u64;
-    Ok(ShadowMapClass {
-        shadowed,
-        silhouette,
-        silhouette_pixels,
-        map_texels: views.len() as u64 * u64::from(map_size) * u64::from(map_size),
-        maps: views.len() as u32,
-        map_stats,
-        map_ms: start.elapsed().as_secs_f64() * 1e3,
-    })
+    (shadowed, silhouette, silhouette_pixels)
 }
 
 /// The map's answer for surface point `p` on the plane through `a` with normal
