@@ -20,7 +20,7 @@ pub enum Backend {
         full_shadow: bool,
     },
     /// A shadow map decides every pixel whose four nearest map comparisons
-    /// agree; the volumes (hierarchical stencil, 8×8 tiles, FS on) run only at
+    /// agree; the volumes (brute force with scissor rectangles and depth bounds) run only at
     /// the others \[ChanDurand04\]. Not exact. The maps are the light pass's
     /// light views when the pipeline gives them, else its own.
     Hybrid {

@@ -55,7 +55,7 @@ impl<'a> Readings<'a> {
 /// Builds the volumes of `casters` for `light` into `scratch.buffer`
 /// (cleared first) with the shadow stage's method, extrusion and clamping
 /// options; scissor rectangles and depth bounds are computed only when a
-/// stencil test uses them (they cost time), for a `viewport` of `(width,
+/// stencil test or the hybrid uses them (they cost time), for a `viewport` of `(width,
 /// height)` pixels. Clamping's receivers are `fragments` (the light pass's
 /// fragment intervals) when given, else the objects `receives[id]`
 /// (internal ids), `None`: every receiving object. With `fragments`, the
@@ -82,7 +82,11 @@ pub(crate) fn build_for(
     let build = BuildOptions {
         method: options.method,
         two_sided: options.two_sided,
-        viewport: (options.scissor || options.depth_bounds).then_some(viewport),
+        // The hybrid's volumes always run both tests.
+        viewport: (options.scissor
+            || options.depth_bounds
+            || matches!(options.backend, super::Backend::Hybrid { .. }))
+        .then_some(viewport),
         finite_extrusion: options.finite_extrusion,
     };
     let out = &mut scratch.buffer;
