@@ -8,8 +8,9 @@
 //! other pixel and every tile without one.
 //!
 //! # Maps
-//! In a pipeline that runs a light pass, the maps are the light pass's own
-//! light views ([`classify_with_views`], `view_maps.rs`): fitted to the
+//! In a pipeline that runs a light pass with point-sampled light views, the
+//! maps are the light pass's own light views ([`classify_with_views`],
+//! `view_maps.rs`): fitted to the
 //! intersection body, and holding after the traversal the casting
 //! triangles of every caster that can shadow a visible receiver. Nothing is
 //! drawn for the hybrid then. Without a light pass ([`classify`]) it draws

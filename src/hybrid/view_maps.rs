@@ -32,16 +32,15 @@
 //!   perspective views, whose depth steps scale with it) the light grazes
 //!   the receiver: silhouette.
 //!
-//! With conservative light views the casters were drawn inner-conservative
-//! at their farthest depth over each texel: a stored texel is covered by
-//! its caster everywhere and lies no farther than the stored depth, so a
-//! "shadowed" texel is shadowed along every ray through it. A receiver
-//! facing the light that casts itself stores its own farthest depth, never
-//! nearer than its plane at the texel centre: no self-shadowing. Casters
-//! thinner than a texel cover no texel wholly and are missed (as a
-//! centre-sampled map misses them between centres): that is the hybrid's
-//! approximation, measured against the reference. With point-sampled light
-//! views the map is an ordinary centre-sampled shadow map.
+//! The pipeline reads point-sampled light views only (`coverage: point`):
+//! their casters are sampled at texel centres, an ordinary shadow map.
+//! Conservative views draw each triangle inner-conservative, so a texel
+//! holds a caster only where one triangle covers all of it: the texels
+//! along a box's roof diagonal, along the fold between roof and wall, and
+//! most of the thin strip a wall seen steeply from the light projects to
+//! stay empty, holes inside its shadow that a 2×2 footprint (or a 4×4 one)
+//! reads as lit. On city street with the point light that gave 6,475
+//! pixels off the shadow boundaries, against 158 with point-sampled views.
 
 use super::bias::{DEPTH_BIAS_REL, GRAZING_TEXELS, SLOPE_BIAS_TEXELS};
 use crate::Result;

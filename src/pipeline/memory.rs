@@ -39,8 +39,9 @@ const PER_LIGHT_TEXEL: u64 = 32;
 const PER_PIXEL_LIGHT_FILL: u64 = 2;
 /// Per hybrid shadow-map texel and light.
 const PER_MAP_TEXEL: u64 = 8;
-/// Per light-view texel, view and light the hybrid keeps (each view's depth
-/// after the light pass: 4 bytes and its tiles' bounds).
+/// Per light-view texel, view and light the hybrid keeps with point-sampled
+/// light views (each view's depth after the light pass: 4 bytes and its
+/// tiles' bounds).
 const PER_KEPT_VIEW_TEXEL: u64 = 5;
 /// Most light views a light has (the six cube faces).
 const MAX_VIEWS: u64 = 6;
@@ -83,8 +84,7 @@ pub fn estimate(options: &PipelineOptions, w: &Workload) -> MemoryEstimate {
     } else {
         0
     };
-    let hybrid = options.stencil == StencilBackend::Hybrid;
-    let map = if hybrid {
+    let map = if options.stencil == StencilBackend::Hybrid {
         m(m(lights, u64::from(options.map_size).pow(2)), PER_MAP_TEXEL)
     } else {
         0
@@ -110,7 +110,10 @@ pub fn estimate(options: &PipelineOptions, w: &Workload) -> MemoryEstimate {
             "light_resolution",
             m(
                 m(lights, texels),
-                PER_LIGHT_TEXEL + u64::from(hybrid) * MAX_VIEWS * PER_KEPT_VIEW_TEXEL,
+                PER_LIGHT_TEXEL
+                    + u64::from(options.light_pass_options().keep_depth)
+                        * MAX_VIEWS
+                        * PER_KEPT_VIEW_TEXEL,
             ),
         ),
         (

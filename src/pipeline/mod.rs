@@ -687,10 +687,14 @@ impl Pipeline {
             }
             // The lights take turns on one set of stencil targets.
             std::mem::swap(&mut s.scratch.targets, &mut self.stencil_targets);
-            // The hybrid's shadow maps: this frame's light views, unless no
-            // light pass ran or a host's backends drew them (then it
-            // renders its own).
-            let hybrid = o.stencil == StencilBackend::Hybrid && s.culled && self.backends.is_none();
+            // The hybrid's shadow maps: this frame's point-sampled light
+            // views, unless no light pass ran or a host's backends drew them
+            // (then it renders its own, as for conservative light views,
+            // whose depth is no shadow map: see `keep_depth`).
+            let hybrid = o.stencil == StencilBackend::Hybrid
+                && o.light_pass_options().keep_depth
+                && s.culled
+                && self.backends.is_none();
             let light_views: Vec<_> = match hybrid {
                 true => (s.culling.pass.view_depths())
                     .filter_map(|(v, t)| Some((v, t?)))

@@ -311,7 +311,8 @@ pub struct PipelineOptions {
     pub full_shadow: bool,
     /// Shadow-map size of the hybrid (texels per side) when it renders its
     /// own maps: for a light without a light pass this frame (no culling,
-    /// or a host's occlusion backends). A light pass's light views are the
+    /// or a host's occlusion backends) or with conservative light views. A
+    /// light pass's point-sampled light views (`coverage: point`) are the
     /// maps otherwise, at `light_resolution`.
     pub map_size: u32,
     /// Occlusion culling of the eye pass (the objects it draws are the
@@ -625,8 +626,15 @@ impl PipelineOptions {
             threshold: self.query_threshold,
             two_sided: self.two_sided,
             instruction_set: self.instruction_set.unwrap_or_default(),
-            // The hybrid's shadow maps are the light views' depth.
-            keep_depth: self.stencil == StencilBackend::Hybrid,
+            // The hybrid's shadow maps are the light views' depth when they
+            // sample pixel centres. Conservative views draw each triangle
+            // inner-conservative: texels along a caster's inner edges and
+            // the thin strips of walls seen steeply lie wholly in no one
+            // triangle and stay empty, holes in its shadow (city street,
+            // point light: 6,475 pixels off the shadow boundaries against
+            // 158 with point-sampled views).
+            keep_depth: self.stencil == StencilBackend::Hybrid
+                && self.coverage.sampling() == visibility::Sampling::Point,
         }
     }
 }
