@@ -281,6 +281,12 @@ impl Prepared {
         } else {
             for q in &self.local {
                 let d = q.truncate().as_dvec3();
+                // A point clear of one face meets no other (as a piece
+                // with both ends clear of it): one test, not six.
+                if let Some(k) = clear_face(d, slack) {
+                    self.face_points[k].push(*q);
+                    continue;
+                }
                 for (k, f) in self.face_points.iter_mut().enumerate() {
                     if segment_meets_face(d, d, k, slack) {
                         f.push(*q);
@@ -388,6 +394,12 @@ mod tests {
         for _ in 0..5000 {
             let a = DVec3::new(rnd(), rnd(), rnd());
             let b = a + DVec3::new(rnd(), rnd(), rnd()) * 0.3;
+            // A point clear of a face meets only that face (the point path).
+            if let Some(ka) = clear_face(a, slack) {
+                for k in 0..6 {
+                    assert_eq!(segment_meets_face(a, a, k, slack), k == ka, "{a} {k}");
+                }
+            }
             if let (Some(ka), Some(kb)) = (clear_face(a, slack), clear_face(b, slack)) {
                 if ka == kb {
                     cleared += 1;
