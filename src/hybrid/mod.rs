@@ -92,6 +92,7 @@
 //! infinite depth are silhouette pixels.
 
 mod bias;
+mod cube_face;
 mod view_maps;
 
 use bias::GRAZING_TEXELS;
@@ -635,16 +636,7 @@ fn classify_point(
 ) -> Option<bool> {
     let view = if views.len() == 6 {
         let l = light.position().unwrap_or(DVec3::ZERO);
-        let r = p - l;
-        let ar = r.abs();
-        let k = if ar.x >= ar.y && ar.x >= ar.z {
-            usize::from(r.x < 0.0)
-        } else if ar.y >= ar.z {
-            2 + usize::from(r.y < 0.0)
-        } else {
-            4 + usize::from(r.z < 0.0)
-        };
-        &views[k]
+        &views[cube_face::dominant_face(p - l)]
     } else {
         &views[0]
     };

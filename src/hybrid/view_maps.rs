@@ -43,6 +43,7 @@
 //! pixels off the shadow boundaries, against 158 with point-sampled views.
 
 use super::bias::{DEPTH_BIAS_REL, GRAZING_TEXELS, SLOPE_BIAS_TEXELS};
+use super::cube_face::dominant_face;
 use crate::Result;
 use glam::{DMat4, DVec3, DVec4};
 use raster::DepthTarget;
@@ -176,8 +177,6 @@ pub(super) struct ViewMaps<'a> {
     maps: Vec<ViewMap<'a>>,
     /// Per cube face (+X, −X, +Y, −Y, +Z, −Z), its index in `maps`.
     faces: [Option<usize>; 6],
-    /// The views are cube faces.
-    cube: bool,
     /// The light's position (cube faces).
     light: DVec3,
 }
@@ -189,11 +188,9 @@ impl<'a> ViewMaps<'a> {
     /// [`crate::Error::Raster`] for a target that is not its view's size.
     pub(super) fn new(views: &[(&LightView, &'a DepthTarget)], light: &Light) -> Result<Self> {
         let mut faces = [None; 6];
-        let mut cube = false;
         for (k, (v, _)) in views.iter().enumerate() {
             if let LightViewKind::CubeFace(f) = v.kind {
                 faces[usize::from(f).min(5)] = Some(k);
-                cube = true;
             }
         }
         Ok(ViewMaps {
@@ -202,7 +199,6 @@ impl<'a> ViewMaps<'a> {
                 .map(|&(v, t)| ViewMap::new(v, t))
                 .collect::<Result<_>>()?,
             faces,
-            cube,
             light: light.position().unwrap_or(DVec3::ZERO),
         })
     }
@@ -212,20 +208,11 @@ impl<'a> ViewMaps<'a> {
     /// `None` for a silhouette point (disagreement, grazing, or in no view).
     pub(super) fn classify(&self, p: DVec3, a: DVec3, nrm: DVec3) -> Option<bool> {
         let plane = nrm.extend(-nrm.dot(a));
-        let map = if self.cube {
+        let map = if self.faces.iter().any(Option::is_some) {
             // Only the dominant axis's face: its receivers were surely
             // marked, so its rows around the point were drawn (a neighbour
             // face's need not be).
-            let r = p - self.light;
-            let ar = r.abs();
-            let face = if ar.x >= ar.y && ar.x >= ar.z {
-                usize::from(r.x < 0.0)
-            } else if ar.y >= ar.z {
-                2 + usize::from(r.y < 0.0)
-            } else {
-                4 + usize::from(r.z < 0.0)
-            };
-            self.faces[face]
+            self.faces[dominant_face(p - self.light)]
         } else {
             // One view (perspective or orthographic).
             (self.maps.len() == 1).then_some(0)
