@@ -292,9 +292,10 @@ impl EyeCulling {
 /// objects only. A run of pixels on one triangle's plane (whose rays meet
 /// it) lies on one line, in order; `sampling` decides how much of it is
 /// kept:
-/// - conservative: the run's first point, every [`visibility::PIECE_STEPS`]-th
-///   after it and its last, each joined to the one before — the ends of the
-///   pieces the light pass marks as segments, so no point per pixel is held;
+/// - conservative: the run's first and last points, the last joined to the
+///   first — the ends of the segment the light pass marks, which gives each
+///   light pixel the depths of the part of the run there, so no point per
+///   pixel is held;
 /// - point-sampled (aggressive): every point, each its own mark.
 ///
 /// A ray parallel to its plane gives the eye position, alone.
@@ -346,8 +347,11 @@ pub(crate) fn visible_points_into(
     runs: &mut Vec<RunRows<Option<RayPlane>>>,
 ) {
     use rayon::prelude::*;
+    // Conservative: one piece per run (a stride no run reaches). Pieces of
+    // 8 steps mark the same pixels at depths no tighter, and on
+    // city_16384 street at 1280×1024 cost 176k segments against 27k.
     let stride = match sampling {
-        visibility::Sampling::Conservative => visibility::PIECE_STEPS,
+        visibility::Sampling::Conservative => usize::MAX,
         visibility::Sampling::Point => 1,
     };
     let (w, h) = (eye.target.width() as usize, eye.target.height() as usize);

@@ -395,19 +395,18 @@ impl ReceiverTarget {
     /// `clip_from_local · p`), every pixel whose closed square lies within
     /// `eps_px` of the projected segment — a superset: the square widened by
     /// `eps_px` (plus [`SEGMENT_SLACK_PX`]) on each side meets it — with the
-    /// segment's farthest depth. For receiver points lying on a segment (a
-    /// row of eye pixels on one plane), this marks every pixel
-    /// [`ReceiverTarget::mark_points_within`] would mark for them at a depth
-    /// no nearer, with two projections per segment instead of one per point:
-    /// the projective map keeps the points on the projected segment, and
-    /// depth z/w is monotone along it, so its farthest value is at an end.
-    /// The part of a segment behind the centre of projection (clip w ≤ 0)
-    /// or off the target is clipped away first, in homogeneous coordinates.
-    /// With [`ReceiverTarget::set_track_nearest`] on, each pixel takes the
-    /// farthest and nearest depth of the part of the segment within its
-    /// widened square instead (depth is affine along the projected
-    /// segment), which is tighter and still no nearer than any of its
-    /// points there. Returns the number of pixels marked (counting repeats).
+    /// farthest depth of the part of the segment within its widened square
+    /// (and, with [`ReceiverTarget::set_track_nearest`] on, its nearest):
+    /// depth z/w is affine along the projected segment. For receiver points
+    /// lying on a segment (a row of eye pixels on one plane), this marks
+    /// every pixel [`ReceiverTarget::mark_points_within`] would mark for
+    /// them at a depth no nearer, with two projections per segment instead
+    /// of one per point: the projective map keeps the points on the
+    /// projected segment. A segment of any length marks as tightly as its
+    /// pieces would, so a whole row of eye pixels on one plane is one
+    /// segment. The part of a segment behind the centre of projection (clip
+    /// w ≤ 0) or off the target is clipped away first, in homogeneous
+    /// coordinates. Returns the number of pixels marked (counting repeats).
     pub fn mark_segments_within(
         &mut self,
         clip_from_local: Mat4,
@@ -415,7 +414,6 @@ impl ReceiverTarget {
         eps_px: f64,
     ) -> u64 {
         let pr = Projector::new(self.layout, clip_from_local, eps_px);
-        let tracking = !self.near.is_empty();
         let mut n = 0;
         // The pieces of one run of eye pixels come in order, each starting
         // at the end of the one before: that end is projected once.
@@ -428,13 +426,13 @@ impl ReceiverTarget {
             };
             let eb = pr.clip_end(&b);
             last = Some((bits(b), eb));
-            n += self.mark_segment(&pr, tracking, pr.clip_ends(&ea, &eb));
+            n += self.mark_segment(&pr, pr.clip_ends(&ea, &eb));
         }
         n
     }
 
     /// Marks one clipped segment's pixels; returns how many.
-    fn mark_segment(&mut self, pr: &Projector, tracking: bool, segment: Option<Segment>) -> u64 {
+    fn mark_segment(&mut self, pr: &Projector, segment: Option<Segment>) -> u64 {
         match segment {
             None => 0,
             Some(Segment::Everywhere(z)) => {
@@ -447,7 +445,7 @@ impl ReceiverTarget {
             Some(Segment::Span(span)) => {
                 let l = self.layout;
                 let mut n = 0;
-                pr.for_each_span_pixel(&span, tracking, |x, y, far, near| {
+                pr.for_each_span_pixel(&span, |x, y, far, near| {
                     self.mark_pixel(l.pixel_index(x, y), far, near);
                     n += 1;
                 });
@@ -662,20 +660,14 @@ impl Projector {
     /// by the footprint and [`SEGMENT_SLACK_PX`], the projected segment
     /// meets ([`ReceiverTarget::mark_segments_within`]), row by row.
     #[inline(always)]
-    fn for_each_span_pixel(
-        &self,
-        span: &SpanEnds,
-        tracking: bool,
-        mut mark: impl FnMut(u32, u32, f32, f32),
-    ) {
+    fn for_each_span_pixel(&self, span: &SpanEnds, mut mark: impl FnMut(u32, u32, f32, f32)) {
         let SpanEnds { p, q, zp, zq } = *span;
         let e = self.eps + SEGMENT_SLACK_PX;
         // Depth along the projected segment is affine in its screen
-        // parameter (a line's image in normalized device coordinates
-        // is a line): a pixel's depths are those of the part of the
-        // segment within its widened square when the nearest depths
-        // are kept; else the segment's farthest.
-        let (z, near) = (zp.min(zq) as f32, zp.max(zq) as f32);
+        // parameter (a line's image in normalized device coordinates is a
+        // line): a pixel's depths are those of the part of the segment
+        // within its widened square: a long segment marks each pixel as
+        // tightly as its pieces would.
         let (dx, dz) = (q.0 - p.0, zq - zp);
         // Rows whose widened band [y − e, y + 1 + e] the segment meets.
         let (ylo, yhi) = (p.1.min(q.1), p.1.max(q.1));
@@ -711,23 +703,19 @@ impl Projector {
                 continue;
             }
             for x in x0 as u32..=x1 as u32 {
-                let (far, nearest) = if tracking {
-                    let (mut u0, mut u1) = (t0, t1);
-                    if dx != 0.0 {
-                        let xf = f64::from(x);
-                        let (ta, tb) = ((xf - e - p.0) / dx, (xf + 1.0 + e - p.0) / dx);
-                        u0 = u0.max(ta.min(tb));
-                        u1 = u1.min(ta.max(tb));
-                        if u0 > u1 {
-                            // Rounding at the band's edge: the row's part.
-                            (u0, u1) = (t0, t1);
-                        }
+                let (mut u0, mut u1) = (t0, t1);
+                if dx != 0.0 {
+                    let xf = f64::from(x);
+                    let (ta, tb) = ((xf - e - p.0) / dx, (xf + 1.0 + e - p.0) / dx);
+                    u0 = u0.max(ta.min(tb));
+                    u1 = u1.min(ta.max(tb));
+                    if u0 > u1 {
+                        // Rounding at the band's edge: the row's part.
+                        (u0, u1) = (t0, t1);
                     }
-                    let (za, zb) = (zp + dz * u0, zp + dz * u1);
-                    (za.min(zb) as f32, za.max(zb) as f32)
-                } else {
-                    (z, near)
-                };
+                }
+                let (za, zb) = (zp + dz * u0, zp + dz * u1);
+                let (far, nearest) = (za.min(zb) as f32, za.max(zb) as f32);
                 mark(x, y, far, nearest);
             }
         }
@@ -873,6 +861,50 @@ mod tests {
             assert_eq!(r.at(x, y), Some(0.5));
         }
         assert_eq!(r.at(5, 4), None);
+    }
+
+    /// A long segment marks each pixel at the depths of its own part there
+    /// (affine along it), not at the whole segment's farthest: with or
+    /// without nearest depths kept, so one segment per row of eye pixels
+    /// is as tight as many short pieces.
+    #[test]
+    fn long_segments_mark_each_pixel_at_its_part() {
+        let (w, h) = (64u32, 8u32);
+        let t = DepthTarget::new(w, h, TileSize::T8, false).unwrap();
+        let ndc = |px: f32| 2.0 * px / w as f32 - 1.0;
+        let y = 1.0 - 2.0 * 3.5 / h as f32;
+        let (za, zb) = (0.9f64, 0.1f64);
+        // From the centre of pixel 0 to that of pixel w − 1, depth falling.
+        let (a, b) = (
+            Vec4::new(ndc(0.5), y, za as f32, 1.0),
+            Vec4::new(ndc(w as f32 - 0.5), y, zb as f32, 1.0),
+        );
+        let z_at = |px: f64| {
+            let s = ((px - 0.5) / (f64::from(w) - 1.0)).clamp(0.0, 1.0);
+            za + (zb - za) * s
+        };
+        let e = RECEIVER_EPS_PX + SEGMENT_SLACK_PX;
+        for track in [false, true] {
+            let mut r = ReceiverTarget::for_target(&t);
+            r.set_track_nearest(track);
+            r.mark_segments_within(Mat4::IDENTITY, [(a, b)], RECEIVER_EPS_PX);
+            for x in 0..w {
+                let x0 = f64::from(x);
+                let (far, near) = (z_at(x0 + 1.0 + e), z_at(x0 - e));
+                let got = r.at(x, 3).expect("marked");
+                assert!(
+                    (f64::from(got) - far).abs() < 1e-6,
+                    "pixel {x}: {got} vs {far}"
+                );
+                if track {
+                    let n = r.nearest_at(x, 3).expect("marked");
+                    assert!(
+                        (f64::from(n) - near).abs() < 1e-6,
+                        "pixel {x}: {n} vs {near}"
+                    );
+                }
+            }
+        }
     }
 
     /// The parallel path (many points) marks exactly what the sequential

@@ -5,14 +5,15 @@
 //! Conservative marking works on *segments*: the visible pixels of one eye
 //! row on one triangle lie on a line (the row's pixel-centre rays span a
 //! plane through the eye; it meets the triangle's plane in a line), in
-//! order. The producer cuts such a run into pieces of [`PIECE_STEPS`] steps
-//! and keeps only the pieces' ends; each piece is marked as the segment
-//! between its ends ([`raster::ReceiverTarget::mark_segments_within`]):
-//! every pixel a point would mark, at a depth no nearer, with two
-//! projections per piece instead of one per point. The push away from the
-//! light is a homothety about the light (or a translation, for a directional
-//! light), so pushed points stay on their pushed segment. Point-sampled
-//! (aggressive) marking keeps one projection per point.
+//! order. The producer keeps only such a run's two ends, and the run is
+//! marked as the segment between them
+//! ([`raster::ReceiverTarget::mark_segments_within`]): every pixel a point
+//! would mark, each at the depths of the part of the segment there, so no
+//! nearer than its points, with two projections per run instead of one per
+//! point. The push away from the light is a homothety about the light (or
+//! a translation, for a directional light), so pushed points stay on their
+//! pushed segment. Point-sampled (aggressive) marking keeps one projection
+//! per point.
 //!
 //! Cube faces: a point, or a segment, goes only to the faces whose cone
 //! (the directions in which the face's axis dominates, widened by the
@@ -29,11 +30,6 @@ use scene::Light;
 
 /// Relative push of a receiver point away from the light before marking.
 pub const RECEIVER_PUSH: f64 = 1.0 / 1_048_576.0;
-
-/// Steps per receiver segment: the eye's runs of visible pixels are cut into
-/// pieces of this many steps, each marked as one segment (longer pieces save
-/// projections but give their pixels the piece's farthest depth).
-pub const PIECE_STEPS: usize = 8;
 
 /// The eye's visible surface points, as the light pass takes them.
 #[derive(Clone, Debug, Default)]
