@@ -110,12 +110,14 @@ impl CounterRows<'_> {
 /// is the `k`-th chunk of `nᵢ` entries of slice `sᵢ` (the slices hold the same
 /// number of chunks), in parallel with the `parallel` feature and in band order
 /// without it. Bands own disjoint rows, so the result is the same either way.
+/// Each band is its own task (`with_max_len(1)`): bands differ in work by
+/// far more than rayon's default halving balances.
 macro_rules! for_each_band {
     ($f:expr, $s0:expr => $n0:expr $(, $s:expr => $n:expr)* $(,)?) => {{
         #[cfg(feature = "parallel")]
         {
             use rayon::prelude::*;
-            $s0.par_chunks_mut($n0)$(.zip($s.par_chunks_mut($n)))*.enumerate().for_each($f);
+            $s0.par_chunks_mut($n0)$(.zip($s.par_chunks_mut($n)))*.enumerate().with_max_len(1).for_each($f);
         }
         #[cfg(not(feature = "parallel"))]
         {
