@@ -67,7 +67,8 @@ fn options(culling: CullingSpec, stencil: StencilBackend) -> PipelineOptions {
     }
 }
 
-/// Conservative CHC++ in the pipeline changes no pixel of the unculled mask,
+/// Conservative CHC++ in the pipeline changes no pixel of the unculled mask
+/// (with a crowded light view culled as its quadrants, `view_split.rs`),
 /// and both match the reference; PSR and PSC are subsets of the scene and the
 /// volumes name exactly the PSC.
 #[test]
@@ -85,7 +86,7 @@ fn culled_frames_equal_unculled_frames_and_the_reference() -> Result<()> {
         &lights,
     )?;
     let n = scene.objects().len();
-    let mut culled_some = false;
+    let (mut culled_some, mut split) = (false, false);
     for frame in [0, 2, 4, 6] {
         let input = input(&path, frame);
         let masks: Vec<_> = {
@@ -106,7 +107,11 @@ fn culled_frames_equal_unculled_frames_and_the_reference() -> Result<()> {
                 assert_eq!(named, psc, "one volume range per caster, in PSC order");
                 assert_eq!(l.stats().psc as usize, psc.len());
                 assert!(!l.views().is_empty(), "culled lights report their views");
-                assert!(l.views().iter().all(|v| v.resolution == 256));
+                // Fitted views at 256², a crowded one as four quadrants of 128².
+                let quadrants = l.views().iter().filter(|v| v.resolution == 128).count();
+                assert!(l.views().iter().all(|v| [256, 128].contains(&v.resolution)));
+                assert_eq!(quadrants % 4, 0, "quadrants come in fours");
+                split |= quadrants > 0;
             }
             let s = out.stats();
             assert!(s.frame_ms >= s.eye_ms && s.eye_ms > 0.0);
@@ -132,6 +137,10 @@ fn culled_frames_equal_unculled_frames_and_the_reference() -> Result<()> {
         }
     }
     assert!(culled_some, "the street path culls objects");
+    assert!(
+        split,
+        "a crowded light view (the sun's one) is culled as quadrants"
+    );
     Ok(())
 }
 

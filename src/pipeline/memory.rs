@@ -32,9 +32,10 @@ const PER_PIXEL_LIGHT: u64 = 25;
 const PER_PIXEL_REFERENCE: u64 = 48;
 /// Per scene triangle of the reference's world-space triangle BVH.
 const PER_TRIANGLE_REFERENCE: u64 = 360;
-/// Per light-view texel and light: depth, ids, receiver depths, and the
-/// spare receiver target a crowded view's marking splits into.
-const PER_LIGHT_TEXEL: u64 = 32;
+/// Per light-view texel and light: depth, ids, receiver depths, the spare
+/// receiver target a crowded view's marking splits into, and each thread's
+/// quarter-size targets for a crowded view culled as quadrants (4 bytes).
+const PER_LIGHT_TEXEL: u64 = 36;
 /// Per viewport pixel and light of `count_fill`'s scratch stencil.
 const PER_PIXEL_LIGHT_FILL: u64 = 2;
 /// Per hybrid shadow-map texel and light.

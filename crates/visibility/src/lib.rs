@@ -45,6 +45,7 @@ mod receivers;
 mod slice_occupancy;
 mod traverse;
 mod view_setup;
+mod view_split;
 
 pub use chcpp::ChcppOptions;
 pub use culler::{CullResult, Objects, TraversalStats, ViewCuller};

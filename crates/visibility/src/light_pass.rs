@@ -43,6 +43,7 @@ use crate::light_view::{fit_light_views_into, FitScratch, LightView};
 use crate::receivers::{Marks, Prepared, ReceiverPoints};
 use crate::traverse::Culling;
 use crate::view_setup::{MeshData, Sampling, ViewSetup};
+use crate::view_split::cull_views_into;
 use crate::Result;
 use glam::{DMat4, DVec3, DVec4};
 use raster::{
@@ -181,13 +182,45 @@ struct ViewSlot {
 /// one per view (a point light's
 /// six 1024² cube faces: two sets, 16 MiB, instead of six, 48 MiB). Nothing
 /// a view computes depends on which set it used: each view clears both.
+///
+/// A set holds a pair of targets for whole views and, once a crowded view
+/// was culled as quadrants (`view_split.rs`), a pair of a quarter the size.
 #[derive(Debug, Default)]
 struct TargetSet {
+    whole: TargetPair,
+    quadrant: TargetPair,
+}
+
+impl TargetSet {
+    /// Holds the pairs the `views` of whole side `full` (and their
+    /// quadrants) will take ([`TargetPair::prepare`]).
+    fn prepare(&mut self, views: &[LightView], full: u32) -> Result<()> {
+        for (pair, side) in [(&mut self.whole, full), (&mut self.quadrant, full / 2)] {
+            if views.iter().any(|v| v.resolution == side) {
+                pair.prepare((side, side))?;
+            }
+        }
+        Ok(())
+    }
+
+    /// The pair `view` takes.
+    fn pair(&mut self, view: &LightView, full: u32) -> &mut TargetPair {
+        if view.resolution == full {
+            &mut self.whole
+        } else {
+            &mut self.quadrant
+        }
+    }
+}
+
+/// One view's depth target and receiver target.
+#[derive(Debug, Default)]
+struct TargetPair {
     target: Option<DepthTarget>,
     marks: Option<Arc<ReceiverTarget>>,
 }
 
-impl TargetSet {
+impl TargetPair {
     /// The set's targets for a `size` view: its own, unless the size
     /// changed or a host backend kept a reference to the receivers; new
     /// ones otherwise.
@@ -231,6 +264,9 @@ pub struct LightPass {
     /// marked on two threads ([`Marks::mark`]); one per light.
     spare: Mutex<Option<ReceiverTarget>>,
     receivers: Prepared,
+    /// The views fitted this run (`whole`), and the views culled (`views`:
+    /// the fitted ones, a crowded one as its quadrants; a slot each).
+    whole: Vec<LightView>,
     views: Vec<LightView>,
     casting: CastingCache,
     /// The intersection body, the views just fitted, and the buffers of
@@ -401,7 +437,9 @@ impl LightPass {
 
     /// The light views of the last [`LightPass::run`] (empty before the
     /// first): fitted to the intersection body, each with its world → clip
-    /// matrix, kind and resolution.
+    /// matrix, kind and resolution; a view that held the light's receivers
+    /// all but alone is there as its four quadrants (half the resolution,
+    /// the same pixel grid), as it was culled, on the threads in parallel.
     pub fn views(&self) -> &[LightView] {
         &self.views
     }
@@ -516,22 +554,44 @@ impl LightPass {
             &mut self.fit_scratch,
             &mut self.body_scratch.clip,
         );
+        std::mem::swap(&mut self.whole, &mut self.fitted);
+        let diameter = f64::from(bounds.size().length());
+        let origin = light.position().unwrap_or_else(|| bounds.center());
+        self.receivers.prepare(
+            receivers,
+            light,
+            origin,
+            diameter,
+            options.sampling,
+            &self.whole,
+        );
+        // The views culled: the crowded one as its quadrants
+        // (`view_split.rs`), unless their depth is kept as the hybrid's maps
+        // (read as whole views) or fragment intervals are read (a caster's
+        // intervals come from the views it was found in: in a quadrant it
+        // was not found in, its receivers would go unread).
+        let prepared = &self.receivers;
+        let previous = std::mem::take(&mut self.views);
+        let mut culled = std::mem::take(&mut self.fitted);
+        if !options.keep_depth && fragment_source.is_none() {
+            cull_views_into(&self.whole, |v| prepared.count_for(v), &mut culled);
+        } else {
+            culled.clone_from(&self.whole);
+        }
         // A new set of views starts its culling history cold, but keeps the
         // target sets (their buffers are reused, not reallocated).
-        if self.views.len() != self.fitted.len() {
+        let same = |a: &LightView, b: &LightView| (a.kind, a.resolution) == (b.kind, b.resolution);
+        if previous.len() != culled.len() || !previous.iter().zip(&culled).all(|(a, b)| same(a, b))
+        {
             for s in &mut self.slots {
                 slot_mut(s).culler.reset();
             }
         }
-        std::mem::swap(&mut self.views, &mut self.fitted);
+        (self.views, self.fitted) = (culled, previous);
         let views = &self.views;
         if self.slots.len() < views.len() {
             self.slots.resize_with(views.len(), Mutex::default);
         }
-        let diameter = f64::from(bounds.size().length());
-        let origin = light.position().unwrap_or_else(|| bounds.center());
-        self.receivers
-            .prepare(receivers, light, origin, diameter, options.sampling, views);
         // The casting triangles of every object drawn as an occluder: kept
         // across frames, shared by the views.
         self.casting.update(scene, light, options.two_sided);
@@ -539,7 +599,6 @@ impl LightPass {
         let casting = |id: ObjectId| -> Arc<[[u32; 3]]> {
             cache.get(scene, meshes, light, options.two_sided, id)
         };
-        let prepared = &self.receivers;
         let shared = ViewsInput {
             spare: &self.spare,
             objects: Objects::new(h, scene, meshes),
@@ -573,11 +632,10 @@ impl LightPass {
         if self.sets.len() < groups {
             self.sets.resize_with(groups, TargetSet::default);
         }
-        // Every view of a light has one resolution.
-        if let Some(v) = views.first() {
-            for set in &mut self.sets[..groups] {
-                set.prepare((v.resolution, v.resolution))?;
-            }
+        // Every fitted view of a light has one side; quadrants half of it.
+        let full = self.whole.first().map_or(0, |v| v.resolution);
+        for set in &mut self.sets[..groups] {
+            set.prepare(views, full)?;
         }
         let next = AtomicUsize::new(0);
         let slots = &self.slots;
@@ -596,7 +654,7 @@ impl LightPass {
                     })
                 });
                 let mut slot = slots[k].lock().unwrap_or_else(PoisonError::into_inner);
-                slot.run(set, &shared, view, receivers, backend)?;
+                slot.run(set.pair(view, full), &shared, view, receivers, backend)?;
             }
         };
         #[cfg(feature = "parallel")]
@@ -667,7 +725,7 @@ impl ViewSlot {
     /// in front of them, in `host` when given, else in the slot's own target.
     fn run(
         &mut self,
-        set: &mut TargetSet,
+        set: &mut TargetPair,
         input: &ViewsInput<'_>,
         view: &LightView,
         receivers: Marks<'_>,

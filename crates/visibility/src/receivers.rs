@@ -244,6 +244,14 @@ impl Prepared {
         }
     }
 
+    /// How many points or pieces `view` marks ([`Prepared::for_view`]).
+    pub fn count_for(&self, view: &LightView) -> usize {
+        match self.for_view(view) {
+            Marks::Points(points) => points.len(),
+            Marks::Segments { pieces, only, .. } => only.map_or(pieces.len(), <[u32]>::len),
+        }
+    }
+
     /// Sends every point or piece to the cube faces whose widened cone it
     /// meets, by its light-relative coordinates (a positional light is the
     /// views' origin). They are f32: the rounding (2⁻²⁴ relative) moves a
