@@ -57,6 +57,9 @@ pub struct DepthTarget {
     pub(crate) threads: usize,
     /// Tile rows `r0..r1` that [`DepthTarget::draw`] writes (all when `None`).
     pub(crate) draw_rows: Option<(u32, u32)>,
+    /// Tiles draws skip ([`DepthTarget::set_draw_tiles`]), ascending; each
+    /// clear hides them again.
+    hidden: Vec<u32>,
     /// Facing culled by draws.
     pub(crate) cull: CullMode,
     /// The kernels' instruction set: the detected one, or a lower cap.
@@ -112,6 +115,7 @@ impl DepthTarget {
             stats: RasterStats::default(),
             threads: 0,
             draw_rows: None,
+            hidden: Vec::new(),
             cull: CullMode::None,
             isa: InstructionSet::detected(),
             skip: Box::new(RowSkip::new()),
@@ -154,6 +158,57 @@ impl DepthTarget {
         });
     }
 
+    /// Hides `tiles` (tile indices, ascending) from draws from now until the
+    /// next call, across clears, after giving back the tiles hidden before:
+    /// what [`DepthTarget::set_draw_tiles`] (beside the receiver target)
+    /// sets.
+    pub(crate) fn hide_tiles(&mut self, tiles: impl Iterator<Item = u32>) {
+        self.show_hidden();
+        self.hidden.clear();
+        // Room for every tile at once: later views allocate nothing.
+        self.hidden.reserve(self.tiles.len());
+        self.hidden.extend(tiles);
+        self.hide();
+    }
+
+    /// Gives the hidden tiles their cleared bounds back (their pixels, never
+    /// written while hidden, are background).
+    fn show_hidden(&mut self) {
+        let l = self.layout;
+        for &t in &self.hidden {
+            let t = t as usize;
+            let tb = &mut self.tiles[t];
+            if tb.background == 0 && tb.zmin == f32::INFINITY {
+                let (tx, ty) = (t as u32 % l.tiles_x, t as u32 / l.tiles_x);
+                let (x0, x1, y0, y1) = l.tile_rect(tx, ty);
+                *tb = TileBounds {
+                    zmin: f32::INFINITY,
+                    zmax: BACKGROUND,
+                    background: (x1 - x0 + 1) * (y1 - y0 + 1),
+                };
+            }
+        }
+    }
+
+    /// Hides the listed tiles that hold background only (after a clear,
+    /// every one).
+    fn hide(&mut self) {
+        let l = self.layout;
+        for &t in &self.hidden {
+            let t = t as usize;
+            let (tx, ty) = (t as u32 % l.tiles_x, t as u32 / l.tiles_x);
+            let (x0, x1, y0, y1) = l.tile_rect(tx, ty);
+            let tb = &mut self.tiles[t];
+            if tb.background == (x1 - x0 + 1) * (y1 - y0 + 1) {
+                *tb = TileBounds {
+                    zmin: f32::INFINITY,
+                    zmax: f32::INFINITY,
+                    background: 0,
+                };
+            }
+        }
+    }
+
     /// Sets which triangles draws skip by facing ([`CullMode`]; default
     /// [`CullMode::None`]). Queries are never culled.
     pub fn set_cull(&mut self, cull: CullMode) {
@@ -184,8 +239,15 @@ impl DepthTarget {
         self.threads = threads;
     }
 
-    /// Resets every pixel to background (and every id to [`NO_ID`]).
+    /// Resets every pixel to background (and every id to [`NO_ID`]); the
+    /// tiles [`DepthTarget::set_draw_tiles`] hid stay hidden.
     pub fn clear(&mut self) {
+        self.show_hidden();
+        self.clear_all();
+        self.hide();
+    }
+
+    fn clear_all(&mut self) {
         let l = self.layout;
         if self.tiles.len() == (l.tiles_x * l.tiles_y) as usize {
             // Only tiles written since the last clear need it: a tile's first write
@@ -446,6 +508,11 @@ mod tests {
     /// a multiple of the tile size.
     fn drawn(with_ids: bool) -> DepthTarget {
         let mut t = DepthTarget::new(37, 29, TileSize::T8, with_ids).unwrap();
+        draw_pair(&mut t);
+        t
+    }
+
+    fn draw_pair(t: &mut DepthTarget) {
         let positions = [
             Vec4::new(-1.2, -1.1, 0.2, 1.0),
             Vec4::new(0.9, -0.8, 0.7, 1.0),
@@ -465,7 +532,6 @@ mod tests {
             Coverage::Standard,
         )
         .unwrap();
-        t
     }
 
     /// Row walks give `depth_at`/`id_at` pixel by pixel, with and without ids,

@@ -308,6 +308,9 @@ impl DepthTarget {
                 let (st, setups) = out;
                 *st = RasterStats::default();
                 setups.clear();
+                // Room for every item: which band draws how many changes
+                // from batch to batch, and a steady frame allocates nothing.
+                setups.reserve(items.len());
                 let mut skip = RowSkip::new();
                 for (k, (it, p)) in items.iter().zip(&projected).enumerate() {
                     if let Projected::Bounds(sb) = p {

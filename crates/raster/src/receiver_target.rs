@@ -770,10 +770,104 @@ fn floor(v: f64) -> f64 {
     t - if t > v { 1.0 } else { 0.0 }
 }
 
+impl DepthTarget {
+    /// Restricts draws to the tiles `receivers` marks (`None`: every tile),
+    /// from now until the next call, across clears: the other tiles hold
+    /// bounds nearer than any depth (`zmin = zmax = +∞`, no background), so
+    /// every draw's hierarchical-z test rejects them and their pixels stay
+    /// background. For a light view, whose queries count samples only over
+    /// receiver-marked pixels (a query's floor there is the receivers' own
+    /// `+∞`): occluders are drawn only where a query can pass, and a face
+    /// with a few receivers draws a few tiles. A hidden tile's bounds are
+    /// not its pixels' ([`DepthTarget::tile_bounds`]); queries without
+    /// receivers would see them as occluded.
+    ///
+    /// # Errors
+    /// [`Error::SizeMismatch`] when `receivers` is not this target's size.
+    pub fn set_draw_tiles(&mut self, receivers: Option<&ReceiverTarget>) -> Result<()> {
+        let Some(r) = receivers else {
+            self.hide_tiles(std::iter::empty());
+            return Ok(());
+        };
+        if r.size() != (self.width(), self.height()) {
+            return Err(Error::SizeMismatch {
+                expected: (self.width(), self.height()),
+                got: r.size(),
+            });
+        }
+        let unmarked = (r.tile_min.iter().enumerate())
+            .filter(|(_, z)| **z == f32::INFINITY)
+            .map(|(t, _)| t as u32);
+        self.hide_tiles(unmarked);
+        Ok(())
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::TileSize;
+
+    /// Two overlapping triangles with sloped depth into `t` (37 × 29).
+    fn draw_pair(t: &mut DepthTarget) {
+        let positions = [
+            Vec4::new(-1.2, -1.1, 0.2, 1.0),
+            Vec4::new(0.9, -0.8, 0.7, 1.0),
+            Vec4::new(-0.3, 1.0, 0.4, 1.0),
+            Vec4::new(-0.5, 0.9, 0.9, 1.0),
+            Vec4::new(0.2, -0.95, 0.1, 1.0),
+            Vec4::new(0.6, 0.5, 0.3, 1.0),
+        ];
+        let item = crate::DrawItem {
+            clip_from_local: Mat4::IDENTITY,
+            positions: &positions,
+            triangles: &[[0, 1, 2], [3, 4, 5]],
+            object: 3,
+        };
+        t.draw(&item, crate::Coverage::Standard).unwrap();
+    }
+
+    /// Draws skip the tiles without receivers, which stay background across
+    /// clears; the marked tiles get what an unrestricted draw writes; `None`
+    /// gives every tile back.
+    #[test]
+    fn draw_tiles_restrict_draws_to_marked_tiles() {
+        let mut full = DepthTarget::new(37, 29, TileSize::T8, false).unwrap();
+        draw_pair(&mut full);
+        let mut marks = ReceiverTarget::for_target(&full);
+        let points = [
+            Vec4::new(-0.9, -0.9, 0.5, 1.0),
+            Vec4::new(0.3, 0.2, 0.5, 1.0),
+        ];
+        marks.mark_points(Mat4::IDENTITY, &points);
+        let mut t = DepthTarget::new(37, 29, TileSize::T8, false).unwrap();
+        t.set_draw_tiles(Some(&marks)).unwrap();
+        t.clear();
+        draw_pair(&mut t);
+        let l = t.layout;
+        let (mut kept, mut skipped) = (0, 0);
+        for y in 0..29 {
+            for x in 0..37 {
+                let marked = marks.tile_min[l.tile_index(x >> 3, y >> 3)] != f32::INFINITY;
+                if marked {
+                    assert_eq!(t.depth_at(x, y), full.depth_at(x, y), "({x}, {y})");
+                    kept += usize::from(full.depth_at(x, y).is_some());
+                } else {
+                    assert_eq!(t.depth_at(x, y), None, "({x}, {y}) is hidden");
+                    skipped += usize::from(full.depth_at(x, y).is_some());
+                }
+            }
+        }
+        assert!(kept > 0 && skipped > 0, "{kept} kept, {skipped} skipped");
+        let small = DepthTarget::new(36, 29, TileSize::T8, false).unwrap();
+        let other = ReceiverTarget::for_target(&small);
+        assert!(t.set_draw_tiles(Some(&other)).is_err());
+        t.set_draw_tiles(None).unwrap();
+        t.clear();
+        draw_pair(&mut t);
+        assert_eq!(t.depth_rows(), full.depth_rows());
+        assert_eq!(t.tiles, full.tiles, "every tile's bounds back");
+    }
 
     /// The marking's floor is `f64::floor` over the pixel range and its
     /// margins: integers, halves, values just off an integer, both zeros.

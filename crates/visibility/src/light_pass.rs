@@ -782,9 +782,13 @@ impl ViewSlot {
         let backend: &mut dyn OcclusionBackend = match &mut host {
             Some(b) => b.as_mut(),
             None => {
-                // Depth matters only where queries can pass: receiver rows.
+                // Depth matters only where queries can pass: the receivers'
+                // rows, and in them their tiles (all of the rows when the
+                // depth is kept as the hybrid's maps: it reads around each
+                // receiver point).
                 let mut t = target.take().expect("the view's target");
                 t.set_draw_rows(Some(rows));
+                t.set_draw_tiles((!options.keep_depth).then_some(&*marks))?;
                 let queries = std::mem::take(&mut self.queries);
                 bundled.insert(SyncBackend::reusing(t, queries))
             }
