@@ -179,12 +179,10 @@ impl DepthTarget {
             let t = t as usize;
             let tb = &mut self.tiles[t];
             if tb.background == 0 && tb.zmin == f32::INFINITY {
-                let (tx, ty) = (t as u32 % l.tiles_x, t as u32 / l.tiles_x);
-                let (x0, x1, y0, y1) = l.tile_rect(tx, ty);
                 *tb = TileBounds {
                     zmin: f32::INFINITY,
                     zmax: BACKGROUND,
-                    background: (x1 - x0 + 1) * (y1 - y0 + 1),
+                    background: l.tile_area(t),
                 };
             }
         }
@@ -196,10 +194,9 @@ impl DepthTarget {
         let l = self.layout;
         for &t in &self.hidden {
             let t = t as usize;
-            let (tx, ty) = (t as u32 % l.tiles_x, t as u32 / l.tiles_x);
-            let (x0, x1, y0, y1) = l.tile_rect(tx, ty);
+            let area = l.tile_area(t);
             let tb = &mut self.tiles[t];
-            if tb.background == (x1 - x0 + 1) * (y1 - y0 + 1) {
+            if tb.background == area {
                 *tb = TileBounds {
                     zmin: f32::INFINITY,
                     zmax: f32::INFINITY,
@@ -291,16 +288,12 @@ impl DepthTarget {
         }
         let l = self.layout;
         self.tiles.clear();
-        for ty in 0..l.tiles_y {
-            for tx in 0..l.tiles_x {
-                let (x0, x1, y0, y1) = l.tile_rect(tx, ty);
-                self.tiles.push(TileBounds {
-                    zmin: f32::INFINITY,
-                    zmax: BACKGROUND,
-                    background: (x1 - x0 + 1) * (y1 - y0 + 1),
-                });
-            }
-        }
+        self.tiles
+            .extend((0..(l.tiles_x * l.tiles_y) as usize).map(|t| TileBounds {
+                zmin: f32::INFINITY,
+                zmax: BACKGROUND,
+                background: l.tile_area(t),
+            }));
     }
 
     /// Depth at pixel `(x, y)` (row 0 at the top); `None` for background.
@@ -498,7 +491,7 @@ impl DepthTarget {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
     use crate::{Coverage, DrawItem};
@@ -512,7 +505,9 @@ mod tests {
         t
     }
 
-    fn draw_pair(t: &mut DepthTarget) {
+    /// Two overlapping triangles with sloped depth into `t` (also used by the
+    /// receiver target's tests).
+    pub(crate) fn draw_pair(t: &mut DepthTarget) {
         let positions = [
             Vec4::new(-1.2, -1.1, 0.2, 1.0),
             Vec4::new(0.9, -0.8, 0.7, 1.0),

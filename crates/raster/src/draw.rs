@@ -131,19 +131,13 @@ impl DepthTarget {
         let mut drawn = false;
         let mut r = Ok(());
         if ty0 < ty1 {
-            let px = l.tile_pixels();
-            let (t0, t1) = ((ty0 * l.tiles_x) as usize, (ty1 * l.tiles_x) as usize);
-            let mut band = TileRows {
-                layout: l,
-                ty0,
-                ty1,
-                depth: &mut self.depth[t0 * px..t1 * px],
-                ids: self
-                    .ids
-                    .as_deref_mut()
-                    .map(|ids| &mut ids[t0 * px..t1 * px]),
-                tiles: &mut self.tiles[t0..t1],
-            };
+            let mut band = TileRows::of(
+                l,
+                (ty0, ty1),
+                &mut self.depth,
+                self.ids.as_deref_mut(),
+                &mut self.tiles,
+            );
             let mut st2 = RasterStats::default();
             let target = BandTarget {
                 rows: &mut band,
@@ -290,19 +284,13 @@ impl DepthTarget {
             scratch.bands.resize_with(bands, Default::default);
         }
         if let (Some(&ty0), Some(&ty1), true) = (cuts.first(), cuts.last(), bands > 0) {
-            let tile_px = l.tile_pixels();
-            let (t0, t1) = ((ty0 * l.tiles_x) as usize, (ty1 * l.tiles_x) as usize);
-            let rows = TileRows {
-                layout: l,
-                ty0,
-                ty1,
-                depth: &mut self.depth[t0 * tile_px..t1 * tile_px],
-                ids: self
-                    .ids
-                    .as_deref_mut()
-                    .map(|ids| &mut ids[t0 * tile_px..t1 * tile_px]),
-                tiles: &mut self.tiles[t0..t1],
-            };
+            let rows = TileRows::of(
+                l,
+                (ty0, ty1),
+                &mut self.depth,
+                self.ids.as_deref_mut(),
+                &mut self.tiles,
+            );
             let band = |mut band: TileRows<'_>, out: &mut BandOut| {
                 let (ty0, ty1) = (band.ty0, band.ty1);
                 let (st, setups) = out;

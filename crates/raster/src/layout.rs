@@ -99,6 +99,13 @@ impl Layout {
             (y0 + s).min(self.height) - 1,
         )
     }
+
+    /// Pixels inside the target in tile `t` (row-major tile index).
+    #[inline(always)]
+    pub fn tile_area(&self, t: usize) -> u32 {
+        let (x0, x1, y0, y1) = self.tile_rect(t as u32 % self.tiles_x, t as u32 / self.tiles_x);
+        (x1 - x0 + 1) * (y1 - y0 + 1)
+    }
 }
 
 /// Bounds of the first `w` pixels of each row of width `T` in `rows`: fixed-width,
@@ -137,6 +144,29 @@ pub(crate) struct TileRows<'a> {
 }
 
 impl<'a> TileRows<'a> {
+    /// Tile rows `ty0..ty1` of a target's whole tile-major buffers.
+    pub fn of(
+        layout: Layout,
+        (ty0, ty1): (u32, u32),
+        depth: &'a mut [f32],
+        ids: Option<&'a mut [u64]>,
+        tiles: &'a mut [TileBounds],
+    ) -> Self {
+        let px = layout.tile_pixels();
+        let (t0, t1) = (
+            (ty0 * layout.tiles_x) as usize,
+            (ty1 * layout.tiles_x) as usize,
+        );
+        TileRows {
+            layout,
+            ty0,
+            ty1,
+            depth: &mut depth[t0 * px..t1 * px],
+            ids: ids.map(|ids| &mut ids[t0 * px..t1 * px]),
+            tiles: &mut tiles[t0..t1],
+        }
+    }
+
     /// The rows before tile row `ty` and those from it on (`ty` within
     /// the rows).
     #[cfg(feature = "parallel")]
@@ -185,7 +215,7 @@ impl TileRows<'_> {
         let l = self.layout;
         let t = l.tile_index(tx, ty) - self.tile_base();
         let (x0, x1, y0, y1) = l.tile_rect(tx, ty);
-        let base = t << (2 * l.shift);
+        let base = t * l.tile_pixels();
         let (w, h) = ((x1 - x0 + 1) as usize, (y1 - y0 + 1) as usize);
         let pixels = &self.depth[base..base + (h << l.shift)];
         self.tiles[t] = match l.shift {

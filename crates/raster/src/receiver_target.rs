@@ -806,26 +806,8 @@ impl DepthTarget {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::depth_target::tests::draw_pair;
     use crate::TileSize;
-
-    /// Two overlapping triangles with sloped depth into `t` (37 × 29).
-    fn draw_pair(t: &mut DepthTarget) {
-        let positions = [
-            Vec4::new(-1.2, -1.1, 0.2, 1.0),
-            Vec4::new(0.9, -0.8, 0.7, 1.0),
-            Vec4::new(-0.3, 1.0, 0.4, 1.0),
-            Vec4::new(-0.5, 0.9, 0.9, 1.0),
-            Vec4::new(0.2, -0.95, 0.1, 1.0),
-            Vec4::new(0.6, 0.5, 0.3, 1.0),
-        ];
-        let item = crate::DrawItem {
-            clip_from_local: Mat4::IDENTITY,
-            positions: &positions,
-            triangles: &[[0, 1, 2], [3, 4, 5]],
-            object: 3,
-        };
-        t.draw(&item, crate::Coverage::Standard).unwrap();
-    }
 
     /// Draws skip the tiles without receivers, which stay background across
     /// clears; the marked tiles get what an unrestricted draw writes; `None`

@@ -536,7 +536,7 @@ impl HierarchicalStencil {
                         (zmin, zmax) = (tb.zmin, tb.zmax);
                     }
                     if tb.background > 0 && written > 0 {
-                        let tp = 1usize << (2 * shift);
+                        let tp = eye.layout.tile_pixels();
                         let pixels = &eye.depth[i * tp..(i + 1) * tp];
                         if let Some(k) = pixels.iter().position(|&d| d != BACKGROUND) {
                             sx += k as u32 & (size - 1);
