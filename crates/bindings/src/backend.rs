@@ -262,8 +262,9 @@ impl CallbackBackend {
     fn query(&mut self, mut q: sc_query_command, options: QueryOptions) -> raster::Result<QueryId> {
         (q.coverage, q.depth_pick) = coverage(options.coverage);
         q.mode = match options.mode {
-            QueryMode::Count => SC_QUERY_COUNT,
-            QueryMode::Any => SC_QUERY_ANY,
+            QueryMode::Any | QueryMode::CountUpTo(1) => SC_QUERY_ANY,
+            // A host counts every sample; the count is compared the same.
+            QueryMode::Count | QueryMode::CountUpTo(_) => SC_QUERY_COUNT,
         };
         self.stats.queries += 1;
         let mut id = 0;

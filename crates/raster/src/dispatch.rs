@@ -178,13 +178,14 @@ multiversioned! {
         }
     }
 
-    /// Counts the samples of `item` passing the query test (1 at the first with
-    /// `any`). Setup counters go to `st_setup`, traversal counters to `st`.
+    /// Counts the samples of `item` passing the query test, up to `limit`
+    /// ([`QueryMode::limit`](crate::QueryMode::limit); 1: any samples). Setup
+    /// counters go to `st_setup`, traversal counters to `st`.
     fn query_mesh(
         view: &QueryView,
         item: &DrawItem,
         cov: Coverage,
-        any: bool,
+        limit: u64,
         st_setup: &mut RasterStats,
         st: &mut RasterStats,
     ) -> Result<u64> {
@@ -195,7 +196,7 @@ multiversioned! {
             cache.transform_into(&item.clip_from_local, item.positions);
             cache.snap(vp);
         }
-        let mut sink = Query::new(view, cov, any, st);
+        let mut sink = Query::new(view, cov, limit, st);
         setup_item(
             vp,
             item,
@@ -210,13 +211,14 @@ multiversioned! {
 
     /// The query of the box `(min, max)`: [`VISIBLE`] when it meets the apex
     /// region, 0 when hierarchical z hides its screen rectangle, else the count of
-    /// its 12 triangles (at most `VISIBLE − 1`). Counts the query in `st`.
+    /// its 12 triangles up to `limit` (at most `VISIBLE − 1`). Counts the
+    /// query in `st`.
     fn query_box(
         view: &QueryView,
         clip_from_local: &Mat4,
         bounds: (Vec3, Vec3),
         cov: Coverage,
-        any: bool,
+        limit: u64,
         st: &mut RasterStats,
     ) -> u32 {
         let vp = view.vp;
@@ -275,7 +277,7 @@ multiversioned! {
             object: 0,
         };
         let mut st2 = RasterStats::default();
-        let mut sink = Query::new(view, cov, any, &mut st2);
+        let mut sink = Query::new(view, cov, limit, &mut st2);
         // Box indices are in range.
         let _ = setup_item(vp, &item, cov, CullMode::None, Some(&cache), st, &mut sink);
         let count = sink.finish();
@@ -304,7 +306,8 @@ impl TriSink for Draw<'_, '_> {
 struct Query<'a, 'b> {
     view: &'a QueryView<'b>,
     cov: Coverage,
-    any: bool,
+    /// The count the query stops at (1: any samples).
+    limit: u64,
     st: &'a mut RasterStats,
     count: u64,
     /// Any-samples queries first probe every triangle's centroid pixel
@@ -320,11 +323,11 @@ const PENDING: usize = 12;
 
 impl<'a, 'b> Query<'a, 'b> {
     #[inline(always)]
-    fn new(view: &'a QueryView<'b>, cov: Coverage, any: bool, st: &'a mut RasterStats) -> Self {
+    fn new(view: &'a QueryView<'b>, cov: Coverage, limit: u64, st: &'a mut RasterStats) -> Self {
         Query {
             view,
             cov,
-            any,
+            limit: limit.max(1),
             st,
             count: 0,
             pending: [None; PENDING],
@@ -332,23 +335,24 @@ impl<'a, 'b> Query<'a, 'b> {
         }
     }
 
-    /// Traverses the deferred triangles (until one passes); the count.
+    /// Traverses the deferred triangles (until one passes); the count, up
+    /// to the limit.
     #[inline(always)]
     fn finish(mut self) -> u64 {
         for (t, pb) in self.pending[..self.deferred].iter().flatten() {
             if self.count > 0 {
                 break;
             }
-            self.count += query_tri(self.view, t, *pb, self.cov, true, self.st);
+            self.count += query_tri(self.view, t, *pb, self.cov, 1, self.st);
         }
-        self.count
+        self.count.min(self.limit)
     }
 }
 
 impl TriSink for Query<'_, '_> {
     #[inline(always)]
     fn tri(&mut self, t: &Tri, pb: Rect, _id: u64) -> bool {
-        if self.any && self.cov == Coverage::Standard {
+        if self.limit == 1 && self.cov == Coverage::Standard {
             if probe_passes(self.view, t, pb, self.st) {
                 self.count = 1;
                 return true;
@@ -359,8 +363,11 @@ impl TriSink for Query<'_, '_> {
                 return false;
             }
         }
-        self.count += query_tri(self.view, t, pb, self.cov, self.any, self.st);
-        self.any && self.count > 0
+        let Some(left) = self.limit.checked_sub(self.count).filter(|&n| n > 0) else {
+            return true;
+        };
+        self.count += query_tri(self.view, t, pb, self.cov, left, self.st);
+        self.count >= self.limit
     }
 }
 
@@ -474,12 +481,12 @@ mod tests {
                 assert_eq!(da, db);
             }
             let view = a.query_view(None);
-            for any in [false, true] {
-                let qa = query_mesh(level, &view, &item, cov, any, &mut sa, &mut ta);
-                let qb = query_mesh(Portable, &view, &item, cov, any, &mut sb, &mut tb);
+            for limit in [u64::MAX, 1, 7] {
+                let qa = query_mesh(level, &view, &item, cov, limit, &mut sa, &mut ta);
+                let qb = query_mesh(Portable, &view, &item, cov, limit, &mut sb, &mut tb);
                 assert_eq!(qa.unwrap(), qb.unwrap());
-                let ba = query_box(level, &view, &m, (lo, hi), cov, any, &mut sa);
-                let bb = query_box(Portable, &view, &m, (lo, hi), cov, any, &mut sb);
+                let ba = query_box(level, &view, &m, (lo, hi), cov, limit, &mut sa);
+                let bb = query_box(Portable, &view, &m, (lo, hi), cov, limit, &mut sb);
                 assert_eq!(ba, bb);
             }
         }

@@ -13,7 +13,7 @@ use crate::depth_target::DepthTarget;
 use crate::dispatch::{query_box, query_mesh};
 use crate::item::DrawItem;
 use crate::prefetch;
-use crate::query_options::{QueryMode, QueryOptions, VISIBLE};
+use crate::query_options::{QueryOptions, VISIBLE};
 use crate::receiver_target::ReceiverTarget;
 use crate::stats::RasterStats;
 use crate::tile_walk::QueryView;
@@ -62,8 +62,8 @@ impl DepthTarget {
     ) -> Result<u32> {
         let view = self.query_view(receivers);
         let mut st2 = RasterStats::default();
-        let (cov, any) = (opts.coverage, opts.mode == QueryMode::Any);
-        let count = query_mesh(self.isa, &view, item, cov, any, st, &mut st2)?;
+        let (cov, limit) = (opts.coverage, opts.mode.limit());
+        let count = query_mesh(self.isa, &view, item, cov, limit, st, &mut st2)?;
         st.add(&st2);
         st.queries += 1;
         Ok(count.min(u64::from(VISIBLE - 1)) as u32)
@@ -119,7 +119,7 @@ impl DepthTarget {
         st: &mut RasterStats,
     ) -> Result<u32> {
         let view = self.query_view(receivers);
-        let (cov, any) = (opts.coverage, opts.mode == QueryMode::Any);
+        let (cov, limit) = (opts.coverage, opts.mode.limit());
         let bounds = (min, max);
         Ok(query_box(
             self.isa,
@@ -127,7 +127,7 @@ impl DepthTarget {
             &clip_from_local,
             bounds,
             cov,
-            any,
+            limit,
             st,
         ))
     }
@@ -135,9 +135,11 @@ impl DepthTarget {
     /// One query over the union of several boxes (a CHC++ multiquery, or a node's
     /// tighter volume from its children's boxes) [Mattausch et al. 2008]: the
     /// sum of the boxes' counts, saturating below [`VISIBLE`]; [`VISIBLE`] when
-    /// any box meets the apex region. With [`QueryMode::Any`] it stops at the
-    /// first box that passes. Zero exactly when [`DepthTarget::query_aabb`] is
-    /// zero for every box.
+    /// any box meets the apex region. With [`QueryMode::Any`](crate::QueryMode::Any) or
+    /// [`QueryMode::CountUpTo`](crate::QueryMode::CountUpTo) it stops once the sum reaches the mode's limit
+    /// and answers the limit (a sum of counts each taken up to the limit
+    /// reaches it exactly when the full sum does). Zero exactly when
+    /// [`DepthTarget::query_aabb`] is zero for every box.
     ///
     /// # Errors
     /// [`Error::SizeMismatch`] when `receivers` belongs to another size.
@@ -158,7 +160,8 @@ impl DepthTarget {
                 break;
             }
             total = total.saturating_add(n).min(VISIBLE - 1);
-            if total > 0 && opts.mode == QueryMode::Any {
+            if u64::from(total) >= opts.mode.limit() {
+                total = opts.mode.limit() as u32;
                 break;
             }
         }

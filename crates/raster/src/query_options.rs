@@ -24,6 +24,32 @@ pub enum QueryMode {
     Count,
     /// 1 at the first passing sample, else 0 (GL `ANY_SAMPLES_PASSED`).
     Any,
+    /// The number of passing samples, counted only up to `n`: `min(count, n)`
+    /// (`n` at least 1; 0 counts as 1). A culler asking whether more than `t`
+    /// samples pass needs no more than `t + 1`, and the count stops there
+    /// as [`QueryMode::Any`] stops at the first. Hosts may count them all.
+    CountUpTo(u32),
+}
+
+impl QueryMode {
+    /// The mode of a query asked whether more than `threshold` samples pass:
+    /// [`QueryMode::Any`] for 0, else the count up to `threshold + 1`.
+    pub fn more_than(threshold: u32) -> Self {
+        match threshold {
+            0 => QueryMode::Any,
+            t => QueryMode::CountUpTo(t.saturating_add(1)),
+        }
+    }
+
+    /// The count at which a query may stop: `u64::MAX` for [`QueryMode::Count`],
+    /// 1 for [`QueryMode::Any`].
+    pub fn limit(self) -> u64 {
+        match self {
+            QueryMode::Count => u64::MAX,
+            QueryMode::Any => 1,
+            QueryMode::CountUpTo(n) => u64::from(n.max(1)),
+        }
+    }
 }
 
 /// Options of a query.

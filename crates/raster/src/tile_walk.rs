@@ -685,23 +685,24 @@ pub(crate) fn probe_passes(v: &QueryView, tri: &Tri, pb: Rect, st: &mut RasterSt
     z >= v.depth[k] && v.receivers.is_none_or(|r| z >= r[k])
 }
 
-/// Counts the covered samples of `tri` passing GEQUAL (and the receiver restriction).
-/// With `any`, stops at the first passing sample and returns 1. `pb` are the
-/// triangle's pixel bounds ([`pixel_bounds`]).
+/// Counts the covered samples of `tri` passing GEQUAL (and the receiver restriction),
+/// stopping once the count reaches `limit` (then it may exceed it: a tile's or a
+/// row's passes are added whole). `pb` are the triangle's pixel bounds
+/// ([`pixel_bounds`]).
 #[inline(always)]
 pub(crate) fn query_tri(
     v: &QueryView,
     tri: &Tri,
     pb: Rect,
     cov: Coverage,
-    any: bool,
+    limit: u64,
     st: &mut RasterStats,
 ) -> u64 {
     // Standard coverage gets a copy of its own (see `draw_tri`).
     if cov == Coverage::Standard {
-        query_tri_as::<true>(v, tri, pb, Coverage::Standard, any, st)
+        query_tri_as::<true>(v, tri, pb, Coverage::Standard, limit, st)
     } else {
-        query_tri_as::<false>(v, tri, pb, cov, any, st)
+        query_tri_as::<false>(v, tri, pb, cov, limit, st)
     }
 }
 
@@ -712,7 +713,7 @@ fn query_tri_as<const STANDARD: bool>(
     tri: &Tri,
     pb: Rect,
     cov: Coverage,
-    any: bool,
+    limit: u64,
     st: &mut RasterStats,
 ) -> u64 {
     let l = v.layout;
@@ -753,10 +754,10 @@ fn query_tri_as<const STANDARD: bool>(
                 st.tiles_accepted_whole += 1;
                 if v.receivers.is_none() && lo >= tb.zmax {
                     st.tiles_query_accepted_whole += 1;
-                    if any {
-                        return 1;
-                    }
                     count += ((rect.1 - rect.0 + 1) * (rect.3 - rect.2 + 1)) as u64;
+                    if count >= limit {
+                        return count;
+                    }
                     continue;
                 }
             }
@@ -793,11 +794,9 @@ fn query_tri_as<const STANDARD: bool>(
                     _ => rows_query::<16>(tri, &p, span, depth, rec, &mut tested),
                 };
                 st.pixels_tested += tested;
-                if pass > 0 {
-                    if any {
-                        return 1;
-                    }
-                    count += pass;
+                count += pass;
+                if count >= limit {
+                    return count;
                 }
                 continue;
             }
@@ -829,11 +828,9 @@ fn query_tri_as<const STANDARD: bool>(
                     }
                 }
                 st.pixels_tested += tested;
-                if pass > 0 {
-                    if any {
-                        return 1;
-                    }
-                    count += pass;
+                count += pass;
+                if count >= limit {
+                    return count;
                 }
                 for i in 0..3 {
                     erow[i] += stepyf[i];

@@ -372,6 +372,11 @@ proptest! {
         }
         prop_assert_eq!(count, expect);
         prop_assert_eq!(any, u32::from(expect > 0));
+        // A count up to n stops there: min(count, n).
+        for n in [1, 2, 5, 40] {
+            let up_to = QueryOptions { mode: QueryMode::CountUpTo(n), ..Default::default() };
+            prop_assert_eq!(t.query(&item, &up_to, None).unwrap(), expect.min(n));
+        }
     }
 
     /// Draws restricted to tile rows write exactly the unrestricted depth,
@@ -465,8 +470,9 @@ proptest! {
     }
 
     /// A union query of several boxes is the sum of their single queries
-    /// (VISIBLE when one is), and with any-samples it is 0 exactly when every
-    /// box's query is.
+    /// (VISIBLE when one is); with any-samples it is 0 exactly when every
+    /// box's query is, and counted up to n it is the sum up to n (n or
+    /// VISIBLE when one box is VISIBLE).
     #[test]
     fn aabb_union_query_sums_its_boxes(
         occluders in prop::collection::vec([vertex(10.0), vertex(10.0), vertex(10.0)], 0..4),
@@ -502,6 +508,21 @@ proptest! {
         prop_assert_eq!(t.query_aabb_union(m, &boxes, &count, None).unwrap(), expect);
         let got_any = t.query_aabb_union(m, &boxes, &any, None).unwrap();
         prop_assert_eq!(got_any == 0, expect == 0);
+        for n in [1, 3, 50] {
+            let up_to = QueryOptions { mode: QueryMode::CountUpTo(n), ..Default::default() };
+            // It may stop at n before a box that meets the apex region.
+            let got = t.query_aabb_union(m, &boxes, &up_to, None).unwrap();
+            if expect == VISIBLE {
+                prop_assert!(got == VISIBLE || got == n, "{} of VISIBLE", got);
+            } else {
+                prop_assert_eq!(got, expect.min(n));
+            }
+            for &(a, b) in &boxes {
+                let full = t.query_aabb(m, a, b, &count, None).unwrap();
+                let capped = if full == VISIBLE { VISIBLE } else { full.min(n) };
+                prop_assert_eq!(t.query_aabb(m, a, b, &up_to, None).unwrap(), capped);
+            }
+        }
     }
 
     /// AABB queries: the count equals the brute force over its 12 triangles, unless

@@ -809,12 +809,9 @@ impl ViewSlot {
             draw_coverage,
             query: QueryOptions {
                 coverage: options.sampling.query_coverage(),
-                // With threshold 0 one passing sample decides: stop there.
-                mode: if options.threshold == 0 {
-                    QueryMode::Any
-                } else {
-                    QueryMode::Count
-                },
+                // A view asks whether more than `threshold` samples pass: the
+                // count stops there (at the first sample for 0).
+                mode: QueryMode::more_than(options.threshold),
             },
             threshold: options.threshold,
             triangles: Some(casting),

@@ -138,12 +138,9 @@ impl<'a> ViewSetup<'a> {
             draw_coverage: Coverage::Standard,
             query: QueryOptions {
                 coverage: sampling.query_coverage(),
-                // With threshold 0 one passing sample decides: stop there.
-                mode: if threshold == 0 {
-                    raster::QueryMode::Any
-                } else {
-                    raster::QueryMode::Count
-                },
+                // A view asks whether more than `threshold` samples pass: the
+                // count stops there (at the first sample for 0).
+                mode: raster::QueryMode::more_than(threshold),
             },
             threshold,
             triangles: None,
