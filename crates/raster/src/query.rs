@@ -135,11 +135,11 @@ impl DepthTarget {
     /// One query over the union of several boxes (a CHC++ multiquery, or a node's
     /// tighter volume from its children's boxes) [Mattausch et al. 2008]: the
     /// sum of the boxes' counts, saturating below [`VISIBLE`]; [`VISIBLE`] when
-    /// any box meets the apex region. With [`QueryMode::Any`](crate::QueryMode::Any) or
-    /// [`QueryMode::CountUpTo`](crate::QueryMode::CountUpTo) it stops once the sum reaches the mode's limit
-    /// and answers the limit (a sum of counts each taken up to the limit
-    /// reaches it exactly when the full sum does). Zero exactly when
-    /// [`DepthTarget::query_aabb`] is zero for every box.
+    /// any box meets the apex region. With [`Any`](crate::QueryMode::Any) or
+    /// [`CountUpTo`](crate::QueryMode::CountUpTo) it stops once the sum
+    /// reaches the mode's limit and answers the limit (a sum of counts each
+    /// taken up to the limit reaches it exactly when the full sum does).
+    /// Zero exactly when [`DepthTarget::query_aabb`] is zero for every box.
     ///
     /// # Errors
     /// [`Error::SizeMismatch`] when `receivers` belongs to another size.
