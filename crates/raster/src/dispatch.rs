@@ -363,9 +363,8 @@ impl TriSink for Query<'_, '_> {
                 return false;
             }
         }
-        let Some(left) = self.limit.checked_sub(self.count).filter(|&n| n > 0) else {
-            return true;
-        };
+        // `setup_item` stops at the first `true`: the count is below the limit.
+        let left = self.limit - self.count;
         self.count += query_tri(self.view, t, pb, self.cov, left, self.st);
         self.count >= self.limit
     }

@@ -97,7 +97,7 @@ pub(crate) fn check_indices(item: &DrawItem) -> Result<()> {
 /// baseline CPU.
 pub(crate) trait TriSink {
     /// Takes fan triangle `t` with pixel bounds `pb` and id `id`; true to stop
-    /// (an any-samples query that passed).
+    /// (a query whose count reached its limit).
     fn tri(&mut self, t: &Tri, pb: Rect, id: u64) -> bool;
 }
 
