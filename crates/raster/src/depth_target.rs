@@ -66,6 +66,8 @@ pub struct DepthTarget {
     pub(crate) isa: InstructionSet,
     /// Scratch of [`DepthTarget::draw`]'s hidden-row test (kept, not rebuilt per mesh).
     pub(crate) skip: Box<RowSkip>,
+    /// Scratch of [`DepthTarget::draw`]'s per-vertex stage of larger meshes.
+    pub(crate) verts: crate::setup::MeshVertices,
     /// Buffers of [`DepthTarget::draw_batch`] (kept: no allocation per batch).
     #[cfg_attr(not(feature = "parallel"), allow(dead_code))]
     pub(crate) batch: crate::batch_scratch::BatchScratch,
@@ -119,6 +121,7 @@ impl DepthTarget {
             cull: CullMode::None,
             isa: InstructionSet::detected(),
             skip: Box::new(RowSkip::new()),
+            verts: Default::default(),
             batch: Default::default(),
         };
         t.clear();

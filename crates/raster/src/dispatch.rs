@@ -17,10 +17,10 @@ use crate::depth_target::CullMode;
 use crate::edge::Tri;
 use crate::hiz::{hidden, project, project_lanes, project_wide, Projected, RowSkip};
 use crate::isa::InstructionSet;
-use crate::item::{setup_item, DrawItem, TriSink};
+use crate::item::{setup_item, DrawItem, TriSink, Vertices};
 use crate::layout::TileRows;
 use crate::query_options::{meets_apex_region, APEX_EPS, VISIBLE};
-use crate::setup::{widen, VertexCache, Viewport, CACHE_VERTICES};
+use crate::setup::{widen, MeshVertices, VertexCache, Viewport, CACHE_VERTICES};
 use crate::stats::RasterStats;
 use crate::tile_walk::{draw_tri, probe_passes, query_tri, QueryView};
 use crate::Result;
@@ -93,6 +93,9 @@ pub(crate) struct BandTarget<'a, 'b> {
     pub skip: &'a mut RowSkip,
     /// Traversal counters (tiles and pixels) of the band.
     pub st: &'a mut RasterStats,
+    /// The vertex stage of a mesh larger than a box (scratch, recomputed per
+    /// mesh).
+    pub verts: &'a mut MeshVertices,
 }
 
 /// How [`draw_mesh`] rasterizes a mesh: the coverage rule and which faces it
@@ -117,7 +120,12 @@ multiversioned! {
         projected: Option<&Projected>,
         st_setup: &mut RasterStats,
     ) -> Result<bool> {
-        let BandTarget { rows: band, skip, st } = target;
+        let BandTarget {
+            rows: band,
+            skip,
+            st,
+            verts,
+        } = target;
         let DrawMode { cov, cull } = mode;
         // The cache is filled in place (moving it costs a copy per mesh).
         let small = item.positions.len() <= CACHE_VERTICES;
@@ -140,12 +148,18 @@ multiversioned! {
             }
             Projected::Unknown => skip.reset(),
         }
-        if small {
+        let vertices = if small {
             if !transformed {
                 cache.transform_into(&item.clip_from_local, item.positions);
             }
             cache.snap(vp);
-        }
+            Vertices::Small(&cache)
+        } else if MeshVertices::pays(item.positions.len(), item.triangles.len()) {
+            verts.fill(&item.clip_from_local, item.positions, vp);
+            Vertices::Mesh(verts)
+        } else {
+            Vertices::PerTriangle
+        };
         let mut sink = Draw {
             band,
             cov,
@@ -157,7 +171,7 @@ multiversioned! {
             item,
             cov,
             cull,
-            small.then_some(&cache),
+            vertices,
             st_setup,
             &mut sink,
         )?;
@@ -202,7 +216,7 @@ multiversioned! {
             item,
             cov,
             CullMode::None,
-            small.then_some(&cache),
+            if small { Vertices::Small(&cache) } else { Vertices::PerTriangle },
             st_setup,
             &mut sink,
         )?;
@@ -279,7 +293,7 @@ multiversioned! {
         let mut st2 = RasterStats::default();
         let mut sink = Query::new(view, cov, limit, &mut st2);
         // Box indices are in range.
-        let _ = setup_item(vp, &item, cov, CullMode::None, Some(&cache), st, &mut sink);
+        let _ = setup_item(vp, &item, cov, CullMode::None, Vertices::Small(&cache), st, &mut sink);
         let count = sink.finish();
         st.add(&st2);
         count.min(u64::from(VISIBLE - 1)) as u32
@@ -412,6 +426,108 @@ mod tests {
         }
     }
 
+    /// A welded mesh larger than a box, drawn with its vertex stage done once
+    /// per vertex ([`MeshVertices`]), gives the depth, ids and counters of the
+    /// per-triangle setup (the same mesh with unused vertices appended, so that
+    /// [`MeshVertices::pays`] is false): grids in perspective, some crossing
+    /// the near plane, the sides of the view or lying behind the eye.
+    #[test]
+    fn mesh_vertex_stage_draws_as_per_triangle_setup() {
+        let (w, h) = (91u32, 67u32);
+        let vp = Viewport::new(w, h);
+        let mut s = 0x2545_f491_4f6c_dd1du64;
+        let mut rnd = || {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            (s >> 11) as f32 / (1u64 << 53) as f32 * 2.0 - 1.0
+        };
+        // A right-handed perspective (reversed Z, near 0.1) looking down −z.
+        let proj = Mat4::from_cols(
+            Vec4::new(1.2, 0.0, 0.0, 0.0),
+            Vec4::new(0.0, 1.6, 0.0, 0.0),
+            Vec4::new(0.0, 0.0, 0.0, -1.0),
+            Vec4::new(0.0, 0.0, 0.1, 0.0),
+        );
+        let n = 6u32;
+        let mut triangles = Vec::new();
+        for i in 0..n - 1 {
+            for j in 0..n - 1 {
+                let a = i * n + j;
+                triangles.push([a, a + 1, a + n + 1]);
+                triangles.push([a, a + n + 1, a + n]);
+            }
+        }
+        let mut drawn = 0;
+        for k in 0..300u32 {
+            let (cull, cov) = match k % 4 {
+                0 => (CullMode::Back, Coverage::Standard),
+                1 => (CullMode::None, Coverage::Outer(DepthPick::Nearest)),
+                2 => (CullMode::None, Coverage::Inner(DepthPick::Farthest)),
+                _ => (CullMode::None, Coverage::Standard),
+            };
+            // A wavy grid: centre anywhere from behind the eye to far ahead.
+            let c = glam::Vec3::new(2.0 * rnd(), 2.0 * rnd(), -2.5 + 2.7 * rnd());
+            let (du, dv) = (
+                glam::Vec3::new(rnd(), rnd(), rnd()),
+                glam::Vec3::new(rnd(), rnd(), rnd()),
+            );
+            let mut positions: Vec<Vec4> = (0..n * n)
+                .map(|q| {
+                    let (u, v) = (
+                        (q % n) as f32 / (n - 1) as f32 - 0.5,
+                        (q / n) as f32 / (n - 1) as f32 - 0.5,
+                    );
+                    (c + u * du + v * dv + 0.1 * rnd() * glam::Vec3::Z).extend(1.0)
+                })
+                .collect();
+            let item = DrawItem {
+                clip_from_local: proj,
+                positions: &positions.clone(),
+                triangles: &triangles,
+                object: k,
+            };
+            assert!(MeshVertices::pays(item.positions.len(), triangles.len()));
+            // Copies of vertex 0: the mesh's screen bounds stay the same.
+            positions.resize(3 * triangles.len() + 1, positions[0]);
+            let padded = DrawItem {
+                positions: &positions,
+                ..item
+            };
+            assert!(!MeshVertices::pays(padded.positions.len(), triangles.len()));
+            let mut out = Vec::new();
+            for it in [&item, &padded] {
+                let mut t = DepthTarget::new(w, h, TileSize::T8, true).unwrap();
+                let (mut st, mut st_setup) = (RasterStats::default(), RasterStats::default());
+                let target = BandTarget {
+                    rows: &mut band(&mut t),
+                    skip: &mut RowSkip::new(),
+                    st: &mut st,
+                    verts: &mut MeshVertices::default(),
+                };
+                let mode = DrawMode { cov, cull };
+                let d = draw_mesh(
+                    InstructionSet::detected(),
+                    &vp,
+                    target,
+                    it,
+                    mode,
+                    None,
+                    &mut st_setup,
+                );
+                out.push((d.unwrap(), t.depth, t.ids, st, st_setup));
+            }
+            assert!(
+                out[0] == out[1],
+                "grid {k}: {:?} / {:?}",
+                (out[0].0, out[0].3, out[0].4),
+                (out[1].0, out[1].3, out[1].4)
+            );
+            drawn += usize::from(out[0].3.pixels_written > 0);
+        }
+        assert!(drawn > 100, "only {drawn} grids cover a pixel");
+    }
+
     fn compare(level: InstructionSet, ids: bool, tile: TileSize, cull: CullMode) {
         use InstructionSet::Portable;
         let (w, h) = (77u32, 53u32);
@@ -469,12 +585,14 @@ mod tests {
                     rows: &mut band(&mut a),
                     skip: &mut ra,
                     st: &mut ta,
+                    verts: &mut MeshVertices::default(),
                 };
                 let da = draw_mesh(level, &vp, target_a, it, mode, None, &mut sa).unwrap();
                 let target_b = BandTarget {
                     rows: &mut band(&mut b),
                     skip: &mut rb,
                     st: &mut tb,
+                    verts: &mut MeshVertices::default(),
                 };
                 let db = draw_mesh(Portable, &vp, target_b, it, mode, None, &mut sb).unwrap();
                 assert_eq!(da, db);

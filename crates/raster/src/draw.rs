@@ -16,6 +16,8 @@ use crate::item::{aabb_corners, check_indices, DrawItem, AABB_TRIANGLES};
 #[cfg(feature = "parallel")]
 use crate::layout::Layout;
 use crate::layout::TileRows;
+#[cfg(feature = "parallel")]
+use crate::setup::MeshVertices;
 use crate::stats::RasterStats;
 use crate::Result;
 use glam::{Mat4, Vec3};
@@ -143,6 +145,7 @@ impl DepthTarget {
                 rows: &mut band,
                 skip: &mut self.skip,
                 st: &mut st2,
+                verts: &mut self.verts,
             };
             let mode = DrawMode {
                 cov,
@@ -300,6 +303,7 @@ impl DepthTarget {
                 // from batch to batch, and a steady frame allocates nothing.
                 setups.reserve(items.len());
                 let mut skip = RowSkip::new();
+                let mut verts = MeshVertices::default();
                 for (k, (it, p)) in items.iter().zip(&projected).enumerate() {
                     if let Projected::Bounds(sb) = p {
                         // Outside the band, or hidden in every row of it here (what
@@ -316,6 +320,7 @@ impl DepthTarget {
                         rows: &mut band,
                         skip: &mut skip,
                         st,
+                        verts: &mut verts,
                     };
                     // Indices were checked above.
                     let drawn = draw_mesh(isa, &vp, target, it, mode, Some(p), &mut sst);

@@ -6,7 +6,9 @@ use crate::clip::MAX_CLIPPED_VERTICES;
 use crate::coverage::{pixel_bounds, Coverage, Rect};
 use crate::depth_target::CullMode;
 use crate::edge::Tri;
-use crate::setup::{setup_into, Facing, Setup, SnappedVertex, VertexCache, Viewport};
+use crate::setup::{
+    setup_into, Facing, MeshVertices, Setup, SnappedVertex, VertexCache, VertexStage, Viewport,
+};
 use crate::stats::RasterStats;
 use crate::{Error, Result};
 use glam::{Mat4, Vec3, Vec4};
@@ -101,37 +103,50 @@ pub(crate) trait TriSink {
     fn tri(&mut self, t: &Tri, pb: Rect, id: u64) -> bool;
 }
 
+/// Where [`setup_item`] takes a mesh's vertex stage from.
+#[derive(Clone, Copy)]
+pub(crate) enum Vertices<'a> {
+    /// Computed per triangle (three vertices each).
+    PerTriangle,
+    /// A small mesh's (a box's) cache: [`VertexCache::transform_into`], then
+    /// [`VertexCache::snap`].
+    Small(&'a VertexCache),
+    /// A larger mesh's, filled by [`MeshVertices::fill`].
+    Mesh(&'a MeshVertices),
+}
+
 /// Sets up every triangle of `item`, feeding each fan triangle that can cover a
-/// pixel of the target, with its pixel bounds and id, to `f`. `cache` holds the
-/// vertex stage of a small mesh ([`VertexCache::transform_into`], then
-/// [`VertexCache::snap`]; `None` for large ones).
+/// pixel of the target, with its pixel bounds and id, to `f`. `vertices` says
+/// where the vertex stage comes from: the values are the same either way.
 #[inline(always)]
 pub(crate) fn setup_item(
     vp: &Viewport,
     item: &DrawItem,
     cov: Coverage,
     cull: CullMode,
-    cache: Option<&VertexCache>,
+    vertices: Vertices,
     st: &mut RasterStats,
     f: &mut impl TriSink,
 ) -> Result<()> {
-    // Small meshes (boxes) and the rest get a copy each, the other's path compiled
-    // out (a leaner loop spills less).
-    if cache.is_some() {
-        setup_item_as::<true>(vp, item, cov, cull, cache, st, f)
-    } else {
-        setup_item_as::<false>(vp, item, cov, cull, None, st, f)
+    // Each source gets its own copy, the others' paths compiled out (a leaner
+    // loop spills less).
+    match vertices {
+        Vertices::PerTriangle => {
+            setup_item_as::<VertexCache, false>(vp, item, cov, cull, None, st, f)
+        }
+        Vertices::Small(c) => setup_item_as::<_, true>(vp, item, cov, cull, Some(c), st, f),
+        Vertices::Mesh(c) => setup_item_as::<_, true>(vp, item, cov, cull, Some(c), st, f),
     }
 }
 
 /// [`setup_item`]; `CACHED`: `cache` is `Some`.
 #[inline(always)]
-fn setup_item_as<const CACHED: bool>(
+fn setup_item_as<C: VertexStage, const CACHED: bool>(
     vp: &Viewport,
     item: &DrawItem,
     cov: Coverage,
     cull: CullMode,
-    cache: Option<&VertexCache>,
+    cache: Option<&C>,
     st: &mut RasterStats,
     f: &mut impl TriSink,
 ) -> Result<()> {
@@ -142,11 +157,15 @@ fn setup_item_as<const CACHED: bool>(
         vertices: [SnappedVertex::default(); MAX_CLIPPED_VERTICES],
         len: 0,
     };
-    // Small meshes (boxes) come with each vertex transformed, clip-tested and
-    // snapped once; their front-facing triangles go first: the result does not
-    // depend on the order within a draw (GREATER keeps the maximum; ties go to the
+    // Cached meshes come with each vertex transformed, clip-tested and snapped
+    // once; a box's front-facing triangles go first: the result does not depend
+    // on the order within a draw (GREATER keeps the maximum; ties go to the
     // smaller id), but back faces drawn after the front ones mostly fail early.
-    let passes = if cache.is_some() { 2 } else { 1 };
+    let passes = if cache.is_some() && C::FRONT_FIRST {
+        2
+    } else {
+        1
+    };
     // Facing of the first triangles, from the first pass (computed once).
     const KEEP: usize = 16;
     let mut facings = [None; KEEP];
@@ -162,6 +181,7 @@ fn setup_item_as<const CACHED: bool>(
                         });
                     }
                     let facing = match facings.get_mut(k) {
+                        _ if passes == 1 => c.facing(t),
                         Some(f) if pass == 1 => *f,
                         Some(f) => {
                             *f = c.facing(t);
@@ -169,10 +189,11 @@ fn setup_item_as<const CACHED: bool>(
                         }
                         None => c.facing(t),
                     };
-                    if (facing == Some(Facing::Front)) != (pass == 0) {
+                    let front = facing == Some(Facing::Front);
+                    if passes == 2 && front != (pass == 0) {
                         continue;
                     }
-                    if pass == 1 && cull == CullMode::Back {
+                    if !front && cull == CullMode::Back {
                         st.triangles_in += 1;
                         st.triangles_culled += 1;
                         continue;

@@ -344,31 +344,130 @@ impl VertexCache {
             };
         }
     }
+}
+
+impl VertexStage for VertexCache {
+    const FRONT_FIRST: bool = true;
+
+    #[inline(always)]
+    fn clip(&self, i: usize) -> Vec4 {
+        self.at(i)
+    }
+
+    #[inline(always)]
+    fn inside(&self, i: usize) -> bool {
+        self.inside[i]
+    }
+
+    #[inline(always)]
+    fn snapped(&self, i: usize) -> SnappedVertex {
+        self.snapped[i]
+    }
+}
+
+/// A mesh's vertex stage done once per vertex: each vertex's clip position,
+/// whether it lies inside every clip plane, and its snapped position. A
+/// triangle reads its three vertices from here instead of transforming,
+/// plane-testing and snapping them itself, which a welded mesh would do about
+/// six times per vertex. The values are those [`setup_into`] computes.
+pub(crate) trait VertexStage {
+    /// Whether [`crate::item::setup_item`] sets up the front faces before the
+    /// back faces (two passes over the triangles; worth it for boxes, whose
+    /// facings are kept, not for large meshes).
+    const FRONT_FIRST: bool;
+
+    /// The clip position of vertex `i`.
+    fn clip(&self, i: usize) -> Vec4;
+
+    /// Whether vertex `i` lies inside every clip plane (with `w > 0`).
+    fn inside(&self, i: usize) -> bool;
+
+    /// The snapped position of vertex `i` (meaningful when it is inside).
+    fn snapped(&self, i: usize) -> SnappedVertex;
 
     /// Facing of the triangle with (checked) vertex indices `t`.
     #[inline(always)]
-    pub fn facing(&self, t: [u32; 3]) -> Option<Facing> {
-        facing(t.map(|i| self.at(i as usize)))
+    fn facing(&self, t: [u32; 3]) -> Option<Facing> {
+        facing(t.map(|i| self.clip(i as usize)))
     }
 
     /// [`setup_into`] for the triangle with (checked) vertex indices `t`, whose
-    /// facing [`VertexCache::facing`] is `f`.
+    /// facing [`VertexStage::facing`] is `f`.
     #[inline(always)]
-    pub fn setup(&self, t: [u32; 3], f: Option<Facing>, vp: &Viewport, s: &mut Setup) {
+    fn setup(&self, t: [u32; 3], f: Option<Facing>, vp: &Viewport, s: &mut Setup) {
         let [a, b, c] = t.map(|i| i as usize);
-        if self.inside[a] && self.inside[b] && self.inside[c] {
+        if self.inside(a) && self.inside(b) && self.inside(c) {
             s.facing = f;
             s.clipped = false;
             s.len = 0;
             if s.facing.is_some() {
-                s.vertices[0] = self.snapped[a];
-                s.vertices[1] = self.snapped[b];
-                s.vertices[2] = self.snapped[c];
+                s.vertices[0] = self.snapped(a);
+                s.vertices[1] = self.snapped(b);
+                s.vertices[2] = self.snapped(c);
                 s.len = 3;
             }
         } else {
-            setup_into([self.at(a), self.at(b), self.at(c)], vp, s);
+            setup_into([self.clip(a), self.clip(b), self.clip(c)], vp, s);
         }
+    }
+}
+
+/// The vertex stage of a mesh of any size ([`VertexStage`]), in storage kept
+/// from mesh to mesh: computed eight vertices at a time by [`VertexCache`]
+/// (so with its vectorized code and its values).
+#[derive(Clone, Debug, Default)]
+pub(crate) struct MeshVertices {
+    clip: Vec<Vec4>,
+    inside: Vec<bool>,
+    snapped: Vec<SnappedVertex>,
+}
+
+impl MeshVertices {
+    /// Whether a mesh of `vertices` vertices and `triangles` triangles is worth
+    /// a per-vertex stage: more vertices than a [`VertexCache`] holds, and not
+    /// more than its triangles have corners (a mesh drawn from a slice of a
+    /// larger shared vertex buffer would transform vertices it never uses).
+    #[inline(always)]
+    pub fn pays(vertices: usize, triangles: usize) -> bool {
+        vertices > CACHE_VERTICES && vertices <= 3 * triangles
+    }
+
+    /// Transforms, plane-tests and snaps every vertex of `positions` under
+    /// `m` for the viewport `vp`.
+    #[inline(always)]
+    pub fn fill(&mut self, m: &glam::Mat4, positions: &[Vec4], vp: &Viewport) {
+        self.clip.clear();
+        self.inside.clear();
+        self.snapped.clear();
+        let mut cache = VertexCache::empty();
+        for chunk in positions.chunks(CACHE_VERTICES) {
+            cache.transform_into(m, chunk);
+            cache.snap(vp);
+            for k in 0..chunk.len() {
+                self.clip.push(cache.at(k));
+                self.inside.push(cache.inside[k]);
+                self.snapped.push(cache.snapped[k]);
+            }
+        }
+    }
+}
+
+impl VertexStage for MeshVertices {
+    const FRONT_FIRST: bool = false;
+
+    #[inline(always)]
+    fn clip(&self, i: usize) -> Vec4 {
+        self.clip[i]
+    }
+
+    #[inline(always)]
+    fn inside(&self, i: usize) -> bool {
+        self.inside[i]
+    }
+
+    #[inline(always)]
+    fn snapped(&self, i: usize) -> SnappedVertex {
+        self.snapped[i]
     }
 }
 
