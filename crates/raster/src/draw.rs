@@ -16,8 +16,6 @@ use crate::item::{aabb_corners, check_indices, DrawItem, AABB_TRIANGLES};
 #[cfg(feature = "parallel")]
 use crate::layout::Layout;
 use crate::layout::TileRows;
-#[cfg(feature = "parallel")]
-use crate::setup::MeshVertices;
 use crate::stats::RasterStats;
 use crate::Result;
 use glam::{Mat4, Vec3};
@@ -296,14 +294,13 @@ impl DepthTarget {
             );
             let band = |mut band: TileRows<'_>, out: &mut BandOut| {
                 let (ty0, ty1) = (band.ty0, band.ty1);
-                let (st, setups) = out;
+                let (st, setups, verts) = out;
                 *st = RasterStats::default();
                 setups.clear();
                 // Room for every item: which band draws how many changes
                 // from batch to batch, and a steady frame allocates nothing.
                 setups.reserve(items.len());
                 let mut skip = RowSkip::new();
-                let mut verts = MeshVertices::default();
                 for (k, (it, p)) in items.iter().zip(&projected).enumerate() {
                     if let Projected::Bounds(sb) = p {
                         // Outside the band, or hidden in every row of it here (what
@@ -320,7 +317,7 @@ impl DepthTarget {
                         rows: &mut band,
                         skip: &mut skip,
                         st,
-                        verts: &mut verts,
+                        verts,
                     };
                     // Indices were checked above.
                     let drawn = draw_mesh(isa, &vp, target, it, mode, Some(p), &mut sst);
@@ -340,7 +337,7 @@ impl DepthTarget {
         let seen = &mut scratch.seen;
         seen.clear();
         seen.resize(items.len(), false);
-        for (st, setups) in &scratch.bands[..bands] {
+        for (st, setups, _) in &scratch.bands[..bands] {
             self.stats.add(st);
             for &(k, clipped, culled) in setups {
                 if !std::mem::replace(&mut seen[k as usize], true) {

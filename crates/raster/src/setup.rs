@@ -412,7 +412,15 @@ pub(crate) trait VertexStage {
     }
 }
 
-/// The vertex stage of a mesh of any size ([`VertexStage`]), in storage kept
+/// Most vertices a mesh may have for [`MeshVertices`]: its storage is 41
+/// bytes a vertex per band drawing the mesh (about 10 MiB at this size); a
+/// larger mesh is set up triangle by triangle, with no storage of its own.
+pub(crate) const MESH_VERTICES_MAX: usize = 1 << 18;
+
+/// Vertices [`MeshVertices`] holds room for from its first mesh on (41 KiB).
+const MESH_VERTICES_MIN: usize = 1 << 10;
+
+/// The vertex stage of a mesh larger than a box ([`VertexStage`]), in storage kept
 /// from mesh to mesh: computed eight vertices at a time by [`VertexCache`]
 /// (so with its vectorized code and its values).
 #[derive(Clone, Debug, Default)]
@@ -426,10 +434,11 @@ impl MeshVertices {
     /// Whether a mesh of `vertices` vertices and `triangles` triangles is worth
     /// a per-vertex stage: more vertices than a [`VertexCache`] holds, and not
     /// more than its triangles have corners (a mesh drawn from a slice of a
-    /// larger shared vertex buffer would transform vertices it never uses).
+    /// larger shared vertex buffer would transform vertices it never uses),
+    /// nor than [`MESH_VERTICES_MAX`] (the stage's storage stays small).
     #[inline(always)]
     pub fn pays(vertices: usize, triangles: usize) -> bool {
-        vertices > CACHE_VERTICES && vertices <= 3 * triangles
+        vertices > CACHE_VERTICES && vertices <= 3 * triangles && vertices <= MESH_VERTICES_MAX
     }
 
     /// Transforms, plane-tests and snaps every vertex of `positions` under
@@ -439,6 +448,14 @@ impl MeshVertices {
         self.clip.clear();
         self.inside.clear();
         self.snapped.clear();
+        // Room for any mesh up to `MESH_VERTICES_MIN` vertices from the first
+        // fill on: which band (and which view's buffers) draws the largest
+        // mesh changes from frame to frame, and a steady frame allocates
+        // nothing.
+        let room = positions.len().max(MESH_VERTICES_MIN);
+        self.clip.reserve(room);
+        self.inside.reserve(room);
+        self.snapped.reserve(room);
         let mut cache = VertexCache::empty();
         for chunk in positions.chunks(CACHE_VERTICES) {
             cache.transform_into(m, chunk);
