@@ -43,7 +43,9 @@
 //!
 //! Whole meshes (draws and box queries) whose projected rectangle lies under tiles
 //! that are all strictly nearer than the mesh's nearest vertex are skipped before
-//! setup. The per-mesh pipeline (vertex stage, bounds, setup, traversal) is
+//! setup. A mesh's vertices are transformed, clip-tested and snapped once each
+//! (not once per triangle that uses them), with the values per-triangle setup
+//! computes. The per-mesh pipeline (vertex stage, bounds, setup, traversal) is
 //! compiled three times — portable, AVX2 and AVX-512 — and chosen at runtime
 //! from the target's [`InstructionSet`] (the detected one unless capped with
 //! [`DepthTarget::set_instruction_set`]); the results are bit-identical.
