@@ -508,6 +508,17 @@ pub(crate) mod tests {
         t
     }
 
+    /// A xorshift generator of values in `[-1, 1)` from `seed` (the
+    /// rasterizer's randomized tests).
+    pub(crate) fn signed_unit(mut s: u64) -> impl FnMut() -> f32 {
+        move || {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            (s >> 11) as f32 / (1u64 << 53) as f32 * 2.0 - 1.0
+        }
+    }
+
     /// Two overlapping triangles with sloped depth into `t` (also used by the
     /// receiver target's tests).
     pub(crate) fn draw_pair(t: &mut DepthTarget) {
@@ -718,13 +729,7 @@ pub(crate) mod tests {
             assert!(
                 t.instruction_set() <= cap && t.instruction_set() <= InstructionSet::detected()
             );
-            let mut s = 0x2545_f491_4f6c_dd1du64;
-            let mut rnd = || {
-                s ^= s << 13;
-                s ^= s >> 7;
-                s ^= s << 17;
-                (s >> 11) as f32 / (1u64 << 53) as f32 * 2.0 - 1.0
-            };
+            let mut rnd = signed_unit(0x2545_f491_4f6c_dd1d);
             let mut answers = Vec::new();
             for k in 0..200u32 {
                 let v: Vec<Vec4> = (0..3)

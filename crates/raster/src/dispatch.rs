@@ -387,6 +387,7 @@ impl TriSink for Query<'_, '_> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::depth_target::tests::signed_unit;
     use crate::depth_target::DepthTarget;
     use crate::{DepthPick, TileSize};
     use glam::{Mat4, Vec4};
@@ -435,13 +436,7 @@ mod tests {
     fn mesh_vertex_stage_draws_as_per_triangle_setup() {
         let (w, h) = (91u32, 67u32);
         let vp = Viewport::new(w, h);
-        let mut s = 0x2545_f491_4f6c_dd1du64;
-        let mut rnd = || {
-            s ^= s << 13;
-            s ^= s >> 7;
-            s ^= s << 17;
-            (s >> 11) as f32 / (1u64 << 53) as f32 * 2.0 - 1.0
-        };
+        let mut rnd = signed_unit(0x2545_f491_4f6c_dd1d);
         // A right-handed perspective (reversed Z, near 0.1) looking down −z.
         let proj = Mat4::from_cols(
             Vec4::new(1.2, 0.0, 0.0, 0.0),
@@ -534,13 +529,7 @@ mod tests {
         let vp = Viewport::new(w, h);
         let mut a = DepthTarget::new(w, h, tile, ids).unwrap();
         let mut b = DepthTarget::new(w, h, tile, ids).unwrap();
-        let mut s = 0x9e3779b97f4a7c15u64;
-        let mut rnd = || {
-            s ^= s << 13;
-            s ^= s >> 7;
-            s ^= s << 17;
-            (s >> 11) as f32 / (1u64 << 53) as f32 * 2.0 - 1.0
-        };
+        let mut rnd = signed_unit(0x9e37_79b9_7f4a_7c15);
         let (mut sa, mut sb) = (RasterStats::default(), RasterStats::default());
         let (mut ta, mut tb) = (RasterStats::default(), RasterStats::default());
         for k in 0..400u32 {
