@@ -429,9 +429,10 @@ mod tests {
 
     /// A welded mesh larger than a box, drawn with its vertex stage done once
     /// per vertex ([`MeshVertices`]) in every build this CPU runs, gives the
-    /// depth, ids and counters of the (portable) per-triangle setup (the same mesh with unused vertices appended, so that
-    /// [`MeshVertices::pays`] is false): grids in perspective, some crossing
-    /// the near plane, the sides of the view or lying behind the eye.
+    /// depth, ids and counters of the portable per-triangle setup (the same
+    /// mesh with unused vertices appended, so that [`MeshVertices::pays`] is
+    /// false): grids in perspective, some crossing the near plane, the sides
+    /// of the view or lying behind the eye.
     #[test]
     fn mesh_vertex_stage_draws_as_per_triangle_setup() {
         let (w, h) = (91u32, 67u32);
