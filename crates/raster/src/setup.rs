@@ -198,6 +198,7 @@ pub(crate) const CACHE_VERTICES: usize = 8;
 /// inside every clip plane, and its snapped position. A triangle whose three
 /// vertices are inside takes them from here instead of recomputing them — the same
 /// values [`setup_into`] computes.
+#[derive(Clone, Debug)]
 pub(crate) struct VertexCache {
     /// Clip positions, lane by lane: vertex k in lane k; lanes from `len` on hold
     /// copies of vertex 0 (they change no bound, outcode or flag).
@@ -412,22 +413,20 @@ pub(crate) trait VertexStage {
     }
 }
 
-/// Most vertices a mesh may have for [`MeshVertices`]: its storage is 41
+/// Most vertices a mesh may have for [`MeshVertices`]: its storage is 42
 /// bytes a vertex per band drawing the mesh (about 10 MiB at this size); a
 /// larger mesh is set up triangle by triangle, with no storage of its own.
 pub(crate) const MESH_VERTICES_MAX: usize = 1 << 18;
 
-/// Vertices [`MeshVertices`] holds room for from its first mesh on (41 KiB).
+/// Vertices [`MeshVertices`] holds room for from its first mesh on (42 KiB).
 const MESH_VERTICES_MIN: usize = 1 << 10;
 
-/// The vertex stage of a mesh larger than a box ([`VertexStage`]), in storage kept
-/// from mesh to mesh: computed eight vertices at a time by [`VertexCache`]
-/// (so with its vectorized code and its values).
+/// The vertex stage of a mesh larger than a box ([`VertexStage`]), in storage
+/// kept from mesh to mesh: one [`VertexCache`] per eight vertices, each filled
+/// by its own vectorized code (so with its values).
 #[derive(Clone, Debug, Default)]
 pub(crate) struct MeshVertices {
-    clip: Vec<Vec4>,
-    inside: Vec<bool>,
-    snapped: Vec<SnappedVertex>,
+    chunks: Vec<VertexCache>,
 }
 
 impl MeshVertices {
@@ -445,46 +444,48 @@ impl MeshVertices {
     /// `m` for the viewport `vp`.
     #[inline(always)]
     pub fn fill(&mut self, m: &glam::Mat4, positions: &[Vec4], vp: &Viewport) {
-        self.clip.clear();
-        self.inside.clear();
-        self.snapped.clear();
-        // Room for any mesh up to `MESH_VERTICES_MIN` vertices from the first
-        // fill on: which band (and which view's buffers) draws the largest
-        // mesh changes from frame to frame, and a steady frame allocates
-        // nothing.
-        let room = positions.len().max(MESH_VERTICES_MIN);
-        self.clip.reserve(room);
-        self.inside.reserve(room);
-        self.snapped.reserve(room);
-        let mut cache = VertexCache::empty();
-        for chunk in positions.chunks(CACHE_VERTICES) {
+        let n = positions.len().div_ceil(CACHE_VERTICES);
+        if self.chunks.len() < n {
+            // Room for any mesh up to `MESH_VERTICES_MIN` vertices from the
+            // first fill on: which band (and which view's buffers) draws the
+            // largest mesh changes from frame to frame, and a steady frame
+            // allocates nothing. (Never shortened.)
+            let room = n.max(MESH_VERTICES_MIN / CACHE_VERTICES);
+            self.chunks.resize_with(room, VertexCache::empty);
+        }
+        for (cache, chunk) in self.chunks.iter_mut().zip(positions.chunks(CACHE_VERTICES)) {
             cache.transform_into(m, chunk);
             cache.snap(vp);
-            for k in 0..chunk.len() {
-                self.clip.push(cache.at(k));
-                self.inside.push(cache.inside[k]);
-                self.snapped.push(cache.snapped[k]);
-            }
         }
+    }
+
+    /// The chunk holding vertex `i`, and its lane there.
+    #[inline(always)]
+    fn chunk(&self, i: usize) -> (&VertexCache, usize) {
+        (&self.chunks[i / CACHE_VERTICES], i % CACHE_VERTICES)
     }
 }
 
+/// A vertex's stage is its chunk's.
 impl VertexStage for MeshVertices {
     const FRONT_FIRST: bool = false;
 
     #[inline(always)]
     fn clip(&self, i: usize) -> Vec4 {
-        self.clip[i]
+        let (c, k) = self.chunk(i);
+        c.clip(k)
     }
 
     #[inline(always)]
     fn inside(&self, i: usize) -> bool {
-        self.inside[i]
+        let (c, k) = self.chunk(i);
+        c.inside(k)
     }
 
     #[inline(always)]
     fn snapped(&self, i: usize) -> SnappedVertex {
-        self.snapped[i]
+        let (c, k) = self.chunk(i);
+        c.snapped(k)
     }
 }
 
