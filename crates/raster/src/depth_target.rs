@@ -97,7 +97,8 @@ impl DepthTarget {
             tiles_y: height.div_ceil(s),
             shift,
         };
-        let n = (layout.tiles_x * layout.tiles_y) as usize * layout.tile_pixels();
+        let n_tiles = (layout.tiles_x * layout.tiles_y) as usize;
+        let n = n_tiles * layout.tile_pixels();
         let size = (width, height);
         let mut t = DepthTarget {
             vp: Viewport::new(width, height),
@@ -117,11 +118,14 @@ impl DepthTarget {
             stats: RasterStats::default(),
             threads: 0,
             draw_rows: None,
-            hidden: Vec::new(),
+            // Room for every tile and for a mesh's vertex stage from the
+            // start: a target made ahead of its first view (a light pass's
+            // group that has not drawn yet) allocates nothing when it does.
+            hidden: Vec::with_capacity(n_tiles),
             cull: CullMode::None,
             isa: InstructionSet::detected(),
             skip: Box::new(RowSkip::new()),
-            verts: Default::default(),
+            verts: crate::setup::MeshVertices::with_room(),
             batch: Default::default(),
         };
         t.clear();
@@ -541,6 +545,20 @@ pub(crate) mod tests {
             Coverage::Standard,
         )
         .unwrap();
+    }
+
+    /// A new target hides every tile, and holds a mesh's vertex stage, in
+    /// the storage it was made with: a target made ahead of its first view
+    /// allocates nothing when it draws (the `steady_alloc` test's light-pass
+    /// groups).
+    #[test]
+    fn a_new_target_has_room_for_its_draw_scratch() {
+        let mut t = DepthTarget::new(100, 60, TileSize::T8, false).unwrap();
+        let at = t.hidden.as_ptr();
+        t.hide_tiles(0..t.tiles.len() as u32);
+        assert_eq!(t.hidden.len(), t.tiles.len());
+        assert_eq!(t.hidden.as_ptr(), at);
+        assert!(t.verts.room() >= 1024);
     }
 
     /// Row walks give `depth_at`/`id_at` pixel by pixel, with and without ids,

@@ -430,6 +430,13 @@ pub(crate) struct MeshVertices {
 }
 
 impl MeshVertices {
+    /// Storage with room for a mesh of [`MESH_VERTICES_MIN`] vertices.
+    pub fn with_room() -> Self {
+        let mut chunks = Vec::new();
+        chunks.resize_with(MESH_VERTICES_MIN / CACHE_VERTICES, VertexCache::empty);
+        MeshVertices { chunks }
+    }
+
     /// Whether a mesh of `vertices` vertices and `triangles` triangles is worth
     /// a per-vertex stage: more vertices than a [`VertexCache`] holds, and not
     /// more than its triangles have corners (a mesh drawn from a slice of a
@@ -457,6 +464,12 @@ impl MeshVertices {
             cache.transform_into(m, chunk);
             cache.snap(vp);
         }
+    }
+
+    /// Vertices the storage holds without growing.
+    #[cfg(test)]
+    pub fn room(&self) -> usize {
+        self.chunks.len() * CACHE_VERTICES
     }
 
     /// The chunk holding vertex `i`, and its lane there.
@@ -492,6 +505,23 @@ impl VertexStage for MeshVertices {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Storage made with room takes a mesh of [`MESH_VERTICES_MIN`]
+    /// vertices in place; one vertex more grows it.
+    #[test]
+    fn storage_with_room_fills_in_place() {
+        let vp = Viewport::new(64, 48);
+        let m = glam::Mat4::IDENTITY;
+        let mut v = MeshVertices::with_room();
+        assert_eq!(v.room(), MESH_VERTICES_MIN);
+        let at = v.chunks.as_ptr();
+        let positions = vec![Vec4::new(0.25, -0.5, 0.5, 1.0); MESH_VERTICES_MIN + 1];
+        v.fill(&m, &positions[..MESH_VERTICES_MIN], &vp);
+        assert_eq!(v.chunks.as_ptr(), at);
+        v.fill(&m, &positions, &vp);
+        assert!(v.room() > MESH_VERTICES_MIN);
+        assert_eq!(v.snapped(MESH_VERTICES_MIN), v.snapped(0));
+    }
 
     #[test]
     fn lane_transform_is_the_glam_product_bit_for_bit() {
