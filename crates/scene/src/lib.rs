@@ -49,7 +49,7 @@ pub use frustum::Frustum;
 pub use graph::{MeshId, Node, NodeId, SceneGraph, Transform};
 pub use host_camera::{ClipDepth, HostBasis};
 pub use light::Light;
-pub use mesh::{Edge, EdgeRef, Mesh, Topology};
+pub use mesh::{Edge, EdgeRef, Mesh, Solid, Topology};
 pub use plane::Plane;
 pub use scene::{
     Committed, Object, ObjectFlags, ObjectId, Scene, SceneCounts, MAX_NODE_DEPTH, MAX_OBJECTS,

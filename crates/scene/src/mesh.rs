@@ -62,6 +62,20 @@ pub struct Topology {
     pub degenerate_triangles: usize,
 }
 
+/// Which side of a closed mesh's triangles faces its outside
+/// ([`Mesh::solid`]): seen from outside the mesh's bounds, the first surface a
+/// ray meets is one of those sides, so a rasterizer may skip the other
+/// (back-face culling).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Solid {
+    /// Every piece encloses positive volume: front faces (counter-clockwise)
+    /// face out.
+    Outward,
+    /// Every piece encloses negative volume: back faces face out (an
+    /// inside-out mesh).
+    Inward,
+}
+
 /// A triangle mesh with welded vertices and an edge table.
 ///
 /// Built once per mesh and shared by every instance. Winding: counter-clockwise
@@ -76,6 +90,7 @@ pub struct Mesh {
     triangle_edges: Vec<[EdgeRef; 3]>,
     topology: Topology,
     bounds: Aabb,
+    solid: Option<Solid>,
 }
 
 fn weld_key(p: Vec3) -> [u32; 3] {
@@ -188,6 +203,13 @@ impl Mesh {
             }
         }
         let bounds = Aabb::from_points(welded.iter().copied());
+        let closed = Topology {
+            degenerate_triangles: 0,
+            ..topology
+        } == Topology::default();
+        let solid = closed
+            .then(|| solid(&welded, &tris, &triangle_edges, edges.len(), bounds))
+            .flatten();
         Ok(Mesh {
             name,
             positions: welded,
@@ -196,6 +218,7 @@ impl Mesh {
             triangle_edges,
             topology,
             bounds,
+            solid,
         })
     }
 
@@ -229,6 +252,20 @@ impl Mesh {
         self.topology
     }
 
+    /// Which faces face out, when the mesh is closed (no boundary,
+    /// non-manifold or inconsistently wound edge) and each of its pieces
+    /// (triangles joined by edges) encloses volume of the same sign; `None`
+    /// otherwise, and for pieces of (next to) no volume.
+    ///
+    /// Seen from a point outside the mesh's bounds, the winding number is 0,
+    /// and with every piece of one sign it is never of the other anywhere:
+    /// a ray's first crossing of the surface enters (for [`Solid::Outward`]),
+    /// through a front face. Pieces may overlap; a single piece whose surface
+    /// crosses itself into a region of the other sign is not detected.
+    pub fn solid(&self) -> Option<Solid> {
+        self.solid
+    }
+
     /// Local-space bounds.
     pub fn bounds(&self) -> Aabb {
         self.bounds
@@ -238,6 +275,63 @@ impl Mesh {
     pub fn triangle(&self, t: usize) -> [Vec3; 3] {
         self.triangles[t].map(|i| self.positions[i as usize])
     }
+}
+
+/// [`Mesh::solid`] of a closed mesh: its pieces by union-find over shared
+/// edges, and each piece's signed volume (the divergence theorem, relative
+/// to the bounds' centre for precision); `None` when pieces differ in sign or
+/// one is flat (below `1e-9` of the cube of the bounds' diagonal).
+fn solid(
+    positions: &[Vec3],
+    tris: &[[u32; 3]],
+    triangle_edges: &[[EdgeRef; 3]],
+    edges: usize,
+    bounds: Aabb,
+) -> Option<Solid> {
+    fn root(parent: &mut [u32], mut i: u32) -> u32 {
+        while parent[i as usize] != i {
+            let up = parent[parent[i as usize] as usize];
+            parent[i as usize] = up;
+            i = up;
+        }
+        i
+    }
+    let mut parent: Vec<u32> = (0..tris.len() as u32).collect();
+    let mut first = vec![u32::MAX; edges];
+    for (t, te) in triangle_edges.iter().enumerate() {
+        for r in te {
+            let f = &mut first[r.index()];
+            if *f == u32::MAX {
+                *f = t as u32;
+            } else {
+                let (a, b) = (root(&mut parent, *f), root(&mut parent, t as u32));
+                parent[a.max(b) as usize] = a.min(b);
+            }
+        }
+    }
+    let centre = bounds.center();
+    let mut volume = vec![0f64; tris.len()];
+    for (t, tri) in tris.iter().enumerate() {
+        let [a, b, c] = tri.map(|i| positions[i as usize].as_dvec3() - centre);
+        let r = root(&mut parent, t as u32) as usize;
+        volume[r] += a.dot(b.cross(c)) / 6.0;
+    }
+    let flat = 1e-9 * (bounds.max - bounds.min).as_dvec3().length().powi(3);
+    let mut sign = None;
+    for (t, &v) in volume.iter().enumerate() {
+        if parent[t] != t as u32 {
+            continue;
+        }
+        let s = match v {
+            v if v > flat => Solid::Outward,
+            v if v < -flat => Solid::Inward,
+            _ => return None,
+        };
+        if *sign.get_or_insert(s) != s {
+            return None;
+        }
+    }
+    sign
 }
 
 fn build_edges(tris: &[[u32; 3]]) -> (Vec<Edge>, Vec<[EdgeRef; 3]>) {
@@ -300,6 +394,56 @@ mod tests {
             assert_eq!(e.triangles, 2);
             assert_eq!(e.winding_sum, 0);
         }
+    }
+
+    /// `soup_cube` moved by `d` and scaled by `s`, its indices after `base`.
+    fn cube_at(d: Vec3, s: f32, base: u32) -> (Vec<Vec3>, Vec<[u32; 3]>) {
+        let (p, t) = soup_cube();
+        let p = p.into_iter().map(|p| p * s + d).collect();
+        (p, t.into_iter().map(|t| t.map(|i| i + base)).collect())
+    }
+
+    /// Closed meshes whose pieces all enclose volume of one sign are solid
+    /// with that sign; a flipped piece of another sign, an open, inconsistent
+    /// or flat mesh are not.
+    #[test]
+    fn solid_needs_closed_pieces_of_one_sign() {
+        let flip = |t: Vec<[u32; 3]>| t.into_iter().map(|[a, b, c]| [a, c, b]).collect();
+        let join = |a: (Vec<Vec3>, Vec<[u32; 3]>), b: (Vec<Vec3>, Vec<[u32; 3]>)| {
+            ([a.0, b.0].concat(), [a.1, b.1].concat())
+        };
+        let solid = |(p, t): (Vec<Vec3>, Vec<[u32; 3]>)| Mesh::new("m", &p, &t).unwrap().solid();
+        let far = Vec3::new(1e4, -3e3, 2e4);
+        assert_eq!(solid(cube_at(Vec3::ZERO, 1.0, 0)), Some(Solid::Outward));
+        assert_eq!(solid(cube_at(far, 0.5, 0)), Some(Solid::Outward));
+        let (p, t) = cube_at(far, 7.0, 0);
+        assert_eq!(solid((p, flip(t))), Some(Solid::Inward));
+        // Two pieces, overlapping or apart: solid while their signs agree.
+        let two = |d: Vec3, flipped: bool| {
+            let b = cube_at(d, 2.0, 24);
+            let b = if flipped { (b.0, flip(b.1)) } else { b };
+            solid(join(cube_at(Vec3::ZERO, 1.0, 0), b))
+        };
+        assert_eq!(two(Vec3::splat(0.5), false), Some(Solid::Outward));
+        assert_eq!(two(Vec3::splat(5.0), false), Some(Solid::Outward));
+        // A hollow shell (an inner piece wound inward) and a flipped piece
+        // apart: mixed signs.
+        assert_eq!(two(Vec3::splat(-0.5), true), None);
+        assert_eq!(two(Vec3::splat(5.0), true), None);
+        // Open (one face missing), inconsistent (one triangle flipped).
+        let (p, t) = soup_cube();
+        assert_eq!(solid((p.clone(), t[2..].to_vec())), None);
+        let mut bad = t.clone();
+        bad[0].swap(1, 2);
+        assert_eq!(solid((p.clone(), bad)), None);
+        // A closed double-sided sheet encloses nothing.
+        let sheet: Vec<[u32; 3]> = vec![[0, 1, 2], [0, 2, 3], [0, 3, 1], [1, 3, 2]];
+        let quad = vec![Vec3::ZERO, Vec3::X, Vec3::new(1.0, 1.0, 0.0), Vec3::Y];
+        assert_eq!(
+            Mesh::new("sheet", &quad, &sheet).unwrap().topology(),
+            Topology::default()
+        );
+        assert_eq!(solid((quad, sheet)), None);
     }
 
     #[test]
