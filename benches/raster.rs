@@ -73,6 +73,7 @@ fn bench_city(c: &mut Criterion) {
                     positions: &meshes[mesh].0,
                     triangles: &meshes[mesh].1,
                     object: id,
+                    cull: raster::CullMode::None,
                 })
                 .collect();
             let mut target = DepthTarget::new(w, h, TileSize::T8, false).expect("target");

@@ -107,6 +107,7 @@ fn main() -> anyhow::Result<()> {
             positions: c,
             triangles: &AABB_TRIANGLES,
             object: k as u32,
+            cull: a.cull,
         })
         .collect();
     eprintln!(
@@ -123,7 +124,6 @@ fn main() -> anyhow::Result<()> {
         .build()?;
     let mut target = DepthTarget::new(width, height, a.tile, false)?;
     target.set_threads(a.threads.max(1));
-    target.set_cull(a.cull);
     if let Some(cap) = shadowcull::raster::InstructionSet::cap_from_env() {
         target.set_instruction_set(cap);
     }

@@ -53,7 +53,6 @@ fn draw(
     order: impl Iterator<Item = usize>,
 ) -> DepthTarget {
     let mut t = DepthTarget::new(w, h, tile, true).expect("a small target");
-    t.set_cull(cull);
     t.set_instruction_set(isa);
     for k in order {
         let item = DrawItem {
@@ -61,6 +60,7 @@ fn draw(
             positions,
             triangles: std::slice::from_ref(&tris[k]),
             object: k as u32,
+            cull,
         };
         let bad = tris[k].iter().any(|&i| i as usize >= positions.len());
         assert_eq!(
@@ -90,7 +90,7 @@ fuzz_target!(|data: &[u8]| {
         1 => Coverage::Outer(pick(&mut b)),
         _ => Coverage::Inner(pick(&mut b)),
     };
-    let cull = [CullMode::None, CullMode::Back][usize::from(b.u8() % 2)];
+    let cull = [CullMode::None, CullMode::Back, CullMode::Front][usize::from(b.u8() % 3)];
     let n = 1 + usize::from(b.u8() % 12);
     let positions: Vec<Vec4> = (0..n)
         .map(|_| {

@@ -486,6 +486,7 @@ pub fn classify(
                     positions: &positions[objects[i].mesh.0 as usize],
                     triangles: &casters[i],
                     object: i as u32,
+                    cull: raster::CullMode::None,
                 })
                 .collect();
             v.target.draw_batch(&items, Coverage::Standard)?;

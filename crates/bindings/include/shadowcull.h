@@ -70,6 +70,15 @@
 // Conservative coverage takes the farthest depth over pixel ∩ primitive.
 #define SC_PICK_FARTHEST 1
 
+// Every triangle is drawn (`sc_draw_command.cull`).
+#define SC_CULL_NONE 0
+
+// Only front-facing (counter-clockwise on screen) triangles are drawn.
+#define SC_CULL_BACK 1
+
+// Only back-facing (clockwise on screen) triangles are drawn.
+#define SC_CULL_FRONT 2
+
 // A query over one box (`sc_query_command.kind`).
 #define SC_QUERY_BOX 0
 
@@ -546,8 +555,11 @@ typedef struct sc_draw_command {
   uint32_t coverage;
   // `SC_PICK_*` for conservative coverage.
   uint32_t depth_pick;
-  // Zero.
-  uint32_t reserved;
+  // `SC_CULL_*`: the faces the draw may skip (`glCullFace`). The eye pass
+  // culls the faces of a closed mesh turned away from the eye; a backend
+  // that draws every face instead gets the same masks but for ties of
+  // rounding at silhouette edges, and the bundled backend honours it.
+  uint32_t cull;
 } sc_draw_command;
 
 // An occlusion query: how many samples of its geometry pass GEQUAL against

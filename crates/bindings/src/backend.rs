@@ -9,8 +9,8 @@ use crate::handles;
 use crate::handles::sc_pipeline;
 use crate::structs::{read, Versioned};
 use shadowcull::raster::{
-    self, BackendStats, Coverage, DepthPick, DrawCommand, OcclusionBackend, QueryCommand, QueryId,
-    QueryMode, QueryOptions, ReceiverTarget,
+    self, BackendStats, Coverage, CullMode, DepthPick, DrawCommand, OcclusionBackend, QueryCommand,
+    QueryId, QueryMode, QueryOptions, ReceiverTarget,
 };
 use shadowcull::visibility::{BackendFactory, ViewRole};
 use std::ffi::c_void;
@@ -32,6 +32,13 @@ pub const SC_RASTER_INNER: u32 = 2;
 pub const SC_PICK_NEAREST: u32 = 0;
 /// Conservative coverage takes the farthest depth over pixel ∩ primitive.
 pub const SC_PICK_FARTHEST: u32 = 1;
+
+/// Every triangle is drawn (`sc_draw_command.cull`).
+pub const SC_CULL_NONE: u32 = 0;
+/// Only front-facing (counter-clockwise on screen) triangles are drawn.
+pub const SC_CULL_BACK: u32 = 1;
+/// Only back-facing (clockwise on screen) triangles are drawn.
+pub const SC_CULL_FRONT: u32 = 2;
 
 /// A query over one box (`sc_query_command.kind`).
 pub const SC_QUERY_BOX: u32 = 0;
@@ -85,8 +92,11 @@ pub struct sc_draw_command {
     pub coverage: u32,
     /// `SC_PICK_*` for conservative coverage.
     pub depth_pick: u32,
-    /// Zero.
-    pub reserved: u32,
+    /// `SC_CULL_*`: the faces the draw may skip (`glCullFace`). The eye pass
+    /// culls the faces of a closed mesh turned away from the eye; a backend
+    /// that draws every face instead gets the same masks but for ties of
+    /// rounding at silhouette edges, and the bundled backend honours it.
+    pub cull: u32,
 }
 
 /// An occlusion query: how many samples of its geometry pass GEQUAL against
@@ -332,7 +342,11 @@ impl OcclusionBackend for CallbackBackend {
             object: cmd.object,
             coverage: cov,
             depth_pick: pick,
-            reserved: 0,
+            cull: match cmd.cull {
+                CullMode::None => SC_CULL_NONE,
+                CullMode::Back => SC_CULL_BACK,
+                CullMode::Front => SC_CULL_FRONT,
+            },
         };
         self.stats.draws += 1;
         let f = self.cb().draw.expect("checked when set");

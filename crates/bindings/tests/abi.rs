@@ -630,8 +630,8 @@ fn two_pipelines_on_two_threads() {
 mod forwarding {
     use super::*;
     use shadowcull::raster::{
-        Coverage, DepthPick, DepthTarget, DrawCommand, OcclusionBackend, QueryCommand, QueryId,
-        QueryMode, QueryOptions, ReceiverTarget, SyncBackend, TileSize,
+        Coverage, CullMode, DepthPick, DepthTarget, DrawCommand, OcclusionBackend, QueryCommand,
+        QueryId, QueryMode, QueryOptions, ReceiverTarget, SyncBackend, TileSize,
     };
     use std::ffi::c_void;
     use std::sync::atomic::{AtomicU64, Ordering};
@@ -710,6 +710,11 @@ mod forwarding {
             triangles: slice(c.triangles, c.triangle_count).into(),
             object: c.object,
             coverage: coverage(c.coverage, c.depth_pick),
+            cull: match c.cull {
+                SC_CULL_BACK => CullMode::Back,
+                SC_CULL_FRONT => CullMode::Front,
+                _ => CullMode::None,
+            },
         };
         i32::from(view(v).draw(d).is_err())
     }

@@ -9,7 +9,7 @@
 //! [`Gate`] can hold it for tests).
 
 use crate::coverage::Coverage;
-use crate::depth_target::DepthTarget;
+use crate::depth_target::{CullMode, DepthTarget};
 use crate::item::DrawItem;
 use crate::query_options::QueryOptions;
 use crate::receiver_target::ReceiverTarget;
@@ -36,6 +36,8 @@ pub struct DrawCommand {
     pub object: u32,
     /// Coverage mode.
     pub coverage: Coverage,
+    /// Which triangles the draw skips by facing (`glCullFace`).
+    pub cull: CullMode,
 }
 
 /// An occlusion query.
@@ -226,6 +228,7 @@ fn execute(
                 positions: &d.positions,
                 triangles: &d.triangles,
                 object: d.object,
+                cull: d.cull,
             };
             target
                 .draw(&item, d.coverage)
@@ -256,6 +259,7 @@ fn execute(
                         positions: &positions,
                         triangles: &triangles,
                         object: 0,
+                        cull: crate::CullMode::None,
                     };
                     target.query(&item, &options, r)
                 }
@@ -410,6 +414,7 @@ impl SimulatedBackend {
                 positions: &d.positions,
                 triangles: &d.triangles,
                 object: d.object,
+                cull: d.cull,
             }));
             self.target
                 .draw_batch(&items, first.coverage)

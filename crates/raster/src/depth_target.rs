@@ -25,8 +25,9 @@ use crate::{Error, Result, MAX_TARGET_SIZE};
 /// Primitive id of a background pixel.
 pub const NO_ID: (u32, u32) = (u32::MAX, u32::MAX);
 
-/// Which triangles a draw skips by their [`Facing`](crate::Facing) (GL's `glCullFace`); set with
-/// [`DepthTarget::set_cull`]. Queries never cull.
+/// Which triangles a draw skips by their [`Facing`](crate::Facing) (GL's
+/// `glCullFace`), per draw ([`DrawItem::cull`](crate::DrawItem::cull)).
+/// Queries never cull.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum CullMode {
@@ -39,6 +40,24 @@ pub enum CullMode {
     /// or one the near plane cuts, occludes less (never more) than with
     /// [`CullMode::None`], so occlusion culling stays conservative.
     Back,
+    /// Only [`Facing::Back`](crate::Facing::Back) triangles are drawn: the
+    /// front faces of a mesh seen in a mirror (a transform of negative
+    /// determinant), or of an inside-out one; as [`CullMode::Back`] otherwise.
+    Front,
+}
+
+impl CullMode {
+    /// Whether a draw skips a triangle of `facing` (`None`: edge-on, or
+    /// degenerate after snapping; skipped by either culling mode).
+    #[inline(always)]
+    pub fn skips(self, facing: Option<crate::Facing>) -> bool {
+        use crate::Facing;
+        match self {
+            CullMode::None => false,
+            CullMode::Back => facing != Some(Facing::Front),
+            CullMode::Front => facing != Some(Facing::Back),
+        }
+    }
 }
 
 /// A depth buffer with hierarchical z and an optional primitive-id buffer.
@@ -60,8 +79,6 @@ pub struct DepthTarget {
     /// Tiles draws skip ([`DepthTarget::set_draw_tiles`]), ascending; each
     /// clear hides them again.
     hidden: Vec<u32>,
-    /// Facing culled by draws.
-    pub(crate) cull: CullMode,
     /// The kernels' instruction set: the detected one, or a lower cap.
     pub(crate) isa: InstructionSet,
     /// Scratch of [`DepthTarget::draw`]'s hidden-row test (kept, not rebuilt per mesh).
@@ -122,7 +139,6 @@ impl DepthTarget {
             // start: a target made ahead of its first view (a light pass's
             // group that has not drawn yet) allocates nothing when it does.
             hidden: Vec::with_capacity(n_tiles),
-            cull: CullMode::None,
             isa: InstructionSet::detected(),
             skip: Box::new(RowSkip::new()),
             verts: crate::setup::MeshVertices::with_room(),
@@ -211,17 +227,6 @@ impl DepthTarget {
                 };
             }
         }
-    }
-
-    /// Sets which triangles draws skip by facing ([`CullMode`]; default
-    /// [`CullMode::None`]). Queries are never culled.
-    pub fn set_cull(&mut self, cull: CullMode) {
-        self.cull = cull;
-    }
-
-    /// The cull mode of draws.
-    pub fn cull(&self) -> CullMode {
-        self.cull
     }
 
     /// Caps the instruction set of the kernels that draw into, query and
@@ -541,6 +546,7 @@ pub(crate) mod tests {
                 positions: &positions,
                 triangles: &triangles,
                 object: 3,
+                cull: crate::CullMode::None,
             },
             Coverage::Standard,
         )
@@ -758,6 +764,7 @@ pub(crate) mod tests {
                     positions: &v,
                     triangles: &[[0, 1, 2]],
                     object: k,
+                    cull: crate::CullMode::None,
                 };
                 t.draw(&item, Coverage::Standard).unwrap();
                 let lo = Vec3::new(2.0 * rnd(), 2.0 * rnd(), -3.0 - 3.0 * rnd().abs());

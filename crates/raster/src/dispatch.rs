@@ -47,7 +47,7 @@ fn screen_bounds(vp: &Viewport, item: &DrawItem, cache: &mut VertexCache) -> Pro
 ///
 /// The functions take at most six arguments besides `isa` (clippy's limit is
 /// seven): what belongs together travels as one struct ([`BandTarget`],
-/// [`DrawMode`]; a query's viewport comes with its [`QueryView`]).
+/// a query's viewport comes with its [`QueryView`]).
 macro_rules! multiversioned {
     ($(
         $(#[$m:meta])*
@@ -98,14 +98,6 @@ pub(crate) struct BandTarget<'a, 'b> {
     pub verts: &'a mut MeshVertices,
 }
 
-/// How [`draw_mesh`] rasterizes a mesh: the coverage rule and which faces it
-/// skips.
-#[derive(Clone, Copy, Debug)]
-pub(crate) struct DrawMode {
-    pub cov: Coverage,
-    pub cull: CullMode,
-}
-
 multiversioned! {
     /// Draws one mesh into the rows of `target`: vertex stage, screen bounds
     /// (`projected`, or computed here), hierarchical-z skip of its hidden tile rows
@@ -116,7 +108,7 @@ multiversioned! {
         vp: &Viewport,
         target: BandTarget,
         item: &DrawItem,
-        mode: DrawMode,
+        cov: Coverage,
         projected: Option<&Projected>,
         st_setup: &mut RasterStats,
     ) -> Result<bool> {
@@ -126,7 +118,6 @@ multiversioned! {
             st,
             verts,
         } = target;
-        let DrawMode { cov, cull } = mode;
         // The cache is filled in place (moving it costs a copy per mesh).
         let small = item.positions.len() <= CACHE_VERTICES;
         let mut cache = VertexCache::empty();
@@ -170,7 +161,7 @@ multiversioned! {
             vp,
             item,
             cov,
-            cull,
+            item.cull,
             vertices,
             st_setup,
             &mut sink,
@@ -289,6 +280,7 @@ multiversioned! {
             positions: &corners,
             triangles: &AABB_TRIANGLES,
             object: 0,
+            cull: crate::CullMode::None,
         };
         let mut st2 = RasterStats::default();
         let mut sink = Query::new(view, cov, limit, &mut st2);
@@ -421,6 +413,7 @@ mod tests {
                 (false, TileSize::T8, CullMode::Back),
                 (false, TileSize::T4, CullMode::None),
                 (false, TileSize::T16, CullMode::Back),
+                (true, TileSize::T8, CullMode::Front),
             ] {
                 compare(level, ids, tile, cull);
             }
@@ -456,8 +449,9 @@ mod tests {
         }
         let mut drawn = 0;
         for k in 0..300u32 {
-            let (cull, cov) = match k % 4 {
+            let (cull, cov) = match k % 5 {
                 0 => (CullMode::Back, Coverage::Standard),
+                4 => (CullMode::Front, Coverage::Standard),
                 1 => (CullMode::None, Coverage::Outer(DepthPick::Nearest)),
                 2 => (CullMode::None, Coverage::Inner(DepthPick::Farthest)),
                 _ => (CullMode::None, Coverage::Standard),
@@ -482,6 +476,7 @@ mod tests {
                 positions: &positions.clone(),
                 triangles: &triangles,
                 object: k,
+                cull,
             };
             assert!(MeshVertices::pays(item.positions.len(), triangles.len()));
             // Copies of vertex 0: the mesh's screen bounds stay the same.
@@ -513,8 +508,7 @@ mod tests {
                     st: &mut st,
                     verts: &mut MeshVertices::default(),
                 };
-                let mode = DrawMode { cov, cull };
-                let d = draw_mesh(level, &vp, target, it, mode, None, &mut st_setup);
+                let d = draw_mesh(level, &vp, target, it, cov, None, &mut st_setup);
                 out.push((d.unwrap(), t.depth, t.ids, st, st_setup));
             }
             for o in &out[1..] {
@@ -557,6 +551,7 @@ mod tests {
                 positions: &v,
                 triangles: &[[0, 1, 2], [0, 2, 1]],
                 object: k,
+                cull,
             };
             let lo = Vec3::new(rnd(), rnd(), -3.0 + rnd());
             let hi = lo + Vec3::new(0.1 + rnd().abs(), 0.1 + rnd().abs(), 0.5 * rnd().abs());
@@ -573,8 +568,8 @@ mod tests {
                 positions: &corners,
                 triangles: &crate::item::AABB_TRIANGLES,
                 object: 1000 + k,
+                cull,
             };
-            let mode = DrawMode { cov, cull };
             for it in [&item, &boxed] {
                 let (mut ra, mut rb) = (RowSkip::new(), RowSkip::new());
                 let target_a = BandTarget {
@@ -583,14 +578,14 @@ mod tests {
                     st: &mut ta,
                     verts: &mut MeshVertices::default(),
                 };
-                let da = draw_mesh(level, &vp, target_a, it, mode, None, &mut sa).unwrap();
+                let da = draw_mesh(level, &vp, target_a, it, cov, None, &mut sa).unwrap();
                 let target_b = BandTarget {
                     rows: &mut band(&mut b),
                     skip: &mut rb,
                     st: &mut tb,
                     verts: &mut MeshVertices::default(),
                 };
-                let db = draw_mesh(Portable, &vp, target_b, it, mode, None, &mut sb).unwrap();
+                let db = draw_mesh(Portable, &vp, target_b, it, cov, None, &mut sb).unwrap();
                 assert_eq!(da, db);
             }
             let view = a.query_view(None);

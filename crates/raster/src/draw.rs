@@ -9,7 +9,7 @@ use crate::coverage::Coverage;
 use crate::depth_target::DepthTarget;
 #[cfg(feature = "parallel")]
 use crate::dispatch::project_items;
-use crate::dispatch::{draw_mesh, BandTarget, DrawMode};
+use crate::dispatch::{draw_mesh, BandTarget};
 #[cfg(feature = "parallel")]
 use crate::hiz::{hidden, Projected, RowSkip};
 use crate::item::{aabb_corners, check_indices, DrawItem, AABB_TRIANGLES};
@@ -112,8 +112,8 @@ where
 
 impl DepthTarget {
     /// Draws the triangles of one mesh with the GREATER depth test (ties to the
-    /// smaller id when the id target is enabled), skipping those the cull mode
-    /// ([`DepthTarget::set_cull`]) names.
+    /// smaller id when the id target is enabled), skipping those the item's
+    /// cull mode ([`DrawItem::cull`]) names.
     ///
     /// # Errors
     /// [`Error::IndexOutOfRange`](crate::Error::IndexOutOfRange) when a triangle names a missing vertex (triangles
@@ -145,11 +145,7 @@ impl DepthTarget {
                 st: &mut st2,
                 verts: &mut self.verts,
             };
-            let mode = DrawMode {
-                cov,
-                cull: self.cull,
-            };
-            match draw_mesh(self.isa, &vp, target, item, mode, None, &mut st) {
+            match draw_mesh(self.isa, &vp, target, item, cov, None, &mut st) {
                 Ok(d) => drawn = d,
                 Err(e) => {
                     drawn = true;
@@ -186,6 +182,7 @@ impl DepthTarget {
             positions: &corners,
             triangles: &AABB_TRIANGLES,
             object,
+            cull: crate::CullMode::None,
         };
         self.draw(&item, cov).expect("box indices are in range");
     }
@@ -250,10 +247,6 @@ impl DepthTarget {
         let vp = self.vp;
         let l = self.layout;
         let isa = self.isa;
-        let mode = DrawMode {
-            cov,
-            cull: self.cull,
-        };
         // (Indices were checked by `draw_batch`.)
         let mut scratch = std::mem::take(&mut self.batch);
         // Screen bounds of every item (in parallel, order kept).
@@ -320,7 +313,7 @@ impl DepthTarget {
                         verts,
                     };
                     // Indices were checked above.
-                    let drawn = draw_mesh(isa, &vp, target, it, mode, Some(p), &mut sst);
+                    let drawn = draw_mesh(isa, &vp, target, it, cov, Some(p), &mut sst);
                     if !matches!(drawn, Ok(true)) {
                         continue;
                     }

@@ -56,6 +56,8 @@ pub struct DrawItem<'a> {
     pub triangles: &'a [[u32; 3]],
     /// Object id.
     pub object: u32,
+    /// Which triangles the draw skips by facing (queries never cull).
+    pub cull: CullMode,
 }
 
 /// Clip-space vertices of triangle `k` of `item`.
@@ -193,7 +195,7 @@ fn setup_item_as<C: VertexStage, const CACHED: bool>(
                     if passes == 2 && front != (pass == 0) {
                         continue;
                     }
-                    if !front && cull == CullMode::Back {
+                    if cull.skips(facing) {
                         st.triangles_in += 1;
                         st.triangles_culled += 1;
                         continue;
@@ -202,7 +204,7 @@ fn setup_item_as<C: VertexStage, const CACHED: bool>(
                 }
                 None => {
                     setup_into(clip_vertices(item, k)?, vp, &mut s);
-                    if cull == CullMode::Back && s.facing != Some(Facing::Front) {
+                    if cull.skips(s.facing) {
                         st.triangles_in += 1;
                         st.triangles_culled += 1;
                         continue;

@@ -38,8 +38,9 @@
 //! - `setup_triangle` / `facing` (feature `test-util`): the rasterizer's own
 //!   setup (snapped post-clip polygon), for tests that check kernels against it.
 //!
-//! - [`CullMode`]: draws may skip back faces ([`DepthTarget::set_cull`]), as a GPU
-//!   does for closed occluders; queries never cull.
+//! - [`CullMode`]: a draw may skip back (or front) faces ([`DrawItem::cull`],
+//!   [`DrawCommand::cull`]), as a GPU does for closed occluders; queries never
+//!   cull.
 //!
 //! Whole meshes (draws and box queries) whose projected rectangle lies under tiles
 //! that are all strictly nearer than the mesh's nearest vertex are skipped before

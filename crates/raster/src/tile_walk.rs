@@ -885,6 +885,7 @@ mod tests {
                         positions: &v,
                         triangles: &[[0, 1, 2], [0, 2, 1]],
                         object: k,
+                        cull: crate::CullMode::None,
                     };
                     rows.draw(&item, cov).unwrap();
                     per_row.draw(&item, cov).unwrap();

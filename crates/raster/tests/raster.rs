@@ -140,6 +140,7 @@ fn draw_one(t: &mut DepthTarget, m: Mat4, tri: [Vec4; 3], object: u32, cov: Cove
         positions: &tri,
         triangles: &[[0, 1, 2]],
         object,
+        cull: raster::CullMode::None,
     };
     t.draw(&item, cov).unwrap();
 }
@@ -353,7 +354,7 @@ proptest! {
         for (i, o) in occluders.iter().enumerate() {
             draw_one(&mut t, m, *o, i as u32, Coverage::Standard);
         }
-        let item = DrawItem { clip_from_local: m, positions: &q, triangles: &[[0, 1, 2]], object: 0 };
+        let item = DrawItem { clip_from_local: m, positions: &q, triangles: &[[0, 1, 2]], object: 0, cull: raster::CullMode::None  };
         let count = t.query(&item, &QueryOptions::default(), None).unwrap();
         let any = t.query(&item, &QueryOptions { mode: QueryMode::Any, ..Default::default() }, None).unwrap();
         let refs = ref_tris(&setup_triangle(q.map(|p| m * p), w, h));
@@ -712,6 +713,7 @@ fn box_items<'a>(m: Mat4, corners: &'a [[Vec4; 8]]) -> Vec<DrawItem<'a>> {
             positions: c,
             triangles: &AABB_TRIANGLES,
             object: k as u32,
+            cull: raster::CullMode::None,
         })
         .collect()
 }
@@ -919,6 +921,7 @@ fn receivers_restrict_query_counts() {
         positions: &q,
         triangles: &tris,
         object: 0,
+        cull: raster::CullMode::None,
     };
     // In front of the receivers: counts exactly the marked half.
     assert_eq!(t.query(&item, &o, Some(&r)).unwrap(), w * h / 2);
@@ -944,6 +947,7 @@ fn receivers_restrict_query_counts() {
         positions: &q,
         triangles: &tris,
         object: 0,
+        cull: raster::CullMode::None,
     };
     assert_eq!(t.query(&item, &o, Some(&r)).unwrap(), 0);
     assert_eq!(t.query(&item, &any, Some(&r)).unwrap(), 0);
@@ -979,6 +983,7 @@ fn backend_script(b: &mut dyn OcclusionBackend) -> Vec<u32> {
             triangles: AABB_TRIANGLES.to_vec().into(),
             object: k,
             coverage: Coverage::Standard,
+            cull: CullMode::None,
         })
         .unwrap();
         if k % 7 == 3 {
@@ -1003,7 +1008,8 @@ fn backends_give_identical_counts() {
     assert!(a.iter().any(|&n| n > 0));
 }
 
-/// Runs of draws (1 to 9, some conservative among standard ones) between
+/// Runs of draws (1 to 9, some conservative among standard ones, in every
+/// cull mode) between
 /// queries, on a target large enough for parallel batches: the bundled
 /// backends hold draws and draw each run as one batch before the next
 /// query; their counts and final depth and ids equal the threaded backend's,
@@ -1043,6 +1049,7 @@ fn held_draws_equal_immediate_draws() {
                     } else {
                         Coverage::Standard
                     },
+                    cull: [CullMode::None, CullMode::Back, CullMode::Front][j % 3],
                 })
                 .unwrap();
             }
@@ -1149,7 +1156,8 @@ fn threaded_backend_holds_results_until_the_gate_opens() {
 /// Back-face culling: a closed box seen from outside leaves the depth of its
 /// front faces (the same buffer as drawing all faces here); seen from inside it
 /// draws nothing, so it hides nothing (culling stays conservative); a lone
-/// back-facing triangle is counted as culled.
+/// back-facing triangle is counted as culled, and drawn by the other modes;
+/// front culling draws a mirrored instance as back culling draws the original.
 #[test]
 fn back_face_culling_keeps_front_faces_and_never_hides_more() {
     let (w, h) = (64u32, 48u32);
@@ -1161,9 +1169,16 @@ fn back_face_culling_keeps_front_faces_and_never_hides_more() {
     ];
     let draw = |cull: CullMode, boxes: &[(Vec3, Vec3)]| {
         let mut t = DepthTarget::new(w, h, TileSize::T8, false).unwrap();
-        t.set_cull(cull);
         for (k, &(a, b)) in boxes.iter().enumerate() {
-            t.draw_aabb(m, a, b, k as u32, Coverage::Standard);
+            let corners = aabb_corners(a, b);
+            let item = DrawItem {
+                clip_from_local: m,
+                positions: &corners,
+                triangles: &AABB_TRIANGLES,
+                object: k as u32,
+                cull,
+            };
+            t.draw(&item, Coverage::Standard).unwrap();
         }
         t
     };
@@ -1183,7 +1198,6 @@ fn back_face_culling_keeps_front_faces_and_never_hides_more() {
     assert!(inside_front.depth_rows().iter().all(|&d| d == BACKGROUND));
     // One clockwise (back-facing) triangle.
     let mut t = DepthTarget::new(w, h, TileSize::T8, false).unwrap();
-    t.set_cull(CullMode::Back);
     let cw = [
         Vec4::new(-0.5, -0.5, 0.5, 1.0),
         Vec4::new(0.0, 0.5, 0.5, 1.0),
@@ -1194,6 +1208,7 @@ fn back_face_culling_keeps_front_faces_and_never_hides_more() {
         positions: &cw,
         triangles: &[[0, 1, 2]],
         object: 0,
+        cull: CullMode::Back,
     };
     t.draw(&item, Coverage::Standard).unwrap();
     let s = t.take_stats();
@@ -1201,7 +1216,28 @@ fn back_face_culling_keeps_front_faces_and_never_hides_more() {
         (s.triangles_in, s.triangles_culled, s.pixels_written),
         (1, 1, 0)
     );
-    t.set_cull(CullMode::None);
-    t.draw(&item, Coverage::Standard).unwrap();
-    assert!(t.take_stats().pixels_written > 0);
+    for cull in [CullMode::None, CullMode::Front] {
+        t.draw(&DrawItem { cull, ..item }, Coverage::Standard)
+            .unwrap();
+        assert!(t.take_stats().pixels_written > 0);
+        t.clear();
+    }
+    // Front culling of a mirrored instance (a transform of negative
+    // determinant) draws what back culling draws of the boxes themselves.
+    let mirror = Mat4::from_scale(Vec3::new(-1.0, 1.0, 1.0));
+    let mut mirrored = DepthTarget::new(w, h, TileSize::T8, false).unwrap();
+    for (k, &(a, b)) in boxes.iter().enumerate() {
+        // The box in local space, outward; the mirror turns its faces.
+        let corners = aabb_corners(Vec3::new(-b.x, a.y, a.z), Vec3::new(-a.x, b.y, b.z));
+        let item = DrawItem {
+            clip_from_local: m * mirror,
+            positions: &corners,
+            triangles: &AABB_TRIANGLES,
+            object: k as u32,
+            cull: CullMode::Front,
+        };
+        mirrored.draw(&item, Coverage::Standard).unwrap();
+    }
+    assert_eq!(mirrored.depth_rows(), front.depth_rows());
+    assert_eq!(mirrored.take_stats().triangles_culled, sf.triangles_culled);
 }

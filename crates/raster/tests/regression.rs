@@ -75,6 +75,7 @@ fn frame_stats(
             positions: &corners[k],
             triangles: &AABB_TRIANGLES,
             object: k as u32,
+            cull: raster::CullMode::None,
         })
         .collect();
     let mut t = DepthTarget::new(w, h, tile, ids).unwrap();
@@ -169,6 +170,7 @@ fn clear_resets_every_written_tile() {
             positions: c,
             triangles: &AABB_TRIANGLES,
             object: k as u32,
+            cull: raster::CullMode::None,
         })
         .collect();
     // 317 × 241: partial tiles on the right and bottom edges.

@@ -87,6 +87,7 @@ fn depth_of(m: Mat4, meshes: &[(&[Vec4], &[[u32; 3]])]) -> DepthTarget {
             positions: p,
             triangles: t,
             object: k as u32,
+            cull: raster::CullMode::None,
         };
         eye.draw(&item, Coverage::Standard).unwrap();
     }

@@ -282,6 +282,9 @@ impl Run<'_, '_> {
             triangles,
             object: node.object,
             coverage: self.view.draw_coverage,
+            cull: self.view.back_faces.map_or(raster::CullMode::None, |c| {
+                crate::eye_cull(c, o, &self.scene.graph().meshes()[mesh])
+            }),
         })?;
         self.out.rendered.push(id);
         self.out.stats.objects_rendered += 1;

@@ -31,6 +31,7 @@
 //!   refits and is remapped across rebuilds (`ViewCuller::remap`).
 #![forbid(unsafe_code)]
 
+mod back_faces;
 mod chcpp;
 mod culler;
 mod error;
@@ -47,6 +48,7 @@ mod traverse;
 mod view_setup;
 mod view_split;
 
+pub use back_faces::eye_cull;
 pub use chcpp::ChcppOptions;
 pub use culler::{CullResult, Objects, TraversalStats, ViewCuller};
 pub use error::{Error, Result};

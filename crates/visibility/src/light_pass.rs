@@ -816,6 +816,7 @@ impl ViewSlot {
             threshold: options.threshold,
             triangles: Some(casting),
             occluder: ViewSetup::light_occluder,
+            back_faces: None,
         };
         let r = self
             .culler

@@ -103,6 +103,9 @@ pub struct ViewSetup<'a> {
     /// others are reported rendered but draw nothing): the eye draws visible
     /// occluders ([`ViewSetup::eye_occluder`]), a light view casting ones.
     pub occluder: fn(&scene::ObjectFlags) -> bool,
+    /// The eye whose hidden faces occluder draws skip ([`crate::eye_cull`]);
+    /// `None` (light views): draws keep every face.
+    pub back_faces: Option<&'a scene::Camera>,
 }
 
 impl<'a> ViewSetup<'a> {
@@ -112,7 +115,7 @@ impl<'a> ViewSetup<'a> {
     /// `clip_from_local` is the eye pass's transform path
     /// (`scene::transform::clip_from_local` with `camera`).
     pub fn eye(
-        camera: &scene::Camera,
+        camera: &'a scene::Camera,
         clip_from_local: &'a dyn Fn(&DMat4) -> Mat4,
         threshold: u32,
     ) -> Self {
@@ -121,7 +124,7 @@ impl<'a> ViewSetup<'a> {
 
     /// [`ViewSetup::eye`] with box queries sampled as `sampling` says.
     pub fn eye_sampled(
-        camera: &scene::Camera,
+        camera: &'a scene::Camera,
         clip_from_local: &'a dyn Fn(&DMat4) -> Mat4,
         threshold: u32,
         sampling: Sampling,
@@ -145,6 +148,7 @@ impl<'a> ViewSetup<'a> {
             threshold,
             triangles: None,
             occluder: Self::eye_occluder,
+            back_faces: Some(camera),
         }
     }
 

@@ -466,6 +466,7 @@ mod tests {
             positions: &ground,
             triangles: &quad,
             object: 0,
+            cull: crate::CullMode::None,
         };
         eye.draw(&item, Coverage::Standard).unwrap();
         let mut buf = VolumeBuffer::new();

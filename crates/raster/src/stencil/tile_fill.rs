@@ -287,6 +287,7 @@ mod tests {
                 positions: &v,
                 triangles: &[[0, 1, 2], [0, 2, 1]],
                 object: k,
+                cull: crate::CullMode::None,
             };
             eye.draw(&item, Coverage::Standard).unwrap();
             drawn.push([v[0], v[1], v[2]]);
