@@ -98,12 +98,21 @@ pub(crate) fn clip_triangle<const N: usize>(
     let mut tmp = [DVec4::ZERO; MAX_CLIPPED_VERTICES];
     for p in planes {
         let n = poly.len;
+        // Each vertex's distance once; a plane that keeps every vertex keeps
+        // the polygon as it is (the loop below would copy it unchanged).
+        let mut d = [0.0f64; MAX_CLIPPED_VERTICES];
+        let mut all_in = true;
+        for (d, v) in d.iter_mut().zip(&poly.v[..n]) {
+            *d = p.dot(*v);
+            all_in &= *d >= 0.0;
+        }
+        if all_in {
+            continue;
+        }
         let mut m = 0;
         for i in 0..n {
-            let a = poly.v[i];
-            let b = poly.v[(i + 1) % n];
-            let da = p.dot(a);
-            let db = p.dot(b);
+            let j = if i + 1 == n { 0 } else { i + 1 };
+            let (a, b, da, db) = (poly.v[i], poly.v[j], d[i], d[j]);
             if da >= 0.0 {
                 tmp[m] = a;
                 m += 1;

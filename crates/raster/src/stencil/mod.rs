@@ -7,11 +7,12 @@
 //! (volumes to set-up pieces), `span` and `run` (the per-row span walk and run
 //! kernel), `tile_fill` (the same fill by 8×8 tiles), `fill` (pieces into a
 //! band of counters, and the band runner),
-//! `brute`, then `tile_class` and `open_edges` (the hierarchical pass's tile
-//! classification) and `hierarchical`.
+//! `brute`, then `tile_class`, `open_edges` and `depth_ranges` (the
+//! hierarchical pass's tile classification) and `hierarchical`.
 
 mod brute;
 mod counters;
+mod depth_ranges;
 mod fill;
 mod hierarchical;
 mod near_cap;

@@ -48,9 +48,15 @@ fn vkey(v: &SnappedVertex) -> (i64, i64, u64) {
     (v.x, v.y, v.z.to_bits())
 }
 
-/// Appends the three directed edges of a drawn piece `(v0, v1, v2)` in its vertex order.
-pub(crate) fn push_piece_edges(v: [SnappedVertex; 3], out: &mut Vec<EdgeRec>) {
-    for (a, b) in [(v[0], v[1]), (v[1], v[2]), (v[2], v[0])] {
+/// Appends the directed edges `v0 → v1`, `v1 → v2`, `v2 → v0` of a drawn
+/// piece whose flag in `keep` is set (a caller leaves out a pair it knows
+/// cancels).
+pub(crate) fn push_piece_edges(v: [SnappedVertex; 3], keep: [bool; 3], out: &mut Vec<EdgeRec>) {
+    for ((a, b), _) in [(v[0], v[1]), (v[1], v[2]), (v[2], v[0])]
+        .into_iter()
+        .zip(keep)
+        .filter(|(_, k)| *k)
+    {
         let (ka, kb) = (vkey(&a), vkey(&b));
         let (lo, hi, sign) = match ka.cmp(&kb) {
             std::cmp::Ordering::Less => (ka, kb, 1),
@@ -182,24 +188,24 @@ mod tests {
     fn shared_edges_cancel() {
         let (a, b, c, d) = (v(0, 0, 0.5), v(10, 0, 0.5), v(0, 10, 0.5), v(10, 10, 0.4));
         let mut e = Vec::new();
-        push_piece_edges([a, b, c], &mut e);
-        push_piece_edges([c, b, d], &mut e);
+        push_piece_edges([a, b, c], [true; 3], &mut e);
+        push_piece_edges([c, b, d], [true; 3], &mut e);
         let mut out = Vec::new();
         open_edges(&mut e, &mut out);
         assert_eq!(out.len(), 4);
         // The same surface plus its reverse is closed.
         let mut e = Vec::new();
-        push_piece_edges([a, b, c], &mut e);
-        push_piece_edges([c, b, d], &mut e);
-        push_piece_edges([a, c, b], &mut e);
-        push_piece_edges([c, d, b], &mut e);
+        push_piece_edges([a, b, c], [true; 3], &mut e);
+        push_piece_edges([c, b, d], [true; 3], &mut e);
+        push_piece_edges([a, c, b], [true; 3], &mut e);
+        push_piece_edges([c, d, b], [true; 3], &mut e);
         out.clear();
         open_edges(&mut e, &mut out);
         assert!(out.is_empty());
         // Screen edges at another depth do not cancel: only the shared a–c does.
         let mut e = Vec::new();
-        push_piece_edges([a, b, c], &mut e);
-        push_piece_edges([a, c, v(10, 0, 0.25)], &mut e);
+        push_piece_edges([a, b, c], [true; 3], &mut e);
+        push_piece_edges([a, c, v(10, 0, 0.25)], [true; 3], &mut e);
         out.clear();
         open_edges(&mut e, &mut out);
         assert_eq!(out.len(), 4);
@@ -209,7 +215,11 @@ mod tests {
     fn marks_follow_the_depth_rule() {
         let mut e = Vec::new();
         // A horizontal edge through row 4 from x = 0 to 40 at depth 0.5.
-        push_piece_edges([v(0, 4, 0.5), v(40, 4, 0.5), v(20, 30, 0.5)], &mut e);
+        push_piece_edges(
+            [v(0, 4, 0.5), v(40, 4, 0.5), v(20, 30, 0.5)],
+            [true; 3],
+            &mut e,
+        );
         let mut out = Vec::new();
         open_edges(&mut e, &mut out);
         let seg = out

@@ -100,15 +100,21 @@ impl StripExtents {
     #[inline(always)]
     pub fn new(tri: &Tri) -> Self {
         // Vertices: edge i runs from vertex i + 1 to vertex i + 2 (see `Tri::new`).
-        let v = tri.e.map(|e| (e.ox as f64, e.oy as f64));
-        let edges = [0, 1, 2].map(|i| {
-            let (p, q) = (v[i], v[(i + 1) % 3]);
+        // Plain loops into an initialized array: `array::map` went through
+        // the stack here (1 % of the default job, once per set-up piece).
+        let mut v = [(0.0f64, 0.0f64); 3];
+        for (v, e) in v.iter_mut().zip(&tri.e) {
+            *v = (e.ox as f64, e.oy as f64);
+        }
+        let mut edges = [[0.0f64; 7]; 3];
+        for (i, out) in edges.iter_mut().enumerate() {
+            let (p, q) = (v[i], v[if i == 2 { 0 } else { i + 1 }]);
             let slope = if q.1 == p.1 {
                 0.0
             } else {
                 (q.0 - p.0) / (q.1 - p.1)
             };
-            [
+            *out = [
                 p.0,
                 p.1,
                 slope,
@@ -116,8 +122,8 @@ impl StripExtents {
                 p.1.max(q.1),
                 p.0.min(q.0),
                 p.0.max(q.0),
-            ]
-        });
+            ];
+        }
         StripExtents { edges }
     }
 
