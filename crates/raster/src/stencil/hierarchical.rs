@@ -370,32 +370,51 @@ impl HierarchicalStencil {
         let s = counter_bytes(self.options.bits);
         out.clear();
         out.resize((w * h) as usize, false);
+        stats.tile_bytes += u64::from(self.tiles_x * self.tiles_y) * (3 * s + 1);
+        // Tile rows in parallel: each writes its own pixel rows.
+        let rows = (w as usize) << self.shift;
+        let row = |(ty, r): (usize, &mut [bool])| self.resolve_tile_row(eye, ty as u32, r);
+        #[cfg(feature = "parallel")]
+        let read: u64 = {
+            use rayon::prelude::*;
+            out.par_chunks_mut(rows).enumerate().map(row).sum()
+        };
+        #[cfg(not(feature = "parallel"))]
+        let read: u64 = out.chunks_mut(rows).enumerate().map(row).sum();
+        stats.pixel_bytes += read * s;
+        Ok(())
+    }
+
+    /// [`HierarchicalStencil::resolve`] of tile row `ty` into `out`, its pixel
+    /// rows (row-major); returns the per-pixel counters read.
+    fn resolve_tile_row(&self, eye: &DepthTarget, ty: u32, out: &mut [bool]) -> u64 {
+        let (w, h) = (self.width(), self.height());
         let size = 1u32 << self.shift;
-        for ty in 0..self.tiles_y {
-            for tx in 0..self.tiles_x {
-                let t = &self.cold[(ty * self.tiles_x + tx) as usize];
-                stats.tile_bytes += 3 * s + 1;
-                let uniform = t.fs || t.smin == t.smax;
-                let value = t.fs || self.wrap(t.base.wrapping_add(t.smin)) != 0;
-                if uniform && !value {
-                    continue;
-                }
-                for y in ty * size..((ty + 1) * size).min(h) {
-                    for x in tx * size..((tx + 1) * size).min(w) {
-                        if eye.depth[eye.layout.pixel_index(x, y)] == BACKGROUND {
-                            continue;
-                        }
-                        out[(y * w + x) as usize] = if uniform {
-                            value
-                        } else {
-                            stats.pixel_bytes += s;
-                            self.wrap(t.base.wrapping_add(self.pixels.value(x, y))) != 0
-                        };
+        let y0 = ty * size;
+        let mut read = 0;
+        for tx in 0..self.tiles_x {
+            let t = &self.cold[(ty * self.tiles_x + tx) as usize];
+            let uniform = t.fs || t.smin == t.smax;
+            let value = t.fs || self.wrap(t.base.wrapping_add(t.smin)) != 0;
+            if uniform && !value {
+                continue;
+            }
+            for y in y0..(y0 + size).min(h) {
+                let line = &mut out[((y - y0) * w) as usize..][..w as usize];
+                for x in tx * size..((tx + 1) * size).min(w) {
+                    if eye.depth[eye.layout.pixel_index(x, y)] == BACKGROUND {
+                        continue;
                     }
+                    line[x as usize] = if uniform {
+                        value
+                    } else {
+                        read += 1;
+                        self.wrap(t.base.wrapping_add(self.pixels.value(x, y))) != 0
+                    };
                 }
             }
         }
-        Ok(())
+        read
     }
 
     /// Draws shadow volumes as [`StencilTarget::draw_volumes`] does (same
