@@ -659,8 +659,16 @@ impl HierarchicalStencil {
         let px_chunk = BAND_ROWS * (self.width().div_ceil(8) as usize) * 8;
         let (self_bands, band_runs) = (&self.bands, &self.band_runs);
         let nbands = self.height().div_ceil(band_rows as u32) as usize;
-        piece_bins.fill(nbands, pieces.iter().map(|(p, _)| (p.y0, p.y1)));
-        open_bins.fill(nbands, open.iter().map(|e| (e.y0, e.y1)));
+        let piece_rows = || piece_bins.fill(nbands, pieces.iter().map(|(p, _)| (p.y0, p.y1)));
+        let open_rows = || open_bins.fill(nbands, open.iter().map(|e| (e.y0, e.y1)));
+        // The two binnings are independent (and precede every band).
+        #[cfg(feature = "parallel")]
+        rayon::join(piece_rows, open_rows);
+        #[cfg(not(feature = "parallel"))]
+        {
+            piece_rows();
+            open_rows();
+        }
         let (piece_bins, open_bins) = (&*piece_bins, &*open_bins);
         band_work.resize_with(nbands, Default::default);
         let run = |k: usize,
