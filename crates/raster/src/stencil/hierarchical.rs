@@ -60,11 +60,10 @@ use crate::coverage::Rect;
 use crate::depth_target::DepthTarget;
 
 use crate::clip::MAX_CLIPPED_VERTICES;
-use crate::edge::Tri;
 use crate::layout::{TileSize, BACKGROUND};
 use crate::setup::{Setup, SnappedVertex, SUBPIXEL};
 use crate::stencil::counters::{counter_bytes, pass_bytes, tiled_index, Counters, CountersMut};
-use crate::stencil::depth_ranges::{DepthRanges, EMPTY};
+use crate::stencil::depth_ranges::{union, DepthRanges, EMPTY};
 use crate::stencil::fill::{for_each_band, CounterRows};
 use crate::stencil::open_edges::{open_edges, push_piece_edges, EdgeRec, Segment};
 use crate::stencil::pieces::{volume_polygons, Piece, Window};
@@ -248,9 +247,9 @@ impl HierarchicalStencil {
             pixels,
             hot: vec![Hot::default(); n],
             cold: vec![Cold::default(); n],
-            blocks: vec![[f32::INFINITY, BACKGROUND]; tiles_y as usize * blocks_per_row(tiles_x)],
+            blocks: vec![EMPTY; tiles_y as usize * blocks_per_row(tiles_x)],
             bands: vec![
-                [f32::INFINITY, BACKGROUND];
+                EMPTY;
                 height.div_ceil(BAND_ROWS as u32) as usize * blocks_per_row(tiles_x)
             ],
             band_runs: DepthRanges::default(),
@@ -597,9 +596,7 @@ impl HierarchicalStencil {
                 *out = ts
                     .iter()
                     .filter(|t| t.zmax >= 0.0)
-                    .fold([f32::INFINITY, BACKGROUND], |[lo, hi], t| {
-                        [lo.min(t.zmin), hi.max(t.zmax)]
-                    });
+                    .fold(EMPTY, |r, t| union(r, [t.zmin, t.zmax]));
             }
         };
         #[cfg(feature = "parallel")]
@@ -627,11 +624,7 @@ impl HierarchicalStencil {
             let rows = &self.blocks[k * rows_per_band * nb..]
                 [..(rows_per_band * nb).min(self.blocks.len() - k * rows_per_band * nb)];
             for (b, o) in out.iter_mut().enumerate() {
-                *o = rows
-                    .chunks(nb)
-                    .fold([f32::INFINITY, BACKGROUND], |[lo, hi], r| {
-                        [lo.min(r[b][0]), hi.max(r[b][1])]
-                    });
+                *o = rows.chunks(nb).fold(EMPTY, |a, r| union(a, r[b]));
             }
         }
         self.band_runs.build(&self.bands, nb);
@@ -676,6 +669,8 @@ impl HierarchicalStencil {
                    parts: BandParts<'_>,
                    (scratch, bst): &mut (Scratch, StencilStats)| {
             let y0 = (k * band_rows) as i64;
+            let band_blocks =
+                &self_bands[k * blocks_per_row(geo.tiles_x)..][..blocks_per_row(geo.tiles_x)];
             let mut band = HBand {
                 px: CounterRows {
                     counters,
@@ -689,14 +684,8 @@ impl HierarchicalStencil {
                 hot: parts.hot,
                 cold: parts.cold,
                 blocks: parts.blocks,
-                band_blocks: &self_bands[k * blocks_per_row(geo.tiles_x)..]
-                    [..blocks_per_row(geo.tiles_x)],
-                band_range: self_bands[k * blocks_per_row(geo.tiles_x)..]
-                    [..blocks_per_row(geo.tiles_x)]
-                    .iter()
-                    .fold([f32::INFINITY, BACKGROUND], |[lo, hi], b| {
-                        [lo.min(b[0]), hi.max(b[1])]
-                    }),
+                band_blocks,
+                band_range: band_blocks.iter().fold(EMPTY, |a, &b| union(a, b)),
                 band_runs: (band_runs, k),
                 tile0: k * tiles_per_band,
                 ty0: (k * rows_per_band) as i64,
@@ -1542,29 +1531,18 @@ fn push_h_pieces(
     pieces: &mut Vec<Piece>,
     edges: &mut Vec<EdgeRec>,
 ) {
-    let before = pieces.len();
-    crate::stencil::pieces::push_pieces(poly, zfail, job, pieces);
-    if pieces.len() == before {
-        return;
-    }
-    // The fan's pieces (v0, v_i, v_i+1) in order, with whether each is drawn.
-    // Two drawn neighbours share the diagonal v0–v_i+1 in opposite
+    let drawn = crate::stencil::pieces::push_pieces(poly, zfail, job, pieces);
+    // The fan's pieces (v0, v_i, v_i+1) in order, bit i − 1 of `drawn` when
+    // drawn. Two drawn neighbours share the diagonal v0–v_i+1 in opposite
     // directions: the pair cancels in `open_edges` whatever else the volume
     // holds, so neither is pushed (the net count of every edge is unchanged,
     // and so are the open edges).
-    let n = poly.len();
-    let drawn = |i: usize| {
-        (1..n.saturating_sub(1)).contains(&i) && Tri::new(poly[0], poly[i], poly[i + 1]).is_some()
-    };
-    let mut this = drawn(1);
-    let mut before = false;
-    for i in 1..n.saturating_sub(1) {
-        let after = drawn(i + 1);
-        if this {
-            let (v0, v1, v2) = (poly[0], poly[i], poly[i + 1]);
-            push_piece_edges([v0, v1, v2], [!before, true, !after], edges);
+    let is_drawn = |i: usize| i >= 1 && (drawn >> (i - 1)) & 1 != 0;
+    for i in 1..poly.len().saturating_sub(1) {
+        if is_drawn(i) {
+            let keep = [!is_drawn(i - 1), true, !is_drawn(i + 1)];
+            push_piece_edges([poly[0], poly[i], poly[i + 1]], keep, edges);
         }
-        (before, this) = (this, after);
     }
 }
 
@@ -1578,7 +1556,7 @@ mod tests {
     fn all_piece_edges(poly: &[SnappedVertex], edges: &mut Vec<EdgeRec>) {
         for i in 1..poly.len().saturating_sub(1) {
             let v = [poly[0], poly[i], poly[i + 1]];
-            if Tri::new(v[0], v[1], v[2]).is_some() {
+            if crate::edge::Tri::new(v[0], v[1], v[2]).is_some() {
                 crate::stencil::open_edges::push_piece_edges(v, [true; 3], edges);
             }
         }

@@ -80,8 +80,16 @@ pub(crate) struct Piece {
 /// orientation: front-facing pieces (clockwise on screen, i.e. counter-clockwise
 /// in NDC with y up) are entries, back-facing ones exits; zpass counts entries
 /// +1 and exits −1 in front of the surface, zfail exits +1 and entries −1
-/// behind it.
-pub(crate) fn push_pieces(poly: &[SnappedVertex], zfail: bool, job: u32, out: &mut Vec<Piece>) {
+/// behind it. Returns which fan pieces were drawn: bit `i − 1` for the piece
+/// `(v0, v_i, v_i+1)` (a snapped polygon has at most
+/// [`crate::clip::MAX_CLIPPED_VERTICES`] vertices).
+pub(crate) fn push_pieces(
+    poly: &[SnappedVertex],
+    zfail: bool,
+    job: u32,
+    out: &mut Vec<Piece>,
+) -> u32 {
+    let mut drawn = 0;
     for i in 1..poly.len().saturating_sub(1) {
         let (v0, v1, v2) = (poly[0], poly[i], poly[i + 1]);
         // Screen y points down: a negative area is clockwise seen on screen.
@@ -97,8 +105,10 @@ pub(crate) fn push_pieces(poly: &[SnappedVertex], zfail: bool, job: u32, out: &m
                 increment: (area < 0) != zfail,
                 job,
             });
+            drawn |= 1 << (i - 1);
         }
     }
+    drawn
 }
 
 /// Sets up every triangle of `range` with `clip_from_local` (the rasterizer's
