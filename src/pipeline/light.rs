@@ -2,10 +2,11 @@
 //! intersection body B = conv(V ∪ l) ∩ S [Steiner §4.3.3], the eye's visible
 //! surface points marked as receivers, and a CHC traversal per view that
 //! finds the potential shadow casters (PSC) — [`visibility::LightPass`]. The
-//! lights are independent (each owns its views' state) and run in parallel.
+//! lights are independent (each owns its views' state): each light's pass
+//! starts its share of the frame (`light_frame.rs`), and the shares run in
+//! parallel.
 
 use crate::Result;
-use rayon::iter::ParallelIterator;
 use scene::Light;
 use std::time::Instant;
 use visibility::{
@@ -55,55 +56,53 @@ pub(crate) enum Reading {
     Slices,
 }
 
-/// Runs the light pass of every light concurrently: each item is a light, its
-/// key for the host's backend factory, its culling state, whose `result`
-/// and `ms` are replaced, and what it reads for clamping.
+/// Runs one light's pass: `light`, its key for the host's backend factory,
+/// its culling state (whose `result` and `ms` are replaced) and what it reads
+/// for clamping.
 ///
 /// # Errors
-/// The first light's error.
-pub(crate) fn light_passes<'l>(
-    lights: impl ParallelIterator<Item = (Light, u32, &'l mut LightCulling, Reading)>,
+/// The pass's error.
+pub(crate) fn light_pass(
+    light: Light,
+    key: u32,
+    c: &mut LightCulling,
+    reading: Reading,
     input: &LightPassInput<'_>,
 ) -> Result<()> {
-    lights
-        .map(|(light, key, c, reading)| {
-            let t = Instant::now();
-            c.pass.set_frame(input.frame);
-            let mut edges = [0.0; visibility::MAX_SLICES + 1];
-            let mut pass = input.pass;
-            let (viewport, n) = input.slices;
-            // Continuous clamping also reads each caster's bands: its
-            // occupied slices at the finest count (`shadowgen`'s `bands.rs`).
-            let (axes, count) = match reading {
-                Reading::None => (None, None),
-                Reading::Axes => (
-                    input.pass.fragments.and_then(|f| f.axes),
-                    Some(shadowgen::BAND_SLICES),
-                ),
-                Reading::Slices => (None, Some(n)),
-            };
-            let slices = count.and_then(|n| {
-                shadowgen::EyeSlices::new(pass.camera, viewport, &light, n).map(|s| {
-                    let edges = &mut edges[..=n as usize];
-                    for (i, e) in edges.iter_mut().enumerate() {
-                        *e = s.edge(i as u32);
-                    }
-                    let (num, den) = s.world_ratio();
-                    let edges = &*edges;
-                    SliceRatio { num, den, edges }
-                })
-            });
-            pass.fragments = (reading != Reading::None).then_some(FragmentSource { axes, slices });
-            c.pass.run_into(
-                &pass,
-                &light,
-                input.options,
-                input.backends.map(|f| (f, key)),
-                &mut c.result,
-            )?;
-            c.ms = t.elapsed().as_secs_f64() * 1e3;
-            Ok(())
+    let t = Instant::now();
+    c.pass.set_frame(input.frame);
+    let mut edges = [0.0; visibility::MAX_SLICES + 1];
+    let mut pass = input.pass;
+    let (viewport, n) = input.slices;
+    // Continuous clamping also reads each caster's bands: its occupied
+    // slices at the finest count (`shadowgen`'s `bands.rs`).
+    let (axes, count) = match reading {
+        Reading::None => (None, None),
+        Reading::Axes => (
+            input.pass.fragments.and_then(|f| f.axes),
+            Some(shadowgen::BAND_SLICES),
+        ),
+        Reading::Slices => (None, Some(n)),
+    };
+    let slices = count.and_then(|n| {
+        shadowgen::EyeSlices::new(pass.camera, viewport, &light, n).map(|s| {
+            let edges = &mut edges[..=n as usize];
+            for (i, e) in edges.iter_mut().enumerate() {
+                *e = s.edge(i as u32);
+            }
+            let (num, den) = s.world_ratio();
+            let edges = &*edges;
+            SliceRatio { num, den, edges }
         })
-        .collect::<std::result::Result<(), visibility::Error>>()?;
+    });
+    pass.fragments = (reading != Reading::None).then_some(FragmentSource { axes, slices });
+    c.pass.run_into(
+        &pass,
+        &light,
+        input.options,
+        input.backends.map(|f| (f, key)),
+        &mut c.result,
+    )?;
+    c.ms = t.elapsed().as_secs_f64() * 1e3;
     Ok(())
 }

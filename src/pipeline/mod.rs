@@ -16,12 +16,17 @@
 //! 3. `volume` — silhouettes, method choice and shadow volumes [AW, EK];
 //! 4. `stencil` — the brute-force, hierarchical \[Aila04\] or hybrid
 //!    \[ChanDurand04\] stencil and the mask.
+//!
+//! Stages 2–4 are one chain per light (`light_frame`), and the lights'
+//! chains run side by side.
 
 mod auto;
 mod edit;
 pub mod eye;
 mod fill_count;
 mod light;
+mod light_frame;
+mod light_state;
 pub mod memory;
 mod options;
 mod shadow_options;
@@ -38,7 +43,6 @@ pub use options::{
     PipelineOptions, StencilBackend, StencilCosts, DEFAULT_CLAMP_PIXEL_COST,
     DEFAULT_CLAMP_VERTEX_COST,
 };
-use shadow_options::ShadowInput;
 pub use shadow_options::{Backend, ClampOptions, ShadowOptions};
 pub use stencil::{shadow_mask, shadow_mask_for, ShadowFrame, ShadowScratch, TileImage};
 
@@ -46,7 +50,8 @@ use crate::mask::Mask;
 use crate::reference::{try_reference_mask, ReferenceMask, TriangleBvh};
 use crate::stats::{FrameStats, ShadowStats};
 use crate::{Error, Result};
-use light::LightCulling;
+pub use light_state::LightId;
+use light_state::{LightSlot, LightState};
 use raster::VolumeBuffer;
 use scene::{Camera, Light, ObjectId, Scene};
 use shadowgen::VolumeStats;
@@ -76,81 +81,6 @@ impl FrameInput {
             camera,
         }
     }
-}
-
-/// Identifies a light of a [`Pipeline`]: the low 24 bits are its slot, the
-/// high 8 bits a generation bumped when a removed light's slot is reused, so a
-/// stale id is an error, never another light. Per-light state (silhouette
-/// cache, light views, culling history) follows the id.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize)]
-pub struct LightId(pub u32);
-
-impl LightId {
-    fn new(slot: usize, generation: u8) -> LightId {
-        LightId(slot as u32 | (u32::from(generation) << 24))
-    }
-
-    fn slot(self) -> usize {
-        (self.0 & 0x00ff_ffff) as usize
-    }
-
-    fn generation(self) -> u8 {
-        (self.0 >> 24) as u8
-    }
-}
-
-/// One light's persistent state and last result.
-#[derive(Debug)]
-struct LightState {
-    light: Light,
-    id: LightId,
-    culling: LightCulling,
-    /// `culling: auto`'s choice state of the light pass.
-    auto: auto::AutoView,
-    /// `stencil: auto`'s choice state of the stencil, one for frames whose
-    /// light pass culls and one for frames that draw every caster: the two
-    /// stencils' costs compare only over the same casters.
-    stencil_auto: [auto::AutoView; 2],
-    /// `clamping: auto`'s choice states: clamping or not, and among
-    /// clamped frames discrete or continuous.
-    clamp_auto: [auto::AutoView; 2],
-    /// This frame's clamping.
-    clamping: ClampingSpec,
-    /// Whether this frame runs the light pass (culls the casters).
-    culled: bool,
-    /// The last PSC as public ids (slot and generation), ascending.
-    psc: Vec<ObjectId>,
-    scratch: ShadowScratch,
-    volume_stats: VolumeStats,
-    stats: ShadowStats,
-    shadow: Option<ShadowFrame>,
-}
-
-impl LightState {
-    fn new(light: Light, id: LightId) -> Self {
-        LightState {
-            light,
-            id,
-            culling: LightCulling::default(),
-            auto: auto::AutoView::culling(),
-            stencil_auto: [auto::AutoView::stencil(), auto::AutoView::stencil()],
-            clamp_auto: [auto::AutoView::stencil(), auto::AutoView::stencil()],
-            clamping: ClampingSpec::None,
-            culled: false,
-            psc: Vec::new(),
-            scratch: ShadowScratch::default(),
-            volume_stats: VolumeStats::default(),
-            stats: ShadowStats::default(),
-            shadow: None,
-        }
-    }
-}
-
-/// A light slot: its generation and, while the light exists, its state.
-#[derive(Debug, Default)]
-struct LightSlot {
-    generation: u8,
-    state: Option<LightState>,
 }
 
 /// The shadow-volume culling pipeline: owns the scene and everything a frame
@@ -201,14 +131,10 @@ pub struct Pipeline {
     receivers: Vec<visibility::ReceiverPoints>,
     /// The receiver points' run buffers, one per band of rows.
     receiver_runs: Vec<crate::surface::RunRows<Option<crate::surface::RayPlane>>>,
-    /// The stencil targets the lights take turns on.
-    stencil_targets: stencil::StencilTargets,
     /// Every live visible object's slot id, ascending: the PSR without culling.
     all_visible: Vec<ObjectId>,
     /// Every live casting object's slot id, ascending: the casters without culling.
     all_casters: Vec<ObjectId>,
-    /// The casters of one light this frame (the PSC less non-casters), reused.
-    casters: Vec<ObjectId>,
     /// The last PSR as public ids, ascending.
     psr: Vec<ObjectId>,
     lights: Vec<LightSlot>,
@@ -263,10 +189,8 @@ impl Pipeline {
             camera: None,
             receivers: Default::default(),
             receiver_runs: Default::default(),
-            stencil_targets: Default::default(),
             all_visible: live_slots_of(&scene, |f| f.visible),
             all_casters: live_slots_of(&scene, |f| f.casts),
-            casters: Vec::new(),
             psr: Vec::new(),
             lights: Vec::new(),
             stats: FrameStats::default(),
@@ -510,21 +434,9 @@ impl Pipeline {
         // Discrete clamping reads occupied slices the same way; a sample's
         // slice is its pixel's, whatever its depth, so it needs no stored
         // points. What a light reads is per light (`clamping: auto`).
-        let fragment_receivers = o.clamping_receivers == options::ClampReceiversSpec::Fragment;
-        let reading = |s: &LightState| match s.clamping {
-            ClampingSpec::Discrete => light::Reading::Slices,
-            // Fragment receivers are read whenever the model is chosen
-            // (`count_fill` counts them on unclamped frames), but under
-            // `auto` only by a light that clamps continuously this frame.
-            ClampingSpec::Continuous if fragment_receivers => light::Reading::Axes,
-            ClampingSpec::None if fragment_receivers && o.clamping != ClampingSpec::Auto => {
-                light::Reading::Axes
-            }
-            _ => light::Reading::None,
-        };
         let stored_points = (self.lights.iter())
             .filter_map(|s| s.state.as_ref())
-            .any(|s| s.culled && reading(s) == light::Reading::Axes);
+            .any(|s| s.culled && light_frame::reading(s.clamping, &o) == light::Reading::Axes);
         // The culling lights mark the eye's visible surface points.
         if lights_culled {
             visible_points_into(
@@ -570,41 +482,8 @@ impl Pipeline {
             })
         };
 
-        // 2. Light passes (PSC) of the culling lights, concurrently.
-        if let (true, Some(state)) = (lights_culled, &self.culling) {
-            let (hierarchy, meshes) = state.parts();
-            use rayon::prelude::*;
-            let lights = self
-                .lights
-                .par_iter_mut()
-                .filter_map(|slot| slot.state.as_mut())
-                .filter(|state| state.culled)
-                .map(|state| {
-                    let r = reading(state);
-                    (state.light, state.id.0, &mut state.culling, r)
-                });
-            let input = light::LightPassInput {
-                pass: visibility::PassInput {
-                    hierarchy,
-                    scene,
-                    meshes,
-                    camera,
-                    receivers: &self.receivers,
-                    fragments: Some(visibility::FragmentSource {
-                        axes: Some(&axes),
-                        slices: None,
-                    }),
-                },
-                backends: self.backends.as_deref(),
-                options: &o.light_pass_options(),
-                frame,
-                slices: ((w, h), o.slices),
-            };
-            light::light_passes(lights, &input)?;
-        }
-
-        // 3.–4. Per light: volumes, then the stencil and mask.
-        let shadow_options = o.shadow_options();
+        // 2.–4. Per light, side by side: the light pass (PSC) of a culling
+        // light, then the volumes, the stencil and the mask.
         // Clamping's receivers under `psr`: the receiving objects the eye
         // pass drew (every receiving object without culling).
         let psr_model = (o.clamping != ClampingSpec::None || o.count_fill)
@@ -619,260 +498,64 @@ impl Pipeline {
             }
             _ => None,
         };
-        let psr = self.psr.len() as u64;
         let all_caster_triangles = if auto && may_cull {
-            triangles_of(scene, &self.all_casters)
+            light_frame::triangles_of(scene, &self.all_casters)
         } else {
             0
         };
-        let stencil_auto = o.stencil == StencilBackend::Auto;
-        let mut n = 0;
-        let mut fill_ms = 0.0;
-        for s in self.lights.iter_mut().filter_map(|s| s.state.as_mut()) {
-            n += 1;
-            let casters: &[ObjectId] = if s.culled {
-                self.casters.clear();
-                self.casters.reserve(scene.objects().len());
-                let casting = s
-                    .culling
-                    .result
-                    .psc
-                    .iter()
-                    .filter(|id| scene.object(**id).flags.casts);
-                self.casters.extend(casting);
-                &self.casters
-            } else {
-                &self.all_casters
-            };
-            let input = ShadowInput {
-                scene,
-                camera,
-                light: &s.light,
-            };
-            // `stencil: auto`: this light's stencil this frame.
-            let stencil_view = usize::from(s.culled);
-            let hierarchical = !stencil_auto || s.stencil_auto[stencil_view].choose(&o.auto);
-            let light_options = ShadowOptions {
-                clamping: o.clamping_options(s.clamping),
-                ..if hierarchical {
-                    shadow_options
-                } else {
-                    auto::db_options(shadow_options)
-                }
-            };
-            // Fragment receivers and slices come from this frame's light
-            // pass; a light not culled this frame clamps to every receiving
-            // object (discrete: not at all).
-            let fragments = (s.culled && reading(s) != light::Reading::None)
-                .then(|| volume::Readings::of(&s.culling.result));
-            let mut volumes = volume::build_for(
-                input,
-                casters,
-                &light_options,
-                (w, h),
-                receives.as_deref(),
-                fragments,
-                &mut s.scratch.volume,
-            )?;
-            if fragments.is_some() && light_options.clamping.is_some() {
-                volumes.clamp_ms += s.culling.result.fragment_ms;
+        let pass_options = o.light_pass_options();
+        let pass = match (lights_culled, &self.culling) {
+            (true, Some(state)) => {
+                let (hierarchy, meshes) = state.parts();
+                Some(light::LightPassInput {
+                    pass: visibility::PassInput {
+                        hierarchy,
+                        scene,
+                        meshes,
+                        camera,
+                        receivers: &self.receivers,
+                        fragments: Some(visibility::FragmentSource {
+                            axes: Some(&axes),
+                            slices: None,
+                        }),
+                    },
+                    backends: self.backends.as_deref(),
+                    options: &pass_options,
+                    frame,
+                    slices: ((w, h), o.slices),
+                })
             }
-            s.volume_stats = volumes;
-            // Public ids (slot and generation) in the outputs.
-            s.psc.clear();
-            s.psc.reserve(scene.objects().len());
-            s.psc.extend(casters.iter().map(|id| scene.id_of(id.0)));
-            for r in &mut s.scratch.volume.buffer.ranges {
-                r.object = scene.id_of(r.object).0;
-            }
-            // The lights take turns on one set of stencil targets.
-            std::mem::swap(&mut s.scratch.targets, &mut self.stencil_targets);
-            // The hybrid's shadow maps: this frame's point-sampled light
-            // views, unless no light pass ran or a host's backends drew them
-            // (then it renders its own, as for conservative light views,
-            // whose depth is no shadow map: see `keep_depth`).
-            let hybrid = o.stencil == StencilBackend::Hybrid
-                && o.light_pass_options().keep_depth
-                && s.culled
-                && self.backends.is_none();
-            let light_views: Vec<_> = match hybrid {
-                true => (s.culling.pass.view_depths())
-                    .filter_map(|(v, t)| Some((v, t?)))
-                    .collect(),
-                false => Vec::new(),
-            };
-            let shadow = match o.stencil {
-                StencilBackend::None => None,
-                _ => Some(stencil::stencil_volumes(
-                    input,
-                    &eye,
-                    &light_options,
-                    &mut s.scratch,
-                    volumes,
-                    s.shadow.take(),
-                    hybrid.then_some(&light_views[..]),
-                )),
-            };
-            drop(light_views);
-            std::mem::swap(&mut s.scratch.targets, &mut self.stencil_targets);
-            s.shadow = shadow.transpose()?;
-            let (light, light_ms) = if s.culled {
-                (s.culling.result.stats, s.culling.ms)
-            } else {
-                (TraversalStats::default(), 0.0)
-            };
-            let fill = if o.count_fill {
-                let t = Instant::now();
-                let clamped = fill_count::ClampedVariant {
-                    options: o.clamp_options(),
-                    receives: receives.as_deref(),
-                    fragments,
-                };
-                let drawn = fill_count::Drawn {
-                    buffer: &s.scratch.volume.buffer,
-                    stencil: s.shadow.as_ref().map(|f| &f.stencil),
-                };
-                let counts = fill_count::count_fill(
-                    input,
-                    &eye.target,
-                    casters,
-                    &light_options,
-                    clamped,
-                    drawn,
-                    &mut s.scratch.fill,
-                )?;
-                fill_ms += ms(t);
-                counts
-            } else {
-                fill_count::FillCounts::default()
-            };
-            let mut stats = ShadowStats {
-                eye_ms,
-                volume_triangles: s.scratch.volume.buffer.triangle_count() as u64,
+            _ => None,
+        };
+        let psr = self.psr.len() as u64;
+        let shared = light_frame::FrameShared {
+            scene,
+            camera,
+            options: &o,
+            eye: &eye,
+            eye_counts: light_frame::EyeCounts {
+                ms: eye_ms,
                 psr,
-                psc: casters.len() as u64,
-                queries: eye_queries + light.queries,
-                waits: eye_waits + light.waits,
-                light_ms,
-                volumes,
-                light,
-                ..Default::default()
-            };
-            if let Some(f) = &s.shadow {
-                add_stencil(&mut stats, f);
-                // A brute-force stencil's own count is the fill of what it drew.
-                if light_options.backend == Backend::Brute {
-                    match light_options.clamping {
-                        Some(_) => stats.bf_fill_clamped = f.stencil.pixels_processed,
-                        None => stats.bf_fill_unclamped = f.stencil.pixels_processed,
-                    }
-                }
-            }
-            if o.count_fill {
-                stats.bf_fill_unclamped = fill.unclamped;
-                stats.bf_fill_clamped = fill.clamped;
-            }
-            s.stats = stats;
-            if let (true, Some(f)) = (stencil_auto, &s.shadow) {
-                let pixels = u64::from(w) * u64::from(h);
-                let cost = auto::stencil_cost(&o.auto.stencil, hierarchical, &f.stencil, pixels);
-                s.stencil_auto[stencil_view].observe(&o.auto, hierarchical, cost, None);
-                tracing::debug!(
-                    target: "shadowcull::auto",
-                    view = "stencil",
-                    light = s.id.0,
-                    hierarchical,
-                    cost,
-                    stencil_ms = f.stencil_ms,
-                    triangles = f.stencil.triangles,
-                    tile_tests = f.stencil.tile_tests,
-                    h_fragments = f.stencil.h_fragments,
-                    pixels_processed = f.stencil.pixels_processed,
-                );
-            }
-            // The light's modeled costs, for `culling: auto` and `clamping:
-            // auto`.
-            let costs = (o.clamping == ClampingSpec::Auto || (auto && may_cull)).then(|| {
-                auto::LightCosts {
-                    caster_triangles: triangles_of(scene, casters),
-                    all_caster_triangles,
-                    volume_triangles: s.stats.volume_triangles,
-                    stencil: s.shadow.as_ref().map(|f| f.stencil).unwrap_or_default(),
-                    hierarchical: matches!(light_options.backend, Backend::Hierarchical { .. }),
-                    pass: s.culled.then_some(auto::LightPassWork {
-                        traversal: light,
-                        raster: s.culling.result.raster,
-                        host: self.backends.is_some(),
-                        eye_pixels: u64::from(w) * u64::from(h),
-                    }),
-                }
-            });
-            if let (ClampingSpec::Auto, Some(mut costs)) = (o.clamping, costs) {
-                // The frame's modeled cost: light pass (its receiver points
-                // marked twice with the stored depths), volumes, stencil,
-                // and the marked pixels read for clamping.
-                let r = reading(s);
-                if let Some(p) = &mut costs.pass {
-                    p.eye_pixels *= 1 + u64::from(stored_points && r == light::Reading::Axes);
-                }
-                let read = match (s.culled, r) {
-                    (true, light::Reading::Axes | light::Reading::Slices) => {
-                        s.culling.result.fragments.pixels + s.culling.result.slices.pixels
-                    }
-                    _ => 0,
-                };
-                // Segment triangles at their own price.
-                let segments = s.stats.volumes.segment_triangles as f64;
-                let cost = costs.costs(&o.auto).0
-                    + (o.auto.segment_triangle - o.auto.volume_triangle) * segments
-                    + o.auto.receiver_pixel * read as f64;
-                // Clamping costs what its cheapest known mode does: a probe
-                // of the dearer one does not count against clamping.
-                let clamped = s.clamping != ClampingSpec::None;
-                let mut clamp_cost = cost;
-                if clamped {
-                    let discrete = s.clamping == ClampingSpec::Discrete;
-                    s.clamp_auto[1].observe(&o.auto, discrete, cost, None);
-                    clamp_cost = s.clamp_auto[1].best().unwrap_or(cost);
-                }
-                s.clamp_auto[0].observe(&o.auto, clamped, clamp_cost, None);
-                tracing::debug!(
-                    target: "shadowcull::auto",
-                    view = "clamping",
-                    light = s.id.0,
-                    clamping = ?s.clamping,
-                    cost,
-                    read,
-                    segments = s.stats.volumes.segments,
-                    pixels_processed = costs.stencil.pixels_processed,
-                );
-            }
-            if let (true, true, Some(costs)) = (auto, may_cull, costs) {
-                let (cost, unculled) = costs.costs(&o.auto);
-                s.auto.observe(&o.auto, s.culled, cost, unculled);
-                let st = &s.stats;
-                tracing::debug!(
-                    target: "shadowcull::auto",
-                    view = "light",
-                    light = s.id.0,
-                    culled = s.culled,
-                    cost,
-                    unculled = unculled.unwrap_or(f64::NAN),
-                    light_ms,
-                    volumes_ms = st.volumes.silhouette_ms + st.volumes.volume_ms,
-                    stencil_ms = st.stencil_ms,
-                    nodes = light.nodes_visited,
-                    queries = light.queries,
-                    raster_triangles = s.culling.result.raster.triangles_in,
-                    raster_tiles = s.culling.result.raster.tiles_touched,
-                    raster_pixels = s.culling.result.raster.pixels_tested,
-                    objects = light.objects_rendered,
-                    caster_triangles = costs.caster_triangles,
-                    h_fragments = costs.stencil.h_fragments,
-                    pixels_processed = costs.stencil.pixels_processed,
-                );
-            }
-        }
+                queries: eye_queries,
+                waits: eye_waits,
+            },
+            pass,
+            all_casters: &self.all_casters,
+            receives: receives.as_deref(),
+            stored_points,
+            auto_culling: auto && may_cull,
+            all_caster_triangles,
+            host: self.backends.is_some(),
+        };
+        let n = self.lights.iter().filter(|s| s.state.is_some()).count();
+        let fill_ms = {
+            use rayon::prelude::*;
+            self.lights
+                .par_iter_mut()
+                .filter_map(|slot| slot.state.as_mut())
+                .map(|s| light_frame::run(s, &shared))
+                .try_reduce(|| 0.0, |a, b| Ok(a + b))?
+        };
         self.eye = Some(eye);
         self.camera = Some(*camera);
         self.stats = FrameStats {
@@ -1122,17 +805,6 @@ impl<'a> LightOutput<'a> {
     }
 }
 
-/// The stencil stage's share of a light's stats.
-fn add_stencil(s: &mut ShadowStats, f: &ShadowFrame) {
-    s.stencil_ms = f.stencil_ms;
-    s.volume_triangles = f.volume_triangles;
-    s.shadowed_pixels = f.mask.counts().shadow;
-    s.bandwidth_bytes = f.stencil.bandwidth_bytes();
-    s.silhouette_pixels = f.silhouette_pixels;
-    s.map_ms = f.map_ms;
-    s.stencil = f.stencil;
-}
-
 /// A pool of `threads` workers, `None` for 0 (rayon's global pool).
 fn own_pool(threads: u32) -> Result<Option<Arc<rayon::ThreadPool>>> {
     if threads == 0 {
@@ -1174,19 +846,6 @@ fn check_options(options: &PipelineOptions) -> Result<()> {
         field: e.field.into(),
         message: e.message,
     })
-}
-
-/// The triangles of objects `ids`.
-fn triangles_of(scene: &Scene, ids: &[ObjectId]) -> u64 {
-    let meshes = scene.graph().meshes();
-    let objects = scene.objects();
-    ids.iter()
-        .map(|id| {
-            meshes[objects[id.0 as usize].mesh.0 as usize]
-                .triangles()
-                .len() as u64
-        })
-        .sum()
 }
 
 fn ms(t: Instant) -> f64 {

@@ -80,7 +80,8 @@ pub struct ShadowScratch {
     pub(crate) volume: VolumeScratch,
     /// Fill accounting's (`count_fill`) other variant and stencil.
     pub(crate) fill: super::fill_count::FillScratch,
-    /// The stencil targets (a pipeline lends its lights one set in turn).
+    /// The stencil targets (each light of a pipeline has its own: the
+    /// lights are stenciled side by side).
     pub(crate) targets: StencilTargets,
     /// Per volume range its clip matrix, and the (matrix, range) list the
     /// stencil draws (kept empty between frames).
@@ -90,8 +91,7 @@ pub struct ShadowScratch {
     runs: Vec<crate::surface::RunRows<TriangleFacts>>,
 }
 
-/// The stencil stage's targets: cleared for every light, so the lights of a
-/// frame, stenciled one after the other, can share one set.
+/// The stencil stage's targets, cleared for every frame.
 #[derive(Default)]
 pub(crate) struct StencilTargets {
     stencil: Option<StencilTarget>,
