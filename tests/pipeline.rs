@@ -715,11 +715,14 @@ fn host_matrices_give_exact_masks() -> Result<()> {
 }
 
 /// The host seam: a backend factory whose backends forward every call to
-/// the bundled rasterizer, as a GPU host's would to its queries. PSR, PSC,
-/// volumes, masks and query counts equal the built-in path's, and the
-/// factory is asked for the eye and every light view. Under a query
-/// threshold the host counts every sample (as a GPU's `SAMPLES_PASSED`),
-/// the built-in path only up to the threshold + 1: no decision differs.
+/// the bundled rasterizer, as a GPU host's would to its queries. The eye's
+/// depth, PSC, volumes, masks and the light views' query counts equal the
+/// built-in path's, and the factory is asked for the eye and every light
+/// view. The host traverses the eye's view as one, the built-in path as two
+/// halves side by side (`eye_pass_culled`): both PSRs hold every object the
+/// eye's depth shows. Under a query threshold the host counts every sample
+/// (as a GPU's `SAMPLES_PASSED`), the built-in path only up to the
+/// threshold + 1: no decision differs.
 #[test]
 fn host_backends_give_identical_results() -> Result<()> {
     use raster::{
@@ -802,11 +805,26 @@ fn host_backends_give_identical_results() -> Result<()> {
                             l.psc().to_vec(),
                             l.volumes().clone(),
                             l.mask().cloned(),
-                            (s.queries, s.waits, s.psr),
+                            (s.light.queries, s.light.waits),
                         )
                     })
                     .collect();
-                Ok((out.psr().to_vec(), lights, out.eye().target.depth_rows()))
+                // The objects the eye's depth shows.
+                let eye = out.eye();
+                let (w, h) = (eye.target.width(), eye.target.height());
+                let mut shown: Vec<_> = (0..h)
+                    .flat_map(|y| (0..w).filter_map(move |x| eye.primitive(x, y)))
+                    .map(|p| scene.id_of(p.0 .0))
+                    .collect();
+                shown.sort_unstable();
+                shown.dedup();
+                let psr = out.psr().to_vec();
+                let missing: Vec<_> = shown
+                    .iter()
+                    .filter(|id| psr.binary_search(id).is_err())
+                    .collect();
+                assert!(missing.is_empty(), "shown but not in the PSR: {missing:?}");
+                Ok((lights, eye.target.depth_rows()))
             };
             let a = take(&mut builtin, &ids)?;
             let b = take(&mut hosted, &hosted_ids)?;

@@ -233,15 +233,34 @@ pub(crate) fn eye_pass_of(
 /// Per-run state of the culled eye pass (PSR, [Steiner §4.3]): the object
 /// hierarchy, the meshes in the backend's form, and the eye view's
 /// persistent CHC state.
+///
+/// The bundled backend's traversal runs as two, side by side: one over the
+/// upper tile rows of the view and one over the lower, each with its own
+/// CHC state and target that hides the other's rows (see
+/// [`eye_pass_culled`]). A host's backend traverses the whole view with the
+/// first state.
 #[derive(Debug)]
 pub struct EyeCulling {
     hierarchy: visibility::Hierarchy,
     meshes: visibility::MeshData,
     culler: visibility::ViewCuller,
-    /// The last traversal's result (its lists reused).
+    /// The last traversal's result (its lists reused): for the split
+    /// traversal, the two parts' joined.
     pub(crate) result: visibility::CullResult,
     /// The bundled backend's query results, kept between frames.
     queries: raster::QueryBuffers,
+    /// The lower part's traversal.
+    lower: LowerPart,
+}
+
+/// The lower part of the split eye traversal: its CHC state, result,
+/// query results and target, kept between frames.
+#[derive(Debug, Default)]
+struct LowerPart {
+    culler: visibility::ViewCuller,
+    result: visibility::CullResult,
+    queries: raster::QueryBuffers,
+    target: Option<DepthTarget>,
 }
 
 impl EyeCulling {
@@ -253,6 +272,7 @@ impl EyeCulling {
             culler: visibility::ViewCuller::new(),
             result: visibility::CullResult::default(),
             queries: raster::QueryBuffers::default(),
+            lower: LowerPart::default(),
         }
     }
 }
@@ -261,11 +281,13 @@ impl EyeCulling {
     /// Forgets the eye view's CHC history (the hierarchy stays).
     pub(crate) fn reset(&mut self) {
         self.culler.reset();
+        self.lower.culler.reset();
     }
 
     /// Numbers the next traversal ([`visibility::ViewCuller::set_frame`]).
     pub(crate) fn set_frame(&mut self, frame: u32) {
         self.culler.set_frame(frame);
+        self.lower.culler.set_frame(frame);
     }
 
     /// Rebuilds the hierarchy and the meshes from `scene` (after its BVH was
@@ -276,6 +298,7 @@ impl EyeCulling {
         let new = visibility::Hierarchy::from_scene(scene);
         let old = std::mem::replace(&mut self.hierarchy, new);
         self.culler.remap(&old, &self.hierarchy);
+        self.lower.culler.remap(&old, &self.hierarchy);
         old
     }
 
@@ -522,6 +545,15 @@ pub struct EyeTraversal {
 /// primitive ids equal [`eye_pass`]'s (point `sampling` is aggressive). Returns the pass and the traversal's
 /// result (the PSR and its counters).
 ///
+/// The traversal runs as two side by side: one over the upper half of the
+/// tile rows, one over the lower, each with its own CHC state and target,
+/// which hides the other half's rows from its draws and queries
+/// ([`DepthTarget::set_hidden_rows`]). Every object visible at a pixel of
+/// a half is drawn by that half's traversal, so the lower target's rows,
+/// copied into the upper's, give the same depth and ids. The PSR is the
+/// objects either half drew; the counters are both halves' sums. The split
+/// does not depend on the threads, so neither do the counters.
+///
 /// # Errors
 /// As [`eye_pass`].
 pub fn eye_pass_culled(
@@ -564,20 +596,51 @@ pub(crate) fn eye_pass_culled_into(
         threshold,
         sampling,
     } = traversal;
-    let target = match previous {
+    let mut upper = match previous {
         Some(p) if (p.target.width(), p.target.height()) == (width, height) => p.target,
         _ => DepthTarget::new(width, height, TileSize::T8, true)?,
     };
-    let queries = std::mem::take(&mut state.queries);
-    let mut backend = raster::SyncBackend::reusing(target, queries);
+    let mut lower = match state.lower.target.take() {
+        Some(t) if (t.width(), t.height()) == (width, height) => t,
+        _ => DepthTarget::new(width, height, TileSize::T8, true)?,
+    };
+    lower.set_instruction_set(upper.instruction_set());
+    // Each part hides the other's rows (set after a clear: the tiles the
+    // last frame wrote are cleared first).
+    let (tiles_y, mid) = (upper.tile_counts().1, upper.tile_counts().1 / 2);
+    upper.clear();
+    upper.set_hidden_rows(mid..tiles_y);
+    lower.clear();
+    lower.set_hidden_rows(0..mid);
     let clip = |w: &glam::DMat4| scene::transform::clip_from_local(camera, w);
-    let view = visibility::ViewSetup::eye_sampled(camera, &clip, threshold, sampling);
     let objects = visibility::Objects::new(&state.hierarchy, scene, &state.meshes);
-    state
-        .culler
-        .cull_into(objects, &view, culling, &mut backend, &mut state.result)?;
-    let (mut target, queries) = backend.into_parts();
-    state.queries = queries;
+    let traverse = |culler: &mut visibility::ViewCuller,
+                    target: DepthTarget,
+                    queries: &mut raster::QueryBuffers,
+                    result: &mut visibility::CullResult| {
+        let mut backend = raster::SyncBackend::reusing(target, std::mem::take(queries));
+        let view = visibility::ViewSetup::eye_sampled(camera, &clip, threshold, sampling);
+        let r = culler.cull_into(objects, &view, culling, &mut backend, result);
+        let (target, q) = backend.into_parts();
+        *queries = q;
+        r.map(|()| target)
+    };
+    let EyeCulling {
+        culler,
+        result,
+        queries,
+        lower: part,
+        ..
+    } = state;
+    let (upper, lower) = rayon::join(
+        || traverse(culler, upper, queries, result),
+        || traverse(&mut part.culler, lower, &mut part.queries, &mut part.result),
+    );
+    let (mut target, mut lower) = (upper?, lower?);
+    target.set_hidden_rows(0..0);
+    target.take_rows_from(&mut lower, mid..tiles_y)?;
+    part.target = Some(lower);
+    join_results(result, &part.result);
     // Visible objects that may not occlude were left out of the traversal's
     // draws: they join the visible surface now, hiding nothing they did not.
     let deferred = state.result.rendered.iter().copied().filter(|id| {
@@ -586,6 +649,28 @@ pub(crate) fn eye_pass_culled_into(
     });
     draw_objects(scene, meshes, camera, &mut target, deferred)?;
     Ok(EyePass { target })
+}
+
+/// Joins the lower part's traversal result into the upper's: the objects
+/// either part drew or found visible (ascending, each once), and the
+/// counters of both (work: summed; `objects_visible`: the joined list's).
+fn join_results(upper: &mut visibility::CullResult, lower: &visibility::CullResult) {
+    for (list, more) in [
+        (&mut upper.rendered, &lower.rendered),
+        (&mut upper.visible, &lower.visible),
+    ] {
+        list.extend_from_slice(more);
+        list.sort_unstable();
+        list.dedup();
+    }
+    let (s, l) = (&mut upper.stats, &lower.stats);
+    s.nodes_visited += l.nodes_visited;
+    s.queries += l.queries;
+    s.waits += l.waits;
+    s.wait_ms += l.wait_ms;
+    s.objects_rendered += l.objects_rendered;
+    s.triangles_rendered += l.triangles_rendered;
+    s.objects_visible = upper.visible.len() as u64;
 }
 
 /// The culled eye traversal through a host's `backend`: the same view and

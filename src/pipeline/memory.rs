@@ -24,8 +24,10 @@ const BASE: u64 = 64 << 20;
 const PER_TRIANGLE: u64 = 100;
 /// Per object: transform, bounds, per-view culling state.
 const PER_OBJECT: u64 = 512;
-/// Per viewport pixel: eye depth and primitive ids, the surface points.
-const PER_PIXEL: u64 = 40;
+/// Per viewport pixel: eye depth and primitive ids, the surface points
+/// (measured), and the culled eye traversal's second target for its lower
+/// part (12 bytes, added after).
+const PER_PIXEL: u64 = 52;
 /// Per viewport pixel and light: stencil counters, the mask, tiles.
 const PER_PIXEL_LIGHT: u64 = 25;
 /// Per viewport pixel of the reference: classes, primitives, cosines, rays.

@@ -181,6 +181,54 @@ impl DepthTarget {
         });
     }
 
+    /// Hides tile rows `rows` (clamped to the target; empty: none) from draws
+    /// and queries until the next call, across clears, as
+    /// [`DepthTarget::set_draw_tiles`] hides unmarked tiles: their bounds
+    /// read as covered at infinite nearness, so no draw writes and no query
+    /// counts a sample there. For one traversal per part of the view, each
+    /// on its own target (the parts then joined with
+    /// [`DepthTarget::take_rows_from`]). It holds for tiles still cleared
+    /// now and for every tile from the next clear on.
+    pub fn set_hidden_rows(&mut self, rows: std::ops::Range<u32>) {
+        let l = self.layout;
+        let (r0, r1) = (rows.start.min(l.tiles_y), rows.end.min(l.tiles_y));
+        let tiles = r0 * l.tiles_x..r1.max(r0) * l.tiles_x;
+        self.hide_tiles(tiles);
+    }
+
+    /// Replaces tile rows `rows` (clamped to the target) with `src`'s —
+    /// depth, primitive ids and tile bounds — and adds `src`'s counters
+    /// (taken) to this target's: what one traversal per part of the view
+    /// joins. Rows this target hides keep their hiding for the next clear.
+    ///
+    /// # Errors
+    /// [`Error::SizeMismatch`] when `src` differs in size, tile size or in
+    /// having primitive ids.
+    pub fn take_rows_from(
+        &mut self,
+        src: &mut DepthTarget,
+        rows: std::ops::Range<u32>,
+    ) -> Result<()> {
+        let l = self.layout;
+        if src.layout != l || src.ids.is_some() != self.ids.is_some() {
+            return Err(Error::SizeMismatch {
+                expected: (self.width(), self.height()),
+                got: (src.width(), src.height()),
+            });
+        }
+        let (r0, r1) = (rows.start.min(l.tiles_y), rows.end.min(l.tiles_y));
+        let tiles = (r0 * l.tiles_x) as usize..(r1.max(r0) * l.tiles_x) as usize;
+        let tp = l.tile_pixels();
+        let pixels = tiles.start * tp..tiles.end * tp;
+        self.depth[pixels.clone()].copy_from_slice(&src.depth[pixels.clone()]);
+        if let (Some(d), Some(s)) = (&mut self.ids, &src.ids) {
+            d[pixels.clone()].copy_from_slice(&s[pixels]);
+        }
+        self.tiles[tiles.clone()].copy_from_slice(&src.tiles[tiles]);
+        self.stats.add(&src.take_stats());
+        Ok(())
+    }
+
     /// Hides `tiles` (tile indices, ascending) from draws from now until the
     /// next call, across clears, after giving back the tiles hidden before:
     /// what [`DepthTarget::set_draw_tiles`] (beside the receiver target)
@@ -507,7 +555,7 @@ pub(crate) mod tests {
     use super::*;
 
     use crate::{Coverage, DrawItem};
-    use glam::{Mat4, Vec4};
+    use glam::{Mat4, Vec3, Vec4};
 
     /// Two overlapping triangles with sloped depth over a target whose size is not
     /// a multiple of the tile size.
@@ -551,6 +599,67 @@ pub(crate) mod tests {
             Coverage::Standard,
         )
         .unwrap();
+    }
+
+    /// Two targets, each hiding the other's tile rows, draw the same meshes;
+    /// the upper then takes the lower's rows: depth, ids and tile bounds
+    /// equal one whole target's. Hidden rows are never written, and a query
+    /// counts no sample there.
+    #[test]
+    fn parts_hiding_each_others_rows_join_to_the_whole() {
+        use crate::QueryOptions;
+        let new = || DepthTarget::new(37, 29, TileSize::T8, true).unwrap();
+        let mut full = new();
+        draw_pair(&mut full);
+        let (mut upper, mut lower) = (new(), new());
+        let (mid, rows) = (2, full.tile_counts().1);
+        upper.set_hidden_rows(mid..rows);
+        lower.set_hidden_rows(0..mid);
+        for t in [&mut upper, &mut lower] {
+            t.clear();
+            draw_pair(t);
+        }
+        // Pixels drawn in each part's rows.
+        let mut drawn = [0, 0];
+        for y in 0..29 {
+            for x in 0..37 {
+                let in_upper = y >> 3 < mid;
+                let (part, other) = match in_upper {
+                    true => (&upper, &lower),
+                    false => (&lower, &upper),
+                };
+                assert_eq!(part.depth_at(x, y), full.depth_at(x, y), "({x}, {y})");
+                assert_eq!(other.depth_at(x, y), None, "({x}, {y}) is hidden");
+                drawn[usize::from(in_upper)] += usize::from(full.depth_at(x, y).is_some());
+            }
+        }
+        assert!(drawn[0] > 0 && drawn[1] > 0, "{drawn:?}");
+        let near = (Vec3::new(-1.0, -1.0, 0.95), Vec3::new(1.0, 1.0, 0.99));
+        let query = |t: &mut DepthTarget| {
+            t.query_aabb(
+                Mat4::IDENTITY,
+                near.0,
+                near.1,
+                &QueryOptions::default(),
+                None,
+            )
+            .unwrap()
+        };
+        let mut all_hidden = new();
+        all_hidden.set_hidden_rows(0..rows);
+        assert!(query(&mut full) > 0);
+        assert_eq!(query(&mut all_hidden), 0);
+        upper.set_hidden_rows(0..0);
+        upper.take_rows_from(&mut lower, mid..rows).unwrap();
+        assert_eq!(upper.depth_rows(), full.depth_rows());
+        for y in 0..29 {
+            for x in 0..37 {
+                assert_eq!(upper.id_at(x, y), full.id_at(x, y), "({x}, {y})");
+            }
+        }
+        assert_eq!(upper.tiles, full.tiles);
+        let mut other = DepthTarget::new(36, 29, TileSize::T8, true).unwrap();
+        assert!(upper.take_rows_from(&mut other, 0..1).is_err());
     }
 
     /// A new target hides every tile, and holds a mesh's vertex stage, in

@@ -57,7 +57,7 @@ impl TileBounds {
 }
 
 /// Address arithmetic of the tile-major layout.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) struct Layout {
     pub width: u32,
     pub height: u32,
