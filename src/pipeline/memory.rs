@@ -25,8 +25,8 @@ const PER_TRIANGLE: u64 = 100;
 /// Per object: transform, bounds, per-view culling state.
 const PER_OBJECT: u64 = 512;
 /// Per viewport pixel: eye depth and primitive ids, the surface points
-/// (measured), and the culled eye traversal's second target for its lower
-/// part (12 bytes, added after).
+/// (measured), and the culled eye traversal's second target for its right
+/// half (12 bytes, added after).
 const PER_PIXEL: u64 = 52;
 /// Per viewport pixel and light: stencil counters, the mask, tiles.
 const PER_PIXEL_LIGHT: u64 = 25;

@@ -21,6 +21,7 @@ use crate::layout::{Layout, TileBounds, TileRows, TileSize, BACKGROUND};
 use crate::setup::Viewport;
 use crate::stats::RasterStats;
 use crate::{Error, Result, MAX_TARGET_SIZE};
+use std::ops::Range;
 
 /// Primitive id of a background pixel.
 pub const NO_ID: (u32, u32) = (u32::MAX, u32::MAX);
@@ -181,33 +182,35 @@ impl DepthTarget {
         });
     }
 
-    /// Hides tile rows `rows` (clamped to the target; empty: none) from draws
-    /// and queries until the next call, across clears, as
-    /// [`DepthTarget::set_draw_tiles`] hides unmarked tiles: their bounds
-    /// read as covered at infinite nearness, so no draw writes and no query
-    /// counts a sample there. For one traversal per part of the view, each
-    /// on its own target (the parts then joined with
-    /// [`DepthTarget::take_rows_from`]). It holds for tiles still cleared
-    /// now and for every tile from the next clear on.
-    pub fn set_hidden_rows(&mut self, rows: std::ops::Range<u32>) {
-        let l = self.layout;
-        let (r0, r1) = (rows.start.min(l.tiles_y), rows.end.min(l.tiles_y));
-        let tiles = r0 * l.tiles_x..r1.max(r0) * l.tiles_x;
+    /// Hides the tiles of tile columns `columns` in tile rows `rows`
+    /// (clamped to the target; an empty range: none) from draws and queries
+    /// until the next call, across clears, as [`DepthTarget::set_draw_tiles`]
+    /// hides unmarked tiles: their bounds read as covered at infinite
+    /// nearness, so no draw writes and no query counts a sample there. For
+    /// one traversal per part of the view, each on its own target (the parts
+    /// then joined with [`DepthTarget::take_part_from`]). It holds for tiles
+    /// still cleared now and for every tile from the next clear on.
+    pub fn set_hidden_part(&mut self, columns: Range<u32>, rows: Range<u32>) {
+        let (columns, rows) = self.tile_part(columns, rows);
+        let tx = self.layout.tiles_x;
+        let tiles = rows.flat_map(move |ty| columns.clone().map(move |c| ty * tx + c));
         self.hide_tiles(tiles);
     }
 
-    /// Replaces tile rows `rows` (clamped to the target) with `src`'s —
-    /// depth, primitive ids and tile bounds — and adds `src`'s counters
-    /// (taken) to this target's: what one traversal per part of the view
-    /// joins. Rows this target hides keep their hiding for the next clear.
+    /// Replaces the tiles of tile columns `columns` in tile rows `rows`
+    /// (clamped to the target) with `src`'s — depth, primitive ids and tile
+    /// bounds — and adds `src`'s counters (taken) to this target's: what one
+    /// traversal per part of the view joins. Tiles this target hides keep
+    /// their hiding for the next clear.
     ///
     /// # Errors
     /// [`Error::SizeMismatch`] when `src` differs in size, tile size or in
     /// having primitive ids.
-    pub fn take_rows_from(
+    pub fn take_part_from(
         &mut self,
         src: &mut DepthTarget,
-        rows: std::ops::Range<u32>,
+        columns: Range<u32>,
+        rows: Range<u32>,
     ) -> Result<()> {
         let l = self.layout;
         if src.layout != l || src.ids.is_some() != self.ids.is_some() {
@@ -216,17 +219,28 @@ impl DepthTarget {
                 got: (src.width(), src.height()),
             });
         }
-        let (r0, r1) = (rows.start.min(l.tiles_y), rows.end.min(l.tiles_y));
-        let tiles = (r0 * l.tiles_x) as usize..(r1.max(r0) * l.tiles_x) as usize;
+        let (columns, rows) = self.tile_part(columns, rows);
         let tp = l.tile_pixels();
-        let pixels = tiles.start * tp..tiles.end * tp;
-        self.depth[pixels.clone()].copy_from_slice(&src.depth[pixels.clone()]);
-        if let (Some(d), Some(s)) = (&mut self.ids, &src.ids) {
-            d[pixels.clone()].copy_from_slice(&s[pixels]);
+        for ty in rows {
+            // The part's tiles of one row are contiguous, and so are their pixels.
+            let tiles =
+                (ty * l.tiles_x + columns.start) as usize..(ty * l.tiles_x + columns.end) as usize;
+            let pixels = tiles.start * tp..tiles.end * tp;
+            self.depth[pixels.clone()].copy_from_slice(&src.depth[pixels.clone()]);
+            if let (Some(d), Some(s)) = (&mut self.ids, &src.ids) {
+                d[pixels.clone()].copy_from_slice(&s[pixels]);
+            }
+            self.tiles[tiles.clone()].copy_from_slice(&src.tiles[tiles]);
         }
-        self.tiles[tiles.clone()].copy_from_slice(&src.tiles[tiles]);
         self.stats.add(&src.take_stats());
         Ok(())
+    }
+
+    /// Tile `columns` and `rows` clamped to the target (empty when reversed).
+    fn tile_part(&self, columns: Range<u32>, rows: Range<u32>) -> (Range<u32>, Range<u32>) {
+        let l = self.layout;
+        let clamp = |r: Range<u32>, n: u32| r.start.min(n)..r.end.min(n).max(r.start.min(n));
+        (clamp(columns, l.tiles_x), clamp(rows, l.tiles_y))
     }
 
     /// Hides `tiles` (tile indices, ascending) from draws from now until the
@@ -601,39 +615,18 @@ pub(crate) mod tests {
         .unwrap();
     }
 
-    /// Two targets, each hiding the other's tile rows, draw the same meshes;
-    /// the upper then takes the lower's rows: depth, ids and tile bounds
-    /// equal one whole target's. Hidden rows are never written, and a query
-    /// counts no sample there.
+    /// Two targets, each hiding the other's half of the tiles (split by
+    /// rows, then by columns), draw the same meshes; the first then takes
+    /// the second's half: depth, ids and tile bounds equal one whole
+    /// target's. Hidden tiles are never written, and a query counts no
+    /// sample there.
     #[test]
-    fn parts_hiding_each_others_rows_join_to_the_whole() {
+    fn halves_hiding_each_others_tiles_join_to_the_whole() {
         use crate::QueryOptions;
         let new = || DepthTarget::new(37, 29, TileSize::T8, true).unwrap();
         let mut full = new();
         draw_pair(&mut full);
-        let (mut upper, mut lower) = (new(), new());
-        let (mid, rows) = (2, full.tile_counts().1);
-        upper.set_hidden_rows(mid..rows);
-        lower.set_hidden_rows(0..mid);
-        for t in [&mut upper, &mut lower] {
-            t.clear();
-            draw_pair(t);
-        }
-        // Pixels drawn in each part's rows.
-        let mut drawn = [0, 0];
-        for y in 0..29 {
-            for x in 0..37 {
-                let in_upper = y >> 3 < mid;
-                let (part, other) = match in_upper {
-                    true => (&upper, &lower),
-                    false => (&lower, &upper),
-                };
-                assert_eq!(part.depth_at(x, y), full.depth_at(x, y), "({x}, {y})");
-                assert_eq!(other.depth_at(x, y), None, "({x}, {y}) is hidden");
-                drawn[usize::from(in_upper)] += usize::from(full.depth_at(x, y).is_some());
-            }
-        }
-        assert!(drawn[0] > 0 && drawn[1] > 0, "{drawn:?}");
+        let (tx, ty) = full.tile_counts();
         let near = (Vec3::new(-1.0, -1.0, 0.95), Vec3::new(1.0, 1.0, 0.99));
         let query = |t: &mut DepthTarget| {
             t.query_aabb(
@@ -646,20 +639,49 @@ pub(crate) mod tests {
             .unwrap()
         };
         let mut all_hidden = new();
-        all_hidden.set_hidden_rows(0..rows);
+        all_hidden.set_hidden_part(0..tx, 0..ty);
         assert!(query(&mut full) > 0);
         assert_eq!(query(&mut all_hidden), 0);
-        upper.set_hidden_rows(0..0);
-        upper.take_rows_from(&mut lower, mid..rows).unwrap();
-        assert_eq!(upper.depth_rows(), full.depth_rows());
-        for y in 0..29 {
-            for x in 0..37 {
-                assert_eq!(upper.id_at(x, y), full.id_at(x, y), "({x}, {y})");
+        // (first half's columns, rows), (second half's columns, rows).
+        let splits = [
+            ((0..tx, 0..2), (0..tx, 2..ty)),
+            ((0..2, 0..ty), (2..tx, 0..ty)),
+        ];
+        for ((c0, r0), (c1, r1)) in splits {
+            let (mut first, mut second) = (new(), new());
+            first.set_hidden_part(c1.clone(), r1.clone());
+            second.set_hidden_part(c0.clone(), r0.clone());
+            for t in [&mut first, &mut second] {
+                t.clear();
+                draw_pair(t);
             }
+            // Pixels drawn in each half.
+            let mut drawn = [0, 0];
+            for y in 0..29 {
+                for x in 0..37 {
+                    let in_first = c0.contains(&(x >> 3)) && r0.contains(&(y >> 3));
+                    let (part, other) = match in_first {
+                        true => (&first, &second),
+                        false => (&second, &first),
+                    };
+                    assert_eq!(part.depth_at(x, y), full.depth_at(x, y), "({x}, {y})");
+                    assert_eq!(other.depth_at(x, y), None, "({x}, {y}) is hidden");
+                    drawn[usize::from(in_first)] += usize::from(full.depth_at(x, y).is_some());
+                }
+            }
+            assert!(drawn[0] > 0 && drawn[1] > 0, "{drawn:?}");
+            first.set_hidden_part(0..0, 0..0);
+            first.take_part_from(&mut second, c1, r1).unwrap();
+            assert_eq!(first.depth_rows(), full.depth_rows());
+            for y in 0..29 {
+                for x in 0..37 {
+                    assert_eq!(first.id_at(x, y), full.id_at(x, y), "({x}, {y})");
+                }
+            }
+            assert_eq!(first.tiles, full.tiles);
         }
-        assert_eq!(upper.tiles, full.tiles);
         let mut other = DepthTarget::new(36, 29, TileSize::T8, true).unwrap();
-        assert!(upper.take_rows_from(&mut other, 0..1).is_err());
+        assert!(full.take_part_from(&mut other, 0..tx, 0..1).is_err());
     }
 
     /// A new target hides every tile, and holds a mesh's vertex stage, in

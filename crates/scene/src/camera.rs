@@ -202,15 +202,24 @@ impl Camera {
 
     /// The view frustum (far end at infinity), planes with unit inside normals.
     pub fn frustum(&self) -> Frustum {
+        self.frustum_part(DVec2::NEG_ONE, DVec2::ONE)
+    }
+
+    /// The frustum of the part of the view between NDC points `min` and
+    /// `max` (each coordinate in `[-1, 1]`, +1 at the right and the top):
+    /// [`Camera::frustum`] with its side planes through those bounds. For a
+    /// traversal over one part of the view.
+    pub fn frustum_part(&self, min: DVec2, max: DVec2) -> Frustum {
         let t = (0.5 * self.fov_y).tan();
         let (hx, hy) = (t * self.aspect, t);
-        // NDC corner (±1, ±1) at view direction ((±1 − shift)·h, −1).
+        // NDC point (x, y) at view direction ((x − shift.x)·hx, (y − shift.y)·hy, −1).
         let (sx, sy) = (self.shift.x * hx, self.shift.y * hy);
+        let (x0, x1, y0, y1) = (min.x * hx, max.x * hx, min.y * hy, max.y * hy);
         let view_dirs = [
-            DVec3::new(-hx - sx, -hy - sy, -1.0),
-            DVec3::new(hx - sx, -hy - sy, -1.0),
-            DVec3::new(hx - sx, hy - sy, -1.0),
-            DVec3::new(-hx - sx, hy - sy, -1.0),
+            DVec3::new(x0 - sx, y0 - sy, -1.0),
+            DVec3::new(x1 - sx, y0 - sy, -1.0),
+            DVec3::new(x1 - sx, y1 - sy, -1.0),
+            DVec3::new(x0 - sx, y1 - sy, -1.0),
         ];
         let dirs = view_dirs.map(|d| self.orientation * d);
         let near_corners = dirs.map(|d| self.position + d * self.near);
@@ -275,6 +284,31 @@ impl Rays {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A part of the view holds the points whose pixel lies in it, by a
+    /// margin, and no point of a pixel beyond it; the whole view's part is
+    /// the frustum.
+    #[test]
+    fn frustum_part_holds_the_rays_of_its_pixels() {
+        let c = cam();
+        let whole = c.frustum_part(DVec2::NEG_ONE, DVec2::ONE);
+        assert_eq!(whole.planes, c.frustum().planes);
+        let (w, h) = (64u32, 48u32);
+        let rays = c.rays(w, h);
+        // The left 24 columns and rows 10..30, in NDC.
+        let (min, max) = (
+            DVec2::new(-1.0, 1.0 - 60.0 / 48.0),
+            DVec2::new(-0.25, 1.0 - 20.0 / 48.0),
+        );
+        let part = c.frustum_part(min, max);
+        for py in 0..h {
+            for px in 0..w {
+                let p = c.position + rays.direction(f64::from(px) + 0.5, f64::from(py) + 0.5) * 7.0;
+                let inside = part.planes.iter().all(|pl| pl.signed_distance(p) >= 0.0);
+                assert_eq!(inside, px < 24 && (10..30).contains(&py), "({px}, {py})");
+            }
+        }
+    }
 
     fn cam() -> Camera {
         Camera::look_at(
