@@ -59,7 +59,8 @@
 //! Both print the settings (`scene`, `camera`, `width`, `height`, `stencil`, `culling`,
 //! `light_resolution`, ...) and the scene size (`objects`, `triangles`).
 //! `--mask` writes the last frame's raw stencil result as an 8-bit PNG: 255 where the
-//! stencil is non-zero on any surface, 0 elsewhere, row 0 at the top. Logs go to stderr.
+//! stencil is non-zero, 0 elsewhere, row 0 at the top. The stencil runs only at the
+//! pixels whose class it decides (receivers the light reaches). Logs go to stderr.
 
 use anyhow::{bail, Context};
 use clap::ArgAction;
@@ -231,7 +232,9 @@ struct Cli {
     /// Compare with the ray-cast reference (the last frame of one view, every frame of a path).
     #[arg(long)]
     reference: bool,
-    /// Write the last frame's raw stencil result here as an 8-bit PNG.
+    /// Write the last frame's raw stencil result here as an 8-bit PNG (the
+    /// stencil runs only at the pixels whose class it decides: receivers the
+    /// light reaches).
     #[arg(long, value_name = "OUT.png")]
     mask: Option<PathBuf>,
     /// One view: frames rendered (the times are their medians).

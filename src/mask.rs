@@ -135,7 +135,7 @@ pub fn assemble_into(
     two_sided: bool,
     mask: &mut Mask,
 ) {
-    let mut runs = Vec::new();
+    let (mut decides, mut runs) = (Vec::new(), Vec::new());
     let mask_in = MaskInput {
         scene,
         view,
@@ -143,10 +143,11 @@ pub fn assemble_into(
         surface,
         two_sided,
     };
-    assemble_runs(mask_in, shadowed, mask, &mut runs);
+    classify_runs(mask_in, mask, &mut decides, &mut runs);
+    apply_stencil(mask, &decides, shadowed);
 }
 
-/// What [`assemble_runs`] reads besides the raw stencil.
+/// What [`classify_runs`] reads.
 pub(crate) struct MaskInput<'a> {
     pub scene: &'a Scene,
     pub view: View<'a>,
@@ -168,18 +169,26 @@ pub(crate) struct TriangleFacts {
     plane: Option<RayPlane>,
 }
 
-/// Rows per band of [`assemble_runs`]' parallel work.
+/// Rows per band of [`classify_runs`]' parallel work.
 const MASK_BAND_ROWS: usize = 16;
 
-/// [`assemble_into`] in bands of [`MASK_BAND_ROWS`] rows, by runs of one
-/// visible triangle ([`EyeSurface::for_each_run_in_rows`]), with `runs` the
-/// bands' run buffers, kept from frame to frame.
-pub(crate) fn assemble_runs(
+/// The mask's classes that do not depend on the stencil, before it runs:
+/// background, unlit ([`is_unlit`]), and lit for every other pixel, with
+/// `decides[pixel]` (row-major) set where the stencil decides between lit
+/// and shadow: the pixel's object receives shadows and the light reaches
+/// its surface. Returns whether some non-background pixel is left to its
+/// class (the stencil can skip it: the computation mask of
+/// [`crate::pipeline::stencil`]).
+///
+/// The rule is found once per visible triangle (per run of its pixels),
+/// and per pixel only where the light's reach depends on the point (spot
+/// and ranged point lights).
+pub(crate) fn classify_runs(
     input: MaskInput<'_>,
-    shadowed: impl Fn(usize) -> bool + Sync,
     mask: &mut Mask,
+    decides: &mut Vec<bool>,
     runs: &mut Vec<RunRows<TriangleFacts>>,
-) {
+) -> bool {
     let MaskInput {
         scene,
         view,
@@ -194,9 +203,11 @@ pub(crate) fn assemble_runs(
     } = view;
     assert!(surface.fits(width, height), "primitive ids size");
     (mask.width, mask.height) = (width, height);
+    let n = width as usize * height as usize;
     mask.pixels.clear();
-    mask.pixels
-        .resize(width as usize * height as usize, PixelClass::Background);
+    mask.pixels.resize(n, PixelClass::Background);
+    decides.clear();
+    decides.resize(n, false);
     let rays = camera.rays(width, height);
     // Only spot lights and ranged point lights depend on the surface point.
     let everywhere = matches!(
@@ -213,53 +224,77 @@ pub(crate) fn assemble_runs(
             plane: (!everywhere).then(|| RayPlane::new(&tri, e)),
         }
     };
-    let band = |b: usize, out: &mut [PixelClass], runs: &mut RunRows<TriangleFacts>| {
+    // Per band: its rows' classes and stencil pixels; whether it left a
+    // visible pixel to its class.
+    let band = |b: usize,
+                (out, dec): (&mut [PixelClass], &mut [bool]),
+                runs: &mut RunRows<TriangleFacts>| {
         let y0 = b * MASK_BAND_ROWS;
         let rows = y0 as u32..(y0 + out.len() / w) as u32;
+        let mut left = false;
         surface.for_each_run_in_rows(rows, runs, facts, |y, x0, x1, _, f| {
             let (y, x0, x1) = (y as usize, x0 as usize, x1 as usize);
-            let out = &mut out[(y - y0) * w + x0..(y - y0) * w + x1];
+            let at = (y - y0) * w;
+            let (out, dec) = (&mut out[at + x0..at + x1], &mut dec[at + x0..at + x1]);
             if f.unlit {
                 out.fill(PixelClass::Unlit);
+                left = true;
                 return;
             }
-            let base = y * w;
-            let class = |i: usize| {
-                if f.receives && shadowed(i) {
-                    PixelClass::Shadow
-                } else {
-                    PixelClass::Lit
-                }
-            };
             let Some(plane) = f.plane else {
-                if f.receives {
-                    for (k, px) in out.iter_mut().enumerate() {
-                        *px = class(base + x0 + k);
-                    }
-                } else {
-                    out.fill(PixelClass::Lit);
-                }
+                out.fill(PixelClass::Lit);
+                dec.fill(f.receives);
+                left |= !f.receives;
                 return;
             };
             // The light's reach depends on the point: per pixel.
-            for (k, px) in out.iter_mut().enumerate() {
+            for (k, (px, d)) in out.iter_mut().zip(dec.iter_mut()).enumerate() {
                 let x = x0 + k;
                 let dir = rays.direction(x as f64 + 0.5, y as f64 + 0.5);
-                *px = if light.reaches(plane.point_or_origin(e, dir)) {
-                    class(base + x)
+                let reached = light.reaches(plane.point_or_origin(e, dir));
+                *px = if reached {
+                    PixelClass::Lit
                 } else {
                     PixelClass::Unlit
                 };
+                *d = reached && f.receives;
+                left |= !*d;
             }
         });
+        left
     };
     use rayon::prelude::*;
+    let rows = (w * MASK_BAND_ROWS).max(1);
     runs.resize_with((height as usize).div_ceil(MASK_BAND_ROWS), Default::default);
     mask.pixels
-        .par_chunks_mut((w * MASK_BAND_ROWS).max(1))
+        .par_chunks_mut(rows)
+        .zip(decides.par_chunks_mut(rows))
         .zip(runs.par_iter_mut())
         .enumerate()
-        .for_each(|(b, (out, runs))| band(b, out, runs));
+        .map(|(b, (parts, runs))| band(b, parts, runs))
+        .reduce(|| false, |a, b| a | b)
+}
+
+/// The stencil's share of the mask: every pixel it decides
+/// ([`classify_runs`]) is shadow where `shadowed(pixel)` (stencil ≠ 0).
+pub(crate) fn apply_stencil(
+    mask: &mut Mask,
+    decides: &[bool],
+    shadowed: impl Fn(usize) -> bool + Sync,
+) {
+    use rayon::prelude::*;
+    const CHUNK: usize = 1 << 14;
+    mask.pixels
+        .par_chunks_mut(CHUNK)
+        .zip(decides.par_chunks(CHUNK))
+        .enumerate()
+        .for_each(|(c, (out, dec))| {
+            for (k, (px, &d)) in out.iter_mut().zip(dec).enumerate() {
+                if d && shadowed(c * CHUNK + k) {
+                    *px = PixelClass::Shadow;
+                }
+            }
+        });
 }
 
 /// A per-pixel classification, row 0 at the top.

@@ -719,15 +719,12 @@ pub(crate) fn cull_with(
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
-    /// Down the procedural city's street, both eye paths skip the faces
-    /// turned away of its solid buildings and give the same depth and ids;
-    /// against every face drawn, that tests far fewer pixels and changes
-    /// next to none (ties of rounding at silhouette edges).
-    #[test]
-    fn both_eye_paths_skip_the_hidden_faces_of_solid_objects() {
+    /// The procedural city of 3 × 3 blocks and the first camera of its
+    /// street path (4:3).
+    pub(crate) fn small_street() -> (Scene, Camera) {
         use scene::procedural::city::{city, CityParams};
         let loaded = city(&CityParams {
             blocks_x: 3,
@@ -736,7 +733,16 @@ mod tests {
         })
         .unwrap();
         let camera = loaded.paths[0].1.at(0).unwrap().camera(4.0 / 3.0).unwrap();
-        let scene = Scene::new(loaded.graph).unwrap();
+        (Scene::new(loaded.graph).unwrap(), camera)
+    }
+
+    /// Down the procedural city's street, both eye paths skip the faces
+    /// turned away of its solid buildings and give the same depth and ids;
+    /// against every face drawn, that tests far fewer pixels and changes
+    /// next to none (ties of rounding at silhouette edges).
+    #[test]
+    fn both_eye_paths_skip_the_hidden_faces_of_solid_objects() {
+        let (scene, camera) = small_street();
         let solid = (scene.objects().iter())
             .filter(|o| scene.graph().meshes()[o.mesh.0 as usize].solid().is_some())
             .count();

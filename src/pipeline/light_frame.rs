@@ -99,6 +99,9 @@ pub(super) fn run(s: &mut LightState, f: &FrameShared<'_>) -> Result<f64> {
     let (w, h) = (eye.target.width(), eye.target.height());
     let auto_culling = f.auto_culling;
     let reading = reading(s.clamping, o);
+    // This frame's computation mask is made by its stencil stage (or for
+    // `count_fill`), not kept from the last frame.
+    s.scratch.shadowable.forget();
     if let (true, Some(input)) = (s.culled, &f.pass) {
         light::light_pass(s.light, s.id.0, &mut s.culling, reading, input)?;
     }
@@ -190,6 +193,12 @@ pub(super) fn run(s: &mut LightState, f: &FrameShared<'_>) -> Result<f64> {
     let mut fill_ms = 0.0;
     let fill = if o.count_fill {
         let t = Instant::now();
+        // Both variants are counted on the pixels the brute-force stencil
+        // draws: its computation mask, made here when the frame's stencil
+        // made none.
+        if !s.scratch.shadowable.fresh() {
+            stencil::computation_mask(input, eye, light_options.two_sided, &mut s.scratch)?;
+        }
         let clamped = fill_count::ClampedVariant {
             options: o.clamp_options(),
             receives: f.receives,
@@ -199,9 +208,10 @@ pub(super) fn run(s: &mut LightState, f: &FrameShared<'_>) -> Result<f64> {
             buffer: &s.scratch.volume.buffer,
             stencil: s.shadow.as_ref().map(|f| &f.stencil),
         };
+        let on = s.scratch.shadowable.target(&eye.target);
         let counts = fill_count::count_fill(
             input,
-            &eye.target,
+            on,
             casters,
             &light_options,
             clamped,

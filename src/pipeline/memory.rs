@@ -28,8 +28,10 @@ const PER_OBJECT: u64 = 512;
 /// (measured), and the culled eye traversal's second target for its right
 /// half (12 bytes, added after).
 const PER_PIXEL: u64 = 52;
-/// Per viewport pixel and light: stencil counters, the mask, tiles.
-const PER_PIXEL_LIGHT: u64 = 25;
+/// Per viewport pixel and light: stencil counters, the mask, tiles, and the
+/// stencil's computation mask (a masked copy of the eye depth, 4 bytes, and
+/// its flags, 1 byte).
+const PER_PIXEL_LIGHT: u64 = 30;
 /// Per viewport pixel of the reference: classes, primitives, cosines, rays.
 const PER_PIXEL_REFERENCE: u64 = 48;
 /// Per scene triangle of the reference's world-space triangle BVH.

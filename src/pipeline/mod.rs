@@ -30,6 +30,7 @@ mod light_state;
 pub mod memory;
 mod options;
 mod shadow_options;
+mod shadowable;
 pub mod stencil;
 mod volume;
 

@@ -6,8 +6,9 @@
 use super::eye::EyePass;
 use super::shadow_options::ShadowInput;
 pub use super::shadow_options::{Backend, ShadowOptions};
+use super::shadowable::ShadowableScratch;
 use super::volume::{build_for, VolumeScratch};
-use crate::mask::{assemble_runs, Mask, MaskInput, PixelClass, TriangleFacts, View};
+use crate::mask::{apply_stencil, classify_runs, Mask, MaskInput, PixelClass, TriangleFacts, View};
 use crate::Result;
 use raster::{HierarchicalOptions, HierarchicalStencil, StencilStats, StencilTarget, TileClass};
 use scene::{Camera, Light, ObjectId, Scene};
@@ -57,8 +58,10 @@ pub struct ShadowFrame {
     pub volume_triangles: u64,
     /// Stencil counters.
     pub stencil: StencilStats,
-    /// Per pixel (row-major, row 0 at the top): the raw stencil is non-zero,
-    /// whatever the surface's facing.
+    /// Per pixel (row-major, row 0 at the top): the raw stencil is non-zero.
+    /// The brute-force and hierarchical stencils draw only at the pixels
+    /// whose class they decide (receivers the light reaches, the
+    /// computation mask of `shadowable.rs`); it is false at every other.
     pub raw_nonzero: Vec<bool>,
     /// Wall time of the stencil stage: clearing, every volume drawn (for the
     /// hierarchical backend its tile bounds, both stages), the resolve, mask
@@ -89,6 +92,11 @@ pub struct ShadowScratch {
     ranges: Vec<(glam::Mat4, &'static raster::VolumeRange)>,
     /// The mask assembly's run buffers, one per band of rows.
     runs: Vec<crate::surface::RunRows<TriangleFacts>>,
+    /// The classes of [`computation_mask`] (which no stencil reads).
+    classes: Option<Mask>,
+    /// The computation mask and the masked eye depth the brute-force and
+    /// hierarchical stencils draw on.
+    pub(crate) shadowable: ShadowableScratch,
 }
 
 /// The stencil stage's targets, cleared for every frame.
@@ -181,6 +189,7 @@ pub(crate) fn stencil_volumes(
     } = input;
     let (w, h) = (eye.target.width(), eye.target.height());
     let t = std::time::Instant::now();
+    scratch.shadowable.forget();
     let mut stats = StencilStats::default();
     let tests = raster::StencilTests {
         scissor: options.scissor,
@@ -212,6 +221,24 @@ pub(crate) fn stencil_volumes(
         Some(p) => (p.mask, p.raw_nonzero, p.tiles),
         None => (Mask::filled(0, 0, PixelClass::Background), Vec::new(), None),
     };
+    // The classes the stencil does not decide, and the pixels it does.
+    let mask_in = MaskInput {
+        scene,
+        view: View {
+            camera,
+            width: w,
+            height: h,
+        },
+        light,
+        surface: eye.surface(),
+        two_sided: options.two_sided,
+    };
+    let left = classify_runs(
+        mask_in,
+        &mut mask,
+        &mut scratch.shadowable.decides,
+        &mut scratch.runs,
+    );
     let (mut silhouette_pixels, mut map_ms) = (0, 0.0);
     match options.backend {
         Backend::Brute => {
@@ -223,14 +250,10 @@ pub(crate) fn stencil_volumes(
                 }
                 _ => StencilTarget::new(w, h, options.bits)?,
             };
-            stencil.draw_volumes(
-                &eye.target,
-                &ranges,
-                &scratch.volume.buffer,
-                tests,
-                &mut stats,
-            )?;
-            stencil.resolve(&eye.target, &mut raw_nonzero, &mut stats)?;
+            scratch.shadowable.mask(&eye.target, left)?;
+            let on = scratch.shadowable.target(&eye.target);
+            stencil.draw_volumes(on, &ranges, &scratch.volume.buffer, tests, &mut stats)?;
+            stencil.resolve(on, &mut raw_nonzero, &mut stats)?;
             scratch.targets.stencil = Some(stencil);
         }
         Backend::Hierarchical { tile, full_shadow } => {
@@ -246,14 +269,10 @@ pub(crate) fn stencil_volumes(
                 }
                 _ => HierarchicalStencil::new(w, h, want)?,
             };
-            stencil.draw_volumes(
-                &eye.target,
-                &ranges,
-                &scratch.volume.buffer,
-                tests,
-                &mut stats,
-            )?;
-            stencil.resolve(&eye.target, &mut raw_nonzero, &mut stats)?;
+            scratch.shadowable.mask(&eye.target, left)?;
+            let on = scratch.shadowable.target(&eye.target);
+            stencil.draw_volumes(on, &ranges, &scratch.volume.buffer, tests, &mut stats)?;
+            stencil.resolve(on, &mut raw_nonzero, &mut stats)?;
             let (tiles_x, tiles_y) = stencil.tile_counts();
             let mut classes = tiles.take().map(|t| t.classes).unwrap_or_default();
             stencil.tile_classes_into(&mut classes);
@@ -320,20 +339,7 @@ pub(crate) fn stencil_volumes(
     }
     scratch.ranges = recycle(ranges);
     let volume_triangles = stats.triangles;
-    let shadowed = |i: usize| raw_nonzero[i];
-    let view = View {
-        camera,
-        width: w,
-        height: h,
-    };
-    let mask_in = MaskInput {
-        scene,
-        view,
-        light,
-        surface: eye.surface(),
-        two_sided: options.two_sided,
-    };
-    assemble_runs(mask_in, shadowed, &mut mask, &mut scratch.runs);
+    apply_stencil(&mut mask, &scratch.shadowable.decides, |i| raw_nonzero[i]);
     Ok(ShadowFrame {
         mask,
         volumes,
@@ -345,6 +351,42 @@ pub(crate) fn stencil_volumes(
         silhouette_pixels,
         map_ms,
     })
+}
+
+/// The computation mask of `input.light` on `eye` when the frame's stencil
+/// stage made none (no stencil, or the hybrid's): what `count_fill` counts
+/// brute-force pixels on, as the brute-force stencil would draw them.
+///
+/// # Errors
+/// Rasterizer errors.
+pub(crate) fn computation_mask(
+    input: ShadowInput<'_>,
+    eye: &EyePass,
+    two_sided: bool,
+    scratch: &mut ShadowScratch,
+) -> Result<()> {
+    let (w, h) = (eye.target.width(), eye.target.height());
+    let mask_in = MaskInput {
+        scene: input.scene,
+        view: View {
+            camera: input.camera,
+            width: w,
+            height: h,
+        },
+        light: input.light,
+        surface: eye.surface(),
+        two_sided,
+    };
+    let classes = scratch
+        .classes
+        .get_or_insert_with(|| Mask::filled(0, 0, PixelClass::Background));
+    let left = classify_runs(
+        mask_in,
+        classes,
+        &mut scratch.shadowable.decides,
+        &mut scratch.runs,
+    );
+    scratch.shadowable.mask(&eye.target, left)
 }
 
 /// An empty vector of `U` in `v`'s allocation: for element types of one

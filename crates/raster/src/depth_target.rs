@@ -164,6 +164,15 @@ impl DepthTarget {
         1 << self.layout.shift
     }
 
+    /// The tile size.
+    pub fn tile_size(&self) -> TileSize {
+        match self.layout.shift {
+            2 => TileSize::T4,
+            3 => TileSize::T8,
+            _ => TileSize::T16,
+        }
+    }
+
     /// Number of tiles horizontally and vertically.
     pub fn tile_counts(&self) -> (u32, u32) {
         (self.layout.tiles_x, self.layout.tiles_y)
@@ -508,15 +517,7 @@ impl DepthTarget {
     /// (the target is then unchanged).
     pub fn keep_only(&mut self, keep: &[bool]) -> Result<()> {
         let l = self.layout;
-        let n = l.width as usize * l.height as usize;
-        if keep.len() != n {
-            return Err(Error::MaskLength {
-                expected: n,
-                got: keep.len(),
-                width: l.width,
-                height: l.height,
-            });
-        }
+        self.check_mask(keep)?;
         let mut band = TileRows {
             layout: l,
             ty0: 0,
@@ -553,6 +554,117 @@ impl DepthTarget {
         Ok(())
     }
 
+    /// [`Error::MaskLength`] unless `keep` holds one entry per pixel.
+    fn check_mask(&self, keep: &[bool]) -> Result<()> {
+        let l = self.layout;
+        let n = l.width as usize * l.height as usize;
+        if keep.len() != n {
+            return Err(Error::MaskLength {
+                expected: n,
+                got: keep.len(),
+                width: l.width,
+                height: l.height,
+            });
+        }
+        Ok(())
+    }
+
+    /// Makes this target (of `src`'s size and tile size) a copy of `src`'s
+    /// depth in which every pixel with `keep == false` is background, with
+    /// the hierarchical-z bounds of every tile recomputed from its pixels:
+    /// what [`DepthTarget::keep_only`] makes of a clone of `src`, without
+    /// the clone's allocations or its primitive ids (this target's ids, if
+    /// any, are left as they were). Tile rows are copied in parallel with
+    /// the `parallel` feature.
+    ///
+    /// A stencil pass skips background pixels and tiles without written
+    /// depth, so on this copy it works only at the kept pixels: the
+    /// pipeline keeps those a light can shadow.
+    ///
+    /// # Errors
+    /// [`Error::SizeMismatch`] when the targets' sizes or tile sizes differ,
+    /// [`Error::MaskLength`] when `keep` does not hold `width × height`
+    /// entries (the target is then unchanged).
+    pub fn copy_kept_from(&mut self, src: &DepthTarget, keep: &[bool]) -> Result<()> {
+        let l = self.layout;
+        if src.layout != l {
+            return Err(Error::SizeMismatch {
+                expected: (self.width(), self.height()),
+                got: (src.width(), src.height()),
+            });
+        }
+        self.check_mask(keep)?;
+        let (tx_n, tp) = (l.tiles_x as usize, l.tile_pixels());
+        // One tile row: its pixels and bounds copied, then per tile with
+        // a written pixel, the dropped pixels made background and, when
+        // one was written, its bounds recomputed.
+        let row = |ty: u32,
+                   (depth, tiles): (&mut [f32], &mut [TileBounds]),
+                   (from, bounds): (&[f32], &[TileBounds])| {
+            depth.copy_from_slice(from);
+            tiles.copy_from_slice(bounds);
+            let mut band = TileRows {
+                layout: l,
+                ty0: ty,
+                ty1: ty + 1,
+                depth,
+                ids: None,
+                tiles,
+            };
+            for tx in 0..l.tiles_x {
+                if bounds[tx as usize].zmax == BACKGROUND {
+                    continue;
+                }
+                let (x0, x1, y0, y1) = l.tile_rect(tx, ty);
+                let n = (x1 - x0 + 1) as usize;
+                let mut lost = false;
+                for y in y0..=y1 {
+                    let keep = &keep[(y * l.width + x0) as usize..][..n];
+                    if all_kept(keep) {
+                        continue;
+                    }
+                    // Tile-major: the tile's row `y` is contiguous.
+                    let at = tx as usize * tp + (((y - y0) << l.shift) as usize);
+                    for (d, &k) in band.depth[at..at + n].iter_mut().zip(keep) {
+                        lost |= !k & (*d != BACKGROUND);
+                        if !k {
+                            *d = BACKGROUND;
+                        }
+                    }
+                }
+                if lost {
+                    band.refresh_tile(tx, ty);
+                }
+            }
+        };
+        #[cfg(feature = "parallel")]
+        {
+            use rayon::prelude::*;
+            self.depth
+                .par_chunks_mut(tx_n * tp)
+                .zip(self.tiles.par_chunks_mut(tx_n))
+                .zip(
+                    src.depth
+                        .par_chunks(tx_n * tp)
+                        .zip(src.tiles.par_chunks(tx_n)),
+                )
+                .enumerate()
+                .for_each(|(ty, (to, from))| row(ty as u32, to, from));
+        }
+        #[cfg(not(feature = "parallel"))]
+        for (ty, (to, from)) in self
+            .depth
+            .chunks_mut(tx_n * tp)
+            .zip(self.tiles.chunks_mut(tx_n))
+            .zip(src.depth.chunks(tx_n * tp).zip(src.tiles.chunks(tx_n)))
+            .enumerate()
+        {
+            row(ty as u32, to, from);
+        }
+        self.vp = src.vp;
+        Ok(())
+    }
+
     /// Counters accumulated since the last call; resets them.
     pub fn take_stats(&mut self) -> RasterStats {
         std::mem::take(&mut self.stats)
@@ -562,6 +674,17 @@ impl DepthTarget {
     pub fn stats(&self) -> RasterStats {
         self.stats
     }
+}
+
+/// Whether every entry of `keep` is true: eight at a time as one word.
+#[inline(always)]
+fn all_kept(keep: &[bool]) -> bool {
+    let mut words = keep.chunks_exact(8);
+    let all = words.by_ref().all(|w| {
+        let w: [u8; 8] = std::array::from_fn(|i| u8::from(w[i]));
+        u64::from_ne_bytes(w) == 0x0101_0101_0101_0101
+    });
+    all && words.remainder().iter().all(|&k| k)
 }
 
 #[cfg(test)]
@@ -838,6 +961,41 @@ pub(crate) mod tests {
             );
             assert_eq!(bad.depth_rows(), full.depth_rows());
         }
+    }
+
+    #[test]
+    fn copying_the_kept_pixels_equals_keeping_them_in_a_clone() {
+        let full = drawn(true);
+        let (w, h) = (full.width(), full.height());
+        // Reused across masks: each copy replaces the last one wholly.
+        let mut copy = DepthTarget::new(w, h, TileSize::T8, false).unwrap();
+        for m in [3, 5, 1000] {
+            let keep: Vec<bool> = (0..h)
+                .flat_map(|y| (0..w).map(move |x| (x, y)))
+                .map(|(x, y)| (x * 7 + y * 13) % m != 0 && !(x < 16 && (8..16).contains(&y)))
+                .collect();
+            let mut want = full.clone();
+            want.keep_only(&keep).unwrap();
+            copy.copy_kept_from(&full, &keep).unwrap();
+            assert_eq!(copy.depth_rows(), want.depth_rows(), "mask {m}");
+            assert_eq!(stored(&copy), stored(&want), "mask {m}");
+            assert_ne!(stored(&copy), stored(&full), "mask {m}: it masked");
+        }
+        // Every kept: the source's depth and bounds.
+        copy.copy_kept_from(&full, &vec![true; (w * h) as usize])
+            .unwrap();
+        assert_eq!(copy.depth_rows(), full.depth_rows());
+        assert_eq!(stored(&copy), stored(&full));
+        // A wrong length or size is an error.
+        assert!(matches!(
+            copy.copy_kept_from(&full, &[true; 3]),
+            Err(Error::MaskLength { got: 3, .. })
+        ));
+        let other = DepthTarget::new(w + 1, h, TileSize::T8, false).unwrap();
+        assert!(matches!(
+            copy.copy_kept_from(&other, &vec![true; ((w + 1) * h) as usize]),
+            Err(Error::SizeMismatch { .. })
+        ));
     }
 
     #[test]

@@ -112,6 +112,17 @@ impl Layout {
 /// branch-free loops (plain selects; depths are never NaN) that vectorize.
 #[inline(always)]
 pub(crate) fn tile_bounds<const T: usize>(rows: &[f32], w: usize) -> TileBounds {
+    // A whole-width tile: the same loop with every lane valid (a constant
+    // the compiler folds).
+    if w == T {
+        tile_bounds_of::<T>(rows, T)
+    } else {
+        tile_bounds_of::<T>(rows, w)
+    }
+}
+
+#[inline(always)]
+fn tile_bounds_of<const T: usize>(rows: &[f32], w: usize) -> TileBounds {
     let mut zmin = [f32::INFINITY; T];
     let mut zmax = [BACKGROUND; T];
     let mut bg = [0u32; T];
