@@ -62,7 +62,12 @@ pub fn is_unlit(
 
 /// The part of [`is_unlit`] that does not depend on the surface point: the
 /// triangle's facing to the light and the eye.
-fn unlit_by_facing(tri: &[DVec3; 3], eye: DVec3, light: &Light, two_sided: bool) -> bool {
+pub(crate) fn unlit_by_facing(
+    tri: &[DVec3; 3],
+    eye: DVec3,
+    light: &Light,
+    two_sided: bool,
+) -> bool {
     if two_sided {
         let [a, b, c] = *tri;
         let n = (b - a).cross(c - a);

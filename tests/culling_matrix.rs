@@ -1082,8 +1082,13 @@ fn segments_hold_every_shadowed_eye_sample(
                                 in_band && within(p) && within(stored)
                             });
                             held |= inside;
-                            // A clear crossing of a clamped caster must lie in its segments.
-                            if !inside && tris.iter().any(|t| crosses(p, d, end, t, 1e-9)) {
+                            // A clear crossing of a clamped caster must lie
+                            // in its segments, where the light reaches the
+                            // surface (lit or shadow): a surface facing away
+                            // is unlit whatever the stencil holds, so its
+                            // points are no light pass's receivers.
+                            let read = r.mask.pixels[i].is_compared();
+                            if read && !inside && tris.iter().any(|t| crosses(p, d, end, t, 1e-9)) {
                                 crossed = true;
                             }
                         }

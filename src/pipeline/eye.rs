@@ -4,12 +4,13 @@
 //! hierarchical z, and the visible surface points the light pass marks as
 //! receivers.
 
+use crate::mask::unlit_by_facing;
 use crate::reference::PrimitiveId;
 use crate::surface::{RayPlane, RunRows};
 use crate::Result;
 use glam::{DVec2, Vec4};
 use raster::{Coverage, DepthTarget, DrawItem, TileSize};
-use scene::{Camera, ObjectId, Scene};
+use scene::{Camera, Light, ObjectId, Scene};
 
 /// Per-mesh vertex data in the rasterizer's form (`w = 1`), built once per scene.
 #[derive(Debug)]
@@ -343,22 +344,42 @@ pub fn visible_points(
     sampling: visibility::Sampling,
 ) -> visibility::ReceiverPoints {
     let mut bands = Vec::new();
+    let skips = SkipLights {
+        lights: &[],
+        two_sided: false,
+    };
     visible_points_into(
         scene,
         camera,
         eye,
         sampling,
         false,
-        &mut bands,
-        &mut Vec::new(),
+        skips,
+        (&mut bands, &mut Vec::new()),
     );
     let mut out = visibility::ReceiverPoints::default();
     for band in bands {
         out.points.extend(band.points);
         out.joined.extend(band.joined);
+        out.skip.extend(band.skip);
     }
     out
 }
+
+/// The lights that may leave out receiver points
+/// ([`visibility::ReceiverPoints::skip`]): light `k` (bit `k`) those of
+/// every triangle its facing leaves unlit ([`crate::mask::unlit_by_facing`],
+/// the mask's own rule, with `two_sided`).
+#[derive(Clone, Copy)]
+pub(crate) struct SkipLights<'a> {
+    /// Per bit, its light (`None`: no light takes the bit).
+    pub lights: &'a [Option<Light>],
+    pub two_sided: bool,
+}
+
+/// The run buffers of [`visible_points_into`]: per visible triangle its
+/// plane and skip mask.
+pub(crate) type PointRuns = RunRows<Option<(RayPlane, u32)>>;
 
 /// Rows per band of [`visible_points_into`]'s parallel work.
 const BAND_ROWS: usize = 16;
@@ -380,8 +401,8 @@ pub(crate) fn visible_points_into(
     eye: &EyePass,
     sampling: visibility::Sampling,
     stored: bool,
-    bands: &mut Vec<visibility::ReceiverPoints>,
-    runs: &mut Vec<RunRows<Option<RayPlane>>>,
+    skips: SkipLights<'_>,
+    (bands, runs): (&mut Vec<visibility::ReceiverPoints>, &mut Vec<PointRuns>),
 ) {
     use rayon::prelude::*;
     // Conservative: one piece per run (a stride no run reaches). Pieces of
@@ -406,14 +427,21 @@ pub(crate) fn visible_points_into(
     };
     bands.resize_with(h.div_ceil(BAND_ROWS), Default::default);
     runs.resize_with(bands.len(), Default::default);
-    // Per visible triangle: its plane, `None` for surfaces that cannot be
-    // shadowed (no receivers).
+    // Per visible triangle: its plane and the lights that may leave its
+    // points out, `None` for surfaces that cannot be shadowed (no
+    // receivers).
     let plane_of = |prim: PrimitiveId| {
-        scene
-            .object(prim.0)
-            .flags
-            .receives
-            .then(|| RayPlane::new(&scene.world_triangle(prim.0, prim.1 as usize), e))
+        if !scene.object(prim.0).flags.receives {
+            return None;
+        }
+        let tri = scene.world_triangle(prim.0, prim.1 as usize);
+        let mut skip = 0u32;
+        for (k, light) in skips.lights.iter().enumerate() {
+            if light.is_some_and(|l| unlit_by_facing(&tri, e, &l, skips.two_sided)) {
+                skip |= 1 << k;
+            }
+        }
+        Some((RayPlane::new(&tri, e), skip))
     };
     bands
         .par_iter_mut()
@@ -422,12 +450,13 @@ pub(crate) fn visible_points_into(
         .for_each(|(b, (band, runs))| {
             band.points.clear();
             band.joined.clear();
+            band.skip.clear();
             let rows = (b * BAND_ROWS) as u32..((b + 1) * BAND_ROWS).min(h) as u32;
             // A run's stored-depth points, each with whether it is joined
             // to the one before.
             let mut stored_points: Vec<(glam::DVec3, bool)> = Vec::new();
             surface.for_each_run_in_rows(rows, runs, plane_of, |y, x0, x1, _, plane| {
-                let Some(plane) = plane else { return };
+                let Some((plane, skip)) = plane else { return };
                 let (base, step) = rays.row(f64::from(y) + 0.5);
                 let dir = |x: u32| base + step * (f64::from(x) + 0.5);
                 let n = plane.normal;
@@ -472,10 +501,12 @@ pub(crate) fn visible_points_into(
                     };
                     band.points.push(p);
                     band.joined.push(joined);
+                    band.skip.push(skip);
                 });
                 for (q, joined) in stored_points.drain(..) {
                     band.points.push(q);
                     band.joined.push(joined);
+                    band.skip.push(skip);
                 }
             });
         });

@@ -56,15 +56,15 @@ pub(crate) enum Reading {
     Slices,
 }
 
-/// Runs one light's pass: `light`, its key for the host's backend factory,
-/// its culling state (whose `result` and `ms` are replaced) and what it reads
+/// Runs one light's pass: `light`, its key for the host's backend factory
+/// and its bit in the receiver points' skip masks, its culling state (whose `result` and `ms` are replaced) and what it reads
 /// for clamping.
 ///
 /// # Errors
 /// The pass's error.
 pub(crate) fn light_pass(
     light: Light,
-    key: u32,
+    (key, skip): (u32, u32),
     c: &mut LightCulling,
     reading: Reading,
     input: &LightPassInput<'_>,
@@ -73,6 +73,7 @@ pub(crate) fn light_pass(
     c.pass.set_frame(input.frame);
     let mut edges = [0.0; visibility::MAX_SLICES + 1];
     let mut pass = input.pass;
+    pass.skip_receivers = skip;
     let (viewport, n) = input.slices;
     // Continuous clamping also reads each caster's bands: its occupied
     // slices at the finest count (`shadowgen`'s `bands.rs`).

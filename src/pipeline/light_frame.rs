@@ -103,7 +103,13 @@ pub(super) fn run(s: &mut LightState, f: &FrameShared<'_>) -> Result<f64> {
     // `count_fill`), not kept from the last frame.
     s.scratch.shadowable.forget();
     if let (true, Some(input)) = (s.culled, &f.pass) {
-        light::light_pass(s.light, s.id.0, &mut s.culling, reading, input)?;
+        light::light_pass(
+            s.light,
+            (s.id.0, s.skip_bit),
+            &mut s.culling,
+            reading,
+            input,
+        )?;
     }
     let casters: &[ObjectId] = if s.culled {
         s.casters.clear();

@@ -50,6 +50,9 @@ pub(super) struct LightState {
     pub(super) clamping: ClampingSpec,
     /// Whether this frame runs the light pass (culls the casters).
     pub(super) culled: bool,
+    /// This frame's bit in the receiver points' skip masks (0: it takes
+    /// every point; `Pipeline::receiver_skips`).
+    pub(super) skip_bit: u32,
     /// The last PSC as public ids (slot and generation), ascending.
     pub(super) psc: Vec<ObjectId>,
     /// This frame's casters (the PSC less non-casters), reused.
@@ -71,6 +74,7 @@ impl LightState {
             clamp_auto: [auto::AutoView::stencil(), auto::AutoView::stencil()],
             clamping: ClampingSpec::None,
             culled: false,
+            skip_bit: 0,
             psc: Vec::new(),
             casters: Vec::new(),
             scratch: ShadowScratch::default(),

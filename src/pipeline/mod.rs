@@ -131,7 +131,10 @@ pub struct Pipeline {
     /// The eye's visible points, in bands of rows.
     receivers: Vec<visibility::ReceiverPoints>,
     /// The receiver points' run buffers, one per band of rows.
-    receiver_runs: Vec<crate::surface::RunRows<Option<crate::surface::RayPlane>>>,
+    receiver_runs: Vec<eye::PointRuns>,
+    /// Per skip bit, the light whose light pass may leave out the points of
+    /// surfaces facing away from it (`receiver_skips`).
+    skip_lights: Vec<Option<scene::Light>>,
     /// Every live visible object's slot id, ascending: the PSR without culling.
     all_visible: Vec<ObjectId>,
     /// Every live casting object's slot id, ascending: the casters without culling.
@@ -190,6 +193,7 @@ impl Pipeline {
             camera: None,
             receivers: Default::default(),
             receiver_runs: Default::default(),
+            skip_lights: Vec::new(),
             all_visible: live_slots_of(&scene, |f| f.visible),
             all_casters: live_slots_of(&scene, |f| f.casts),
             psr: Vec::new(),
@@ -355,6 +359,7 @@ impl Pipeline {
         for s in self.lights.iter_mut().filter_map(|s| s.state.as_mut()) {
             s.culled = may_cull && (!auto || s.auto.choose(&o.auto));
             lights_culled |= s.culled;
+            s.skip_bit = 0;
             // `clamping: auto`: clamp or not, then discrete or continuous.
             s.clamping = match o.clamping {
                 ClampingSpec::Auto if !s.clamp_auto[0].choose(&o.auto) => ClampingSpec::None,
@@ -438,16 +443,22 @@ impl Pipeline {
         let stored_points = (self.lights.iter())
             .filter_map(|s| s.state.as_ref())
             .any(|s| s.culled && light_frame::reading(s.clamping, &o) == light::Reading::Axes);
-        // The culling lights mark the eye's visible surface points.
+        // The culling lights mark the eye's visible surface points, each
+        // leaving out those of surfaces that face away from it.
         if lights_culled {
+            receiver_skips(&mut self.lights, &o, &mut self.skip_lights);
+            let skips = eye::SkipLights {
+                lights: &self.skip_lights,
+                two_sided: o.two_sided,
+            };
             visible_points_into(
                 scene,
                 camera,
                 &eye,
                 o.coverage.sampling(),
                 stored_points,
-                &mut self.receivers,
-                &mut self.receiver_runs,
+                skips,
+                (&mut self.receivers, &mut self.receiver_runs),
             );
         }
         let eye_ms = ms(start);
@@ -515,6 +526,7 @@ impl Pipeline {
                         meshes,
                         camera,
                         receivers: &self.receivers,
+                        skip_receivers: 0,
                         fragments: Some(visibility::FragmentSource {
                             axes: Some(&axes),
                             slices: None,
@@ -807,6 +819,35 @@ impl<'a> LightOutput<'a> {
 }
 
 /// A pool of `threads` workers, `None` for 0 (rayon's global pool).
+/// Gives each culling light a bit of the receiver points' skip masks
+/// ([`visibility::ReceiverPoints::skip`]), and `lights` its light at that
+/// bit: its light pass leaves out the points of surfaces that face away
+/// from it. Their pixels are unlit whatever their stencil holds
+/// ([`crate::mask::classify_runs`]), so the casters that shadow only them
+/// need no volume; every caster that shadows a surface the light reaches
+/// still shadows a point its pass takes, so the masks do not change. Not
+/// for the hybrid, whose shadow maps are the light views' depth (its
+/// approximate classification would change with them), and at most 32
+/// lights (the rest take every point).
+fn receiver_skips(
+    slots: &mut [LightSlot],
+    o: &PipelineOptions,
+    lights: &mut Vec<Option<scene::Light>>,
+) {
+    lights.clear();
+    if o.stencil == StencilBackend::Hybrid {
+        return;
+    }
+    let culling = slots
+        .iter_mut()
+        .filter_map(|s| s.state.as_mut())
+        .filter(|s| s.culled);
+    for (k, s) in culling.take(u32::BITS as usize).enumerate() {
+        s.skip_bit = 1 << k;
+        lights.push(Some(s.light));
+    }
+}
+
 fn own_pool(threads: u32) -> Result<Option<Arc<rayon::ThreadPool>>> {
     if threads == 0 {
         return Ok(None);

@@ -124,6 +124,9 @@ pub struct PassInput<'a> {
     /// The eye's visible surface points, in parts (any split that keeps
     /// each joined point in the part of the point it is joined to).
     pub receivers: &'a [ReceiverPoints],
+    /// The light's bits in [`ReceiverPoints::skip`]: the points whose mask
+    /// shares one are left out (0: none is).
+    pub skip_receivers: u32,
     /// Fragment receivers for clamping: along each caster's clamping axis
     /// and in the eye slices, the pass also finds each caster's fragment
     /// intervals ([`LightPassResult::fragments`], [`LightPassResult::slices`]);
@@ -536,6 +539,7 @@ impl LightPass {
             meshes,
             camera,
             receivers,
+            skip_receivers,
             fragments: fragment_source,
         } = *input;
         let bounds = scene.bounds();
@@ -559,6 +563,7 @@ impl LightPass {
         let origin = light.position().unwrap_or_else(|| bounds.center());
         self.receivers.prepare(
             receivers,
+            skip_receivers,
             light,
             origin,
             diameter,

@@ -42,6 +42,14 @@ pub struct ReceiverPoints {
     /// sees between them lies on that segment (same eye row, same triangle
     /// plane). Point-sampled marking ignores it. Empty: no point is joined.
     pub joined: Vec<bool>,
+    /// Per point: the lights that may leave it out, as a mask of the bits
+    /// light passes are given ([`crate::PassInput::skip_receivers`]): the
+    /// producer's proof that those lights never read a shadow there (the
+    /// pipeline sets a light's bit on the points of surfaces that face away
+    /// from it). Points joined to each other must have one mask (the
+    /// pipeline gives every point of a run one). Empty: every light takes
+    /// every point.
+    pub skip: Vec<u32>,
 }
 
 impl ReceiverPoints {
@@ -50,11 +58,18 @@ impl ReceiverPoints {
         ReceiverPoints {
             points,
             joined: Vec::new(),
+            skip: Vec::new(),
         }
     }
 
     fn joined(&self, i: usize) -> bool {
         self.joined.get(i).copied().unwrap_or(false)
+    }
+
+    /// Whether a light of bits `skip` takes point `i`: it is a point (not
+    /// NaN) that the light may not leave out.
+    fn takes(&self, i: usize, skip: u32) -> bool {
+        !self.points[i].x.is_nan() && self.skip.get(i).is_none_or(|&s| s & skip == 0)
     }
 }
 
@@ -159,10 +174,14 @@ impl Prepared {
     /// Pushes the points of `parts` away from `light` (by
     /// [`RECEIVER_PUSH`] when conservative; `diameter` scales a directional
     /// light's push), makes them relative to `origin`, and sends them to
-    /// `views`.
+    /// `views`; points the light may leave out (`skip`,
+    /// [`ReceiverPoints::skip`]) become NaN, which no piece holds and
+    /// marking skips.
+    #[allow(clippy::too_many_arguments)]
     pub fn prepare(
         &mut self,
         parts: &[ReceiverPoints],
+        skip: u32,
         light: &Light,
         origin: DVec3,
         diameter: f64,
@@ -192,19 +211,25 @@ impl Prepared {
         let mut offset = 0;
         for r in parts {
             if self.segmented {
-                cut_pieces(r, offset, &mut self.pieces);
+                cut_pieces(r, skip, offset, &mut self.pieces);
             }
             let (local, tail) = rest.split_at_mut(r.points.len());
             // (NaN points stay NaN: marking skips them, and no piece holds one.)
-            let point = |(&p, l): (&DVec3, &mut Vec4)| *l = place(p);
+            let point = |(i, l): (usize, &mut Vec4)| {
+                *l = if r.takes(i, skip) {
+                    place(r.points[i])
+                } else {
+                    Vec4::NAN
+                }
+            };
             #[cfg(feature = "parallel")]
-            r.points
-                .par_iter()
-                .zip(local.par_iter_mut())
+            local
+                .par_iter_mut()
+                .enumerate()
                 .with_min_len(4096)
                 .for_each(point);
             #[cfg(not(feature = "parallel"))]
-            r.points.iter().zip(local.iter_mut()).for_each(point);
+            local.iter_mut().enumerate().for_each(point);
             rest = tail;
             offset += r.points.len() as u32;
         }
@@ -303,9 +328,9 @@ impl Prepared {
 
 /// Appends `r`'s pieces (indices offset by `offset`) to `pieces`: each
 /// joined point with the one before it, and every point joined to neither
-/// neighbour on its own.
-fn cut_pieces(r: &ReceiverPoints, offset: u32, pieces: &mut Vec<(u32, u32)>) {
-    let valid = |i: usize| !r.points[i].x.is_nan();
+/// neighbour on its own; of the points a light of bits `skip` takes.
+fn cut_pieces(r: &ReceiverPoints, skip: u32, offset: u32, pieces: &mut Vec<(u32, u32)>) {
+    let valid = |i: usize| r.takes(i, skip);
     let n = r.points.len();
     for i in (0..n).filter(|&i| valid(i)) {
         let at = offset + i as u32;
@@ -373,10 +398,24 @@ mod tests {
         // Runs: [0 (joined to nothing), 1, 2], [3], NaN 4, [5 (joined to the NaN), 6].
         let points = vec![p, p, p, p, nan, p, p];
         let joined = vec![true, true, true, false, true, true, true];
-        let r = ReceiverPoints { points, joined };
+        // The run [1, 2] left out by lights of bit 1 (not by those of bit 2).
+        let skip = vec![0, 1, 1, 0, 0, 0, 0];
+        let r = ReceiverPoints {
+            points,
+            joined,
+            skip,
+        };
         let mut pieces = vec![(0, 0)];
-        cut_pieces(&r, 10, &mut pieces);
+        cut_pieces(&r, 0, 10, &mut pieces);
         assert_eq!(pieces, vec![(0, 0), (10, 11), (11, 12), (13, 13), (15, 16)]);
+        for other in [2, 4] {
+            let mut again = vec![(0, 0)];
+            cut_pieces(&r, other, 10, &mut again);
+            assert_eq!(again, pieces);
+        }
+        pieces.truncate(1);
+        cut_pieces(&r, 1 | 4, 10, &mut pieces);
+        assert_eq!(pieces, vec![(0, 0), (10, 10), (13, 13), (15, 16)]);
     }
 
     /// A seeded uniform sampler of [−1, 1) (an LCG: reproducible, no dependency).
