@@ -372,8 +372,8 @@ pub fn visible_points(
 /// the mask's own rule, with `two_sided`).
 #[derive(Clone, Copy)]
 pub(crate) struct SkipLights<'a> {
-    /// Per bit, its light (`None`: no light takes the bit).
-    pub lights: &'a [Option<Light>],
+    /// Per bit, its light.
+    pub lights: &'a [Light],
     pub two_sided: bool,
 }
 
@@ -437,7 +437,7 @@ pub(crate) fn visible_points_into(
         let tri = scene.world_triangle(prim.0, prim.1 as usize);
         let mut skip = 0u32;
         for (k, light) in skips.lights.iter().enumerate() {
-            if light.is_some_and(|l| unlit_by_facing(&tri, e, &l, skips.two_sided)) {
+            if unlit_by_facing(&tri, e, light, skips.two_sided) {
                 skip |= 1 << k;
             }
         }

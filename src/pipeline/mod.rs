@@ -134,7 +134,7 @@ pub struct Pipeline {
     receiver_runs: Vec<eye::PointRuns>,
     /// Per skip bit, the light whose light pass may leave out the points of
     /// surfaces facing away from it (`receiver_skips`).
-    skip_lights: Vec<Option<scene::Light>>,
+    skip_lights: Vec<scene::Light>,
     /// Every live visible object's slot id, ascending: the PSR without culling.
     all_visible: Vec<ObjectId>,
     /// Every live casting object's slot id, ascending: the casters without culling.
@@ -818,7 +818,6 @@ impl<'a> LightOutput<'a> {
     }
 }
 
-/// A pool of `threads` workers, `None` for 0 (rayon's global pool).
 /// Gives each culling light a bit of the receiver points' skip masks
 /// ([`visibility::ReceiverPoints::skip`]), and `lights` its light at that
 /// bit: its light pass leaves out the points of surfaces that face away
@@ -829,11 +828,7 @@ impl<'a> LightOutput<'a> {
 /// for the hybrid, whose shadow maps are the light views' depth (its
 /// approximate classification would change with them), and at most 32
 /// lights (the rest take every point).
-fn receiver_skips(
-    slots: &mut [LightSlot],
-    o: &PipelineOptions,
-    lights: &mut Vec<Option<scene::Light>>,
-) {
+fn receiver_skips(slots: &mut [LightSlot], o: &PipelineOptions, lights: &mut Vec<scene::Light>) {
     lights.clear();
     if o.stencil == StencilBackend::Hybrid {
         return;
@@ -844,10 +839,11 @@ fn receiver_skips(
         .filter(|s| s.culled);
     for (k, s) in culling.take(u32::BITS as usize).enumerate() {
         s.skip_bit = 1 << k;
-        lights.push(Some(s.light));
+        lights.push(s.light);
     }
 }
 
+/// A pool of `threads` workers, `None` for 0 (rayon's global pool).
 fn own_pool(threads: u32) -> Result<Option<Arc<rayon::ThreadPool>>> {
     if threads == 0 {
         return Ok(None);
