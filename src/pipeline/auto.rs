@@ -35,8 +35,9 @@
 //! The rule, per view (for the stencil, per light; its first mode is `h`,
 //! its second `db`, and neither needs a warm frame):
 //! 1. Each mode has a modeled cost: a weighted sum of the counters of the
-//!    stage it changes ([`eye_cost`], [`LightCosts`], [`stencil_cost`]). A
-//!    culled frame measures the culled cost; an unculled frame the unculled
+//!    stage it changes ([`eye_cost`], [`LightCosts`], [`stencil_cost`]);
+//!    the bundled eye's culled traversal runs as two halves side by side
+//!    and costs its slower half ([`split_eye_cost`]). A culled frame measures the culled cost; an unculled frame the unculled
 //!    one. A light's culled frame also estimates its unculled cost: the
 //!    volumes of every caster, scaled from those of the potential casters by
 //!    caster triangles. The estimate is kept only when it differs from the
@@ -220,6 +221,19 @@ pub(crate) fn eye_cost(
         + spec.eye_pixel * px
         + spec.eye_node * traversal.nodes_visited as f64
         + spec.query * queries as f64
+}
+
+/// The culled eye's modeled cost when its traversal ran split
+/// (`eye.rs`): the two halves run side by side, so the frame waits for the
+/// slower one, not for their sum. `halves` holds each half's traversal and
+/// raster counters (the bundled backend: no host queries). Modeling the sum
+/// overstated the culled eye about twofold against the unculled batch,
+/// which runs on every thread too: on city_16384 `street` `auto` drew every
+/// object (16–20 ms a frame against 6–9 for `chcpp`).
+pub(crate) fn split_eye_cost(spec: &AutoSpec, halves: &[(TraversalStats, RasterStats); 2]) -> f64 {
+    (halves.iter())
+        .map(|(traversal, raster)| eye_cost(spec, true, raster, traversal, false))
+        .fold(0.0, f64::max)
 }
 
 /// A culled light's light pass: its traversal's and its views' raster
@@ -514,5 +528,35 @@ mod tests {
         };
         let per_triangle = spec.caster_triangle + spec.volume_triangle;
         assert_eq!(empty.costs(&spec).1, Some(per_triangle * 1000.0));
+    }
+
+    /// The split eye costs its slower half: less than the whole traversal's
+    /// counters modeled as one, as much as either half alone.
+    #[test]
+    fn the_split_eye_costs_its_slower_half() {
+        let spec = AutoSpec::default();
+        let half = |nodes: u64, triangles: u64, pixels: u64| {
+            let t = TraversalStats {
+                nodes_visited: nodes,
+                queries: 3,
+                ..Default::default()
+            };
+            let r = RasterStats {
+                triangles_in: triangles,
+                tiles_touched: triangles / 2,
+                pixels_tested: pixels,
+                ..Default::default()
+            };
+            (t, r)
+        };
+        let halves = [half(40, 900, 30_000), half(60, 1200, 20_000)];
+        let each = halves.map(|(t, r)| eye_cost(&spec, true, &r, &t, false));
+        // Both halves' counters summed, as the joined traversal reports them.
+        let (t, r) = half(100, 2100, 50_000);
+        let t = TraversalStats { queries: 6, ..t };
+        let whole = eye_cost(&spec, true, &r, &t, false);
+        let split = split_eye_cost(&spec, &halves);
+        assert_eq!(split, each[0].max(each[1]));
+        assert!(each[0] != each[1] && split < whole, "{each:?} {whole}");
     }
 }

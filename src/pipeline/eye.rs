@@ -252,6 +252,10 @@ pub struct EyeCulling {
     queries: raster::QueryBuffers,
     /// The right half's traversal.
     right: SecondHalf,
+    /// The last split traversal's counters per half, left then right
+    /// (`None` after a host's traversal): `culling: auto` models the
+    /// culled eye by the slower half ([`super::auto::split_eye_cost`]).
+    pub(crate) halves: Option<[(visibility::TraversalStats, raster::RasterStats); 2]>,
 }
 
 /// The right half of the split eye traversal: its CHC state, result,
@@ -274,6 +278,7 @@ impl EyeCulling {
             result: visibility::CullResult::default(),
             queries: raster::QueryBuffers::default(),
             right: SecondHalf::default(),
+            halves: None,
         }
     }
 }
@@ -683,6 +688,10 @@ pub(crate) fn eye_pass_culled_into(
         },
     );
     let (mut target, mut right) = (left?, right?);
+    state.halves = Some([
+        (result.stats, target.stats()),
+        (part.result.stats, right.stats()),
+    ]);
     target.set_hidden_part(0..0, 0..0);
     target.take_part_from(&mut right, mid..tiles_x, 0..tiles_y)?;
     part.target = Some(right);
@@ -740,6 +749,7 @@ pub(crate) fn cull_with(
         options.coverage.sampling(),
     );
     let objects = visibility::Objects::new(&state.hierarchy, scene, &state.meshes);
+    state.halves = None;
     Ok(state.culler.cull_into(
         objects,
         &view,
@@ -767,6 +777,26 @@ pub(crate) mod tests {
         (Scene::new(loaded.graph).unwrap(), camera)
     }
 
+    /// The culled eye pass of `camera` at 320×240 with `culling`
+    /// (conservative, threshold 0), its result and its state.
+    fn culled_at_320(
+        scene: &Scene,
+        camera: &Camera,
+        culling: visibility::Culling,
+    ) -> (EyePass, visibility::CullResult, EyeCulling) {
+        let meshes = MeshCache::new(scene);
+        let mut state = EyeCulling::new(scene);
+        let traversal = EyeTraversal {
+            culling,
+            threshold: 0,
+            sampling: visibility::Sampling::Conservative,
+        };
+        let size = (320, 240);
+        let (eye, result) =
+            eye_pass_culled(scene, &meshes, &mut state, camera, size, traversal, None).unwrap();
+        (eye, result, state)
+    }
+
     /// Down the procedural city's street, both eye paths skip the faces
     /// turned away of its solid buildings and give the same depth and ids;
     /// against every face drawn, that tests far fewer pixels and changes
@@ -780,22 +810,7 @@ pub(crate) mod tests {
         assert!(2 * solid > scene.objects().len(), "{solid} solid objects");
         let meshes = MeshCache::new(&scene);
         let mut plain = eye_pass(&scene, &meshes, &camera, 320, 240).unwrap();
-        let mut state = EyeCulling::new(&scene);
-        let traversal = EyeTraversal {
-            culling: visibility::Culling::Exact,
-            threshold: 0,
-            sampling: visibility::Sampling::Conservative,
-        };
-        let (culled, _) = eye_pass_culled(
-            &scene,
-            &meshes,
-            &mut state,
-            &camera,
-            (320, 240),
-            traversal,
-            None,
-        )
-        .unwrap();
+        let (culled, _, _) = culled_at_320(&scene, &camera, visibility::Culling::Exact);
         assert_eq!(plain.target.depth_rows(), culled.target.depth_rows());
         assert_eq!(plain.primitives(), culled.primitives());
         // Every face of every object, in the same order.
@@ -814,6 +829,31 @@ pub(crate) mod tests {
         let (d, d_all) = (plain.target.depth_rows(), all.depth_rows());
         let changed = d.iter().zip(&d_all).filter(|(a, b)| a != b).count();
         assert!(changed * 200 < d.len(), "{changed} pixels changed");
+    }
+
+    /// The split traversal keeps each half's counters for `culling: auto`
+    /// ([`super::super::auto::split_eye_cost`]): both halves worked, and
+    /// together they are the joined traversal's counters and the target's
+    /// (before the deferred draws of objects that do not occlude: none here).
+    #[test]
+    fn the_split_traversal_keeps_each_halfs_counters() {
+        let (scene, camera) = small_street();
+        let (eye, result, state) = culled_at_320(&scene, &camera, visibility::Culling::Chc);
+        let [(lt, lr), (rt, rr)] = state.halves.expect("a split traversal's halves");
+        assert!(
+            lt.nodes_visited > 0 && rt.nodes_visited > 0,
+            "{lt:?} {rt:?}"
+        );
+        assert!(
+            lr.pixels_tested > 0 && rr.pixels_tested > 0,
+            "{lr:?} {rr:?}"
+        );
+        let s = result.stats;
+        assert_eq!(s.nodes_visited, lt.nodes_visited + rt.nodes_visited);
+        assert_eq!(s.queries, lt.queries + rt.queries);
+        let r = eye.target.stats();
+        assert_eq!(r.triangles_in, lr.triangles_in + rr.triangles_in);
+        assert_eq!(r.pixels_tested, lr.pixels_tested + rr.pixels_tested);
     }
 
     /// A run's points against the per-pixel rule they replace: each pixel's

@@ -469,7 +469,11 @@ impl Pipeline {
             };
             let raster = eye.target.stats();
             let host = self.backends.is_some();
-            let cost = auto::eye_cost(&o.auto, culled, &raster, &traversal, host);
+            let halves = (self.culling.as_ref().and_then(|s| s.halves)).filter(|_| culled);
+            let cost = match &halves {
+                Some(halves) => auto::split_eye_cost(&o.auto, halves),
+                None => auto::eye_cost(&o.auto, culled, &raster, &traversal, host),
+            };
             self.auto_eye.observe(&o.auto, culled, cost, None);
             tracing::debug!(
                 target: "shadowcull::auto",
