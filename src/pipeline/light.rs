@@ -57,8 +57,8 @@ pub(crate) enum Reading {
 }
 
 /// Runs one light's pass: `light`, its key for the host's backend factory
-/// and its bit in the receiver points' skip masks, its culling state (whose `result` and `ms` are replaced) and what it reads
-/// for clamping.
+/// and its bit in the receiver points' skip masks, its culling state (whose
+/// `result` and `ms` are replaced) and what it reads for clamping.
 ///
 /// # Errors
 /// The pass's error.
