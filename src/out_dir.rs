@@ -83,7 +83,7 @@ mod tests {
 
     #[test]
     fn a_second_lock_is_refused_until_the_first_is_dropped() {
-        let dir = std::env::temp_dir().join(format!("shadowcull-lock-{}", std::process::id()));
+        let dir = testkit::scratch_dir("lock");
         let first = OutputLock::acquire(&dir).unwrap();
         let e = OutputLock::acquire(&dir).unwrap_err();
         assert!(matches!(e, Error::OutputBusy { .. }), "{e}");
@@ -91,12 +91,11 @@ mod tests {
         drop(first);
         let again = OutputLock::acquire(&dir).unwrap();
         drop(again);
-        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]
     fn a_claim_removes_what_a_run_owns_and_nothing_else() {
-        let dir = std::env::temp_dir().join(format!("shadowcull-claim-{}", std::process::id()));
+        let dir = testkit::scratch_dir("claim");
         std::fs::create_dir_all(dir.join("frames")).unwrap();
         std::fs::create_dir_all(dir.join("mine")).unwrap();
         for f in [
@@ -115,6 +114,5 @@ mod tests {
         }
         assert!(dir.join("notes.txt").exists() && dir.join("mine/summary.json").exists());
         drop(lock);
-        std::fs::remove_dir_all(&dir).unwrap();
     }
 }

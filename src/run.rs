@@ -482,19 +482,12 @@ fn object_colour(id: u32) -> [u8; 3] {
 mod tests {
     use super::*;
 
-    fn scratch(name: &str) -> PathBuf {
-        let d = std::env::temp_dir().join(format!("shadowcull_run_{name}_{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&d);
-        std::fs::create_dir_all(&d).unwrap();
-        d
-    }
-
     /// A write that fails half-way (a full disk) leaves no `.tmp` and no
     /// partial file; a write that succeeds leaves only the file.
     #[test]
     fn a_failed_write_leaves_no_temporary_file() {
         use std::io::Write as _;
-        let dir = scratch("atomic");
+        let dir = testkit::scratch_dir("atomic");
         let path = dir.join("0_0_mask.png");
         let e = atomic(&path, |tmp| {
             std::fs::File::create(tmp)?.write_all(b"half a PNG")?;
@@ -512,6 +505,5 @@ mod tests {
             .map(|e| e.unwrap().file_name())
             .collect();
         assert_eq!(names, ["0_0_mask.png"]);
-        std::fs::remove_dir_all(&dir).unwrap();
     }
 }

@@ -8,8 +8,8 @@ fn bin() -> Command {
     Command::new(env!("CARGO_BIN_EXE_shadowcull"))
 }
 
-/// A fresh scratch directory for one test.
-fn tmp_dir(name: &str) -> PathBuf {
+/// A fresh scratch directory for one test, removed when dropped.
+fn tmp_dir(name: &str) -> testkit::ScratchDir {
     testkit::scratch_dir(&format!("cli-{name}"))
 }
 

@@ -570,8 +570,7 @@ mod tests {
     /// and column (it once said "Expected opening `(`" and gave no position).
     #[test]
     fn byte_order_marks_and_invalid_utf8() {
-        let dir = std::env::temp_dir().join(format!("job_utf8_{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
+        let dir = testkit::scratch_dir("job_utf8");
         let bom = dir.join("bom.ron");
         std::fs::write(&bom, "\u{feff}(scene: City(()), frames: 2)").unwrap();
         assert_eq!(Job::from_file(&bom).unwrap().frame_count(), 2);
@@ -579,7 +578,6 @@ mod tests {
         std::fs::write(&bad, b"(\n  scene: City(()),\n  // caf\xe9\n)").unwrap();
         let e = Job::from_file(&bad).unwrap_err().to_string();
         assert!(e.contains("latin1.ron:3:9") && e.contains("0xe9"), "{e}");
-        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     /// A misspelled field inside a light variant or a camera pose is an

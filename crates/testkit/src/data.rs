@@ -57,11 +57,44 @@ pub fn shared_jobs(pick: &str) -> Vec<PathBuf> {
 }
 
 /// A fresh, empty directory `shadowcull-<pid>-<name>` under the system's
-/// temporary directory (emptied first when a previous run left it behind).
-/// The caller removes it when it wants to.
-pub fn scratch_dir(name: &str) -> PathBuf {
+/// temporary directory (emptied first when a previous run left it behind),
+/// removed with everything in it when the value is dropped: a test leaves
+/// nothing behind, pass or fail (a failing test's panic unwinds through the
+/// drop).
+pub fn scratch_dir(name: &str) -> ScratchDir {
     let dir = std::env::temp_dir().join(format!("shadowcull-{}-{name}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap_or_else(|e| panic!("{}: {e}", dir.display()));
-    dir
+    ScratchDir(dir)
+}
+
+/// A test's temporary directory ([`scratch_dir`]): a path that removes its
+/// directory when dropped. Derefs to [`Path`].
+#[derive(Debug)]
+pub struct ScratchDir(PathBuf);
+
+impl std::ops::Deref for ScratchDir {
+    type Target = Path;
+
+    fn deref(&self) -> &Path {
+        &self.0
+    }
+}
+
+impl AsRef<Path> for ScratchDir {
+    fn as_ref(&self) -> &Path {
+        &self.0
+    }
+}
+
+impl AsRef<std::ffi::OsStr> for ScratchDir {
+    fn as_ref(&self) -> &std::ffi::OsStr {
+        self.0.as_os_str()
+    }
+}
+
+impl Drop for ScratchDir {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
 }

@@ -10,7 +10,8 @@
 //! - [`brute_pairs`], [`bvh_pairs`]: baselines of sweep-and-prune;
 //! - [`hierarchical_matches_brute_force`], [`check_hierarchical`]: the
 //!   hierarchical stencil (H) against brute force (BF) on one view;
-//! - [`scratch_dir`]: a fresh temporary directory per process and name;
+//! - [`scratch_dir`]: a fresh temporary directory per process and name,
+//!   removed when dropped;
 //! - `cli` (feature `cli`): the examples' option tables and `WxH` parser;
 //! - [`proptest_config`]: proptest's configuration with the regressions
 //!   beside each test module (`tests/<module>.proptest-regressions`).
@@ -23,7 +24,7 @@ mod scenes;
 mod stencil;
 pub mod volume_checks;
 
-pub use data::{scratch_dir, shared_data, shared_file, shared_jobs, workspace_root};
+pub use data::{scratch_dir, shared_data, shared_file, shared_jobs, workspace_root, ScratchDir};
 pub use pairs::{brute_pairs, bvh_pairs};
 pub use scenes::{street_city, BenchScene};
 pub use stencil::{

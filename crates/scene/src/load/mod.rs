@@ -77,14 +77,7 @@ fn feature_disabled(path: &Path, format: &str, feature: &str) -> Error {
 
 #[cfg(test)]
 mod tests {
-    use std::path::PathBuf;
-
-    fn scratch(name: &str) -> PathBuf {
-        let d = std::env::temp_dir().join(format!("scene_load_{name}_{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&d);
-        std::fs::create_dir_all(&d).unwrap();
-        d
-    }
+    use testkit::scratch_dir as scratch;
 
     /// A FIFO, a device (through a symbolic link with a scene's extension)
     /// and a directory are refused at once: the FIFO once blocked forever,
@@ -113,7 +106,6 @@ mod tests {
         } else {
             eprintln!("note: no mkfifo here; the FIFO case is skipped");
         }
-        std::fs::remove_dir_all(&d).unwrap();
     }
 
     /// A file past the limit is refused before it is read, naming both sizes.
@@ -130,7 +122,6 @@ mod tests {
             "{e}"
         );
         assert_eq!(super::max_input_bytes(), super::DEFAULT_MAX_INPUT_BYTES);
-        std::fs::remove_dir_all(&d).unwrap();
     }
 
     /// `load_path` on a format whose feature is off names the feature.
