@@ -11,7 +11,8 @@
 //! - 100 frames of the procedural city's `street` path at 160×120 with a
 //!   point light above the city and a directional sun, one runner per mode
 //!   carried across frames (CHC's temporal coherence), the reference every
-//!   10th frame.
+//!   10th frame (`.ci/run`'s `test-heavy` step; the default run takes the
+//!   first 30 frames, as do the clamping tests' street paths).
 //!
 //! Scenes, their mesh caches and the reference's triangle BVH are built once
 //! per test binary ([`OnceLock`]); silhouette caches live in each runner's
@@ -719,8 +720,13 @@ fn street_city() -> &'static (Fixture, scene::CameraPath) {
     })
 }
 
-/// The city street path: 100 frames, a point light above the city and a sun.
-fn street_case() -> Case<'static> {
+/// Frames of the street path in the default run (`.ci/run`'s `test-heavy`
+/// step runs the ignored tests' 100).
+const DEFAULT_STREET_FRAMES: u32 = 30;
+
+/// The city street path: its first `frames` frames, a point light above the
+/// city and a sun.
+fn street_case(frames: u32) -> Case<'static> {
     let (fx, path) = street_city();
     let res = (160u32, 120u32);
     let [above, sun] = crate::common::city_lights(&fx.scene);
@@ -728,7 +734,7 @@ fn street_case() -> Case<'static> {
         ("point above the city".to_string(), above),
         ("sun".to_string(), sun),
     ];
-    let views = (0..100)
+    let views = (0..frames)
         .map(|f| {
             let cam = path
                 .at(f)
@@ -749,15 +755,16 @@ fn street_case() -> Case<'static> {
     }
 }
 
-#[test]
-fn street_path_100_frames_culling_keeps_mask() {
+/// Every mode keeps the mask along `frames` frames of the street path, and
+/// the culled runners cull.
+fn check_street_path(frames: u32) {
     let t = Instant::now();
-    let case = street_case();
+    let case = street_case(frames);
     let o = run_case(&case, false);
     print_totals(case.label, false, &o);
     eprintln!("city street: {:.1} s", t.elapsed().as_secs_f64());
     assert_clean(case.label, false, &o);
-    assert_eq!(o.references, 20);
+    assert_eq!(o.references, 2 * u64::from(frames.div_ceil(10)));
     assert!(o.compared > 50_000, "{} pixels compared", o.compared);
     let shadowed: u64 = o.counts.iter().flatten().map(|c| c.shadow).sum();
     assert!(shadowed > 10_000, "shadows seen: {shadowed}");
@@ -771,11 +778,24 @@ fn street_path_100_frames_culling_keeps_mask() {
     }
 }
 
+#[test]
+#[ignore = "the street path's 100 frames: .ci/run's test-heavy step"]
+fn street_path_100_frames_culling_keeps_mask() {
+    check_street_path(100);
+}
+
+/// [`street_path_100_frames_culling_keeps_mask`] on the path's first
+/// [`DEFAULT_STREET_FRAMES`] frames.
+#[test]
+fn street_path_culling_keeps_mask_over_the_first_frames() {
+    check_street_path(DEFAULT_STREET_FRAMES);
+}
+
 // --------------------------------------------------------- clamping
 
 /// Continuous clamping keeps the mask: on the assembled Cornell box and the
 /// closed box with the light inside (one- and two-sided) and on the city
-/// street path (100 frames, one-sided), runners with clamping with
+/// street path (`street_frames` frames, one-sided), runners with clamping with
 /// receivers `all`, `psr` and `fragment`, discrete clamping (10 slices) and
 /// `clamping: auto` (fragment receivers) give the unclamped mask on
 /// every pixel but ones the reference calls ambiguous (a segment's new
@@ -787,13 +807,12 @@ fn street_path_100_frames_culling_keeps_mask() {
 /// `auto` with CHC++); the street path
 /// runs CHC++ throughout (culling keeps the mask: the tests above), so that
 /// it stays cheap.
-#[test]
-fn clamping_keeps_the_mask_on_the_culling_cases() {
+fn check_clamping_cases(street_frames: u32) {
     use shadowcull::pipeline::{ClampReceiversSpec, ClampingSpec};
     let (mut frames, mut segments, mut differing) = (0u64, 0u64, 0u64);
     let mut failures = Vec::new();
     for (case, culling, sides) in [
-        (street_case(), CullingSpec::Chcpp, &[false][..]),
+        (street_case(street_frames), CullingSpec::Chcpp, &[false][..]),
         (cornell_case(), CullingSpec::None, &[false, true][..]),
         (closed_box_case(), CullingSpec::None, &[false, true][..]),
     ] {
@@ -927,9 +946,23 @@ fn clamping_keeps_the_mask_on_the_culling_cases() {
     );
 }
 
+/// [`check_clamping_cases`] with the street path's 100 frames.
+#[test]
+#[ignore = "the street path's 100 frames: .ci/run's test-heavy step"]
+fn clamping_keeps_the_mask_on_the_culling_cases() {
+    check_clamping_cases(100);
+}
+
+/// [`check_clamping_cases`] with the street path's first
+/// [`DEFAULT_STREET_FRAMES`] frames.
+#[test]
+fn clamping_keeps_the_mask_on_the_culling_cases_over_the_first_street_frames() {
+    check_clamping_cases(DEFAULT_STREET_FRAMES);
+}
+
 /// Fragment receivers, and discrete clamping's occupied slices, hold every
 /// shadowed visible sample: on the city
-/// street path (every 5th of its 100 frames, both lights) and on the Cornell
+/// street path (every 5th of its first `street_frames` frames, both lights) and on the Cornell
 /// box and the closed box, with light views of 1024² and 64², every gap kept
 /// (no vertex cost), every eye sample (one per pixel centre, as the mask
 /// reads) that the reference shadows (not ambiguously) lies, with the
@@ -942,11 +975,17 @@ fn clamping_keeps_the_mask_on_the_culling_cases() {
 /// depths, kept a caster for it — and a sample whose segment crosses a
 /// clamped caster clearly (not within 10⁻⁹ of an edge or of either end)
 /// lies in one of its segments. Counts the shadowed samples so the test
-/// cannot pass empty.
+/// cannot pass empty. The default run takes the street path's first
+/// [`DEFAULT_STREET_FRAMES`] frames, `.ci/run`'s `test-heavy` step all 100
+/// (the `_on_100_street_frames` tests).
 #[test]
 fn fragment_segments_hold_every_shadowed_eye_sample() {
     use shadowcull::pipeline::ClampingSpec;
-    segments_hold_every_shadowed_eye_sample(ClampingSpec::Continuous, "fragment");
+    segments_hold_every_shadowed_eye_sample(
+        ClampingSpec::Continuous,
+        "fragment",
+        DEFAULT_STREET_FRAMES,
+    );
 }
 
 /// As [`fragment_segments_hold_every_shadowed_eye_sample`] for discrete
@@ -955,12 +994,31 @@ fn fragment_segments_hold_every_shadowed_eye_sample() {
 #[test]
 fn discrete_segments_hold_every_shadowed_eye_sample() {
     use shadowcull::pipeline::ClampingSpec;
-    segments_hold_every_shadowed_eye_sample(ClampingSpec::Discrete, "discrete");
+    segments_hold_every_shadowed_eye_sample(
+        ClampingSpec::Discrete,
+        "discrete",
+        DEFAULT_STREET_FRAMES,
+    );
+}
+
+#[test]
+#[ignore = "the street path's 100 frames: .ci/run's test-heavy step"]
+fn fragment_segments_hold_every_shadowed_eye_sample_on_100_street_frames() {
+    use shadowcull::pipeline::ClampingSpec;
+    segments_hold_every_shadowed_eye_sample(ClampingSpec::Continuous, "fragment", 100);
+}
+
+#[test]
+#[ignore = "the street path's 100 frames: .ci/run's test-heavy step"]
+fn discrete_segments_hold_every_shadowed_eye_sample_on_100_street_frames() {
+    use shadowcull::pipeline::ClampingSpec;
+    segments_hold_every_shadowed_eye_sample(ClampingSpec::Discrete, "discrete", 100);
 }
 
 fn segments_hold_every_shadowed_eye_sample(
     clamping: shadowcull::pipeline::ClampingSpec,
     label: &str,
+    street_frames: u32,
 ) {
     use shadowcull::pipeline::{visible_points, ClampReceiversSpec, FrameInput, Pipeline};
     use std::collections::HashMap;
@@ -968,7 +1026,7 @@ fn segments_hold_every_shadowed_eye_sample(
     let (mut shadowed, mut clamped_casters, mut banded) = (0u64, 0u64, 0u64);
     let mut failures = Vec::new();
     for (case, stride) in [
-        (street_case(), 5),
+        (street_case(street_frames), 5),
         (cornell_case(), 1),
         (closed_box_case(), 1),
     ] {
