@@ -1,16 +1,4 @@
-//! OBJ text through the loader and into a `Scene`: an error naming the file
-//! is fine, a panic or a crash is a finding. (`.mtl` files are not read from
-//! memory; their parsing is tobj's and the loader takes only names from them.)
-//!
-//! `cargo +nightly fuzz run obj fuzz/corpus/obj ../shared/data/edge_obj`
+//! libFuzzer around `fuzz_cases::obj` (what it checks is documented there).
 #![no_main]
 
-use libfuzzer_sys::fuzz_target;
-use shadowcull::scene::{load::obj::load_obj_bytes, Scene};
-use std::path::Path;
-
-fuzz_target!(|data: &[u8]| {
-    if let Ok(graph) = load_obj_bytes(data, Path::new("fuzz.obj")) {
-        let _ = Scene::new(graph);
-    }
-});
+libfuzzer_sys::fuzz_target!(|data: &[u8]| fuzz_cases::obj::run(data));

@@ -1,0 +1,4 @@
+//! libFuzzer around `fuzz_cases::c_abi` (what it checks is documented there).
+#![no_main]
+
+libfuzzer_sys::fuzz_target!(|data: &[u8]| fuzz_cases::c_abi::run(data));
