@@ -6,16 +6,21 @@
 # Everything comes from PyPI and crates.io; nothing is installed outside
 # the temporary directory.
 #
-#   scripts/python_check.sh
+#   scripts/python_check.sh [--no-lint]
+#
+# --no-lint: skip the package's Rust fmt and clippy (`.ci/run` runs them in
+# its fmt and clippy steps).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 python=${PYTHON:-python3}
-# The package's Rust side is its own workspace: format and lint it here.
-cargo fmt --manifest-path crates/bindings/python/Cargo.toml -- --check
-CARGO_TARGET_DIR="$PWD/target" cargo clippy --manifest-path crates/bindings/python/Cargo.toml \
-  --all-targets -- -D warnings
+if [ "${1:-}" != --no-lint ]; then
+  # The package's Rust side is its own workspace: format and lint it here.
+  cargo fmt --manifest-path crates/bindings/python/Cargo.toml -- --check
+  CARGO_TARGET_DIR="$PWD/target" cargo clippy --manifest-path crates/bindings/python/Cargo.toml \
+    --all-targets -- -D warnings
+fi
 "$python" -m venv "$work/build"
 "$work/build/bin/pip" install --quiet --disable-pip-version-check "maturin>=1.9,<2"
 # The workspace's target directory: the release build of the library's

@@ -4,19 +4,65 @@
 # - Always byte-identical: every *_mask.png, *_reference.png, *_shaded.png
 #   and the mask-derived columns (checked; a difference fails).
 # - Listed: the columns and images that depend on coherent history.
-# - With --keyframe K (K = 5; shard boundaries of N = 1, 2 and 8 fall on
-#   multiples of 5): identical in every column but the times, and every
-#   image (checked).
+# - With keyframes every K frames (K must divide F/8, so that the shard
+#   boundaries of N = 1, 2 and 8 fall on keyframes): identical in every
+#   column but the times, and every image (checked).
 # Set WARMUP_STUDY=1 to also list the differences of N = 8 with warm-up 0
-# and 2× the default.
+# and 2x the default.
 #
-#   scripts/shard_check.sh [JOB] [BIN]
+#   scripts/shard_check.sh [--frames F] [--keyframe K] [--resolution WxH] [JOB] [BIN]
+#
+# --frames F and --resolution WxH run a copy of the job with `frames: F` and
+# `resolution: (W, H)` (the job must state both); the defaults are the job's
+# own F and resolution, and K = F/8.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-job=${1:-data/jobs/default_city_40.ron}
-bin=${2:-target/release/shadowcull}
+frames= keyframe= resolution=
+args=()
+while [ $# -gt 0 ]; do
+  case $1 in
+    --frames) frames=$2; shift ;;
+    --keyframe) keyframe=$2; shift ;;
+    --resolution) resolution=$2; shift ;;
+    -*) echo "shard_check.sh: unknown option $1" >&2; exit 2 ;;
+    *) args+=("$1") ;;
+  esac
+  shift
+done
+job=${args[0]:-data/jobs/default_city_40.ron}
+bin=${args[1]:-target/release/shadowcull}
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
+job_frames=$(sed -n 's/^ *frames: *\([0-9]*\),.*/\1/p' "$job")
+if [ -z "$job_frames" ]; then
+  echo "shard_check.sh: $job has no 'frames: N,' line" >&2
+  exit 2
+fi
+if [ -n "$frames" ] || [ -n "$resolution" ]; then
+  copy=$work/$(basename "$job")
+  sed -e "s/^\( *frames: *\)[0-9]*,/\1${frames:-$job_frames},/" "$job" >"$copy"
+  if [ -n "$resolution" ]; then
+    w=${resolution%x*} h=${resolution#*x}
+    grep -q '^ *resolution: *([0-9]*, *[0-9]*),' "$copy" || {
+      echo "shard_check.sh: $job has no 'resolution: (W, H),' line" >&2
+      exit 2
+    }
+    sed -i "s/^\( *resolution: *\)([0-9]*, *[0-9]*),/\1($w, $h),/" "$copy"
+  fi
+  # A job's scene file is relative to its directory, which the copy lacks.
+  if grep -q '^ *scene: *[A-Za-z]*( *"' "$copy"; then
+    echo "shard_check.sh: $job loads a scene file; --frames and --resolution take built-in scenes" >&2
+    exit 2
+  fi
+  job=$copy
+fi
+frames=${frames:-$job_frames}
+keyframe=${keyframe:-$((frames / 8))}
+if [ "$keyframe" -lt 1 ] || [ $((frames % 8)) -ne 0 ] || [ $((frames / 8 % keyframe)) -ne 0 ]; then
+  echo "shard_check.sh: F = $frames must be a multiple of 8 and K = $keyframe must divide F/8" >&2
+  exit 2
+fi
+echo "shard check: $job, F = $frames frames, keyframes every K = $keyframe"
 mask_cols=(lit shadow unlit background ambiguous shadowed_pixels mismatch_pixels
   mismatch_off_boundary ambiguous_pixels compared_pixels)
 
@@ -40,16 +86,16 @@ sharded() { # tag, N, args...
 
 echo "single runs:"
 run "$work/single"
-run "$work/single_k5" --keyframe 5
+run "$work/single_k" --keyframe "$keyframe"
 for n in 1 2 3 8; do
   echo "N = $n (warm-up: the default):"
   sharded plain "$n"
   scripts/stats_diff.sh "$work/single" "$work/plain_merged$n" --exact "${mask_cols[@]}" | sed 's/^/    /'
 done
 for n in 1 2 8; do
-  echo "N = $n, --keyframe 5:"
-  sharded key "$n" --keyframe 5
-  scripts/stats_diff.sh "$work/single_k5" "$work/key_merged$n" --exact-non-timing | sed 's/^/    /'
+  echo "N = $n, --keyframe $keyframe:"
+  sharded key "$n" --keyframe "$keyframe"
+  scripts/stats_diff.sh "$work/single_k" "$work/key_merged$n" --exact-non-timing | sed 's/^/    /'
 done
 if [ "${WARMUP_STUDY:-0}" = 1 ]; then
   revisit=5 # the job's pipeline.chcpp.revisit (the default)
