@@ -76,7 +76,7 @@ fn bench_city(c: &mut Criterion) {
     let city = BenchScene::default_city();
     let scene = &city.scene;
     // The default job's first light: 1.5 scene heights above the centre.
-    let light = shadowcull::config::LightSpec::AboveScene(1.5)
+    let light = shadowcull::jobs::config::LightSpec::AboveScene(1.5)
         .resolve(&city.loaded, &scene.bounds(), 0, Path::new("<bench>"))
         .expect("light");
     for cam in ["street", "bird"] {

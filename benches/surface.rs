@@ -21,7 +21,7 @@ fn bench_city(c: &mut Criterion) {
     let scene = &city.scene;
     let meshes = MeshCache::new(scene);
     // The default job's first light: 1.5 scene heights above the centre.
-    let light = shadowcull::config::LightSpec::AboveScene(1.5)
+    let light = shadowcull::jobs::config::LightSpec::AboveScene(1.5)
         .resolve(&city.loaded, &scene.bounds(), 0, Path::new("<bench>"))
         .expect("light");
     for (w, h) in [(800, 600), (1280, 1024)] {

@@ -20,8 +20,8 @@
 
 use criterion::{criterion_group, criterion_main, Criterion, SamplingMode};
 use scene::{Camera, Light, Scene};
-use shadowcull::config::default_job;
-use shadowcull::frame::{FrameRunner, LightFrame};
+use shadowcull::jobs::config::default_job;
+use shadowcull::jobs::frame::{FrameRunner, LightFrame};
 use shadowcull::pipeline::{CullingSpec, PipelineOptions};
 use std::path::Path;
 use std::time::Duration;

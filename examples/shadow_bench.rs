@@ -69,8 +69,8 @@ use raster::StencilBits;
 use scene::load::Loaded;
 use scene::{Camera, CameraPath, Light, LookAt, Scene};
 use serde_json::{json, Map, Value};
-use shadowcull::config::LightSpec;
-use shadowcull::frame::{FrameRunner, LightFrame};
+use shadowcull::jobs::config::LightSpec;
+use shadowcull::jobs::frame::{FrameRunner, LightFrame};
 use shadowcull::pipeline::{
     ClampReceiversSpec, ClampingSpec, CoverageSpec, CullingSpec, PipelineOptions, StencilBackend,
 };

@@ -80,8 +80,8 @@ fn main() {
 /// reference's class to flip.
 fn mismatches(pick: &str) {
     use scene::{faces_light, ObjectId};
-    use shadowcull::config::load_scene_for_job;
-    use shadowcull::config::Job;
+    use shadowcull::jobs::config::load_scene_for_job;
+    use shadowcull::jobs::config::Job;
     for f in testkit::shared_jobs(pick) {
         let job = Job::from_file(&f).unwrap();
         let (w, h) = job.resolution;
@@ -305,8 +305,8 @@ fn mismatches(pick: &str) {
 /// ray crosses in f64 (extruded vertices placed 1e4 view depths away).
 fn one_pixel(pick: &str, frame: u32, li: usize, (x, y): (u32, u32), all: bool) {
     use scene::{faces_light, ObjectId};
-    use shadowcull::config::load_scene_for_job;
-    use shadowcull::config::Job;
+    use shadowcull::jobs::config::load_scene_for_job;
+    use shadowcull::jobs::config::Job;
     let f = testkit::shared_jobs(pick)
         .into_iter()
         .next()

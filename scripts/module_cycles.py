@@ -19,6 +19,11 @@ module that defines the item, so `use crate::Error` in a module is an import of
 facade), and nothing imports from it but its re-exports: an item defined in the
 root itself and used by a module would close a cycle through the root, and is
 reported as one.
+
+Upper layers (`UPPER_LAYERS`): a top-level module that only the crate root and
+its own submodules may import. The facade's `jobs` (batch jobs) sits above the
+library a renderer links; a library module that imports it, directly or through
+the root's re-exports (`crate::config`), fails the check.
 """
 
 import os
@@ -26,6 +31,10 @@ import re
 import sys
 
 IDENT = r"[A-Za-z_][A-Za-z0-9_]*"
+
+# Per crate root (relative to the repository), the top-level modules that no
+# module outside them imports.
+UPPER_LAYERS = {"src/lib.rs": ("jobs",)}
 
 
 def strip_code(text):
@@ -403,8 +412,22 @@ def main(argv):
                 for a, lines in root_uses:
                     path = os.path.relpath(modules[a].path, top)
                     print(f"    {show(a)} -> (crate root)  ({path}:{','.join(map(str, sorted(set(lines))))})")
-            if not cycles and not root_uses:
-                print(f"{rel}: {len(modules)} modules, no import cycle")
+            layer_uses = sorted(
+                (a, b, lines)
+                for a, t in edges.items()
+                for b, lines in t.items()
+                for layer in UPPER_LAYERS.get(rel, ())
+                if a and a[0] != layer and b[:1] == (layer,)
+            )
+            if layer_uses:
+                bad += 1
+                print(f"{rel}: modules below an upper layer import it:")
+                for a, b, lines in layer_uses:
+                    path = os.path.relpath(modules[a].path, top)
+                    print(f"    {show(a)} -> {show(b)}  ({path}:{','.join(map(str, sorted(set(lines))))})")
+            if not cycles and not root_uses and not layer_uses:
+                layers = "".join(f", nothing below imports {l}" for l in UPPER_LAYERS.get(rel, ()))
+                print(f"{rel}: {len(modules)} modules, no import cycle{layers}")
             if order:
                 print("  bottom-up: " + " < ".join(show(c[0]) if len(c) == 1 else "{" + ", ".join(show(m) for m in c) + "}" for c in comps))
     return 1 if bad else 0

@@ -8,11 +8,23 @@
 //! exact shadow mask. See [`Pipeline`] for a complete example, and
 //! `docs/host.md` of the repository for the host guide.
 //!
-//! Besides the pipeline the crate holds the exact ray-cast shadow reference
-//! every option is measured against ([`mod@reference`]), the four-class masks
-//! ([`mask`]), per-frame statistics ([`stats`]), and, with the `jobs`
-//! feature, RON batch jobs ([`config`], [`run`], [`compare`]), split over
-//! machines by [`shard`] and put back together by [`merge`].
+//! # The library
+//! What a renderer links:
+//! - [`pipeline`]: [`Pipeline`], its options, inputs and outputs, and the
+//!   stages of a frame (eye pass, light passes, volumes, stencil);
+//! - [`mod@reference`]: the exact ray-cast shadow reference every option is
+//!   measured against;
+//! - [`mask`]: the four-class masks and their comparison;
+//! - [`stats`]: the per-frame statistics, also emitted as `tracing` events;
+//! - [`hybrid`]: the shadow-map hybrid's classification;
+//! - [`byte_size`]: byte counts as users write them (`512M`);
+//! - and the crates it is built on, re-exported: [`scene`], [`raster`],
+//!   [`visibility`], [`shadowgen`].
+//!
+//! # Batch jobs
+//! With the `jobs` feature, [`jobs`] is the layer above the library: RON job
+//! files run, sharded over machines, merged and compared (what the CLI
+//! does). No library module uses it.
 //!
 //! # Features
 //! - `gltf`, `obj`: the scene loaders (passed to `shadowcull-scene`);
@@ -40,32 +52,22 @@
 #![forbid(unsafe_code)]
 
 pub mod byte_size;
-#[cfg(feature = "jobs")]
-pub mod calibrate;
-#[cfg(feature = "jobs")]
-pub mod compare;
-#[cfg(feature = "jobs")]
-pub mod config;
 mod error;
-#[cfg(feature = "jobs")]
-pub mod frame;
 pub mod hybrid;
 pub mod mask;
-
-#[cfg(feature = "jobs")]
-pub mod merge;
-#[cfg(feature = "jobs")]
-pub mod out_dir;
 pub mod pipeline;
 pub mod reference;
-#[cfg(feature = "jobs")]
-pub mod run;
-#[cfg(feature = "jobs")]
-pub mod shard;
 pub mod stats;
 mod surface;
+
 #[cfg(feature = "jobs")]
-mod trade_plot;
+pub mod jobs;
+
+// The batch modules' paths before they moved under `jobs` (0.1), kept for
+// one minor version.
+#[cfg(feature = "jobs")]
+#[doc(hidden)]
+pub use jobs::{calibrate, compare, config, frame, merge, out_dir, run, shard};
 
 pub use error::{Error, Result};
 pub use pipeline::memory;

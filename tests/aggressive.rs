@@ -13,7 +13,7 @@
 //! stays a small fraction of the image (a budget of 0.5 % of the shaded
 //! surface pixels; the numbers are printed so a change shows).
 
-use shadowcull::frame::FrameRunner;
+use shadowcull::jobs::frame::FrameRunner;
 use shadowcull::mask::PixelClass;
 use shadowcull::pipeline::{
     ClampingSpec, CoverageSpec, CullingSpec, PipelineOptions, StencilBackend,

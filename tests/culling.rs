@@ -4,7 +4,7 @@
 //! light by light, while far fewer objects are drawn and cast; CHC issues
 //! fewer queries than stop-and-wait.
 
-use shadowcull::frame::FrameRunner;
+use shadowcull::jobs::frame::FrameRunner;
 use shadowcull::pipeline::{CullingSpec, PipelineOptions, StencilBackend};
 
 #[test]

@@ -22,7 +22,7 @@ use glam::{DMat4, DQuat, DVec3, Vec3};
 use rayon::prelude::*;
 use scene::procedural::analytic;
 use scene::{Camera, Light, Mesh, Scene, SceneGraph, Transform};
-use shadowcull::frame::{FrameRunner, LightFrame};
+use shadowcull::jobs::frame::{FrameRunner, LightFrame};
 use shadowcull::mask::{compare, ClassCounts, Mask};
 use shadowcull::pipeline::{eye_pass, MeshCache};
 use shadowcull::pipeline::{CoverageSpec, CullingSpec, PipelineOptions, StencilBackend};
@@ -405,12 +405,12 @@ struct Job {
 /// ceiling cross there; light 0 is above all of them ("above the ceiling"),
 /// light 1 inside the large box (a closed box of 12 unwelded triangles).
 fn shared_cornell() -> Option<&'static Job> {
-    use shadowcull::config::{load_scene_for_job, resolve_lights};
+    use shadowcull::jobs::config::{load_scene_for_job, resolve_lights};
     static F: OnceLock<Option<Job>> = OnceLock::new();
     F.get_or_init(|| {
         testkit::shared_data()?;
         let file = testkit::workspace_root().join("data/jobs/shared_cornell_box_multifile.ron");
-        let job = shadowcull::config::Job::from_file(&file).unwrap();
+        let job = shadowcull::jobs::config::Job::from_file(&file).unwrap();
         let (w, h) = job.resolution;
         let (loaded, scene, path) = load_scene_for_job(&job, Some(&file)).unwrap();
         let lights = resolve_lights(&job, &loaded, &scene.bounds(), &file).unwrap();

@@ -1,8 +1,8 @@
 //! The job files in `data/jobs/`: they parse, and the shared-scene test views
 //! show their scenes with shadows the reference can compute.
 
-use shadowcull::config::prepare_scene;
-use shadowcull::config::{default_job, resolve_camera, Job};
+use shadowcull::jobs::config::prepare_scene;
+use shadowcull::jobs::config::{default_job, resolve_camera, Job};
 use shadowcull::reference::{reference_mask, TriangleBvh};
 use std::path::{Path, PathBuf};
 
@@ -105,4 +105,35 @@ fn shared_scene_views_show_their_scenes_and_shadows() {
             );
         }
     }
+}
+
+/// The batch modules' paths from before they moved under `jobs` still name
+/// the same items (kept for one minor version), and the new ones resolve.
+#[test]
+fn the_batch_modules_resolve_at_their_old_and_new_paths() {
+    use std::any::TypeId;
+    assert_eq!(
+        TypeId::of::<shadowcull::frame::FrameRunner>(),
+        TypeId::of::<shadowcull::jobs::frame::FrameRunner>()
+    );
+    assert_eq!(
+        TypeId::of::<shadowcull::config::LightSpec>(),
+        TypeId::of::<shadowcull::jobs::config::LightSpec>()
+    );
+    assert_eq!(
+        TypeId::of::<shadowcull::shard::Shard>(),
+        TypeId::of::<shadowcull::jobs::shard::Shard>()
+    );
+    assert_eq!(
+        shadowcull::run::run_job as *const (),
+        shadowcull::jobs::run::run_job as *const ()
+    );
+    assert_eq!(
+        shadowcull::compare::compare_job as *const (),
+        shadowcull::jobs::compare::compare_job as *const ()
+    );
+    assert_eq!(
+        shadowcull::merge::merge_shards as *const (),
+        shadowcull::jobs::merge::merge_shards as *const ()
+    );
 }

@@ -1317,7 +1317,7 @@ fn auto_culling_chooses_per_view_and_keeps_masks() -> Result<()> {
 /// reference.
 #[test]
 fn a_merged_city_is_one_object_with_exact_masks_under_auto() -> Result<()> {
-    use shadowcull::config::{load_scene, SceneSpec};
+    use shadowcull::jobs::config::{load_scene, SceneSpec};
     let city = SceneSpec::City(scene::procedural::city::CityParams {
         seed: 3,
         blocks_x: 2,

@@ -8,7 +8,7 @@ use glam::{DMat4, DVec3};
 use rayon::prelude::*;
 use scene::load::Loaded;
 use scene::{Camera, CameraPath, Light, Scene, Transform};
-use shadowcull::config::{load_scene_for_job, Job};
+use shadowcull::jobs::config::{load_scene_for_job, Job};
 use shadowcull::mask::{compare, Mask};
 use shadowcull::pipeline::{
     eye_pass, shadow_mask, EyePass, MeshCache, ShadowOptions, ShadowScratch,
@@ -715,8 +715,8 @@ struct CullingTotals {
 /// own), of which at most 0.01% of the image may differ from the reference's
 /// class. Panics with every failure.
 fn check_culling_runs(runs: Vec<CullingRun>) -> CullingTotals {
-    use shadowcull::config::resolve_lights;
-    use shadowcull::frame::FrameRunner;
+    use shadowcull::jobs::config::resolve_lights;
+    use shadowcull::jobs::frame::FrameRunner;
     use shadowcull::pipeline::{
         ClampReceiversSpec, ClampingSpec, CullingSpec, PipelineOptions, StencilBackend,
     };

@@ -14,10 +14,10 @@
 
 use anyhow::Context as _;
 use clap::{Parser, Subcommand, ValueEnum};
-use shadowcull::compare::{compare_job, CompareOptions};
-use shadowcull::config::{default_job, Job};
-use shadowcull::merge::merge_shards;
-use shadowcull::run::{run_job, RunOptions};
+use shadowcull::jobs::compare::{compare_job, CompareOptions};
+use shadowcull::jobs::config::{default_job, Job};
+use shadowcull::jobs::merge::merge_shards;
+use shadowcull::jobs::run::{run_job, RunOptions};
 use shadowcull::stats::FrameRow;
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
@@ -96,7 +96,7 @@ enum Command {
         /// Run only shard I of N (0-based): frames ⌊I·F/N⌋ up to ⌊(I+1)·F/N⌋ of
         /// the job's F frames; writes shard.json for `merge`.
         #[arg(long, value_name = "I/N")]
-        shard: Option<shadowcull::shard::Shard>,
+        shard: Option<shadowcull::jobs::shard::Shard>,
         /// Warm-up frames run before the shard's block (no reference, no
         /// output); default: the job's `pipeline.chcpp.revisit`.
         #[arg(long, value_name = "W", requires = "shard")]
@@ -242,14 +242,14 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
                 None => default_job(),
             };
             overrides.apply(&mut j);
-            let c = shadowcull::calibrate::calibrate(&j, job.as_deref(), reps)?;
+            let c = shadowcull::jobs::calibrate::calibrate(&j, job.as_deref(), reps)?;
             eprintln!(
                 "shadowcull: {} volume vertices, {} pixels processed; stencil {:.3} ms at {}x{}, {:.3} ms at {}x{}",
                 c.vertices,
                 c.pixels,
                 c.stencil_ms[0],
-                shadowcull::calibrate::VERTEX_BOUND_SIZE.0,
-                shadowcull::calibrate::VERTEX_BOUND_SIZE.1,
+                shadowcull::jobs::calibrate::VERTEX_BOUND_SIZE.0,
+                shadowcull::jobs::calibrate::VERTEX_BOUND_SIZE.1,
                 c.stencil_ms[1],
                 j.resolution.0,
                 j.resolution.1

@@ -5,7 +5,7 @@
 //! the memory estimate checked. An error naming the file and field is fine,
 //! a panic or a crash is a finding.
 
-use shadowcull::config::{resolve_camera, resolve_lights, Job};
+use shadowcull::jobs::config::{resolve_camera, resolve_lights, Job};
 use shadowcull::scene::{load::Loaded, procedural::CityParams, Scene};
 use std::path::Path;
 use std::sync::OnceLock;

@@ -1,5 +1,5 @@
 //! Differential fuzzing of sharded jobs against the single run (the
-//! contract of `shadowcull::shard`, which `scripts/shard_check.sh` checks
+//! contract of `shadowcull::jobs::shard`, which `scripts/shard_check.sh` checks
 //! on the default job): a small scene from the fuzzer's bytes (the
 //! `pipeline` target's boxes and light), a camera moving along a line for
 //! 2 to 12 frames, CHC or CHC++ culling, keyframes or none, 1 to 4 shards
@@ -13,10 +13,10 @@
 
 use crate::{box_scene, point, Bytes};
 use glam::DVec3;
-use shadowcull::frame::FrameRunner;
+use shadowcull::jobs::frame::FrameRunner;
+use shadowcull::jobs::shard::{warmup_start, Shard};
 use shadowcull::mask::Mask;
 use shadowcull::scene::Camera;
-use shadowcull::shard::{warmup_start, Shard};
 use shadowcull::stats::{Cell, Columns};
 use shadowcull::{CullingSpec, PipelineOptions, StencilBackend};
 use std::ops::Range;

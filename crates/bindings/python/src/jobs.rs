@@ -4,9 +4,9 @@
 use crate::error::{bad, to_py};
 use pyo3::prelude::*;
 use shadowcull::byte_size::ByteSize;
-use shadowcull::config::{default_job, Job};
-use shadowcull::run::RunOptions;
-use shadowcull::shard::Shard;
+use shadowcull::jobs::config::{default_job, Job};
+use shadowcull::jobs::run::RunOptions;
+use shadowcull::jobs::shard::Shard;
 use std::path::PathBuf;
 
 /// Runs the job at `path` (the bundled default job when None) into `out`;
@@ -50,7 +50,7 @@ pub(crate) fn run_job(
             if let Some(size) = max_memory {
                 job.pipeline.max_memory = Some(size);
             }
-            shadowcull::run::run_job(&job, path.as_deref(), &options, &mut |_, _| {})
+            shadowcull::jobs::run::run_job(&job, path.as_deref(), &options, &mut |_, _| {})
         })
         .map_err(to_py)?;
     serde_json::to_string(&summary).map_err(|e| bad(e.to_string()))
@@ -60,7 +60,7 @@ pub(crate) fn run_job(
 #[pyfunction]
 pub(crate) fn merge(py: Python<'_>, out: PathBuf, dirs: Vec<PathBuf>) -> PyResult<String> {
     let r = py
-        .detach(|| shadowcull::merge::merge_shards(&out, &dirs))
+        .detach(|| shadowcull::jobs::merge::merge_shards(&out, &dirs))
         .map_err(to_py)?;
     Ok(serde_json::json!({
         "shards": r.shards,

@@ -10,7 +10,7 @@ use numpy::ndarray::Array3;
 use numpy::{IntoPyArray, PyReadonlyArray2};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
-use shadowcull::config::LightSpec;
+use shadowcull::jobs::config::LightSpec;
 use shadowcull::raster::{VolumeBuffer, VolumeMethod};
 use shadowcull::scene::load::Loaded;
 use shadowcull::scene::{

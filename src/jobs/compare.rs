@@ -9,15 +9,15 @@
 //! starts with no history (culling, silhouette caches) at frame 0, so no
 //! variant inherits another's work.
 
-use crate::config::{load_scene_for_job, resolve_lights};
-use crate::config::{Job, NamedPipeline};
-use crate::frame::FrameRunner;
+use crate::jobs::config::{load_scene_for_job, resolve_lights};
+use crate::jobs::config::{Job, NamedPipeline};
+use crate::jobs::frame::FrameRunner;
+use crate::jobs::run::{atomic, frame_camera};
+use crate::jobs::trade_plot::{pareto_front, TradePoint};
 use crate::pipeline::{
     ClampReceiversSpec, ClampingSpec, CoverageSpec, CullingSpec, PipelineOptions, StencilBackend,
 };
-use crate::run::{atomic, frame_camera};
 use crate::stats::{cells, from_cells, leaves, median, Cell, FrameRow};
-use crate::trade_plot::{pareto_front, TradePoint};
 use crate::{Error, Result};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -341,17 +341,17 @@ pub fn compare_job(
 ) -> Result<Vec<VariantRow>> {
     let file = job_file.unwrap_or(Path::new("<default job>"));
     // One writer per directory, before any work.
-    crate::run::check_max_frames(options.max_frames)?;
-    let _lock = crate::out_dir::OutputLock::acquire(&options.out_dir)?;
+    crate::jobs::run::check_max_frames(options.max_frames)?;
+    let _lock = crate::jobs::out_dir::OutputLock::acquire(&options.out_dir)?;
     let capped = job
         .frame_count()
         .min(options.max_frames.unwrap_or(u32::MAX));
     let count = variants(job).len() as u32;
     let named = job.lights.len().max(1) as u32;
-    crate::run::check_job_memory(job, capped, count, named, None)?;
+    crate::jobs::run::check_job_memory(job, capped, count, named, None)?;
     let (loaded, scene, path) = load_scene_for_job(job, job_file)?;
     let lights = resolve_lights(job, &loaded, &scene.bounds(), file)?;
-    crate::run::check_job_memory(
+    crate::jobs::run::check_job_memory(
         job,
         capped,
         count,
@@ -397,7 +397,7 @@ pub fn compare_job(
 }
 
 /// Sets every row's `pareto` column from the table's front of `frame_ms`
-/// against `mismatch_off_boundary` ([`crate::trade_plot::pareto_front`]).
+/// against `mismatch_off_boundary` ([`crate::jobs::trade_plot::pareto_front`]).
 fn mark_front(table: &mut [VariantRow]) {
     let points: Vec<(f64, u64)> = table
         .iter()
@@ -408,7 +408,7 @@ fn mark_front(table: &mut [VariantRow]) {
     }
 }
 
-/// `compare.svg`: [`crate::trade_plot`]'s plot of the table.
+/// `compare.svg`: [`crate::jobs::trade_plot`]'s plot of the table.
 fn plot(rows: &[VariantRow], path: &Path) -> std::result::Result<(), Box<dyn std::error::Error>> {
     let points: Vec<TradePoint> = rows
         .iter()
@@ -419,7 +419,7 @@ fn plot(rows: &[VariantRow], path: &Path) -> std::result::Result<(), Box<dyn std
             front: r.pareto != 0,
         })
         .collect();
-    crate::trade_plot::plot(&points, path)
+    crate::jobs::trade_plot::plot(&points, path)
 }
 
 #[cfg(test)]

@@ -1,6 +1,6 @@
 //! Sharded batch jobs: a job's F frames split into N contiguous blocks that
 //! run on different machines (`shadowcull run JOB --shard I/N`) and are put
-//! back together by [`crate::merge`].
+//! back together by [`crate::jobs::merge`].
 //!
 //! Coherent culling links each frame to the ones before it (CHC/CHC++
 //! history, revisit phases), so a shard does two things to behave like its
@@ -14,7 +14,7 @@
 //! What equal means: shadow masks (and every column derived from them)
 //! never depend on history, so they are byte-identical to the single run's
 //! always. Query counts, PSR, PSC and the volumes drawn do; with keyframes
-//! ([`crate::config::Job::keyframe`]) and shard boundaries on multiples of
+//! ([`crate::jobs::config::Job::keyframe`]) and shard boundaries on multiples of
 //! the keyframe interval they are identical too.
 
 use crate::{Error, Result};
@@ -87,7 +87,7 @@ pub fn warmup_start(start: u32, warmup: u32, keyframe: Option<u32>) -> u32 {
     start.saturating_sub(warmup).max(floor)
 }
 
-/// `shard.json`: what a shard directory holds, for [`crate::merge`] to check
+/// `shard.json`: what a shard directory holds, for [`crate::jobs::merge`] to check
 /// that shards describe one job and cover it exactly once.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]

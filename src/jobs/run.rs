@@ -5,12 +5,12 @@
 //! `summary.json` and every image are written atomically (temp file +
 //! rename), so an interrupted run leaves valid files.
 
-use crate::config::{load_scene_for_job, resolve_lights, Job, SceneSpec};
 use crate::error::io_err;
-use crate::frame::FrameRunner;
+use crate::jobs::config::{load_scene_for_job, resolve_lights, Job, SceneSpec};
+use crate::jobs::frame::FrameRunner;
+use crate::jobs::shard::{warmup_start, Shard, ShardManifest};
 use crate::mask::Mask;
 use crate::reference::ReferenceMask;
-use crate::shard::{warmup_start, Shard, ShardManifest};
 use crate::stats::{CheckStats, FrameRow, ReferenceStats, ShadowStats};
 use crate::{Error, Result};
 use scene::{Light, SceneCounts};
@@ -28,7 +28,7 @@ pub struct RunOptions {
     /// Stop after this many frames (F, the job's frames, is then at most this).
     pub max_frames: Option<u32>,
     /// Run only this shard's block of frames and write `shard.json`
-    /// ([`crate::shard`]).
+    /// ([`crate::jobs::shard`]).
     pub shard: Option<Shard>,
     /// Warm-up frames before a shard's block; default the job's
     /// `pipeline.chcpp.revisit`.
@@ -148,7 +148,7 @@ impl RowSummary {
 }
 
 /// The bundled default job's text, whose hash names it in `shard.json`.
-const DEFAULT_JOB_TEXT: &str = include_str!("../data/jobs/default_city.ron");
+const DEFAULT_JOB_TEXT: &str = include_str!("../../data/jobs/default_city.ron");
 
 /// Runs `job` (read from `job_file`, or the bundled default when `None`),
 /// calling `on_frame` after every frame-and-light row with the number of
@@ -190,15 +190,15 @@ pub fn run_job(
     let job_hash = match (options.shard, job_file) {
         (None, _) => String::new(),
         (Some(_), Some(p)) => {
-            crate::shard::job_hash(&scene::load::read_input(p).map_err(io_err(p))?)
+            crate::jobs::shard::job_hash(&scene::load::read_input(p).map_err(io_err(p))?)
         }
-        (Some(_), None) => crate::shard::job_hash(DEFAULT_JOB_TEXT.as_bytes()),
+        (Some(_), None) => crate::jobs::shard::job_hash(DEFAULT_JOB_TEXT.as_bytes()),
     };
 
     let out = &options.out_dir;
     // One writer at a time, and none of an earlier run's files left beside
     // this run's (a stale shard.json would vouch for them).
-    let _lock = crate::out_dir::claim_for_run(out)?;
+    let _lock = crate::jobs::out_dir::claim_for_run(out)?;
     let manifest = out.join("shard.json");
 
     let t0 = Instant::now();
@@ -313,7 +313,7 @@ fn write_images(
     frames_dir: &Path,
     frame: u32,
     li: usize,
-    lf: &crate::frame::LightFrame,
+    lf: &crate::jobs::frame::LightFrame,
 ) -> Result<()> {
     let (w, h) = job.resolution;
     if job.outputs.masks {

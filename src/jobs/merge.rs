@@ -1,5 +1,5 @@
 //! `shadowcull merge OUT SHARD_DIR...`: the shards of one job put back
-//! together as the single run's output directory ([`crate::shard`]).
+//! together as the single run's output directory ([`crate::jobs::shard`]).
 //!
 //! Checks first, then writes:
 //! - every directory holds a `shard.json`, all for one job: the same job
@@ -27,8 +27,8 @@
 //!   `shard.json`, with its load, warm-up and wall times.
 
 use crate::error::io_err;
-use crate::run::{write_json, RowSummary};
-use crate::shard::ShardManifest;
+use crate::jobs::run::{write_json, RowSummary};
+use crate::jobs::shard::ShardManifest;
 use crate::stats::FrameRow;
 use crate::{Error, Result};
 use serde_json::Value;
@@ -143,7 +143,7 @@ pub fn merge_shards(out: &Path, dirs: &[PathBuf]) -> Result<MergeReport> {
     }
     for s in &shards {
         let m = &s.manifest;
-        let shard = crate::shard::Shard::new(m.index, count)
+        let shard = crate::jobs::shard::Shard::new(m.index, count)
             .map_err(|e| shard_err(&s.dir, format!("shard.json: {e}")))?;
         let range = shard.range(frames);
         if m.block() != range {
@@ -158,7 +158,7 @@ pub fn merge_shards(out: &Path, dirs: &[PathBuf]) -> Result<MergeReport> {
     }
     // Indices are distinct and below N: N of them cover every block.
     if let Some(want) = (0..count).find(|&i| shards.iter().all(|s| s.manifest.index != i)) {
-        let shard = crate::shard::Shard::new(want, count)?;
+        let shard = crate::jobs::shard::Shard::new(want, count)?;
         let range = shard.range(frames);
         return Err(shard_err(
             out,
@@ -171,9 +171,9 @@ pub fn merge_shards(out: &Path, dirs: &[PathBuf]) -> Result<MergeReport> {
 
     // Write: stats.csv, frames/, summary.json (into a locked directory,
     // emptied of an earlier run's or merge's outputs).
-    let _lock = crate::out_dir::claim_for_run(out)?;
+    let _lock = crate::jobs::out_dir::claim_for_run(out)?;
     let rows: Vec<FrameRow> = shards.iter().flat_map(|s| s.rows.iter().copied()).collect();
-    crate::run::atomic(&out.join("stats.csv"), |tmp| {
+    crate::jobs::run::atomic(&out.join("stats.csv"), |tmp| {
         let mut csv = csv::Writer::from_writer(Vec::new());
         FrameRow::write_csv_header(&mut csv)?;
         for record in shards.iter().flat_map(|s| &s.records) {

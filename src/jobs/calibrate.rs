@@ -7,10 +7,10 @@
 //! `shadowcull calibrate` prints the two as RON fields to paste into a job's
 //! `pipeline`; the library never reads a calibration file.
 
-use crate::config::{load_scene_for_job, resolve_lights, Job};
-use crate::frame::FrameRunner;
+use crate::jobs::config::{load_scene_for_job, resolve_lights, Job};
+use crate::jobs::frame::FrameRunner;
+use crate::jobs::run::frame_camera;
 use crate::pipeline::{PipelineOptions, StencilBackend};
-use crate::run::frame_camera;
 use crate::stats::median;
 use crate::Result;
 use std::path::Path;
