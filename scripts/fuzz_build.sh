@@ -6,18 +6,20 @@
 # fuzz/target/x86_64-unknown-linux-gnu/release/TARGET, where `cargo fuzz run`
 # looks too.
 #
-#   scripts/fuzz_build.sh [--codegen-units N] [TARGET...]
+#   scripts/fuzz_build.sh [--codegen-units N] [--opt-level N] [TARGET...]
 #
 # --codegen-units: cargo-fuzz builds with 1 (faster fuzzing, slower build);
-# the default here is 16, for the short runs of CI. Long campaigns
-# (scripts/fuzz_campaign.sh) may pass 1.
+# the default here is 16. --opt-level: cargo-fuzz's is 3, the default here
+# too. CI's few seconds per target build fastest with both lowered;
+# scripts/fuzz_campaign.sh builds with one codegen unit at level 3.
 set -euo pipefail
 cd "$(dirname "$0")/../fuzz"
-cgu=16
+cgu=16 opt=3
 bins=()
 while [ $# -gt 0 ]; do
   case $1 in
     --codegen-units) cgu=$2; shift ;;
+    --opt-level) opt=$2; shift ;;
     -*) echo "fuzz_build.sh: unknown option $1" >&2; exit 2 ;;
     *) bins+=(--bin "$1") ;;
   esac
@@ -40,4 +42,5 @@ flags=(
 )
 # --target keeps the flags off build scripts and proc macros.
 RUSTFLAGS="${flags[*]} ${RUSTFLAGS:-}" cargo +nightly build --release --target "$triple" \
-  --config 'profile.release.debug="line-tables-only"' "${bins[@]}"
+  --config 'profile.release.debug="line-tables-only"' --config "profile.release.opt-level=$opt" \
+  "${bins[@]}"

@@ -18,7 +18,9 @@
 #                   fastest fuzzing, as cargo-fuzz builds)
 #   --scratch       a temporary corpus and artifact directory (under TMPDIR,
 #                   removed; a crash input is printed in base64) instead of
-#                   fuzz/corpus/TARGET and fuzz/artifacts/TARGET, and nothing
+#                   fuzz/corpus/TARGET and fuzz/artifacts/TARGET, no seeding
+#                   from fuzz/corpus-min (`cargo test` replays it, and running
+#                   it again would take the run's seconds), and nothing
 #                   appended to HOURS.md: the short runs of CI
 #   --seed N        libFuzzer's -seed (default 1: the same run every time)
 #
@@ -108,8 +110,10 @@ else
   corpus=corpus/$target artifacts=artifacts/$target
 fi
 mkdir -p "$corpus" "$artifacts"
+committed=("corpus-min/$target" "regressions/$target")
+[ "$scratch" = 1 ] && committed=("regressions/$target")
 dirs=()
-for d in "corpus-min/$target" "regressions/$target" "${seeds[@]}"; do
+for d in "${committed[@]}" "${seeds[@]}"; do
   if [ -d "$d" ]; then dirs+=("$d"); fi
 done
 start=$(date -u +%Y-%m-%dT%H:%M:%SZ)
