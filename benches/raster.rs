@@ -1,13 +1,13 @@
 //! The tile rasterizer on the procedural city (default size): ids `city/stage`.
 #![allow(missing_docs)] // criterion_group!/criterion_main! generate undocumented items
 //!
-//! `cargo bench --bench raster`. From the `street` and `bird` cameras at 800×600 and
+//! `cargo bench -p shadowcull-benches --bench raster`. From the `street` and `bird` cameras at 800×600 and
 //! 1920×1080: depth rasterization of all objects front to back, then one AABB query
 //! per object against the result.
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use glam::{DMat4, Mat4, Vec3, Vec4};
-use raster::{Coverage, DepthTarget, DrawItem, QueryMode, QueryOptions, TileSize};
+use shadowcull::raster::{Coverage, DepthTarget, DrawItem, QueryMode, QueryOptions, TileSize};
 use testkit::BenchScene;
 
 struct Frame {
@@ -45,13 +45,19 @@ fn bench_city(c: &mut Criterion) {
             };
             order.sort_by(|&a, &b| dist(a).total_cmp(&dist(b)));
             let frame = Frame {
-                clip_from_world: scene::transform::clip_from_local(&cam, &DMat4::IDENTITY),
+                clip_from_world: shadowcull::scene::transform::clip_from_local(
+                    &cam,
+                    &DMat4::IDENTITY,
+                ),
                 draws: order
                     .iter()
                     .map(|&i| {
                         let o = &scene.objects()[i];
                         (
-                            scene::transform::clip_from_local(&cam, &o.world_from_local),
+                            shadowcull::scene::transform::clip_from_local(
+                                &cam,
+                                &o.world_from_local,
+                            ),
                             o.mesh.0 as usize,
                             i as u32,
                         )
@@ -73,7 +79,7 @@ fn bench_city(c: &mut Criterion) {
                     positions: &meshes[mesh].0,
                     triangles: &meshes[mesh].1,
                     object: id,
-                    cull: raster::CullMode::None,
+                    cull: shadowcull::raster::CullMode::None,
                 })
                 .collect();
             let mut target = DepthTarget::new(w, h, TileSize::T8, false).expect("target");

@@ -1,11 +1,11 @@
 //! The ray-cast reference on named scenes: ids `scene/stage`.
 #![allow(missing_docs)] // criterion_group!/criterion_main! generate undocumented items
 //!
-//! `cargo bench --bench reference`. Full resolution belongs here, not in tests.
+//! `cargo bench -p shadowcull-benches --bench reference`. Full resolution belongs here, not in tests.
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use scene::Light;
 use shadowcull::reference::{reference_mask, ReferenceOptions, TriangleBvh};
+use shadowcull::scene::Light;
 use testkit::BenchScene;
 
 fn bench_city(c: &mut Criterion) {

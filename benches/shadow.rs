@@ -1,13 +1,13 @@
 //! The stencil shadow pipeline per stage and stencil variant: ids
 //! `scene/camera/stage`. The BF and DB columns of [Aila04 Table 1] for our
-//! scenes: `cargo bench --bench shadow`; the counters (volume triangles,
+//! scenes: `cargo bench -p shadowcull-benches --bench shadow`; the counters (volume triangles,
 //! pixels processed) come from `shadow_bench`, which prints them.
 #![allow(missing_docs)] // criterion_group!/criterion_main! generate undocumented items
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use scene::{Camera, Light, Scene};
 use shadowcull::jobs::frame::FrameRunner;
 use shadowcull::pipeline::{PipelineOptions, StencilBackend};
+use shadowcull::scene::{Camera, Light, Scene};
 use std::path::Path;
 use testkit::BenchScene;
 

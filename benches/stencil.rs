@@ -10,15 +10,15 @@
 //! resolve; hybrid: shadow map and classification too) plus mask assembly.
 //! Settings as the goals: `Method::Auto`, wide counters, scissor off.
 //! The counters (pixels processed, bandwidth, tiles) come from
-//! `shadow_bench`, which prints them: `cargo bench --bench stencil`.
+//! `shadow_bench`, which prints them: `cargo bench -p shadowcull-benches --bench stencil`.
 #![allow(missing_docs)] // criterion_group!/criterion_main! generate undocumented items
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use raster::{StencilBits, TileSize};
-use scene::{Camera, Light, Scene};
 use shadowcull::pipeline::{
     eye_pass, shadow_mask, Backend, MeshCache, ShadowOptions, ShadowScratch,
 };
+use shadowcull::raster::{StencilBits, TileSize};
+use shadowcull::scene::{Camera, Light, Scene};
 use std::path::Path;
 use testkit::BenchScene;
 

@@ -5,7 +5,7 @@
 //! point-sampled) and the mask assembly ([`shadowcull::mask::assemble`],
 //! from a fixed raw stencil). Both walk every pixel of the eye target row
 //! by row, by runs of one visible triangle. Ids `res/camera/consumer`:
-//! `cargo bench --bench surface`.
+//! `cargo bench -p shadowcull-benches --bench surface`.
 #![allow(missing_docs)] // criterion_group!/criterion_main! generate undocumented items
 
 use criterion::{criterion_group, criterion_main, Criterion};

@@ -15,14 +15,14 @@
 //! Before timing, each configuration prints its steady-state counters (the
 //! second frame of a fresh runner) to stderr: PSR, per light PSC, volume
 //! triangles, pixels processed, queries (eye + that light's) and waits, and the
-//! eye, light-pass and stencil times. `cargo bench --bench visibility`.
+//! eye, light-pass and stencil times. `cargo bench -p shadowcull-benches --bench visibility`.
 #![allow(missing_docs)] // criterion_group!/criterion_main! generate undocumented items
 
 use criterion::{criterion_group, criterion_main, Criterion, SamplingMode};
-use scene::{Camera, Light, Scene};
 use shadowcull::jobs::config::default_job;
 use shadowcull::jobs::frame::{FrameRunner, LightFrame};
 use shadowcull::pipeline::{CullingSpec, PipelineOptions};
+use shadowcull::scene::{Camera, Light, Scene};
 use std::path::Path;
 use std::time::Duration;
 use testkit::BenchScene;
