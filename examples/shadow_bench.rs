@@ -1,12 +1,12 @@
 //! One view, or one camera path, through the stencil shadow pipeline, timed per stage.
 //!
-//! `cargo run --release --example shadow_bench -- SCENE CAMERA WxH [--stencil bf|db|h|hybrid|none|auto]
+//! `cargo run --release --example shadow_bench -- SCENE CAMERA WxH [--preset batch|gpu_host] [--stencil bf|db|h|hybrid|none|auto]
 //! [--scissor on|off] [--method auto|zpass|zfail|zpplus] [--counters 8|wide] [--tile 4|8|16]
 //! [--full-shadow on|off] [--map N] [--culling none|frustum|exact|chc|chcpp|auto]
 //! [--coverage conservative|point] [--threshold T] [--light-res N]
 //! [--clamping none|continuous|discrete|auto] [--slices N]
 //! [--clamping-receivers all|psr|fragment] [--count-fill]
-//! [--two-sided] [--reference] [--mask OUT.png] [--reps R | --path NAME [--frames N]]`
+//! [--two-sided] [--reference | --check-gpu] [--mask OUT.png] [--reps R | --path NAME [--frames N]]`
 //! (defaults `--tile 8 --counters 8 --map 2048 --full-shadow on --culling none
 //! --coverage conservative --threshold 0 --light-res 1024 --reps 5`; `--threshold` is the
 //! query threshold in samples, and `point` coverage or a threshold above 0 are aggressive;
@@ -17,7 +17,11 @@
 //! names, its light), `city` (the bundled default job's procedural city; CAMERA
 //! `street` or `bird`, the first pose of that path; a point light 1.5 scene
 //! heights above the ground, the default job's first light, `LightSpec::AboveScene(1.5)`)
-//! or any scene file, with `--light x,y,z` (point light) or `--sun dx,dy,dz` (the
+//! `engine` (the engine bench scene, `testkit::engine`: ~1,500 objects, ~100k triangles,
+//! a sun, a moving point light and a spot, vehicles moving and objects added and
+//! removed every frame; its path and camera are `engine`; with its three lights the
+//! per-light keys are summed over them, `queries` and `waits` repeating the eye's
+//! per light) or any scene file, with `--light x,y,z` (point light) or `--sun dx,dy,dz` (the
 //! direction the light travels; either also replaces a box city's or `city`'s light)
 //! and `--eye x,y,z --target x,y,z` (fovy 60° and near 0.1 unless `--fovy`, `--near`;
 //! CAMERA may then be `-`). One light per run: every per-light key below is that light's.
@@ -41,7 +45,12 @@
 //! `tile_tests`, `tiles_lit`, `tiles_shadow`, `tiles_boundary`, `bandwidth_bytes`,
 //! `pixel_bytes`, `tile_bytes`, `silhouette_pixels`, `map_ms`, `psr`, `psc`,
 //! `queries`, `waits`, `segments`, `bf_fill_unclamped`, `bf_fill_clamped`, ...) and with `--reference` (computed on the last frame)
-//! `mismatch_pixels`, `mismatch_off_boundary`, `ambiguous_pixels`, `reference_ms`.
+//! `mismatch_pixels`, `mismatch_off_boundary`, `ambiguous_pixels`, `reference_ms`; with
+//! `--check-gpu` (`Pipeline::check_gpu`, outside every timed stage: the frame's volumes
+//! drawn by the brute-force stencil on an exact eye depth, as a GPU host draws them)
+//! `mismatch_pixels`, `mismatch_off_boundary` (against the reference) and
+//! `culled_vs_unculled_differing_pixels` (against every caster's volumes), summed over
+//! the lights.
 //!
 //! **A camera path** (`--path NAME --frames N`, N defaults to 8): renders frames
 //! 0..N of the scene's camera path NAME (`city` and box cities: `street`, a dolly down
@@ -67,7 +76,7 @@ use clap::ArgAction;
 use glam::DVec3;
 use raster::StencilBits;
 use scene::load::Loaded;
-use scene::{Camera, CameraPath, Light, LookAt, Scene};
+use scene::{Camera, CameraPath, Light, LookAt, ObjectFlags, ObjectId, Scene};
 use serde_json::{json, Map, Value};
 use shadowcull::jobs::config::LightSpec;
 use shadowcull::jobs::frame::{FrameRunner, LightFrame};
@@ -76,9 +85,11 @@ use shadowcull::pipeline::{
 };
 use shadowcull::stats::FrameRow;
 use shadowgen::MethodChoice;
+use std::collections::HashMap;
 use std::path::PathBuf;
 use std::time::Instant;
 use testkit::cli::{name_of, one_of, parse_size};
+use testkit::engine::EngineScene;
 use testkit::median;
 
 // The spellings of the flags that choose among fixed values: a new mode is one row
@@ -150,7 +161,8 @@ fn side(min: i64) -> clap::builder::RangedI64ValueParser<u32> {
     clap::value_parser!(u32).range(min..=i64::from(raster::MAX_TARGET_SIZE))
 }
 
-/// The command line; the pipeline flags' defaults are [`PipelineOptions::default`]'s.
+/// The command line; the pipeline flags' defaults are [`PipelineOptions::default`]'s
+/// (with `--preset`, the preset's: only the flags given override it).
 #[derive(clap::Parser)]
 #[command(
     about = "One view, or one camera path, through the stencil shadow pipeline, timed per stage \
@@ -167,6 +179,10 @@ struct Cli {
     /// Viewport, WxH.
     #[arg(value_name = "WxH", value_parser = parse_size)]
     size: (u32, u32),
+    /// Start from a preset's options (`gpu_host`: `PipelineOptions::gpu_host`;
+    /// `batch`: the defaults); the pipeline flags given override it.
+    #[arg(long, value_name = "NAME")]
+    preset: Option<shadowcull::Preset>,
     /// Stencil backend.
     #[arg(long, value_parser = one_of(STENCILS),
           default_value = name_of(STENCILS, &PipelineOptions::default().stencil))]
@@ -232,6 +248,14 @@ struct Cli {
     /// Compare with the ray-cast reference (the last frame of one view, every frame of a path).
     #[arg(long)]
     reference: bool,
+    /// Check the volumes as a GPU host draws them (`Pipeline::check_gpu`,
+    /// outside every timed stage): the brute-force stencil over exactly the
+    /// frame's volumes on an exact eye depth, against the reference and
+    /// against every caster's volumes; prints `mismatch_off_boundary` and
+    /// `culled_vs_unculled_differing_pixels` (summed over the lights; the last
+    /// frame of one view, every frame of a path).
+    #[arg(long = "check-gpu", conflicts_with = "reference")]
+    check_gpu: bool,
     /// Write the last frame's raw stencil result here as an 8-bit PNG (the
     /// stencil runs only at the pixels whose class it decides: receivers the
     /// light reaches).
@@ -278,8 +302,10 @@ struct Args {
     camera: String,
     width: u32,
     height: u32,
+    preset: Option<shadowcull::Preset>,
     pipeline: PipelineOptions,
     reference: bool,
+    check_gpu: bool,
     mask: Option<PathBuf>,
     /// Frames of one view.
     reps: usize,
@@ -294,35 +320,49 @@ struct Args {
     near: f64,
 }
 
-impl From<Cli> for Args {
-    fn from(c: Cli) -> Args {
+impl Args {
+    /// The run `c` asks for; `given(id)` says whether the flag of field `id`
+    /// was on the command line (only those override `--preset`).
+    fn new(c: Cli, given: &dyn Fn(&str) -> bool) -> Args {
+        let mut pipeline = PipelineOptions {
+            reference_every: 0,
+            instruction_set: shadowcull::raster::InstructionSet::cap_from_env(),
+            ..c.preset.unwrap_or_default().options()
+        };
+        macro_rules! flags {
+            ($($field:ident),*) => {
+                $(if c.preset.is_none() || given(stringify!($field)) {
+                    pipeline.$field = c.$field;
+                })*
+            };
+        }
+        flags!(
+            stencil,
+            scissor,
+            method,
+            counters,
+            tile,
+            full_shadow,
+            map_size,
+            culling,
+            clamping,
+            clamping_receivers,
+            slices,
+            count_fill,
+            coverage,
+            query_threshold,
+            light_resolution,
+            two_sided
+        );
         Args {
             scene: c.scene,
             camera: c.camera,
             width: c.size.0,
             height: c.size.1,
-            pipeline: PipelineOptions {
-                stencil: c.stencil,
-                scissor: c.scissor,
-                method: c.method,
-                counters: c.counters,
-                tile: c.tile,
-                full_shadow: c.full_shadow,
-                map_size: c.map_size,
-                culling: c.culling,
-                clamping: c.clamping,
-                clamping_receivers: c.clamping_receivers,
-                slices: c.slices,
-                count_fill: c.count_fill,
-                coverage: c.coverage,
-                query_threshold: c.query_threshold,
-                light_resolution: c.light_resolution,
-                two_sided: c.two_sided,
-                reference_every: 0,
-                instruction_set: shadowcull::raster::InstructionSet::cap_from_env(),
-                ..Default::default()
-            },
+            preset: c.preset,
+            pipeline,
             reference: c.reference,
+            check_gpu: c.check_gpu,
             mask: c.mask,
             reps: c.reps,
             path: c.path,
@@ -423,6 +463,8 @@ fn city() -> anyhow::Result<Loaded> {
 struct Sample {
     row: FrameRow,
     wall_ms: f64,
+    /// `--check-gpu`'s counts (zero without it).
+    gpu: GpuCounts,
 }
 
 type Get<T> = fn(&Sample) -> T;
@@ -466,13 +508,86 @@ const REFERENCE_COUNTS: [(&str, Get<u64>); 3] = [
     ("ambiguous_pixels", |s| s.row.check.ambiguous_pixels),
 ];
 
+/// What changes between frames: the lights of frame `f` and the scene edits
+/// made before it.
+struct Frames<'a> {
+    /// The lights of frame `f` (one, or the engine scene's three).
+    lights: &'a dyn Fn(u32) -> Vec<Light>,
+    /// Scene edits before frame `f` (the engine scene's), through the
+    /// runner's pipeline.
+    edit: &'a mut dyn FnMut(u32, &mut FrameRunner) -> anyhow::Result<()>,
+}
+
+/// One frame's rows summed over its lights: the per-light stage times and
+/// counters add up (`queries` and `waits` repeat the eye's per light), the
+/// frame's own figures (`eye_ms`, `psr`, `pipeline_frame_ms`) are kept once.
+fn combined(rows: &[FrameRow]) -> FrameRow {
+    let mut out = rows[0];
+    for r in &rows[1..] {
+        let (o, s) = (&mut out.shadow, &r.shadow);
+        o.light_ms += s.light_ms;
+        o.stencil_ms += s.stencil_ms;
+        o.volumes.silhouette_ms += s.volumes.silhouette_ms;
+        o.volumes.volume_ms += s.volumes.volume_ms;
+        o.volumes.segments += s.volumes.segments;
+        o.volumes.sap_pairs += s.volumes.sap_pairs;
+        o.psc += s.psc;
+        o.queries += s.queries;
+        o.waits += s.waits;
+        o.stencil.pixels_processed += s.stencil.pixels_processed;
+        o.volume_triangles += s.volume_triangles;
+        o.shadowed_pixels += s.shadowed_pixels;
+        o.bf_fill_unclamped += s.bf_fill_unclamped;
+        o.bf_fill_clamped += s.bf_fill_clamped;
+        out.frame_ms += r.frame_ms - s.eye_ms;
+        out.reference.reference_ms += r.reference.reference_ms;
+        out.check.mismatch_pixels += r.check.mismatch_pixels;
+        out.check.mismatch_off_boundary += r.check.mismatch_off_boundary;
+        out.check.ambiguous_pixels += r.check.ambiguous_pixels;
+    }
+    out
+}
+
+/// `--check-gpu`'s counts of one frame, summed over its lights
+/// ([`shadowcull::GpuCheck`]).
+#[derive(Clone, Copy, Default)]
+struct GpuCounts {
+    mismatch_pixels: u64,
+    mismatch_off_boundary: u64,
+    culled_vs_unculled_differing_pixels: u64,
+}
+
+/// Every light's [`shadowcull::GpuCheck`] of the frame just run.
+fn check_gpu(runner: &mut FrameRunner) -> anyhow::Result<GpuCounts> {
+    let ids = runner.light_ids().to_vec();
+    let pipeline = runner.pipeline_mut().context("a frame ran")?;
+    let mut sum = GpuCounts::default();
+    for id in ids {
+        let c = pipeline.check_gpu(id)?;
+        sum.mismatch_pixels += c.mismatch_pixels;
+        sum.mismatch_off_boundary += c.mismatch_off_boundary;
+        sum.culled_vs_unculled_differing_pixels += c.culled_vs_unculled_differing_pixels;
+    }
+    Ok(sum)
+}
+
+/// `--check-gpu`'s keys.
+const GPU_COUNTS: [(&str, Get<u64>); 3] = [
+    ("mismatch_pixels", |s| s.gpu.mismatch_pixels),
+    ("mismatch_off_boundary", |s| s.gpu.mismatch_off_boundary),
+    ("culled_vs_unculled_differing_pixels", |s| {
+        s.gpu.culled_vs_unculled_differing_pixels
+    }),
+];
+
 /// Runs `frames` frames through one persistent runner, frame `f` seen by
 /// `camera(f)`, the reference on the frames `reference(f)` names; returns every
-/// frame's sample and the last frame's result.
+/// frame's sample (its lights' rows [`combined`]) and the last frame's
+/// first light's result.
 fn run(
     a: &Args,
     runner: &mut FrameRunner,
-    light: Light,
+    changes: Frames<'_>,
     frames: u32,
     camera: &dyn Fn(u32) -> anyhow::Result<Camera>,
     reference: &dyn Fn(u32) -> bool,
@@ -481,25 +596,29 @@ fn run(
     let mut last = None;
     for f in 0..frames {
         let cam = camera(f)?;
+        (changes.edit)(f, runner)?;
         let t = Instant::now();
-        let mut out = runner.frame(
+        let out = runner.frame(
             f,
             &cam,
-            &[light],
+            &(changes.lights)(f),
             (a.width, a.height),
             &a.pipeline,
             reference(f),
         )?;
-        let lf = out.remove(0);
+        let rows: Vec<FrameRow> = out.iter().map(|lf| lf.row).collect();
+        let row = combined(&rows);
         // The reference (and the BVH it builds on first use) is not the pipeline's.
-        let wall_ms = t.elapsed().as_secs_f64() * 1e3 - lf.row.reference.reference_ms;
-        samples.push(Sample {
-            row: lf.row,
-            wall_ms,
-        });
-        last = Some(lf);
+        let wall_ms = t.elapsed().as_secs_f64() * 1e3 - row.reference.reference_ms;
+        // One view checks its last frame, a path every frame.
+        let gpu = match a.check_gpu && (a.path.is_some() || f + 1 == frames) {
+            true => check_gpu(runner)?,
+            false => GpuCounts::default(),
+        };
+        samples.push(Sample { row, wall_ms, gpu });
+        last = out.into_iter().next();
     }
-    Ok((samples, last.context("at least one frame")?))
+    Ok((samples, last.context("at least one frame and one light")?))
 }
 
 /// The settings and scene size, common to both modes.
@@ -510,6 +629,7 @@ fn settings(a: &Args, row: &FrameRow) -> Map<String, Value> {
         "camera": a.path.as_deref().unwrap_or(&a.camera),
         "width": a.width,
         "height": a.height,
+        "preset": a.preset.map(|p| serde_json::to_value(p).expect("a unit variant")),
         "stencil": name_of(STENCILS, &p.stencil),
         "scissor": p.scissor,
         "tile": p.tile,
@@ -539,10 +659,14 @@ fn one_view(
     a: &Args,
     runner: &mut FrameRunner,
     camera: &Camera,
-    light: Light,
+    lights: &dyn Fn(u32) -> Vec<Light>,
 ) -> anyhow::Result<(Map<String, Value>, LightFrame)> {
     let reps = a.reps;
-    let (samples, lf) = run(a, runner, light, reps as u32, &|_| Ok(*camera), &|f| {
+    let changes = Frames {
+        lights,
+        edit: &mut |_, _| Ok(()),
+    };
+    let (samples, lf) = run(a, runner, changes, reps as u32, &|_| Ok(*camera), &|f| {
         a.reference && f + 1 == reps as u32
     })?;
     let silhouette_cached_ms = if samples.len() > 1 {
@@ -558,7 +682,7 @@ fn one_view(
         let out = runner.frame(
             reps as u32,
             camera,
-            &[light],
+            &lights(reps as u32),
             (a.width, a.height),
             &a.pipeline,
             false,
@@ -588,6 +712,12 @@ fn one_view(
             m.insert(key.to_string(), serde_json::to_value(cell)?);
         }
     }
+    if a.check_gpu {
+        let last = samples.last().expect("samples");
+        for (key, get) in GPU_COUNTS {
+            m.insert(key.into(), get(last).into());
+        }
+    }
     if a.reference {
         m.insert("mismatch_pixels".into(), row.check.mismatch_pixels.into());
         m.insert(
@@ -605,7 +735,7 @@ fn along_path(
     a: &Args,
     runner: &mut FrameRunner,
     path: &CameraPath,
-    light: Light,
+    changes: Frames<'_>,
 ) -> anyhow::Result<(Map<String, Value>, LightFrame)> {
     let frames = a.frames;
     let aspect = a.width as f64 / a.height as f64;
@@ -615,14 +745,14 @@ fn along_path(
             .with_context(|| format!("the camera path has no pose for frame {f}"))?;
         Ok(pose.camera(aspect)?)
     };
-    let (samples, lf) = run(a, runner, light, frames, &camera, &|_| a.reference)?;
+    let (samples, lf) = run(a, runner, changes, frames, &camera, &|_| a.reference)?;
     let mut m = settings(a, &lf.row);
     m.insert("path".into(), a.path.clone().into());
     m.insert("frames".into(), frames.into());
-    let (ref_times, ref_counts) = if a.reference {
-        (&REFERENCE_TIMES[..], &REFERENCE_COUNTS[..])
-    } else {
-        (&[][..], &[][..])
+    let (ref_times, ref_counts) = match (a.reference, a.check_gpu) {
+        (true, _) => (&REFERENCE_TIMES[..], &REFERENCE_COUNTS[..]),
+        (false, true) => (&[][..], &GPU_COUNTS[..]),
+        (false, false) => (&[][..], &[][..]),
     };
     for &(key, get) in TIMES.iter().chain(ref_times) {
         let v: Vec<f64> = samples.iter().map(get).collect();
@@ -639,14 +769,70 @@ fn along_path(
     Ok((m, lf))
 }
 
+/// The engine scene ([`EngineScene`]) as a loaded source: its graph, its
+/// path `engine` (and camera `engine`, the path's first pose) and its three
+/// lights at frame 0.
+fn engine(e: &EngineScene) -> Loaded {
+    let path = EngineScene::path();
+    let names = ["sun", "point", "spot"];
+    Loaded {
+        graph: e.graph.clone(),
+        cameras: vec![("engine".into(), path.at(0).expect("keyframes"))],
+        paths: vec![("engine".into(), path)],
+        lights: names
+            .into_iter()
+            .map(String::from)
+            .zip(e.lights(0))
+            .collect(),
+    }
+}
+
+/// Applies the engine scene's edits before frame `f` to the runner's
+/// pipeline; `added` maps the scene's handles of added objects to their ids.
+fn engine_edits(
+    e: &EngineScene,
+    f: u32,
+    runner: &mut FrameRunner,
+    added: &mut HashMap<u32, ObjectId>,
+) -> anyhow::Result<()> {
+    let Some(p) = runner.pipeline_mut() else {
+        return Ok(());
+    };
+    let edits = e.edits(f);
+    for (i, m) in edits.moves {
+        let id = p.scene().id_of(i as u32);
+        p.set_transform(id, m)?;
+    }
+    for h in edits.removes {
+        if let Some(id) = added.remove(&h) {
+            p.remove_object(id)?;
+        }
+    }
+    for (h, mesh, m) in edits.adds {
+        added.insert(h, p.add_object(mesh, m, ObjectFlags::ALL)?);
+    }
+    Ok(())
+}
+
 fn main() -> anyhow::Result<()> {
-    let a = Args::from(<Cli as clap::Parser>::parse());
-    let loaded = if a.scene.as_os_str() == "city" {
-        city()?
-    } else {
-        scene::load::load_path(&a.scene)?
+    let matches = <Cli as clap::CommandFactory>::command().get_matches();
+    let cli = <Cli as clap::FromArgMatches>::from_arg_matches(&matches)?;
+    let a = Args::new(cli, &|id| {
+        matches.value_source(id) == Some(clap::parser::ValueSource::CommandLine)
+    });
+    let engine_scene = (a.scene.as_os_str() == "engine").then(|| EngineScene::new(1));
+    let loaded = match (&engine_scene, a.scene.as_os_str() == "city") {
+        (Some(e), _) => engine(e),
+        (None, true) => city()?,
+        (None, false) => scene::load::load_path(&a.scene)?,
     };
     let light = light(&a, &loaded)?;
+    // The engine scene's three lights (its point light moves) unless a
+    // flag gives one; else the one light.
+    let lights = |f: u32| match (&engine_scene, a.light) {
+        (Some(e), None) => e.lights(f).to_vec(),
+        _ => vec![light],
+    };
     let scene = std::sync::Arc::new(Scene::new(loaded.graph.clone())?);
     eprintln!(
         "shadow_bench: {} objects, {} triangles, {}x{}, {}",
@@ -661,14 +847,23 @@ fn main() -> anyhow::Result<()> {
     );
     // One runner for every frame: per-view state persists as in a running application.
     let mut runner = FrameRunner::new(scene);
+    let mut added = HashMap::new();
     let (line, last) = match &a.path {
         Some(name) => {
             let path = camera_path(&a, &loaded, name)?;
-            along_path(&a, &mut runner, &path, light)?
+            let mut edit = |f: u32, runner: &mut FrameRunner| match &engine_scene {
+                Some(e) => engine_edits(e, f, runner, &mut added),
+                None => Ok(()),
+            };
+            let changes = Frames {
+                lights: &lights,
+                edit: &mut edit,
+            };
+            along_path(&a, &mut runner, &path, changes)?
         }
         None => {
             let camera = look(&a, &loaded)?.camera(a.width as f64 / a.height as f64)?;
-            one_view(&a, &mut runner, &camera, light)?
+            one_view(&a, &mut runner, &camera, &lights)?
         }
     };
     if let Some(path) = &a.mask {

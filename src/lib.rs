@@ -73,7 +73,8 @@ pub use error::{Error, Result};
 pub use pipeline::memory;
 pub use pipeline::{
     AutoSpec, ClampReceiversSpec, ClampingSpec, CoverageSpec, CullingSpec, FrameInput, FrameOutput,
-    LightId, LightOutput, Pipeline, PipelineOptions, StencilBackend, StencilCosts,
+    GpuCheck, LightId, LightOutput, Pipeline, PipelineOptions, Preset, StencilBackend,
+    StencilCosts,
 };
 pub use raster;
 pub use scene;

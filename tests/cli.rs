@@ -444,6 +444,46 @@ const SHARD_JOB: &str = r#"(
     pipeline: (stencil: h, culling: chcpp),
 )"#;
 
+/// `run --preset gpu_host` replaces the job's `pipeline` section: no CPU
+/// stencil and no reference, so no mask or shaded image, whatever the
+/// job's outputs ask; a bad preset name is a usage error naming the names.
+#[test]
+fn run_preset_gpu_host_replaces_the_pipeline_section() {
+    let dir = tmp_dir("preset");
+    let job = dir.join("job.ron");
+    std::fs::write(&job, SMALL_JOB.replace("frames: 3,", "frames: 2,")).unwrap();
+    let out = dir.join("out");
+    run_ok(&[
+        OsStr::new("run"),
+        job.as_os_str(),
+        OsStr::new("--preset"),
+        OsStr::new("gpu_host"),
+        OsStr::new("--out"),
+        out.as_os_str(),
+    ]);
+    let csv = std::fs::read_to_string(out.join("stats.csv")).unwrap();
+    assert_eq!(csv.lines().count(), 1 + 2 * 2, "{csv}");
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    assert!(
+        summary["frame_ms_median"].as_f64().unwrap() > 0.0,
+        "{summary}"
+    );
+    let cols: Vec<&str> = csv.lines().next().unwrap().split(',').collect();
+    let row: Vec<&str> = csv.lines().nth(1).unwrap().split(',').collect();
+    let cell = |name: &str| row[cols.iter().position(|c| *c == name).unwrap()];
+    assert_eq!(cell("stencil_ms").parse::<f64>().unwrap(), 0.0, "{csv}");
+    assert_eq!(cell("reference_ms").parse::<f64>().unwrap(), 0.0, "{csv}");
+    let images = std::fs::read_dir(out.join("frames")).map_or(0, |d| d.count());
+    assert_eq!(images, 0, "no mask, no reference: no images");
+    let o = bin()
+        .args(["run", "--preset", "gpu", "--frames", "1"])
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("gpu_host"));
+}
+
 /// Runs `shadowcull` with `args`, asserting success.
 fn run_ok<S: AsRef<std::ffi::OsStr> + std::fmt::Debug>(args: &[S]) {
     let o = bin().args(args).output().unwrap();

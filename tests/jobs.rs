@@ -52,6 +52,21 @@ fn default_job_file_matches_the_built_in_default() {
     assert_eq!(j, default_job());
 }
 
+/// `default_city_gpu_host.ron` is the default job as a GPU host runs it:
+/// the `gpu_host` preset and no images.
+#[test]
+fn the_gpu_host_job_is_the_default_job_with_the_preset_and_no_outputs() {
+    let j = Job::from_file(&jobs_dir().join("default_city_gpu_host.ron")).unwrap();
+    let want = Job {
+        outputs: Default::default(),
+        pipeline: shadowcull::PipelineOptions::gpu_host(),
+        ..default_job()
+    };
+    assert_eq!(j, want);
+    assert_eq!(j.resolution, (800, 600));
+    assert_eq!(j.lights.len(), 2);
+}
+
 #[test]
 fn shared_scene_views_show_their_scenes_and_shadows() {
     if testkit::shared_data().is_none() {

@@ -180,6 +180,137 @@ fn volumes_only_pipeline_gives_the_same_volumes_and_no_mask() -> Result<()> {
     Ok(())
 }
 
+/// With no culling and no CPU stencil nobody reads an eye pass, so none
+/// runs: the PSR is every visible object, the volumes are those of a
+/// pipeline that ran one, and `exact_eye` and the reference rasterize it on
+/// demand, equal to that pipeline's.
+#[test]
+fn no_culling_and_no_stencil_run_no_eye_pass() -> Result<()> {
+    let (scene, path) = city();
+    let lights = lights(&scene, &path);
+    let (mut bare, ids) = pipeline(
+        &scene,
+        options(CullingSpec::None, StencilBackend::None),
+        &lights,
+    )?;
+    let (mut cpu, _) = pipeline(
+        &scene,
+        options(CullingSpec::None, StencilBackend::Bf),
+        &lights,
+    )?;
+    let input = input(&path, 0);
+    let a = bare.frame(&input)?;
+    assert!(a.eye().is_none());
+    let visible = scene.objects().iter().filter(|o| o.flags.visible).count();
+    assert_eq!(a.psr().len(), visible);
+    let a_lights: Vec<_> = a
+        .lights()
+        .map(|l| (l.psc().to_vec(), l.volumes().clone()))
+        .collect();
+    let b = cpu.frame(&input)?;
+    assert_eq!(a_lights.len(), b.light_count());
+    for ((psc, volumes), y) in a_lights.iter().zip(b.lights()) {
+        assert_eq!(psc.as_slice(), y.psc());
+        assert_eq!(volumes.indices, y.volumes().indices);
+        assert_eq!(volumes.ranges, y.volumes().ranges);
+    }
+    let want = b
+        .eye()
+        .expect("a CPU stencil reads the eye")
+        .target
+        .depth_rows();
+    assert_eq!(bare.exact_eye()?.target.depth_rows(), want);
+    let (r, s) = (bare.reference_mask(ids[0])?, cpu.reference_mask(ids[0])?);
+    assert_eq!((r.mask, r.primitive), (s.mask, s.primitive));
+    // The next frame drops it again.
+    assert!(bare.frame(&input)?.eye().is_none());
+    Ok(())
+}
+
+/// `check_gpu` draws a `stencil: none` frame's volumes as a GPU host would:
+/// conservative culling gives the reference's mask and every caster's, and
+/// culling that drops casters whose shadows are seen (a query threshold far
+/// above 0) makes it count the pixels they change.
+#[test]
+fn check_gpu_passes_conservative_culling_and_catches_dropped_casters() -> Result<()> {
+    let (scene, path) = city();
+    let lights = lights(&scene, &path);
+    let conservative = options(CullingSpec::Chcpp, StencilBackend::None);
+    let dropping = PipelineOptions {
+        query_threshold: 5_000,
+        ..conservative
+    };
+    let mut dropped = 0;
+    for (o, exact) in [(conservative, true), (dropping, false)] {
+        let (mut p, ids) = pipeline(&scene, o, &lights)?;
+        for frame in 0..2 {
+            p.frame(&input(&path, frame))?;
+            for &id in &ids {
+                let c = p.check_gpu(id)?;
+                assert_eq!((c.mask.width, c.mask.height), (W, H));
+                if exact {
+                    assert_eq!(c.mismatch_off_boundary, 0, "frame {frame}");
+                    assert_eq!(c.culled_vs_unculled_differing_pixels, 0, "frame {frame}");
+                } else {
+                    dropped += c.culled_vs_unculled_differing_pixels;
+                }
+            }
+        }
+    }
+    assert!(dropped > 0, "the check sees the dropped casters' shadows");
+    Ok(())
+}
+
+/// The engine scene through the `gpu_host` preset with its edits (vehicles
+/// moving, debris added and removed) and its three lights: every frame's
+/// volumes draw the reference's mask and every caster's.
+#[test]
+fn the_engine_scene_under_the_gpu_host_preset_is_exact() -> Result<()> {
+    use testkit::engine::EngineScene;
+    let e = EngineScene::new(1);
+    let scene = Arc::new(Scene::new(e.graph.clone()).unwrap());
+    let o = PipelineOptions {
+        light_resolution: 256,
+        ..PipelineOptions::gpu_host()
+    };
+    let (mut p, ids) = pipeline(&scene, o, &e.lights(0))?;
+    let path = EngineScene::path();
+    let mut added = std::collections::HashMap::new();
+    for f in (0..40).step_by(13) {
+        let edits = e.edits(f);
+        for (i, m) in edits.moves {
+            let id = p.scene().id_of(i as u32);
+            p.set_transform(id, m)?;
+        }
+        for h in edits.removes {
+            if let Some(id) = added.remove(&h) {
+                p.remove_object(id)?;
+            }
+        }
+        for (h, mesh, m) in edits.adds {
+            added.insert(h, p.add_object(mesh, m, ObjectFlags::ALL)?);
+        }
+        for (&id, l) in ids.iter().zip(e.lights(f)) {
+            p.set_light(id, l)?;
+        }
+        let cam = path
+            .at(f)
+            .unwrap()
+            .camera(f64::from(W) / f64::from(H))
+            .unwrap();
+        p.frame(&FrameInput::new(W, H, cam))?;
+        for &id in &ids {
+            let c = p.check_gpu(id)?;
+            assert_eq!(c.mismatch_off_boundary, 0, "frame {f}, light {id:?}");
+            assert_eq!(
+                c.culled_vs_unculled_differing_pixels, 0,
+                "frame {f}, light {id:?}"
+            );
+        }
+    }
+    Ok(())
+}
+
 /// `reset_history` (a keyframe) makes the next frames equal a new pipeline's
 /// started at the same frame number, counters included; frame numbers, not
 /// calls, set CHC++'s revisit phases.
@@ -810,7 +941,7 @@ fn host_backends_give_identical_results() -> Result<()> {
                     })
                     .collect();
                 // The objects the eye's depth shows.
-                let eye = out.eye();
+                let eye = out.eye().expect("a culled frame has an eye pass");
                 let (w, h) = (eye.target.width(), eye.target.height());
                 let mut shown: Vec<_> = (0..h)
                     .flat_map(|y| (0..w).filter_map(move |x| eye.primitive(x, y)))
@@ -885,7 +1016,7 @@ fn object_flags_keep_masks_exact() -> Result<()> {
             .flat_map(|l| l.volumes().ranges.iter().map(|r| ObjectId(r.object)))
             .collect();
         let masks: Vec<_> = out.lights().map(|l| l.mask().unwrap().clone()).collect();
-        let eye_ids = out.eye().primitives();
+        let eye_ids = out.eye().expect("an eye pass").primitives();
         let unculled: Vec<_> = plain
             .frame(&input(&path, 0))?
             .lights()

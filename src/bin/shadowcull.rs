@@ -1,7 +1,7 @@
 //! `shadowcull`: run RON batch jobs and inspect scenes.
 //!
 //! - `shadowcull run [JOB.ron] [--out DIR] [--frames N] [--shard I/N [--warmup W]]
-//!   [--keyframe K] [--log-format text|json]`
+//!   [--keyframe K] [--preset batch|gpu_host] [--log-format text|json]`
 //! - `shadowcull merge OUT SHARD_DIR...`
 //! - `shadowcull compare JOB.ron [--out DIR] [--frames N]`
 //! - `shadowcull inspect SCENE [--json]`
@@ -52,13 +52,20 @@ struct Cli {
 /// What the global flags override in every pipeline of a job.
 #[derive(Clone, Copy)]
 struct Overrides {
+    /// `run --preset`: replaces the job's `pipeline` section.
+    preset: Option<shadowcull::Preset>,
     max_memory: Option<shadowcull::byte_size::ByteSize>,
     instruction_set: Option<shadowcull::raster::InstructionSet>,
 }
 
 impl Overrides {
     fn of(cli: &Cli) -> Overrides {
+        let preset = match &cli.command {
+            Command::Run { preset, .. } => *preset,
+            _ => None,
+        };
         Overrides {
+            preset,
             max_memory: cli.max_memory,
             instruction_set: cli
                 .instruction_set
@@ -66,8 +73,13 @@ impl Overrides {
         }
     }
 
-    /// Applies the overrides to the job's pipeline and every variant.
+    /// Applies the overrides: the preset to the job's pipeline (not to
+    /// `compare`'s variants, which are each their own), then the other
+    /// flags to it and to every variant.
     fn apply(self, job: &mut Job) {
+        if let Some(preset) = self.preset {
+            job.pipeline = preset.options();
+        }
         let pipelines = std::iter::once(&mut job.pipeline)
             .chain(job.pipelines.iter_mut().map(|v| &mut v.pipeline));
         for p in pipelines {
@@ -105,6 +117,12 @@ enum Command {
         /// frames; overrides the job's `keyframe`.
         #[arg(long, value_name = "K", value_parser = clap::value_parser!(u32).range(1..))]
         keyframe: Option<u32>,
+        /// Replace the job's `pipeline` section with a preset's options
+        /// (`gpu_host`: no CPU stencil and no reference, for a renderer that
+        /// draws the volumes itself; `batch`: the defaults); the other flags
+        /// then apply.
+        #[arg(long, value_name = "NAME")]
+        preset: Option<shadowcull::Preset>,
         /// How per-frame statistics are logged: plain text on stderr, or JSON lines on stdout.
         #[arg(long, value_enum, default_value_t = LogFormat::Text)]
         log_format: LogFormat,
@@ -213,6 +231,7 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
             warmup,
             keyframe,
             log_format,
+            preset: _,
         } => {
             let options = RunOptions {
                 out_dir: out,

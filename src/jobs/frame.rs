@@ -76,6 +76,18 @@ impl FrameRunner {
         }
     }
 
+    /// The pipeline's ids of the lights of the last frame, in the order
+    /// [`FrameRunner::frame`] was given them.
+    pub fn light_ids(&self) -> &[LightId] {
+        &self.lights
+    }
+
+    /// The pipeline the frames run through, `None` before the first frame:
+    /// for scene edits between frames (they apply at the next frame).
+    pub fn pipeline_mut(&mut self) -> Option<&mut Pipeline> {
+        self.pipeline.as_mut()
+    }
+
     /// Resets all coherent state ([`Pipeline::reset_history`]) before every
     /// frame whose number is a multiple of `keyframe` (`None`: only before
     /// frame 0, where every job's history starts).

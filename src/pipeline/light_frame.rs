@@ -45,7 +45,11 @@ pub(super) struct FrameShared<'a> {
     pub scene: &'a Scene,
     pub camera: &'a Camera,
     pub options: &'a PipelineOptions,
-    pub eye: &'a EyePass,
+    /// The frame's size in pixels.
+    pub viewport: (u32, u32),
+    /// The eye pass; `None` when nobody reads it (no culling light, no CPU
+    /// stencil, no fill count).
+    pub eye: Option<&'a EyePass>,
     pub eye_counts: EyeCounts,
     /// The light passes' input, when some light culls this frame.
     pub pass: Option<light::LightPassInput<'a>>,
@@ -96,7 +100,14 @@ pub(super) fn run(s: &mut LightState, f: &FrameShared<'_>) -> Result<f64> {
         eye_counts,
         ..
     } = *f;
-    let (w, h) = (eye.target.width(), eye.target.height());
+    let (w, h) = f.viewport;
+    // Only the stencil and the fill count read the eye pass here.
+    let eye = || {
+        eye.ok_or_else(|| crate::Error::Options {
+            field: "stencil".into(),
+            message: "a frame without an eye pass has no stencil or fill count".into(),
+        })
+    };
     let auto_culling = f.auto_culling;
     let reading = reading(s.clamping, o);
     // This frame's computation mask is made by its stencil stage (or for
@@ -181,7 +192,7 @@ pub(super) fn run(s: &mut LightState, f: &FrameShared<'_>) -> Result<f64> {
         StencilBackend::None => None,
         _ => Some(stencil::stencil_volumes(
             input,
-            eye,
+            eye()?,
             &light_options,
             &mut s.scratch,
             volumes,
@@ -203,7 +214,7 @@ pub(super) fn run(s: &mut LightState, f: &FrameShared<'_>) -> Result<f64> {
         // draws: its computation mask, made here when the frame's stencil
         // made none.
         if !s.scratch.shadowable.fresh() {
-            stencil::computation_mask(input, eye, light_options.two_sided, &mut s.scratch)?;
+            stencil::computation_mask(input, eye()?, light_options.two_sided, &mut s.scratch)?;
         }
         let clamped = fill_count::ClampedVariant {
             options: o.clamp_options(),
@@ -214,7 +225,7 @@ pub(super) fn run(s: &mut LightState, f: &FrameShared<'_>) -> Result<f64> {
             buffer: &s.scratch.volume.buffer,
             stencil: s.shadow.as_ref().map(|f| &f.stencil),
         };
-        let on = s.scratch.shadowable.target(&eye.target);
+        let on = s.scratch.shadowable.target(&eye()?.target);
         let counts = fill_count::count_fill(
             input,
             on,

@@ -24,11 +24,13 @@ mod auto;
 mod edit;
 pub mod eye;
 mod fill_count;
+mod gpu_check;
 mod light;
 mod light_frame;
 mod light_state;
 pub mod memory;
 mod options;
+mod preset;
 mod shadow_options;
 mod shadowable;
 pub mod stencil;
@@ -39,11 +41,13 @@ pub use eye::{
     eye_pass, eye_pass_culled, eye_pass_reusing, visible_points, EyeCulling, EyePass, EyeTraversal,
     MeshCache,
 };
+pub use gpu_check::GpuCheck;
 pub use options::{
     AutoSpec, BadOption, ChcppSpec, ClampReceiversSpec, ClampingSpec, CoverageSpec, CullingSpec,
     PipelineOptions, StencilBackend, StencilCosts, DEFAULT_CLAMP_PIXEL_COST,
     DEFAULT_CLAMP_VERTEX_COST,
 };
+pub use preset::Preset;
 pub use shadow_options::{Backend, ClampOptions, ShadowOptions};
 pub use stencil::{shadow_mask, shadow_mask_for, ShadowFrame, ShadowScratch, TileImage};
 
@@ -126,8 +130,15 @@ pub struct Pipeline {
     culling: Option<EyeCulling>,
     /// `culling: auto`'s choice state of the eye pass.
     auto_eye: auto::AutoView,
+    /// The last frame's eye pass; `None` when nobody read one (no view
+    /// culled, no CPU stencil, no fill count) until
+    /// [`Pipeline::reference_mask`] rasterizes it.
     eye: Option<EyePass>,
+    /// The last frame's camera; `None` before the first frame and after a
+    /// failed one.
     camera: Option<Camera>,
+    /// The last frame's viewport.
+    viewport: (u32, u32),
     /// The eye's visible points, in bands of rows.
     receivers: Vec<visibility::ReceiverPoints>,
     /// The receiver points' run buffers, one per band of rows.
@@ -191,6 +202,7 @@ impl Pipeline {
             auto_eye: auto::AutoView::culling(),
             eye: None,
             camera: None,
+            viewport: (0, 0),
             receivers: Default::default(),
             receiver_runs: Default::default(),
             skip_lights: Vec::new(),
@@ -265,6 +277,7 @@ impl Pipeline {
                 *s = LightState::new(s.light, s.id);
             }
             self.eye = None;
+            self.camera = None;
         }
         Ok(())
     }
@@ -370,6 +383,40 @@ impl Pipeline {
         }
 
         // 1. Eye pass (PSR) and, for the light pass, the visible surface points.
+        // No view culls, no CPU stencil and no fill count: nobody reads an
+        // eye pass, so none runs (the PSR is every visible object).
+        // [`Pipeline::reference_mask`] rasterizes one when asked.
+        if !may_cull && o.stencil == StencilBackend::None && !o.count_fill {
+            self.eye = None;
+            self.psr.clear();
+            self.psr
+                .extend(self.all_visible.iter().map(|id| scene.id_of(id.0)));
+            let eye_ms = ms(start);
+            let shared = light_frame::FrameShared {
+                scene,
+                camera,
+                options: &o,
+                viewport: (w, h),
+                eye: None,
+                eye_counts: light_frame::EyeCounts {
+                    ms: eye_ms,
+                    psr: self.psr.len() as u64,
+                    queries: 0,
+                    waits: 0,
+                },
+                pass: None,
+                all_casters: &self.all_casters,
+                receives: None,
+                stored_points: false,
+                auto_culling: false,
+                all_caster_triangles: 0,
+                host: self.backends.is_some(),
+            };
+            let fill_ms = Self::run_lights_of(&mut self.lights, &shared)?;
+            let camera = *camera;
+            self.finish_frame(frame, start, (w, h), camera, eye_ms, fill_ms, (0, 0));
+            return Ok(());
+        }
         let mut previous = EyePass::reusable(
             self.eye.take(),
             (w, h),
@@ -549,7 +596,8 @@ impl Pipeline {
             scene,
             camera,
             options: &o,
-            eye: &eye,
+            viewport: (w, h),
+            eye: Some(&eye),
             eye_counts: light_frame::EyeCounts {
                 ms: eye_ms,
                 psr,
@@ -564,17 +612,49 @@ impl Pipeline {
             all_caster_triangles,
             host: self.backends.is_some(),
         };
-        let n = self.lights.iter().filter(|s| s.state.is_some()).count();
-        let fill_ms = {
-            use rayon::prelude::*;
-            self.lights
-                .par_iter_mut()
-                .filter_map(|slot| slot.state.as_mut())
-                .map(|s| light_frame::run(s, &shared))
-                .try_reduce(|| 0.0, |a, b| Ok(a + b))?
-        };
+        let fill_ms = Self::run_lights_of(&mut self.lights, &shared)?;
         self.eye = Some(eye);
-        self.camera = Some(*camera);
+        let camera = *camera;
+        self.finish_frame(
+            frame,
+            start,
+            (w, h),
+            camera,
+            eye_ms,
+            fill_ms,
+            (eye_queries, eye_waits),
+        );
+        Ok(())
+    }
+
+    /// Every live light's share of the frame, side by side; returns the
+    /// time spent counting fill (a measurement, not part of the frame).
+    fn run_lights_of(
+        lights: &mut [LightSlot],
+        shared: &light_frame::FrameShared<'_>,
+    ) -> Result<f64> {
+        use rayon::prelude::*;
+        lights
+            .par_iter_mut()
+            .filter_map(|slot| slot.state.as_mut())
+            .map(|s| light_frame::run(s, shared))
+            .try_reduce(|| 0.0, |a, b| Ok(a + b))
+    }
+
+    /// The frame's statistics, once every light has run.
+    #[allow(clippy::too_many_arguments)]
+    fn finish_frame(
+        &mut self,
+        frame: u32,
+        start: Instant,
+        viewport: (u32, u32),
+        camera: Camera,
+        eye_ms: f64,
+        fill_ms: f64,
+        (eye_queries, eye_waits): (u64, u64),
+    ) {
+        self.camera = Some(camera);
+        self.viewport = viewport;
         self.stats = FrameStats {
             frame,
             // Fill accounting is a measurement, not part of the frame.
@@ -582,18 +662,17 @@ impl Pipeline {
             eye_ms,
             objects: self.counts.objects as u64,
             triangles: self.counts.drawn_triangles as u64,
-            psr,
+            psr: self.psr.len() as u64,
             eye_queries,
             eye_waits,
-            lights: n as u32,
+            lights: self.lights.iter().filter(|s| s.state.is_some()).count() as u32,
         };
-        Ok(())
     }
 
     /// The output of the last [`Pipeline::frame`] call, again (`None` before
     /// the first).
     pub fn last_output(&self) -> Option<FrameOutput<'_>> {
-        self.eye.as_ref().map(|_| FrameOutput { pipeline: self })
+        self.camera.as_ref().map(|_| FrameOutput { pipeline: self })
     }
 
     /// The exact ray-cast shadow mask [`crate::reference`] of light `light`
@@ -605,29 +684,27 @@ impl Pipeline {
     /// [`Error::Options`] before the first frame, after scene edits not yet
     /// framed, or for an unknown light.
     pub fn reference_mask(&mut self, light: LightId) -> Result<ReferenceMask> {
-        let Some((w, h)) = self
-            .eye
-            .as_ref()
-            .map(|e| (e.target.width(), e.target.height()))
-        else {
+        let Some(camera) = self.camera else {
             return Err(Error::Options {
                 field: "reference_mask".into(),
                 message: "no frame has run yet".into(),
             });
         };
+        let (w, h) = self.viewport;
         self.check_memory(w, h, true)?;
-        let (Some(eye), Some(camera)) = (&self.eye, &self.camera) else {
-            return Err(Error::Options {
-                field: "reference_mask".into(),
-                message: "no frame has run yet".into(),
-            });
-        };
         if self.edited || self.scene.has_staged_edits() {
             return Err(Error::Options {
                 field: "reference_mask".into(),
                 message: "the scene was edited after the last frame: run a frame first".into(),
             });
         }
+        self.exact_eye()?;
+        let Some(eye) = &self.eye else {
+            return Err(Error::Options {
+                field: "reference_mask".into(),
+                message: "no eye pass to cast from".into(),
+            });
+        };
         let light = self
             .light_state(light)
             .map_err(|e| match e {
@@ -652,7 +729,7 @@ impl Pipeline {
             });
             try_reference_mask(
                 bvh,
-                camera,
+                &camera,
                 &light,
                 eye.target.width(),
                 eye.target.height(),
@@ -664,6 +741,34 @@ impl Pipeline {
             Some(pool) => pool.install(run),
             None => run(),
         }
+    }
+
+    /// The last frame's eye pass at its viewport, rasterized now (every
+    /// visible object, exact) when the frame ran none because nobody read
+    /// one: the visible surface the reference and a GPU check take.
+    ///
+    /// # Errors
+    /// [`Error::Options`] before the first frame; [`Error::Raster`] for a
+    /// target larger than the rasterizer allows.
+    pub fn exact_eye(&mut self) -> Result<&EyePass> {
+        let Some(camera) = self.camera else {
+            return Err(Error::Options {
+                field: "exact_eye".into(),
+                message: "no frame has run yet".into(),
+            });
+        };
+        if self.eye.is_none() {
+            let (w, h) = self.viewport;
+            let scene: &Scene = &self.scene;
+            let meshes = &self.meshes;
+            let build = || eye_pass_reusing(scene, meshes, &camera, w, h, None);
+            let eye = match &self.pool {
+                Some(pool) => pool.install(build),
+                None => build(),
+            }?;
+            self.eye = Some(eye);
+        }
+        Ok(self.eye.as_ref().expect("built above"))
     }
 
     /// Checks the memory estimate of a `w × h` frame of the current scene
@@ -740,12 +845,11 @@ impl<'a> FrameOutput<'a> {
     }
 
     /// The eye pass: reversed-Z depth and the visible `(object, triangle)`
-    /// per pixel, row 0 at the top.
-    pub fn eye(&self) -> &'a EyePass {
-        self.pipeline
-            .eye
-            .as_ref()
-            .expect("a FrameOutput exists only after a frame")
+    /// per pixel, row 0 at the top. `None` when the frame ran none because
+    /// nobody read it (no view culled, `stencil: none`, no `count_fill`):
+    /// [`Pipeline::exact_eye`] rasterizes it then.
+    pub fn eye(&self) -> Option<&'a EyePass> {
+        self.pipeline.eye.as_ref()
     }
 }
 

@@ -291,8 +291,14 @@ pub const DEFAULT_CLAMP_VERTEX_COST: f64 = 40.0;
 pub const DEFAULT_CLAMP_PIXEL_COST: f64 = 1.0;
 
 /// Pipeline options: how shadows are computed and how often the reference checks them.
+///
+/// [`PipelineOptions::default`] is the batch preset: a CPU mask (`stencil:
+/// bf`) and, in batch jobs, the reference every frame. A renderer that draws
+/// the volumes on its own GPU starts from [`PipelineOptions::gpu_host`]. In
+/// RON and JSON, `preset: gpu_host` picks the starting point
+/// ([`super::Preset`]) and every field named overrides it.
 #[derive(Clone, Copy, Debug, PartialEq, Deserialize, Serialize)]
-#[serde(default, deny_unknown_fields)]
+#[serde(from = "super::preset::PipelineSection")]
 pub struct PipelineOptions {
     /// Volume method per caster (`auto`, `zpass`, `zfail`, `zpplus`).
     pub method: MethodChoice,

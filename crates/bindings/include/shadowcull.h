@@ -214,6 +214,14 @@
 // Directional light.
 #define SC_LIGHT_DIRECTIONAL 2
 
+// `sc_pipeline_options.preset`: the batch defaults (a CPU mask in batch
+// jobs) for the fields the struct lacks.
+#define SC_PRESET_BATCH 0
+
+// `sc_pipeline_options.preset`: a renderer that draws the volumes on its own
+// GPU (`sc_pipeline_options_gpu_host`).
+#define SC_PRESET_GPU_HOST 1
+
 // OpenGL clip depth, `[-w, w]` (`sc_frame_input.clip_depth`).
 #define SC_CLIP_DEPTH_NEGATIVE_ONE_TO_ONE 0
 
@@ -280,6 +288,14 @@ typedef struct sc_pipeline_options {
   // default (10). (Added in the 72-byte layout's last field, which was
   // reserved as zero: an older host means the default.)
   uint32_t slices;
+  // `SC_PRESET_*`: the options every field this struct lacks takes
+  // (`SC_PRESET_GPU_HOST`: `PipelineOptions::gpu_host`'s). The fields it
+  // has always win. (Added with the 80-byte layout, as `scissor`; an
+  // older host's struct means `SC_PRESET_BATCH` and no scissor.)
+  uint32_t preset;
+  // Non-zero: compute each volume's scissor rectangle
+  // (`sc_volume_range.scissor`), for the host's scissor test.
+  uint32_t scissor;
 } sc_pipeline_options;
 
 // A pipeline: 0 is the null handle.
@@ -643,6 +659,12 @@ uint32_t sc_version(void);
 // Fills `options` with the defaults (its `struct_size` included): CHC++
 // culling, conservative coverage, no CPU stencil, rayon's global pool.
 enum sc_status sc_pipeline_options_default(struct sc_pipeline_options *options);
+
+// Fills `options` with the options a renderer that draws the shadow volumes
+// on its own GPU starts from (`PipelineOptions::gpu_host`, `docs/host.md`):
+// `culling: auto`, no CPU stencil, conservative coverage, scissor
+// rectangles, no clamping, `preset` `SC_PRESET_GPU_HOST`.
+enum sc_status sc_pipeline_options_gpu_host(struct sc_pipeline_options *options);
 
 // Creates an empty pipeline (add meshes, objects and lights, then call
 // `sc_pipeline_frame`). `options` NULL is not allowed: fill one with

@@ -98,6 +98,13 @@ pub const SC_LIGHT_SPOT: u32 = 1;
 /// Directional light.
 pub const SC_LIGHT_DIRECTIONAL: u32 = 2;
 
+/// `sc_pipeline_options.preset`: the batch defaults (a CPU mask in batch
+/// jobs) for the fields the struct lacks.
+pub const SC_PRESET_BATCH: u32 = 0;
+/// `sc_pipeline_options.preset`: a renderer that draws the volumes on its own
+/// GPU (`sc_pipeline_options_gpu_host`).
+pub const SC_PRESET_GPU_HOST: u32 = 1;
+
 /// OpenGL clip depth, `[-w, w]` (`sc_frame_input.clip_depth`).
 pub const SC_CLIP_DEPTH_NEGATIVE_ONE_TO_ONE: u32 = 0;
 /// Direct3D, Vulkan, Metal, WebGPU clip depth, `[0, w]`.
@@ -151,6 +158,14 @@ pub struct sc_pipeline_options {
     /// default (10). (Added in the 72-byte layout's last field, which was
     /// reserved as zero: an older host means the default.)
     pub slices: u32,
+    /// `SC_PRESET_*`: the options every field this struct lacks takes
+    /// (`SC_PRESET_GPU_HOST`: `PipelineOptions::gpu_host`'s). The fields it
+    /// has always win. (Added with the 80-byte layout, as `scissor`; an
+    /// older host's struct means `SC_PRESET_BATCH` and no scissor.)
+    pub preset: u32,
+    /// Non-zero: compute each volume's scissor rectangle
+    /// (`sc_volume_range.scissor`), for the host's scissor test.
+    pub scissor: u32,
 }
 
 /// A mesh in the host's memory: positions `vertex_count` times, `stride`
@@ -281,6 +296,25 @@ impl Versioned for sc_pipeline_options {
             clamp_pixel_cost: 0.0,
             count_fill: 0,
             slices: 0,
+            preset: SC_PRESET_BATCH,
+            scissor: 0,
+        }
+    }
+}
+
+impl sc_pipeline_options {
+    /// `sc_pipeline_options_gpu_host`'s fill: the struct's form of
+    /// [`PipelineOptions::gpu_host`].
+    pub(crate) fn gpu_host() -> Self {
+        let o = PipelineOptions::gpu_host();
+        sc_pipeline_options {
+            culling: SC_CULLING_AUTO,
+            stencil: SC_STENCIL_NONE,
+            light_resolution: o.light_resolution,
+            clamping: SC_CLAMPING_NONE,
+            preset: SC_PRESET_GPU_HOST,
+            scissor: u32::from(o.scissor),
+            ..<Self as Versioned>::default_value()
         }
     }
 }
@@ -329,6 +363,15 @@ impl Versioned for sc_frame_input {
 impl sc_pipeline_options {
     /// The facade's options.
     pub(crate) fn to_rust(self) -> Result<PipelineOptions> {
+        let base = match self.preset {
+            SC_PRESET_BATCH => PipelineOptions::default(),
+            SC_PRESET_GPU_HOST => PipelineOptions::gpu_host(),
+            v => {
+                return Err(Failure::invalid(format!(
+                    "options.preset: {v} is no SC_PRESET_*"
+                )))
+            }
+        };
         let culling = match self.culling {
             SC_CULLING_NONE => CullingSpec::None,
             SC_CULLING_FRUSTUM => CullingSpec::Frustum,
@@ -395,7 +438,7 @@ impl sc_pipeline_options {
                 )))
             }
         };
-        let defaults = PipelineOptions::default();
+        let defaults = base;
         Ok(PipelineOptions {
             culling,
             stencil,
@@ -423,7 +466,8 @@ impl sc_pipeline_options {
             },
             max_memory: (self.max_memory > 0)
                 .then_some(shadowcull::byte_size::ByteSize(self.max_memory)),
-            ..PipelineOptions::default()
+            scissor: self.scissor != 0,
+            ..base
         })
     }
 }
@@ -482,4 +526,33 @@ pub(crate) fn flags(bits: u32) -> Result<ObjectFlags> {
         occludes: bits & SC_OCCLUDES != 0,
         visible: bits & SC_VISIBLE != 0,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The C presets are the Rust ones, and the struct's own fields win.
+    #[test]
+    fn the_c_presets_are_the_rust_presets() {
+        let batch = <sc_pipeline_options as Versioned>::default_value();
+        let rust = PipelineOptions {
+            culling: CullingSpec::Chcpp,
+            stencil: StencilBackend::None,
+            ..PipelineOptions::default()
+        };
+        assert_eq!(batch.to_rust().unwrap(), rust);
+        let gpu = sc_pipeline_options::gpu_host();
+        assert_eq!(gpu.to_rust().unwrap(), PipelineOptions::gpu_host());
+        let chcpp = sc_pipeline_options {
+            culling: SC_CULLING_CHCPP,
+            scissor: 0,
+            ..gpu
+        };
+        let o = chcpp.to_rust().unwrap();
+        assert_eq!((o.culling, o.scissor), (CullingSpec::Chcpp, false));
+        assert_eq!(o.reference_every, 0, "the preset's, which the struct lacks");
+        let bad = sc_pipeline_options { preset: 2, ..gpu };
+        assert!(bad.to_rust().is_err());
+    }
 }

@@ -542,6 +542,43 @@ fn versioned_structs() {
     assert_eq!(sc_version(), SC_ABI_VERSION);
 }
 
+/// `sc_pipeline_options_gpu_host` fills a struct a pipeline takes; NULL and
+/// an unknown preset are errors naming the argument or field; a 72-byte
+/// struct from before `preset` and `scissor` means the batch preset.
+#[test]
+fn the_gpu_host_preset_fills_options_a_pipeline_takes() {
+    use sc_status::*;
+    assert_eq!(
+        sc_pipeline_options_gpu_host(std::ptr::null_mut()),
+        SC_INVALID_ARGUMENT
+    );
+    assert!(last_error().contains("options"), "{}", last_error());
+    let mut o = std::mem::MaybeUninit::<sc_pipeline_options>::uninit();
+    ok(sc_pipeline_options_gpu_host(o.as_mut_ptr()));
+    // SAFETY: filled by the call above.
+    let mut o = unsafe { o.assume_init() };
+    assert_eq!(
+        o.struct_size as usize,
+        std::mem::size_of::<sc_pipeline_options>()
+    );
+    assert_eq!(
+        (o.preset, o.stencil, o.culling),
+        (SC_PRESET_GPU_HOST, SC_STENCIL_NONE, SC_CULLING_AUTO)
+    );
+    assert_ne!(o.scissor, 0);
+    let mut h = 0;
+    ok(sc_pipeline_create(&o, &mut h));
+    ok(sc_pipeline_destroy(h));
+    let mut old = o;
+    old.struct_size = 72;
+    old.preset = 99; // past the old size: ignored
+    ok(sc_pipeline_create(&old, &mut h));
+    ok(sc_pipeline_destroy(h));
+    o.preset = SC_PRESET_GPU_HOST + 1;
+    assert_eq!(sc_pipeline_create(&o, &mut h), SC_INVALID_ARGUMENT);
+    assert!(last_error().contains("options.preset"), "{}", last_error());
+}
+
 /// `max_memory` (the 40-byte options): a frame whose memory estimate
 /// exceeds it fails before allocating, naming the field; a 32-byte struct
 /// from before the field means the machine's default.

@@ -19,6 +19,7 @@
 #[cfg(feature = "cli")]
 pub mod cli;
 mod data;
+pub mod engine;
 mod pairs;
 mod scenes;
 mod stencil;

@@ -71,6 +71,13 @@ pub(crate) fn merge(py: Python<'_>, out: PathBuf, dirs: Vec<PathBuf>) -> PyResul
     .to_string())
 }
 
+/// The options of preset `name` (`batch`, `gpu_host`) as JSON.
+#[pyfunction]
+pub(crate) fn preset_options(name: &str) -> PyResult<String> {
+    let preset: shadowcull::Preset = name.parse().map_err(bad)?;
+    serde_json::to_string(&preset.options()).map_err(|e| bad(e.to_string()))
+}
+
 /// The default pipeline options as JSON (the RON `pipeline` section's defaults).
 #[pyfunction]
 pub(crate) fn default_options() -> PyResult<String> {

@@ -27,6 +27,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(jobs::run_job, m)?)?;
     m.add_function(wrap_pyfunction!(jobs::merge, m)?)?;
     m.add_function(wrap_pyfunction!(jobs::default_options, m)?)?;
+    m.add_function(wrap_pyfunction!(jobs::preset_options, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

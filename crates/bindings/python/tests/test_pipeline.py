@@ -183,10 +183,24 @@ def test_options_by_name():
     assert (p.options["stencil"], p.options["tile"]) == ("h", 16)
 
 
+def test_the_gpu_host_preset():
+    g = sc.gpu_host_options()
+    assert (g["stencil"], g["culling"], g["scissor"], g["reference_every"]) == ("none", "auto", True, 0)
+    assert set(g) == set(sc.default_options())
+    assert sc.Pipeline(preset="gpu_host").options == g
+    p = sc.Pipeline(preset="gpu_host", culling="chcpp")
+    assert (p.options["culling"], p.options["stencil"]) == ("chcpp", "none")
+    p.set_options(tile=16)
+    assert (p.options["culling"], p.options["tile"]) == ("chcpp", 16)
+    p.set_options(preset="batch", tile=4)
+    assert p.options == dict(sc.default_options(), tile=4)
+
+
 @pytest.mark.parametrize(
     "call, match",
     [
         (lambda: sc.Pipeline(cullng="chc"), "unknown field `cullng`"),
+        (lambda: sc.Pipeline(preset="gpu"), "gpu_host"),
         (lambda: sc.Pipeline(tile=5), "tile"),
         (lambda: sc.Pipeline(culling="sometimes"), "sometimes"),
         (lambda: sc.Pipeline().add_mesh(np.zeros((4, 2), np.float32), [[0, 1, 2]]), r"\(n, 3\)"),

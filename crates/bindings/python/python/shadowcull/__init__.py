@@ -61,6 +61,7 @@ __all__ = [
     "run_job",
     "merge",
     "default_options",
+    "gpu_host_options",
     "RANGE_DTYPE",
     "LIT",
     "SHADOW",
@@ -171,6 +172,14 @@ def default_options() -> Dict[str, Any]:
     return json.loads(_native.default_options())
 
 
+def gpu_host_options() -> Dict[str, Any]:
+    """The options of the ``gpu_host`` preset (``PipelineOptions::gpu_host``):
+    what a renderer that draws the shadow volumes on its own GPU starts from
+    (no CPU stencil, no reference, ``culling="auto"``, scissor rectangles).
+    ``Pipeline(preset="gpu_host", **overrides)`` starts from it too."""
+    return json.loads(_native.preset_options("gpu_host"))
+
+
 class Volumes(NamedTuple):
     """One light's shadow volumes, ready to draw: ``positions`` ``(n, 4)``
     float32 homogeneous local-space vertices (``w`` is 0 at infinity),
@@ -268,6 +277,8 @@ class Pipeline:
     ``stencil="h"``, ``method="auto"``, ``tile=8``, ``coverage="point"``,
     ``chcpp=dict(batch=50, revisit=5, seed=1)``, ``reference_every=0``, ...
     (see :func:`default_options`). An unknown name is a ``ValueError``.
+    ``preset="gpu_host"`` starts from :func:`gpu_host_options` instead of
+    the defaults; the other keywords override it.
     """
 
     def __init__(self, **options: Any):
@@ -280,8 +291,9 @@ class Pipeline:
 
     def set_options(self, **options: Any) -> None:
         """Changes the named options, keeping the others, the scene, the
-        lights and the culling histories."""
-        merged = self.options
+        lights and the culling histories. With ``preset=``, the others
+        start from that preset instead of their current values."""
+        merged = {} if "preset" in options else self.options
         merged.update(options)
         self._p.set_options(_json("options", merged))
 
