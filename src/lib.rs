@@ -70,11 +70,11 @@ pub mod jobs;
 pub use jobs::{calibrate, compare, config, frame, merge, out_dir, run, shard};
 
 pub use error::{Error, Result};
+pub use pipeline::gpu_check::GpuCheck;
 pub use pipeline::memory;
 pub use pipeline::{
     AutoSpec, ClampReceiversSpec, ClampingSpec, CoverageSpec, CullingSpec, FrameInput, FrameOutput,
-    GpuCheck, LightId, LightOutput, Pipeline, PipelineOptions, Preset, StencilBackend,
-    StencilCosts,
+    LightId, LightOutput, Pipeline, PipelineOptions, Preset, StencilBackend, StencilCosts,
 };
 pub use raster;
 pub use scene;

@@ -24,7 +24,7 @@ mod auto;
 mod edit;
 pub mod eye;
 mod fill_count;
-mod gpu_check;
+pub(crate) mod gpu_check;
 mod light;
 mod light_frame;
 mod light_state;
@@ -41,7 +41,6 @@ pub use eye::{
     eye_pass, eye_pass_culled, eye_pass_reusing, visible_points, EyeCulling, EyePass, EyeTraversal,
     MeshCache,
 };
-pub use gpu_check::GpuCheck;
 pub use options::{
     AutoSpec, BadOption, ChcppSpec, ClampReceiversSpec, ClampingSpec, CoverageSpec, CullingSpec,
     PipelineOptions, StencilBackend, StencilCosts, DEFAULT_CLAMP_PIXEL_COST,
