@@ -12,7 +12,7 @@
 //! change a pixel).
 //!
 //! ```sh
-//! cargo run --release --example host_loop -- [--frames N] [--reference-every K] [--size WxH] [--there-and-back on|off] [--write-masks DIR]
+//! cargo run --release --example host_loop -- [--frames N] [--reference-every K] [--size WxH] [--there-and-back on|off] [--write-masks DIR | --gpu-host]
 //! ```
 //! prints one JSON line last: `frames`, `objects`, `psr_median`,
 //! `psc_median` (summed over lights), `frame_ms_median` (wall time of
@@ -23,6 +23,7 @@ use glam::{DMat4, DQuat, DVec3, DVec4};
 use shadowcull::mask::compare;
 use shadowcull::raster::VolumeMethod;
 use shadowcull::scene::{Camera, Light};
+use shadowcull::{CullingSpec, StencilBackend};
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::Arc;
@@ -103,15 +104,15 @@ impl Drawn {
 
 // glue:begin
 use shadowcull::scene::{ClipDepth, Mesh, MeshId, ObjectFlags, ObjectId, Scene, SceneGraph};
-use shadowcull::{CullingSpec, FrameInput, Pipeline, PipelineOptions, StencilBackend};
+use shadowcull::{FrameInput, Pipeline, PipelineOptions};
 
 /// A pipeline on the host's thread pool holding its meshes, objects and lights, with their ids.
-fn upload(world: &HostWorld, culling: CullingSpec, pool: &Pool) -> shadowcull::Result<Uploaded> {
-    let options = PipelineOptions {
-        culling,
-        stencil: StencilBackend::H, // a GPU host: None (here: to check the masks)
-        ..Default::default()
-    };
+/// A GPU host's options: `PipelineOptions::gpu_host()` (here, to check the masks: a CPU stencil).
+fn upload(
+    world: &HostWorld,
+    options: PipelineOptions,
+    pool: &Pool,
+) -> shadowcull::Result<Uploaded> {
     let mut u = Uploaded::new(Pipeline::new(Scene::new(SceneGraph::new())?, options)?);
     u.pipeline.set_thread_pool(Some(pool.clone()))?;
     for m in &world.meshes {
@@ -425,8 +426,14 @@ struct Cli {
     #[arg(long = "there-and-back", value_parser = parse_on_off, default_value = "on", action = clap::ArgAction::Set)]
     there_and_back: bool,
     /// Write each frame's masks and volumes here (as examples/c/host.c does).
-    #[arg(long = "write-masks", value_name = "DIR")]
+    #[arg(long = "write-masks", value_name = "DIR", conflicts_with = "gpu_host")]
     write_masks: Option<std::path::PathBuf>,
+    /// Run `PipelineOptions::gpu_host()` (no CPU stencil) and check its
+    /// volumes on the reference frames as a GPU would draw them
+    /// (`Pipeline::check_gpu`: the same JSON keys, without the unculled
+    /// pipeline's frames).
+    #[arg(long = "gpu-host")]
+    gpu_host: bool,
 }
 
 fn main() -> anyhow::Result<()> {
@@ -436,6 +443,7 @@ fn main() -> anyhow::Result<()> {
         size,
         there_and_back,
         write_masks,
+        gpu_host,
     } = <Cli as clap::Parser>::parse();
     let world = world();
     // The host's job system: frames run on its threads (rayon allocates a
@@ -447,6 +455,7 @@ fn main() -> anyhow::Result<()> {
         size,
         there_and_back,
         write_masks,
+        gpu_host,
     };
     pool.clone().install(|| run(&world, &pool, &args))
 }
@@ -461,6 +470,8 @@ struct Args {
     /// Each frame's masks as binary PGM (P5, one byte per pixel, DESIGN's
     /// class values), `frame_KKK_light_L.pgm`: what `examples/c/host.c` writes.
     write_masks: Option<std::path::PathBuf>,
+    /// The `gpu_host` preset, checked by `Pipeline::check_gpu`.
+    gpu_host: bool,
 }
 
 /// Writes frame `k`'s id lists and volume buffers as little-endian binary
@@ -512,8 +523,21 @@ fn run(world: &HostWorld, pool: &Pool, args: &Args) -> anyhow::Result<()> {
         there_and_back,
         ..
     } = *args;
-    let mut culled = upload(world, CullingSpec::Chcpp, pool)?;
-    let mut unculled = upload(world, CullingSpec::None, pool)?;
+    // The CPU-mask mode checks a culled `h` pipeline against an unculled
+    // one and the reference; `--gpu-host` runs the preset a GPU host starts
+    // from and checks its volumes as a GPU would draw them
+    // (`Pipeline::check_gpu`, on the reference frames).
+    let cpu = |culling| PipelineOptions {
+        culling,
+        stencil: StencilBackend::H,
+        ..Default::default()
+    };
+    let options = match args.gpu_host {
+        true => PipelineOptions::gpu_host(),
+        false => cpu(CullingSpec::Chcpp),
+    };
+    let mut culled = upload(world, options, pool)?;
+    let mut unculled = upload(world, cpu(CullingSpec::None), pool)?;
     let (mut psr, mut psc, mut ms) = (Vec::new(), Vec::new(), Vec::new());
     let (mut mismatch, mut off_boundary, mut ambiguous, mut compared, mut differing) =
         (0u64, 0u64, 0u64, 0u64, 0u64);
@@ -550,6 +574,19 @@ fn run(world: &HostWorld, pool: &Pool, args: &Args) -> anyhow::Result<()> {
             let out = culled.pipeline.last_output().expect("a frame ran");
             out.lights().map(|l| (l.id(), l.mask().cloned())).collect()
         };
+        let reference_frame = every > 0 && k % every == 0;
+        if args.gpu_host {
+            if reference_frame {
+                checked += 1;
+                for (id, _) in &masks {
+                    let c = culled.pipeline.check_gpu(*id)?;
+                    mismatch += c.mismatch_pixels;
+                    off_boundary += c.mismatch_off_boundary;
+                    differing += c.culled_vs_unculled_differing_pixels;
+                }
+            }
+            continue;
+        }
         if let Some(dir) = &args.write_masks {
             for (l, (_, m)) in masks.iter().enumerate() {
                 let path = dir.join(format!("frame_{k:03}_light_{l}.pgm"));
@@ -570,7 +607,7 @@ fn run(world: &HostWorld, pool: &Pool, args: &Args) -> anyhow::Result<()> {
                 .filter(|(a, b)| a != b)
                 .count() as u64;
         }
-        if every > 0 && k % every == 0 {
+        if reference_frame {
             checked += 1;
             for (id, m) in &masks {
                 let r = culled.pipeline.reference_mask(*id)?;
@@ -593,6 +630,7 @@ fn run(world: &HostWorld, pool: &Pool, args: &Args) -> anyhow::Result<()> {
         "width": size.0,
         "height": size.1,
         "lights": world.lights.len(),
+        "gpu_host": args.gpu_host,
         "psr_median": median(&psr).unwrap_or(0.0),
         "psc_median": median(&psc).unwrap_or(0.0),
         "frame_ms_median": median(&ms).unwrap_or(0.0),
