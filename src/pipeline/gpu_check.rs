@@ -93,10 +93,7 @@ impl Pipeline {
             let unculled = stencil_volumes(input, eye, &options, &mut all, stats, None, None)?;
             Ok((culled.mask, unculled.mask))
         };
-        let (mask, unculled) = match &self.pool {
-            Some(pool) => pool.install(run),
-            None => run(),
-        }?;
+        let (mask, unculled) = super::in_pool(self.pool.as_ref(), run)?;
         let c = compare(&reference.mask, &reference.ambiguous, &mask);
         let differing = (mask.pixels.iter().zip(&unculled.pixels))
             .filter(|(a, b)| a != b)

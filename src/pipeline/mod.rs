@@ -719,7 +719,7 @@ impl Pipeline {
         let options = self.options.reference_options();
         let pool = self.pool.clone();
         let bvh = &mut self.bvh;
-        let mut run = move || {
+        let run = move || {
             let bvh = bvh.get_or_insert_with(|| {
                 let t = Instant::now();
                 let b = TriangleBvh::new(scene);
@@ -736,10 +736,7 @@ impl Pipeline {
                 Some(eye.surface()),
             )
         };
-        match pool {
-            Some(pool) => pool.install(run),
-            None => run(),
-        }
+        in_pool(pool.as_ref(), run)
     }
 
     /// The last frame's eye pass at its viewport, rasterized now (every
@@ -761,10 +758,7 @@ impl Pipeline {
             let scene: &Scene = &self.scene;
             let meshes = &self.meshes;
             let build = || eye_pass_reusing(scene, meshes, &camera, w, h, None);
-            let eye = match &self.pool {
-                Some(pool) => pool.install(build),
-                None => build(),
-            }?;
+            let eye = in_pool(self.pool.as_ref(), build)?;
             self.eye = Some(eye);
         }
         Ok(self.eye.as_ref().expect("built above"))
@@ -951,6 +945,17 @@ fn receiver_skips(slots: &mut [LightSlot], o: &PipelineOptions, lights: &mut Vec
 }
 
 /// A pool of `threads` workers, `None` for 0 (rayon's global pool).
+/// Runs `f` in `pool`, or on the caller's pool (rayon's global one) without.
+pub(super) fn in_pool<R: Send>(
+    pool: Option<&Arc<rayon::ThreadPool>>,
+    f: impl FnOnce() -> R + Send,
+) -> R {
+    match pool {
+        Some(pool) => pool.install(f),
+        None => f(),
+    }
+}
+
 fn own_pool(threads: u32) -> Result<Option<Arc<rayon::ThreadPool>>> {
     if threads == 0 {
         return Ok(None);

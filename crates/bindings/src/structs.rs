@@ -6,7 +6,8 @@
 use crate::error::{Failure, Result};
 use shadowcull::scene::{ClipDepth, Light, ObjectFlags};
 use shadowcull::{
-    ClampReceiversSpec, ClampingSpec, CoverageSpec, CullingSpec, PipelineOptions, StencilBackend,
+    ClampReceiversSpec, ClampingSpec, CoverageSpec, CullingSpec, PipelineOptions, Preset,
+    StencilBackend,
 };
 use std::ffi::c_void;
 
@@ -364,14 +365,15 @@ impl sc_pipeline_options {
     /// The facade's options.
     pub(crate) fn to_rust(self) -> Result<PipelineOptions> {
         let base = match self.preset {
-            SC_PRESET_BATCH => PipelineOptions::default(),
-            SC_PRESET_GPU_HOST => PipelineOptions::gpu_host(),
+            SC_PRESET_BATCH => Preset::Batch,
+            SC_PRESET_GPU_HOST => Preset::GpuHost,
             v => {
                 return Err(Failure::invalid(format!(
                     "options.preset: {v} is no SC_PRESET_*"
                 )))
             }
-        };
+        }
+        .options();
         let culling = match self.culling {
             SC_CULLING_NONE => CullingSpec::None,
             SC_CULLING_FRUSTUM => CullingSpec::Frustum,
@@ -438,7 +440,6 @@ impl sc_pipeline_options {
                 )))
             }
         };
-        let defaults = base;
         Ok(PipelineOptions {
             culling,
             stencil,
@@ -448,12 +449,12 @@ impl sc_pipeline_options {
             clamp_vertex_cost: cost(
                 self.clamp_vertex_cost,
                 "clamp_vertex_cost",
-                defaults.clamp_vertex_cost,
+                base.clamp_vertex_cost,
             )?,
             clamp_pixel_cost: cost(
                 self.clamp_pixel_cost,
                 "clamp_pixel_cost",
-                defaults.clamp_pixel_cost,
+                base.clamp_pixel_cost,
             )?,
             query_threshold: self.query_threshold,
             light_resolution: self.light_resolution,
@@ -461,7 +462,7 @@ impl sc_pipeline_options {
             two_sided: self.two_sided != 0,
             count_fill: self.count_fill != 0,
             slices: match self.slices {
-                0 => defaults.slices,
+                0 => base.slices,
                 n => n,
             },
             max_memory: (self.max_memory > 0)
