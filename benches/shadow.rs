@@ -96,6 +96,32 @@ fn bench_box_city(c: &mut Criterion) {
         .expect("camera");
     let light = city.first_light();
     bench_view(c, "city_16384/street", &city.scene, &camera, light);
+    // Every caster's scissor and depth bounds on the bird view (the GPU
+    // host's preset computes them each frame).
+    let bird = (city.look("bird"))
+        .camera(RES.0 as f64 / RES.1 as f64)
+        .expect("camera");
+    let scene = &city.scene;
+    let bounds = scene.bounds();
+    let mut g = c.benchmark_group("city_16384/bird");
+    g.sample_size(10);
+    g.bench_function("volume_bounds_all", |b| {
+        b.iter(|| {
+            let mut visible = 0usize;
+            for o in scene.objects() {
+                let v = shadowcull::shadowgen::volume_bounds(
+                    &bird,
+                    RES,
+                    &light,
+                    &o.world_bounds,
+                    &bounds,
+                );
+                visible += usize::from(v.scissor[0] < v.scissor[2]);
+            }
+            visible
+        })
+    });
+    g.finish();
 }
 
 criterion_group!(benches, bench_city, bench_box_city);

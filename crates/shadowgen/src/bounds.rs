@@ -27,6 +27,7 @@
 //! octagonal pyramid around the cone (apex at the light, each plane tangent to
 //! the cone): conservative, as every other cut.
 
+use crate::swept_vertices::{for_each_vertex, Sweep};
 use glam::DVec3;
 use raster::DEPTH_ERROR;
 use scene::{Aabb, Camera, Light};
@@ -51,54 +52,167 @@ pub struct VolumeBounds {
 /// `camera` in a `width × height` viewport.
 pub fn volume_bounds(
     camera: &Camera,
-    (width, height): (u32, u32),
+    viewport: (u32, u32),
     light: &Light,
     caster: &Aabb,
     scene_bounds: &Aabb,
 ) -> VolumeBounds {
-    let nothing = VolumeBounds {
-        scissor: [0, 0, 0, 0],
-        depth_near: 1.0,
-        depth_far: 1.0,
-    };
-    if caster.is_empty() || scene_bounds.is_empty() {
-        return nothing;
-    }
-    let (blo, bhi) = (caster.min.as_dvec3(), caster.max.as_dvec3());
-    let Some((lo, hi, cone)) = swept_box(light, (blo, bhi), scene_bounds) else {
-        return nothing;
-    };
-    // Eye-relative from here on (precision far from the origin).
-    let eye = camera.position;
-    let (lo, hi) = (lo - eye, hi - eye);
-    let (blo, bhi) = (blo - eye, bhi - eye);
-    let r = (0..8)
-        .map(|i| corner(lo, hi, i).length())
-        .fold(0.0, f64::max);
-    let m = BOUNDS_MARGIN * DEPTH_ERROR * r;
-    let (lo, hi) = (lo - DVec3::splat(m), hi + DVec3::splat(m));
-    // Early outs: the box wholly behind the near plane or outside a side plane
-    // of the view frustum (side planes pass through the eye: d = 0 here).
-    let frustum = camera.frustum();
-    let outside = |n: DVec3, d: f64| {
-        let far = DVec3::select(n.cmpge(DVec3::ZERO), hi, lo);
-        n.dot(far) + d < 0.0
-    };
-    if outside(camera.forward(), -camera.near)
-        || frustum.planes[..4]
-            .iter()
-            .any(|p| outside(p.normal, m * p.normal.length()))
-    {
-        return nothing;
+    BoundsView::new(camera).volume_bounds(viewport, light, caster, scene_bounds)
+}
+
+/// What [`volume_bounds`] reads of the camera, derived once for many
+/// volumes of one view (a frame's): the eye, near distance and forward axis,
+/// the frustum's side plane normals and the eye-relative clip transform.
+#[derive(Clone, Copy, Debug)]
+pub struct BoundsView {
+    eye: DVec3,
+    near: f64,
+    forward: DVec3,
+    sides: [DVec3; 4],
+    clip: glam::DMat4,
+}
+
+impl BoundsView {
+    /// The view of `camera`.
+    pub fn new(camera: &Camera) -> Self {
+        let frustum = camera.frustum();
+        BoundsView {
+            eye: camera.position,
+            near: camera.near,
+            forward: camera.forward(),
+            sides: std::array::from_fn(|i| frustum.planes[i].normal),
+            clip: camera.clip_from_eye_relative(),
+        }
     }
 
+    /// [`volume_bounds`] for this view.
+    pub fn volume_bounds(
+        &self,
+        (width, height): (u32, u32),
+        light: &Light,
+        caster: &Aabb,
+        scene_bounds: &Aabb,
+    ) -> VolumeBounds {
+        let nothing = VolumeBounds {
+            scissor: [0, 0, 0, 0],
+            depth_near: 1.0,
+            depth_far: 1.0,
+        };
+        if caster.is_empty() || scene_bounds.is_empty() {
+            return nothing;
+        }
+        let (blo, bhi) = (caster.min.as_dvec3(), caster.max.as_dvec3());
+        let Some((lo, hi, cone)) = swept_box(light, (blo, bhi), scene_bounds) else {
+            return nothing;
+        };
+        // Eye-relative from here on (precision far from the origin).
+        let eye = self.eye;
+        let (lo, hi) = (lo - eye, hi - eye);
+        let (blo, bhi) = (blo - eye, bhi - eye);
+        let r = (0..8)
+            .map(|i| corner(lo, hi, i).length())
+            .fold(0.0, f64::max);
+        let m = BOUNDS_MARGIN * DEPTH_ERROR * r;
+        let (lo, hi) = (lo - DVec3::splat(m), hi + DVec3::splat(m));
+        // Early outs: the box wholly behind the near plane or outside a side plane
+        // of the view frustum (side planes pass through the eye: d = 0 here).
+        let outside = |n: DVec3, d: f64| {
+            let far = DVec3::select(n.cmpge(DVec3::ZERO), hi, lo);
+            n.dot(far) + d < 0.0
+        };
+        if outside(self.forward, -self.near)
+            || self.sides.iter().any(|&n| outside(n, m * n.length()))
+        {
+            return nothing;
+        }
+
+        // The fast path: P's vertices from the sweep's structure, when a point
+        // light lies outside the grown caster box, or the light is directional,
+        // and P lies in front of the near plane; else the general clipper.
+        let bm = (blo - DVec3::splat(m), bhi + DVec3::splat(m));
+        let ranges = swept_ranges(self, light, eye, bm, cone.is_some(), (lo, hi))
+            .or_else(|| clipped_ranges(self, light, eye, (blo, bhi), cone, m, (lo, hi)));
+        let Some((xs, ys, ws)) = ranges.flatten() else {
+            return nothing;
+        };
+        let ([xmin, xmax], [ymin, ymax], [wmin, wmax]) = (xs, ys, ws);
+        let (w, h) = (width as f64, height as f64);
+        let px = |x: f64| (x + 1.0) * 0.5 * w;
+        let py = |y: f64| (1.0 - y) * 0.5 * h;
+        let clamp = |v: f64, max: f64| v.clamp(0.0, max) as u32;
+        let x0 = clamp((px(xmin)).floor() - 1.0, w);
+        let x1 = clamp((px(xmax)).ceil() + 1.0, w);
+        let y0 = clamp((py(ymax)).floor() - 1.0, h);
+        let y1 = clamp((py(ymin)).ceil() + 1.0, h);
+        let k = BOUNDS_MARGIN * DEPTH_ERROR;
+        // Depth = near / w (reversed Z), rounded outward to f32.
+        let dn = (self.near / wmin * (1.0 + k)).min(1.0);
+        let df = (self.near / wmax * (1.0 - k)).max(0.0);
+        let depth_near = round_up(dn).min(1.0);
+        let depth_far = round_down(df).max(0.0);
+        VolumeBounds {
+            scissor: [x0, y0, x1.max(x0), y1.max(y0)],
+            depth_near,
+            depth_far: depth_far.min(depth_near),
+        }
+    }
+}
+
+/// The ranges of x/w, y/w (NDC) and w over `P = S ∩ H(B⊕m)` from its
+/// vertices ([`crate::swept_vertices`]), `bm` the eye-relative caster box
+/// grown by the margin m and `(lo, hi)` the grown box S. `None` when this
+/// path does not apply: a spot light's cone, a point light inside `bm`, or
+/// P reaching behind the near plane. `Some(None)` when P is empty.
+///
+/// Conservative as the general path: the rounded volume lies within m of
+/// H(B), and `H(B) ⊕ cube(m) ⊆ H(B ⊕ cube(m))` (a point `l + t(p − l) + c`,
+/// `t ≥ 1`, is `l + t(p + c/t − l)`; a translation commutes with the sweep).
+fn swept_ranges(
+    view: &BoundsView,
+    light: &Light,
+    eye: DVec3,
+    bm: (DVec3, DVec3),
+    has_cone: bool,
+    (lo, hi): (DVec3, DVec3),
+) -> Option<Option<Ranges>> {
+    let sweep = match *light {
+        _ if has_cone => return None,
+        Light::Point { position, .. } | Light::Spot { position, .. } => {
+            let l = position - eye;
+            if l.cmpge(bm.0).all() && l.cmple(bm.1).all() {
+                return None;
+            }
+            Sweep::From(l)
+        }
+        Light::Directional { direction } => Sweep::Along(direction),
+    };
+    let mut planes = [(DVec3::ZERO, 0.0f64); MAX_PLANES];
+    let np = swept_half_spaces(light, eye, bm, None, 0.0, &mut planes);
+    let mut acc = RangeAcc::new(view);
+    let mut behind = false;
+    for_each_vertex(sweep, bm, (lo, hi), &planes[..np], |x| {
+        behind |= !acc.add(x);
+    });
+    (!behind).then(|| acc.ranges())
+}
+
+/// The ranges of [`swept_ranges`] by the general clipper: the box `(lo, hi)`
+/// clipped by H(B)'s half-spaces pushed out by m, a spot light's cone and the
+/// near plane (`None` when empty).
+fn clipped_ranges(
+    view: &BoundsView,
+    light: &Light,
+    eye: DVec3,
+    (blo, bhi): (DVec3, DVec3),
+    cone: Option<Cone>,
+    m: f64,
+    (lo, hi): (DVec3, DVec3),
+) -> Option<Option<Ranges>> {
     // Half-spaces n·x + d ≥ 0 holding the swept set H, each pushed out by m,
     // then the near plane: view distance ≥ near.
     let mut planes = [(DVec3::ZERO, 0.0f64); MAX_PLANES];
     let mut np = swept_half_spaces(light, eye, (blo, bhi), cone, m, &mut planes);
-    let fwd = camera.forward();
-    let near = camera.near;
-    planes[np] = (fwd, -near);
+    planes[np] = (view.forward, -view.near);
     np += 1;
     // Drop half-spaces that hold the whole box; a box wholly outside one is empty.
     let mut kept = 0;
@@ -108,36 +222,57 @@ pub fn volume_bounds(
         if n.dot(near_corner) + d >= 0.0 {
             continue;
         }
-        if outside(n, d) {
-            return nothing;
+        let far_corner = DVec3::select(n.cmpge(DVec3::ZERO), hi, lo);
+        if n.dot(far_corner) + d < 0.0 {
+            return Some(None);
         }
         planes[kept] = planes[i];
         kept += 1;
     }
-    let planes = &planes[..kept];
+    Some(project_polyhedron(view, (lo, hi), &planes[..kept]))
+}
 
-    let Some((xs, ys, ws)) = project_polyhedron(camera, (lo, hi), planes) else {
-        return nothing;
-    };
-    let ([xmin, xmax], [ymin, ymax], [wmin, wmax]) = (xs, ys, ws);
-    let (w, h) = (width as f64, height as f64);
-    let px = |x: f64| (x + 1.0) * 0.5 * w;
-    let py = |y: f64| (1.0 - y) * 0.5 * h;
-    let clamp = |v: f64, max: f64| v.clamp(0.0, max) as u32;
-    let x0 = clamp((px(xmin)).floor() - 1.0, w);
-    let x1 = clamp((px(xmax)).ceil() + 1.0, w);
-    let y0 = clamp((py(ymax)).floor() - 1.0, h);
-    let y1 = clamp((py(ymin)).ceil() + 1.0, h);
-    let k = BOUNDS_MARGIN * DEPTH_ERROR;
-    // Depth = near / w (reversed Z), rounded outward to f32.
-    let dn = (near / wmin * (1.0 + k)).min(1.0);
-    let df = (near / wmax * (1.0 - k)).max(0.0);
-    let depth_near = round_up(dn).min(1.0);
-    let depth_far = round_down(df).max(0.0);
-    VolumeBounds {
-        scissor: [x0, y0, x1.max(x0), y1.max(y0)],
-        depth_near,
-        depth_far: depth_far.min(depth_near),
+/// Ranges of x/w, y/w (NDC) and w.
+type Ranges = ([f64; 2], [f64; 2], [f64; 2]);
+
+/// Accumulates [`Ranges`] over eye-relative points.
+struct RangeAcc {
+    clip: glam::DMat4,
+    near: f64,
+    x: [f64; 2],
+    y: [f64; 2],
+    w: [f64; 2],
+    any: bool,
+}
+
+impl RangeAcc {
+    fn new(view: &BoundsView) -> Self {
+        RangeAcc {
+            clip: view.clip,
+            near: view.near,
+            x: [f64::MAX, f64::MIN],
+            y: [f64::MAX, f64::MIN],
+            w: [f64::MAX, f64::MIN],
+            any: false,
+        }
+    }
+
+    /// Adds `p` (its w raised to the near distance); whether it lay at or
+    /// beyond the near plane.
+    fn add(&mut self, p: DVec3) -> bool {
+        let c = self.clip * p.extend(1.0);
+        let w = c.w.max(self.near);
+        let inv = 1.0 / w;
+        let (x, y) = (c.x * inv, c.y * inv);
+        self.x = [self.x[0].min(x), self.x[1].max(x)];
+        self.y = [self.y[0].min(y), self.y[1].max(y)];
+        self.w = [self.w[0].min(w), self.w[1].max(w)];
+        self.any = true;
+        c.w >= self.near
+    }
+
+    fn ranges(&self) -> Option<Ranges> {
+        self.any.then_some((self.x, self.y, self.w))
     }
 }
 
@@ -239,7 +374,7 @@ fn swept_half_spaces(
     let mut np = 0;
     let mut add = |n: DVec3, d: f64| {
         if n != DVec3::ZERO && n.is_finite() && d.is_finite() {
-            planes[np] = (n, d + m * n.length());
+            planes[np] = (n, if m == 0.0 { d } else { d + m * n.length() });
             np += 1;
         }
     };
@@ -272,10 +407,12 @@ fn swept_half_spaces(
             }
             let (a, b) = (bc[i], bc[j]);
             let n = (b - a).cross(toward_light(a));
-            let side = bc.map(|c| n.dot(c - a));
-            if side.iter().all(|&v| v >= 0.0) {
+            // The box's least and greatest n·(c − a) are at the corners
+            // picked per axis by n's signs.
+            let pos = n.cmpge(DVec3::ZERO);
+            if n.dot(DVec3::select(pos, blo, bhi) - a) >= 0.0 {
                 add(n, -n.dot(a));
-            } else if side.iter().all(|&v| v <= 0.0) {
+            } else if n.dot(DVec3::select(pos, bhi, blo) - a) <= 0.0 {
                 add(-n, n.dot(a));
             }
         }
@@ -301,11 +438,10 @@ fn swept_half_spaces(
 /// `camera`: the ranges of x/w, y/w (NDC) and w over its vertices (w at least
 /// the near distance), `None` when the clipped polyhedron is empty.
 fn project_polyhedron(
-    camera: &Camera,
+    view: &BoundsView,
     (lo, hi): (DVec3, DVec3),
     planes: &[(DVec3, f64)],
-) -> Option<([f64; 2], [f64; 2], [f64; 2])> {
-    let near = camera.near;
+) -> Option<Ranges> {
     // The clipped polyhedron's faces lie on the box faces or on the planes:
     // clip the six box faces by every half-space, and for every plane a quad
     // on it covering the box by the box and the other half-spaces. The
@@ -320,10 +456,7 @@ fn project_polyhedron(
     ];
     let centre = (lo + hi) * 0.5;
     let size = (hi - lo).length();
-    let clip = camera.clip_from_eye_relative();
-    let (mut xmin, mut xmax, mut ymin, mut ymax) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
-    let (mut wmin, mut wmax) = (f64::MAX, f64::MIN);
-    let mut any = false;
+    let mut acc = RangeAcc::new(view);
     let mut bufs = [Poly::default(), Poly::default()];
     for face in 0..6 + planes.len() {
         let [mut poly, mut next] = bufs.each_mut();
@@ -366,19 +499,10 @@ fn project_polyhedron(
             }
         }
         for &x in &poly.v[..poly.n] {
-            let p = clip * x.extend(1.0);
-            let pw = p.w.max(near);
-            let (px, py) = (p.x / pw, p.y / pw);
-            xmin = xmin.min(px);
-            xmax = xmax.max(px);
-            ymin = ymin.min(py);
-            ymax = ymax.max(py);
-            wmin = wmin.min(pw);
-            wmax = wmax.max(pw);
-            any = true;
+            acc.add(x);
         }
     }
-    any.then_some(([xmin, xmax], [ymin, ymax], [wmin, wmax]))
+    acc.ranges()
 }
 
 /// The box faces as corner indices (see [`corner`]).
@@ -548,6 +672,65 @@ mod tests {
         };
         let b = volume_bounds(&cam, (100, 100), &away, &caster, &scene);
         assert_eq!(area(b), 0);
+    }
+
+    /// The fast path's ranges are the general clipper's for the same
+    /// polyhedron: both unwidened (m = 0), so that any vertex the sweep's
+    /// structure leaves out shows. (Each path's widening by m is its own:
+    /// a grown box swept, or the swept planes pushed out; both hold the
+    /// rounded volume, and the end-to-end test samples it.)
+    fn assert_paths_agree(cam: &Camera, light: &Light, caster: &Aabb, scene: &Aabb) {
+        let (blo, bhi) = (caster.min.as_dvec3(), caster.max.as_dvec3());
+        let Some((lo, hi, cone)) = swept_box(light, (blo, bhi), scene) else {
+            return;
+        };
+        let eye = cam.position;
+        let (lo, hi, blo, bhi) = (lo - eye, hi - eye, blo - eye, bhi - eye);
+        let view = BoundsView::new(cam);
+        let Some(fast) = swept_ranges(&view, light, eye, (blo, bhi), cone.is_some(), (lo, hi))
+        else {
+            return;
+        };
+        let general = clipped_ranges(&view, light, eye, (blo, bhi), cone, 0.0, (lo, hi)).unwrap();
+        let (Some(f), Some(g)) = (fast, general) else {
+            assert_eq!(fast.is_none(), general.is_none(), "{fast:?} vs {general:?}");
+            return;
+        };
+        for (a, b) in [(f.0, g.0), (f.1, g.1), (f.2, g.2)] {
+            for k in 0..2 {
+                let tol = 1e-9 * (1.0 + a[k].abs());
+                assert!((a[k] - b[k]).abs() <= tol, "{f:?} vs {g:?}");
+            }
+        }
+    }
+
+    proptest::proptest! {
+        #[test]
+        fn the_fast_path_agrees_with_the_general_clipper(
+            centre in proptest::array::uniform3(-20.0f64..20.0),
+            size in proptest::array::uniform3(0.1f64..6.0),
+            light in proptest::array::uniform3(-40.0f64..40.0),
+            directional in proptest::bool::ANY,
+            eye in proptest::array::uniform3(-30.0f64..30.0),
+            near in 0.01f64..1.0,
+        ) {
+            let (c, h) = (DVec3::from(centre), DVec3::from(size) * 0.5);
+            let caster = Aabb::new((c - h).as_vec3(), (c + h).as_vec3());
+            let scene = Aabb::new(glam::Vec3::new(-25.0, -3.0, -25.0), glam::Vec3::new(25.0, 25.0, 25.0));
+            let light = if directional {
+                let d = DVec3::from(light).normalize_or_zero();
+                if d == DVec3::ZERO {
+                    return Ok(());
+                }
+                Light::Directional { direction: d }
+            } else {
+                Light::Point { position: DVec3::from(light), range: None }
+            };
+            let Ok(cam) = Camera::look_at(DVec3::from(eye), c, DVec3::Y, 1.0, 1.3, near) else {
+                return Ok(());
+            };
+            assert_paths_agree(&cam, &light, &caster, &scene);
+        }
     }
 
     #[test]

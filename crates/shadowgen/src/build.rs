@@ -299,9 +299,10 @@ fn append_all(
     }
     if let Some(viewport) = options.viewport {
         let scene_bounds = scene.bounds();
+        let view = crate::BoundsView::new(camera);
         let bound = |r: &mut raster::VolumeRange| {
             let caster = &scene.objects()[r.object as usize].world_bounds;
-            let b = crate::volume_bounds(camera, viewport, light, caster, &scene_bounds);
+            let b = view.volume_bounds(viewport, light, caster, &scene_bounds);
             r.scissor = b.scissor;
             r.depth_near = b.depth_near;
             r.depth_far = b.depth_far;

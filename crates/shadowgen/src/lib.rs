@@ -22,7 +22,8 @@
 //! - `volume.rs`: sides, light and dark caps, `w = 0` extrusion [EK, Steiner §4.1],
 //!   or finite extrusion for ranged lights.
 //! - [`MethodChoice`], [`zpass_is_safe`]: near-plane/light pyramid test \[EK\].
-//! - [`volume_bounds`]: per-volume scissor and depth bounds [EK "Exploit Bounds"].
+//! - [`volume_bounds`], [`BoundsView`]: per-volume scissor and depth bounds
+//!   [EK "Exploit Bounds"], from the swept box's vertices (`swept_vertices.rs`).
 //! - [`SweepPrune`]: overlapping light-space boxes, kept across frames
 //!   [Steiner §4.4.1], with [`sweep_pairs`] as its from-scratch baseline.
 //! - [`LightClamp`]: continuous clamping for one light: sweep-and-prune on
@@ -53,10 +54,11 @@ mod silhouette;
 mod silhouette_cache;
 mod slicing;
 mod sweep_prune;
+mod swept_vertices;
 mod volume;
 
 pub use bands::{split_into_bands, BAND_SLICES};
-pub use bounds::{volume_bounds, VolumeBounds, BOUNDS_MARGIN};
+pub use bounds::{volume_bounds, BoundsView, VolumeBounds, BOUNDS_MARGIN};
 pub use build::{build_clamped_volumes, build_volumes, BuildOptions, VolumeRequest, VolumeStats};
 pub use clamp::{ClampInput, ClampStats, GapModel, LightClamp, ReceiverDepths};
 pub use clamp_intervals::{occupied_intervals, GapArea, GapCost};
