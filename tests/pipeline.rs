@@ -227,6 +227,44 @@ fn no_culling_and_no_stencil_run_no_eye_pass() -> Result<()> {
     Ok(())
 }
 
+/// `culling: auto` with no CPU stencil runs an eye pass only on the frames
+/// where a light culls (it reads the eye's receivers); on the others the PSR
+/// is every visible object, no eye target is kept, and the volumes still
+/// give the exact mask.
+#[test]
+fn auto_runs_the_eye_pass_only_when_a_light_culls() -> Result<()> {
+    let (scene, path) = city();
+    let lights = lights(&scene, &path);
+    let mut o = options(CullingSpec::Auto, StencilBackend::None);
+    o.auto.min_objects = 0;
+    // A light pass priced far above its savings: auto culls only to
+    // measure (cold, then warm) and on its probes.
+    o.auto.light_node = 1e6;
+    o.auto.light_triangle = 1e6;
+    let (mut p, ids) = pipeline(&scene, o, &lights[..1])?;
+    let visible = scene.objects().iter().filter(|o| o.flags.visible).count();
+    let (mut with_eye, mut without) = (0, 0);
+    for frame in 0..8 {
+        let out = p.frame(&input(&path, frame))?;
+        let culls = out.lights().any(|l| l.stats().light.nodes_visited > 0);
+        assert_eq!(out.eye().is_some(), culls, "frame {frame}");
+        if culls {
+            with_eye += 1;
+        } else {
+            without += 1;
+            assert_eq!(out.psr().len(), visible, "frame {frame}");
+            let c = p.check_gpu(ids[0])?;
+            assert_eq!(c.mismatch_off_boundary, 0, "frame {frame}");
+            assert_eq!(c.culled_vs_unculled_differing_pixels, 0, "frame {frame}");
+        }
+    }
+    assert!(
+        with_eye > 0 && without > 0,
+        "{with_eye} culled, {without} not"
+    );
+    Ok(())
+}
+
 /// `check_gpu` draws a `stencil: none` frame's volumes as a GPU host would:
 /// conservative culling gives the reference's mask and every caster's, and
 /// culling that drops casters whose shadows are seen (a query threshold far

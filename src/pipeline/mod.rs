@@ -129,7 +129,7 @@ pub struct Pipeline {
     culling: Option<EyeCulling>,
     /// `culling: auto`'s choice state of the eye pass.
     auto_eye: auto::AutoView,
-    /// The last frame's eye pass; `None` when nobody read one (no view
+    /// The last frame's eye pass; `None` when nobody read one (no light
     /// culled, no CPU stencil, no fill count) until
     /// [`Pipeline::reference_mask`] rasterizes it.
     eye: Option<EyePass>,
@@ -366,7 +366,6 @@ impl Pipeline {
             CullingSpec::Auto => scene.objects().len() >= o.auto.min_objects as usize,
             _ => true,
         };
-        let culled = may_cull && (!auto || self.auto_eye.choose(&o.auto));
         let mut lights_culled = false;
         for s in self.lights.iter_mut().filter_map(|s| s.state.as_mut()) {
             s.culled = may_cull && (!auto || s.auto.choose(&o.auto));
@@ -382,10 +381,20 @@ impl Pipeline {
         }
 
         // 1. Eye pass (PSR) and, for the light pass, the visible surface points.
-        // No view culls, no CPU stencil and no fill count: nobody reads an
-        // eye pass, so none runs (the PSR is every visible object).
+        // No light culls this frame (`culling: none`, or `auto` choosing to
+        // draw every caster), no CPU stencil and no fill count: nobody reads
+        // an eye pass, so none runs (the PSR is every visible object) and
+        // the eye's choice waits for a frame that reads one.
         // [`Pipeline::reference_mask`] rasterizes one when asked.
-        if !may_cull && o.stencil == StencilBackend::None && !o.count_fill {
+        let eye_read = lights_culled || o.stencil != StencilBackend::None || o.count_fill;
+        let culled = may_cull && eye_read && (!auto || self.auto_eye.choose(&o.auto));
+        // `auto`'s lights model their unculled cost by every caster's triangles.
+        let all_caster_triangles = if auto && may_cull {
+            light_frame::triangles_of(scene, &self.all_casters)
+        } else {
+            0
+        };
+        if !eye_read {
             self.eye = None;
             self.psr.clear();
             self.psr
@@ -407,8 +416,8 @@ impl Pipeline {
                 all_casters: &self.all_casters,
                 receives: None,
                 stored_points: false,
-                auto_culling: false,
-                all_caster_triangles: 0,
+                auto_culling: auto && may_cull,
+                all_caster_triangles,
                 host: self.backends.is_some(),
             };
             let fill_ms = Self::run_lights_of(&mut self.lights, &shared)?;
@@ -559,11 +568,6 @@ impl Pipeline {
                 Some(r)
             }
             _ => None,
-        };
-        let all_caster_triangles = if auto && may_cull {
-            light_frame::triangles_of(scene, &self.all_casters)
-        } else {
-            0
         };
         let pass_options = o.light_pass_options();
         let pass = match (lights_culled, &self.culling) {
