@@ -669,6 +669,10 @@ impl Projector {
         // within its widened square: a long segment marks each pixel as
         // tightly as its pieces would.
         let (dx, dz) = (q.0 - p.0, zq - zp);
+        // Reciprocals once a segment: a product errs by an ulp or two of the
+        // quotient, far inside the slack.
+        let (dy, rdx) = (q.1 - p.1, 1.0 / dx);
+        let rdy = 1.0 / dy;
         // Rows whose widened band [y − e, y + 1 + e] the segment meets.
         let (ylo, yhi) = (p.1.min(q.1), p.1.max(q.1));
         let y0 = (-floor(1.0 + e - ylo)).max(0.0);
@@ -680,7 +684,6 @@ impl Projector {
             // The segment's x extent within the band.
             let (b0, b1) = (y as f64 - e, y as f64 + 1.0 + e);
             let (mut t0, mut t1) = (0.0f64, 1.0f64);
-            let dy = q.1 - p.1;
             if dy == 0.0 {
                 if p.1 < b0 || p.1 > b1 {
                     continue;
@@ -688,7 +691,7 @@ impl Projector {
             } else if ylo < b0 || yhi > b1 {
                 // (Wholly inside the band, the clip below gives 0 and 1
                 // exactly: rounding is monotone. Skipped.)
-                let (ta, tb) = ((b0 - p.1) / dy, (b1 - p.1) / dy);
+                let (ta, tb) = ((b0 - p.1) * rdy, (b1 - p.1) * rdy);
                 t0 = t0.max(ta.min(tb));
                 t1 = t1.min(ta.max(tb));
                 if t0 > t1 {
@@ -706,7 +709,7 @@ impl Projector {
                 let (mut u0, mut u1) = (t0, t1);
                 if dx != 0.0 {
                     let xf = f64::from(x);
-                    let (ta, tb) = ((xf - e - p.0) / dx, (xf + 1.0 + e - p.0) / dx);
+                    let (ta, tb) = ((xf - e - p.0) * rdx, (xf + 1.0 + e - p.0) * rdx);
                     u0 = u0.max(ta.min(tb));
                     u1 = u1.min(ta.max(tb));
                     if u0 > u1 {
