@@ -1,7 +1,7 @@
 //! One view, or one camera path, through the stencil shadow pipeline, timed per stage.
 //!
 //! `cargo run --release --example shadow_bench -- SCENE CAMERA WxH [--preset batch|gpu_host] [--stencil bf|db|h|hybrid|none|auto]
-//! [--scissor on|off] [--method auto|zpass|zfail|zpplus] [--counters 8|wide] [--tile 4|8|16]
+//! [--scissor on|off] [--occluders mesh|proxy] [--method auto|zpass|zfail|zpplus] [--counters 8|wide] [--tile 4|8|16]
 //! [--full-shadow on|off] [--map N] [--culling none|frustum|exact|chc|chcpp|auto]
 //! [--coverage conservative|point] [--threshold T] [--light-res N]
 //! [--clamping none|continuous|discrete|auto] [--slices N]
@@ -81,7 +81,8 @@ use serde_json::{json, Map, Value};
 use shadowcull::jobs::config::LightSpec;
 use shadowcull::jobs::frame::{FrameRunner, LightFrame};
 use shadowcull::pipeline::{
-    ClampReceiversSpec, ClampingSpec, CoverageSpec, CullingSpec, PipelineOptions, StencilBackend,
+    ClampReceiversSpec, ClampingSpec, CoverageSpec, CullingSpec, OccludersSpec, PipelineOptions,
+    StencilBackend,
 };
 use shadowcull::stats::FrameRow;
 use shadowgen::MethodChoice;
@@ -131,6 +132,10 @@ const CLAMP_RECEIVERS: &[(&str, ClampReceiversSpec)] = &[
 const COVERAGES: &[(&str, CoverageSpec)] = &[
     ("conservative", CoverageSpec::Conservative),
     ("point", CoverageSpec::Point),
+];
+const OCCLUDERS: &[(&str, OccludersSpec)] = &[
+    ("mesh", OccludersSpec::Mesh),
+    ("proxy", OccludersSpec::Proxy),
 ];
 const TILES: &[(&str, u32)] = &[("4", 4), ("8", 8), ("16", 16)];
 const ON_OFF: &[(&str, bool)] = &[("on", true), ("off", false)];
@@ -245,6 +250,11 @@ struct Cli {
     /// Every triangle casts (back-facing ones flipped).
     #[arg(long = "two-sided")]
     two_sided: bool,
+    /// What the light views draw as occluders (`proxy`: each solid convex
+    /// mesh's proxy).
+    #[arg(long, value_parser = one_of(OCCLUDERS),
+          default_value = name_of(OCCLUDERS, &PipelineOptions::default().occluders))]
+    occluders: OccludersSpec,
     /// Compare with the ray-cast reference (the last frame of one view, every frame of a path).
     #[arg(long)]
     reference: bool,
@@ -352,7 +362,8 @@ impl Args {
             coverage,
             query_threshold,
             light_resolution,
-            two_sided
+            two_sided,
+            occluders
         );
         Args {
             scene: c.scene,
@@ -645,6 +656,7 @@ fn settings(a: &Args, row: &FrameRow) -> Map<String, Value> {
         "count_fill": p.count_fill,
         "query_threshold": p.query_threshold,
         "light_resolution": p.light_resolution,
+        "occluders": name_of(OCCLUDERS, &p.occluders),
         "objects": row.scene.objects,
         "triangles": row.scene.triangles,
     });
@@ -845,10 +857,14 @@ fn main() -> anyhow::Result<()> {
             None => format!("{} reps", a.reps),
         }
     );
+    // What a light view drawing every object holds as occluders: full
+    // meshes, and with `--occluders proxy` (outside the timed stages).
+    let occluder_triangles =
+        shadowcull::visibility::MeshData::from_scene(&scene).occluder_triangles(&scene);
     // One runner for every frame: per-view state persists as in a running application.
     let mut runner = FrameRunner::new(scene);
     let mut added = HashMap::new();
-    let (line, last) = match &a.path {
+    let (mut line, last) = match &a.path {
         Some(name) => {
             let path = camera_path(&a, &loaded, name)?;
             let mut edit = |f: u32, runner: &mut FrameRunner| match &engine_scene {
@@ -879,6 +895,14 @@ fn main() -> anyhow::Result<()> {
         shadowcull::mask::write_grey_png(path, a.width, a.height, &bytes)
             .with_context(|| format!("writing {}", path.display()))?;
     }
+    line.insert(
+        "occluder_triangles_mesh".into(),
+        occluder_triangles.0.into(),
+    );
+    line.insert(
+        "occluder_triangles_proxy".into(),
+        occluder_triangles.1.into(),
+    );
     println!("{}", Value::Object(line));
     Ok(())
 }

@@ -6,7 +6,8 @@ use glam::DVec3;
 use scene::{Camera, CameraPath, Light, ObjectFlags, ObjectId, Scene};
 use shadowcull::mask::compare;
 use shadowcull::{
-    CullingSpec, Error, FrameInput, LightId, Pipeline, PipelineOptions, Result, StencilBackend,
+    CullingSpec, Error, FrameInput, LightId, OccludersSpec, Pipeline, PipelineOptions, Result,
+    StencilBackend,
 };
 use std::sync::Arc;
 
@@ -304,13 +305,33 @@ fn check_gpu_passes_conservative_culling_and_catches_dropped_casters() -> Result
 /// volumes draw the reference's mask and every caster's.
 #[test]
 fn the_engine_scene_under_the_gpu_host_preset_is_exact() -> Result<()> {
-    use testkit::engine::EngineScene;
-    let e = EngineScene::new(1);
-    let scene = Arc::new(Scene::new(e.graph.clone()).unwrap());
     let o = PipelineOptions {
         light_resolution: 256,
         ..PipelineOptions::gpu_host()
     };
+    engine_frames(o, |p, ids, f| {
+        for &id in ids {
+            let c = p.check_gpu(id)?;
+            assert_eq!(c.mismatch_off_boundary, 0, "frame {f}, light {id:?}");
+            assert_eq!(
+                c.culled_vs_unculled_differing_pixels, 0,
+                "frame {f}, light {id:?}"
+            );
+        }
+        Ok(())
+    })
+}
+
+/// Frames 0, 13, 26 and 39 of the engine scene (its edits, lights and
+/// camera path) through a pipeline with options `o`, `after` called after
+/// each.
+fn engine_frames(
+    o: PipelineOptions,
+    mut after: impl FnMut(&mut Pipeline, &[LightId], u32) -> Result<()>,
+) -> Result<()> {
+    use testkit::engine::EngineScene;
+    let e = EngineScene::new(1);
+    let scene = Arc::new(Scene::new(e.graph.clone()).unwrap());
     let (mut p, ids) = pipeline(&scene, o, &e.lights(0))?;
     let path = EngineScene::path();
     let mut added = std::collections::HashMap::new();
@@ -337,15 +358,41 @@ fn the_engine_scene_under_the_gpu_host_preset_is_exact() -> Result<()> {
             .camera(f64::from(W) / f64::from(H))
             .unwrap();
         p.frame(&FrameInput::new(W, H, cam))?;
-        for &id in &ids {
-            let c = p.check_gpu(id)?;
-            assert_eq!(c.mismatch_off_boundary, 0, "frame {f}, light {id:?}");
-            assert_eq!(
-                c.culled_vs_unculled_differing_pixels, 0,
-                "frame {f}, light {id:?}"
-            );
-        }
+        after(&mut p, &ids, f)?;
     }
+    Ok(())
+}
+
+/// `occluders: proxy`: the light views draw the spheres' and pillars'
+/// proxies (far fewer triangles) and the volumes stay exact for the GPU.
+#[test]
+fn occluder_proxies_draw_fewer_triangles_and_stay_exact() -> Result<()> {
+    let run = |occluders| -> Result<Vec<u64>> {
+        let o = PipelineOptions {
+            light_resolution: 256,
+            culling: CullingSpec::Chcpp,
+            occluders,
+            ..PipelineOptions::gpu_host()
+        };
+        let mut drawn = Vec::new();
+        engine_frames(o, |p, ids, f| {
+            let out = p.last_output().expect("a frame ran");
+            drawn.extend(out.lights().map(|l| l.stats().light.triangles_rendered));
+            for &id in ids {
+                let c = p.check_gpu(id)?;
+                assert_eq!(c.mismatch_off_boundary, 0, "frame {f}, light {id:?}");
+                assert_eq!(c.culled_vs_unculled_differing_pixels, 0, "frame {f}");
+            }
+            Ok(())
+        })?;
+        Ok(drawn)
+    };
+    let (mesh, proxy) = (run(OccludersSpec::Mesh)?, run(OccludersSpec::Proxy)?);
+    let (m, p): (u64, u64) = (mesh.iter().sum(), proxy.iter().sum());
+    assert!(
+        p * 2 < m,
+        "{p} triangles drawn with proxies, {m} with meshes"
+    );
     Ok(())
 }
 

@@ -43,7 +43,7 @@ pub use eye::{
 };
 pub use options::{
     AutoSpec, BadOption, ChcppSpec, ClampReceiversSpec, ClampingSpec, CoverageSpec, CullingSpec,
-    PipelineOptions, StencilBackend, StencilCosts, DEFAULT_CLAMP_PIXEL_COST,
+    OccludersSpec, PipelineOptions, StencilBackend, StencilCosts, DEFAULT_CLAMP_PIXEL_COST,
     DEFAULT_CLAMP_VERTEX_COST,
 };
 pub use preset::Preset;

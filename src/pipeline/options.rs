@@ -81,6 +81,20 @@ impl CoverageSpec {
     }
 }
 
+/// What the light views draw as occluders (`occluders: proxy`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum OccludersSpec {
+    /// Every object's own mesh (its light-facing triangles).
+    #[default]
+    Mesh,
+    /// Each solid convex mesh's proxy ([`scene::occluder_proxy`]: the hull
+    /// of 16 of its vertices, inside the solid, conservative); other meshes
+    /// (open, non-convex, or with few triangles) their own. Not with the
+    /// hybrid's point-sampled shadow maps, which keep the casters' surfaces.
+    Proxy,
+}
+
 /// Shadow-volume clamping (`clamping: continuous`) [Steiner §4.4].
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize, Serialize)]
 #[serde(rename_all = "lowercase")]
@@ -338,6 +352,8 @@ pub struct PipelineOptions {
     pub light_resolution: u32,
     /// Every triangle casts (back-facing ones flipped); the reference uses the same rule.
     pub two_sided: bool,
+    /// What the light views draw as occluders (`mesh`, `proxy`).
+    pub occluders: OccludersSpec,
     /// Lights with a range extrude their shadow volumes finitely (always closed).
     pub finite_extrusion: bool,
     /// Shadow-volume clamping (`none`, `continuous`, `discrete` or `auto`).
@@ -400,6 +416,7 @@ impl Default for PipelineOptions {
             auto: AutoSpec::default(),
             light_resolution: 1024,
             two_sided: false,
+            occluders: OccludersSpec::Mesh,
             finite_extrusion: false,
             clamping: ClampingSpec::None,
             slices: DEFAULT_SLICES,
@@ -641,6 +658,7 @@ impl PipelineOptions {
             // 158 with point-sampled views).
             keep_depth: self.stencil == StencilBackend::Hybrid
                 && self.coverage.sampling() == visibility::Sampling::Point,
+            proxies: self.occluders == OccludersSpec::Proxy,
         }
     }
 }

@@ -12,7 +12,8 @@
 //! before presets existed.
 
 use super::options::{
-    AutoSpec, ChcppSpec, ClampingSpec, CoverageSpec, CullingSpec, PipelineOptions, StencilBackend,
+    AutoSpec, ChcppSpec, ClampingSpec, CoverageSpec, CullingSpec, OccludersSpec, PipelineOptions,
+    StencilBackend,
 };
 use super::shadow_options::ClampReceiversSpec;
 use raster::StencilBits;
@@ -75,6 +76,8 @@ impl PipelineOptions {
     /// - `culling: auto`: each view culls where its cost model says it pays;
     /// - `scissor: true`: each volume's scissor rectangle, for the host's
     ///   scissor test;
+    /// - `occluders: proxy`: the light views draw each solid convex mesh's
+    ///   proxy, a few triangles inside it, in place of its mesh;
     /// - `clamping: none`: the host's fill is not this library's to price
     ///   yet, so nothing is spent on segments.
     ///
@@ -87,6 +90,7 @@ impl PipelineOptions {
             reference_every: 0,
             culling: CullingSpec::Auto,
             scissor: true,
+            occluders: OccludersSpec::Proxy,
             clamping: ClampingSpec::None,
             ..PipelineOptions::default()
         }
@@ -147,6 +151,7 @@ pipeline_section! {
     auto: AutoSpec,
     light_resolution: u32,
     two_sided: bool,
+    occluders: OccludersSpec,
     finite_extrusion: bool,
     clamping: ClampingSpec,
     slices: u32,

@@ -222,6 +222,17 @@
 // GPU (`sc_pipeline_options_gpu_host`).
 #define SC_PRESET_GPU_HOST 1
 
+// `sc_pipeline_options.occluders`: the preset's (`SC_PRESET_GPU_HOST`:
+// proxies; `SC_PRESET_BATCH`: meshes).
+#define SC_OCCLUDERS_PRESET 0
+
+// `sc_pipeline_options.occluders`: the light views draw every object's mesh.
+#define SC_OCCLUDERS_MESH 1
+
+// `sc_pipeline_options.occluders`: the light views draw each solid convex
+// mesh's proxy (the hull of 16 of its vertices, inside it) in its place.
+#define SC_OCCLUDERS_PROXY 2
+
 // OpenGL clip depth, `[-w, w]` (`sc_frame_input.clip_depth`).
 #define SC_CLIP_DEPTH_NEGATIVE_ONE_TO_ONE 0
 
@@ -296,6 +307,12 @@ typedef struct sc_pipeline_options {
   // Non-zero: compute each volume's scissor rectangle
   // (`sc_volume_range.scissor`), for the host's scissor test.
   uint32_t scissor;
+  // `SC_OCCLUDERS_*`: what the light views draw as occluders. (Added
+  // with the 88-byte layout, as the reserved field after it; an older
+  // host's struct means `SC_OCCLUDERS_PRESET`.)
+  uint32_t occluders;
+  // Reserved, zero.
+  uint32_t reserved;
 } sc_pipeline_options;
 
 // A pipeline: 0 is the null handle.
@@ -663,7 +680,8 @@ enum sc_status sc_pipeline_options_default(struct sc_pipeline_options *options);
 // Fills `options` with the options a renderer that draws the shadow volumes
 // on its own GPU starts from (`PipelineOptions::gpu_host`, `docs/host.md`):
 // `culling: auto`, no CPU stencil, conservative coverage, scissor
-// rectangles, no clamping, `preset` `SC_PRESET_GPU_HOST`.
+// rectangles, occluder proxies (`occluders` `SC_OCCLUDERS_PRESET`), no
+// clamping, `preset` `SC_PRESET_GPU_HOST`.
 enum sc_status sc_pipeline_options_gpu_host(struct sc_pipeline_options *options);
 
 // Creates an empty pipeline (add meshes, objects and lights, then call

@@ -197,7 +197,8 @@ pub extern "C" fn sc_pipeline_options_default(options: *mut sc_pipeline_options)
 /// Fills `options` with the options a renderer that draws the shadow volumes
 /// on its own GPU starts from (`PipelineOptions::gpu_host`, `docs/host.md`):
 /// `culling: auto`, no CPU stencil, conservative coverage, scissor
-/// rectangles, no clamping, `preset` `SC_PRESET_GPU_HOST`.
+/// rectangles, occluder proxies (`occluders` `SC_OCCLUDERS_PRESET`), no
+/// clamping, `preset` `SC_PRESET_GPU_HOST`.
 #[no_mangle]
 pub extern "C" fn sc_pipeline_options_gpu_host(options: *mut sc_pipeline_options) -> sc_status {
     guard("sc_pipeline_options_gpu_host", || {

@@ -6,8 +6,8 @@
 use crate::error::{Failure, Result};
 use shadowcull::scene::{ClipDepth, Light, ObjectFlags};
 use shadowcull::{
-    ClampReceiversSpec, ClampingSpec, CoverageSpec, CullingSpec, PipelineOptions, Preset,
-    StencilBackend,
+    ClampReceiversSpec, ClampingSpec, CoverageSpec, CullingSpec, OccludersSpec, PipelineOptions,
+    Preset, StencilBackend,
 };
 use std::ffi::c_void;
 
@@ -106,6 +106,15 @@ pub const SC_PRESET_BATCH: u32 = 0;
 /// GPU (`sc_pipeline_options_gpu_host`).
 pub const SC_PRESET_GPU_HOST: u32 = 1;
 
+/// `sc_pipeline_options.occluders`: the preset's (`SC_PRESET_GPU_HOST`:
+/// proxies; `SC_PRESET_BATCH`: meshes).
+pub const SC_OCCLUDERS_PRESET: u32 = 0;
+/// `sc_pipeline_options.occluders`: the light views draw every object's mesh.
+pub const SC_OCCLUDERS_MESH: u32 = 1;
+/// `sc_pipeline_options.occluders`: the light views draw each solid convex
+/// mesh's proxy (the hull of 16 of its vertices, inside it) in its place.
+pub const SC_OCCLUDERS_PROXY: u32 = 2;
+
 /// OpenGL clip depth, `[-w, w]` (`sc_frame_input.clip_depth`).
 pub const SC_CLIP_DEPTH_NEGATIVE_ONE_TO_ONE: u32 = 0;
 /// Direct3D, Vulkan, Metal, WebGPU clip depth, `[0, w]`.
@@ -167,6 +176,12 @@ pub struct sc_pipeline_options {
     /// Non-zero: compute each volume's scissor rectangle
     /// (`sc_volume_range.scissor`), for the host's scissor test.
     pub scissor: u32,
+    /// `SC_OCCLUDERS_*`: what the light views draw as occluders. (Added
+    /// with the 88-byte layout, as the reserved field after it; an older
+    /// host's struct means `SC_OCCLUDERS_PRESET`.)
+    pub occluders: u32,
+    /// Reserved, zero.
+    pub reserved: u32,
 }
 
 /// A mesh in the host's memory: positions `vertex_count` times, `stride`
@@ -299,6 +314,8 @@ impl Versioned for sc_pipeline_options {
             slices: 0,
             preset: SC_PRESET_BATCH,
             scissor: 0,
+            occluders: SC_OCCLUDERS_PRESET,
+            reserved: 0,
         }
     }
 }
@@ -364,6 +381,12 @@ impl Versioned for sc_frame_input {
 impl sc_pipeline_options {
     /// The facade's options.
     pub(crate) fn to_rust(self) -> Result<PipelineOptions> {
+        if self.reserved != 0 {
+            return Err(Failure::invalid(format!(
+                "options.reserved: {} must be 0",
+                self.reserved
+            )));
+        }
         let base = match self.preset {
             SC_PRESET_BATCH => Preset::Batch,
             SC_PRESET_GPU_HOST => Preset::GpuHost,
@@ -468,6 +491,16 @@ impl sc_pipeline_options {
             max_memory: (self.max_memory > 0)
                 .then_some(shadowcull::byte_size::ByteSize(self.max_memory)),
             scissor: self.scissor != 0,
+            occluders: match self.occluders {
+                SC_OCCLUDERS_PRESET => base.occluders,
+                SC_OCCLUDERS_MESH => OccludersSpec::Mesh,
+                SC_OCCLUDERS_PROXY => OccludersSpec::Proxy,
+                v => {
+                    return Err(Failure::invalid(format!(
+                        "options.occluders: {v} is no SC_OCCLUDERS_*"
+                    )))
+                }
+            },
             ..base
         })
     }
@@ -555,5 +588,27 @@ mod tests {
         assert_eq!(o.reference_every, 0, "the preset's, which the struct lacks");
         let bad = sc_pipeline_options { preset: 2, ..gpu };
         assert!(bad.to_rust().is_err());
+        // Occluders: the preset's unless named.
+        assert_eq!(gpu.to_rust().unwrap().occluders, OccludersSpec::Proxy);
+        assert_eq!(batch.to_rust().unwrap().occluders, OccludersSpec::Mesh);
+        let meshes = sc_pipeline_options {
+            occluders: SC_OCCLUDERS_MESH,
+            ..gpu
+        };
+        assert_eq!(meshes.to_rust().unwrap().occluders, OccludersSpec::Mesh);
+        let proxies = sc_pipeline_options {
+            occluders: SC_OCCLUDERS_PROXY,
+            ..batch
+        };
+        assert_eq!(proxies.to_rust().unwrap().occluders, OccludersSpec::Proxy);
+        for bad in [
+            sc_pipeline_options {
+                occluders: 3,
+                ..gpu
+            },
+            sc_pipeline_options { reserved: 1, ..gpu },
+        ] {
+            assert!(bad.to_rust().is_err());
+        }
     }
 }

@@ -34,6 +34,7 @@ mod host_camera;
 pub mod load;
 mod loaded;
 mod mesh;
+mod occluder_proxy;
 mod plane;
 pub mod procedural;
 mod scene;
@@ -50,6 +51,7 @@ pub use graph::{MeshId, Node, NodeId, SceneGraph, Transform};
 pub use host_camera::{ClipDepth, HostBasis};
 pub use light::Light;
 pub use mesh::{Edge, EdgeRef, Mesh, Solid, Topology};
+pub use occluder_proxy::{occluder_proxy, PROXY_VERTICES};
 pub use plane::Plane;
 pub use scene::{
     Committed, Object, ObjectFlags, ObjectId, Scene, SceneCounts, MAX_NODE_DEPTH, MAX_OBJECTS,

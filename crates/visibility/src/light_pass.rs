@@ -102,6 +102,12 @@ pub struct LightPassOptions {
     pub sampling: Sampling,
     /// The light views' rasterizer level ([`DepthTarget::set_instruction_set`]).
     pub instruction_set: raster::InstructionSet,
+    /// Draw each solid convex mesh's occluder proxy
+    /// ([`scene::occluder_proxy`]) in place of its mesh: far fewer
+    /// triangles, inside the solid, so culling stays conservative. Not with
+    /// [`LightPassOptions::keep_depth`], whose depths are shadow maps of the
+    /// casters' own surfaces.
+    pub proxies: bool,
     /// Keep every view's depth target after the pass ([`LightPass::view_depths`]):
     /// the casters the traversal drew, at the light's depth, as shadow maps
     /// (the hybrid stencil's \[ChanDurand04\]). Costs one target per view
@@ -290,8 +296,9 @@ pub struct LightPass {
 /// finds them once, not every frame.
 #[derive(Debug, Default)]
 struct CastingCache {
-    /// The light's homogeneous position bits and the two-sided rule.
-    key: Option<([u64; 4], bool)>,
+    /// The light's homogeneous position bits, the two-sided rule and
+    /// whether proxies stand in for meshes.
+    key: Option<([u64; 4], bool, bool)>,
     /// Per object (boxed: an empty slot costs 16 bytes, not 180).
     entries: Vec<OnceLock<Box<Casting>>>,
     /// A moved object's casting triangles, found by the update to compare
@@ -321,18 +328,34 @@ fn refill(list: &mut Arc<[[u32; 3]]>, found: &[[u32; 3]], all: usize) {
     }
 }
 
-/// The triangles of object `id` facing `light` (the shared facing rule).
+/// The triangles of object `id` facing `light` (the shared facing rule):
+/// of its mesh, or of `proxy` (triangles over the mesh's vertices) when
+/// given.
 fn facing_triangles<'a>(
     scene: &'a Scene,
     light: &'a Light,
     id: ObjectId,
+    proxy: Option<&'a [[u32; 3]]>,
 ) -> impl Iterator<Item = [u32; 3]> + 'a {
     let mesh = scene.object_mesh(id);
-    mesh.triangles()
+    let m = scene.object(id).world_from_local;
+    let world =
+        move |t: &[u32; 3]| t.map(|i| m.transform_point3(mesh.positions()[i as usize].as_dvec3()));
+    let (all, proxied) = match proxy {
+        Some(p) => (&[][..], p),
+        None => (mesh.triangles(), &[][..]),
+    };
+    let own = all
         .iter()
         .enumerate()
         .filter(move |&(k, _)| faces_light(&scene.world_triangle(id, k), light))
-        .map(|(_, t)| *t)
+        .map(|(_, t)| *t);
+    own.chain(
+        proxied
+            .iter()
+            .filter(move |t| faces_light(&world(t), light))
+            .copied(),
+    )
 }
 
 /// One object's casting triangles and what they were found for.
@@ -346,10 +369,17 @@ struct Casting {
 
 impl CastingCache {
     /// Drops every entry that no longer matches `scene` and `light`.
-    fn update(&mut self, scene: &Scene, light: &Light, two_sided: bool) {
+    fn update(
+        &mut self,
+        scene: &Scene,
+        meshes: &MeshData,
+        light: &Light,
+        (two_sided, proxies): (bool, bool),
+    ) {
         let key = (
             light.homogeneous().to_array().map(|v| (v + 0.0).to_bits()),
             two_sided,
+            proxies,
         );
         if self.key != Some(key) {
             self.entries.clear();
@@ -370,10 +400,12 @@ impl CastingCache {
                 let mut c = e.take().expect("checked");
                 if !two_sided {
                     let id = ObjectId(k as u32);
-                    let all = scene.object_mesh(id).triangles().len();
+                    let proxy = meshes.proxy_of(o.mesh).filter(|_| proxies);
+                    let all = proxy.map_or(scene.object_mesh(id).triangles().len(), |p| p.len());
                     self.found.clear();
                     self.found.reserve(all);
-                    self.found.extend(facing_triangles(scene, light, id));
+                    self.found
+                        .extend(facing_triangles(scene, light, id, proxy.map(|p| &p[..])));
                     if c.triangles[..] != self.found[..] {
                         refill(&mut c.triangles, &self.found, all);
                     }
@@ -390,16 +422,17 @@ impl CastingCache {
         scene: &Scene,
         meshes: &MeshData,
         light: &Light,
-        two_sided: bool,
+        (two_sided, proxies): (bool, bool),
         id: ObjectId,
     ) -> Arc<[[u32; 3]]> {
         self.entries[id.0 as usize]
             .get_or_init(|| {
                 let o = scene.object(id);
-                let triangles = if two_sided {
-                    meshes.triangles_of(o.mesh)
-                } else {
-                    facing_triangles(scene, light, id).collect()
+                let proxy = meshes.proxy_of(o.mesh).filter(|_| proxies);
+                let triangles = match (two_sided, proxy) {
+                    (true, Some(p)) => p.clone(),
+                    (true, None) => meshes.triangles_of(o.mesh),
+                    (false, p) => facing_triangles(scene, light, id, p.map(|p| &p[..])).collect(),
                 };
                 Box::new(Casting {
                     world_from_local: o.world_from_local,
@@ -599,11 +632,11 @@ impl LightPass {
         }
         // The casting triangles of every object drawn as an occluder: kept
         // across frames, shared by the views.
-        self.casting.update(scene, light, options.two_sided);
+        let rules = (options.two_sided, options.proxies && !options.keep_depth);
+        self.casting.update(scene, meshes, light, rules);
         let cache = &self.casting;
-        let casting = |id: ObjectId| -> Arc<[[u32; 3]]> {
-            cache.get(scene, meshes, light, options.two_sided, id)
-        };
+        let casting =
+            |id: ObjectId| -> Arc<[[u32; 3]]> { cache.get(scene, meshes, light, rules, id) };
         let shared = ViewsInput {
             spare: &self.spare,
             objects: Objects::new(h, scene, meshes),

@@ -27,6 +27,9 @@ pub enum Sampling {
 pub struct MeshData {
     pub(crate) positions: Vec<Arc<[Vec4]>>,
     pub(crate) triangles: Vec<Arc<[[u32; 3]]>>,
+    /// Per mesh its occluder proxy ([`scene::occluder_proxy`]: triangles
+    /// over the mesh's own vertices), `None` where the mesh is its own.
+    pub(crate) proxies: Vec<Option<Arc<[[u32; 3]]>>>,
     /// The scene's mesh version each copy was made from.
     versions: Vec<u64>,
 }
@@ -37,6 +40,7 @@ impl MeshData {
         let mut data = MeshData {
             positions: Vec::new(),
             triangles: Vec::new(),
+            proxies: Vec::new(),
             versions: Vec::new(),
         };
         data.sync(scene);
@@ -48,6 +52,24 @@ impl MeshData {
         self.triangles[mesh.0 as usize].clone()
     }
 
+    /// The occluder proxy of mesh `mesh`, `None` when the mesh is its own.
+    pub(crate) fn proxy_of(&self, mesh: scene::MeshId) -> Option<&Arc<[[u32; 3]]>> {
+        self.proxies.get(mesh.0 as usize)?.as_ref()
+    }
+
+    /// Triangles an occluder draw of every mesh with an object holds:
+    /// `(full meshes, with proxies where they have one)`, per object of
+    /// `scene` (what `occluders: proxy` saves a view that draws them all).
+    pub fn occluder_triangles(&self, scene: &Scene) -> (u64, u64) {
+        let (mut full, mut proxied) = (0u64, 0u64);
+        for o in scene.objects() {
+            let n = self.triangles[o.mesh.0 as usize].len() as u64;
+            full += n;
+            proxied += self.proxy_of(o.mesh).map_or(n, |p| p.len() as u64);
+        }
+        (full, proxied)
+    }
+
     /// Catches up with meshes added to `scene` since, and with meshes whose
     /// vertices changed ([`Scene::mesh_version`]; a removed mesh keeps its
     /// slot, empty).
@@ -55,6 +77,7 @@ impl MeshData {
         let meshes = scene.graph().meshes();
         self.positions.truncate(meshes.len());
         self.triangles.truncate(meshes.len());
+        self.proxies.truncate(meshes.len());
         self.versions.truncate(meshes.len());
         for (i, m) in meshes.iter().enumerate() {
             let version = scene.mesh_version(scene::MeshId(i as u32));
@@ -63,13 +86,16 @@ impl MeshData {
             }
             let p: Arc<[Vec4]> = m.positions().iter().map(|p| p.extend(1.0)).collect();
             let t: Arc<[[u32; 3]]> = m.triangles().into();
+            let proxy = scene::occluder_proxy(m).map(Arc::from);
             if i < self.positions.len() {
                 self.positions[i] = p;
                 self.triangles[i] = t;
+                self.proxies[i] = proxy;
                 self.versions[i] = version;
             } else {
                 self.positions.push(p);
                 self.triangles.push(t);
+                self.proxies.push(proxy);
                 self.versions.push(version);
             }
         }

@@ -186,10 +186,11 @@ def test_options_by_name():
 def test_the_gpu_host_preset():
     g = sc.gpu_host_options()
     assert (g["stencil"], g["culling"], g["scissor"], g["reference_every"]) == ("none", "auto", True, 0)
+    assert (g["occluders"], sc.default_options()["occluders"]) == ("proxy", "mesh")
     assert set(g) == set(sc.default_options())
     assert sc.Pipeline(preset="gpu_host").options == g
-    p = sc.Pipeline(preset="gpu_host", culling="chcpp")
-    assert (p.options["culling"], p.options["stencil"]) == ("chcpp", "none")
+    p = sc.Pipeline(preset="gpu_host", culling="chcpp", occluders="mesh")
+    assert (p.options["culling"], p.options["stencil"], p.options["occluders"]) == ("chcpp", "none", "mesh")
     p.set_options(tile=16)
     assert (p.options["culling"], p.options["tile"]) == ("chcpp", 16)
     p.set_options(preset="batch", tile=4)
