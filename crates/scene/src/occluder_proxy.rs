@@ -36,7 +36,7 @@ const PLANE_TOLERANCE: f64 = 1e-6;
 /// The proxy of `mesh`: triangles over its vertex indices, counter-clockwise
 /// seen from outside, forming the convex hull of [`PROXY_VERTICES`] of its
 /// vertices. `None` unless the mesh is solid (outward), those vertices lie
-/// behind every face (within [`PLANE_TOLERANCE`]; see the module doc) and
+/// behind every face (within 1e-6 of the bounds' diagonal; see the module doc) and
 /// the mesh has more triangles than the proxy.
 pub fn occluder_proxy(mesh: &Mesh) -> Option<Vec<[u32; 3]>> {
     if mesh.solid() != Some(Solid::Outward) {
