@@ -27,6 +27,7 @@
 //! octagonal pyramid around the cone (apex at the light, each plane tangent to
 //! the cone): conservative, as every other cut.
 
+pub(crate) use crate::swept_vertices::corner;
 use crate::swept_vertices::{for_each_vertex, Sweep};
 use glam::DVec3;
 use raster::DEPTH_ERROR;
@@ -564,14 +565,6 @@ impl Poly {
             }
         }
     }
-}
-
-pub(crate) fn corner(lo: DVec3, hi: DVec3, i: usize) -> DVec3 {
-    DVec3::new(
-        if i & 1 != 0 { hi.x } else { lo.x },
-        if i & 2 != 0 { hi.y } else { lo.y },
-        if i & 4 != 0 { hi.z } else { lo.z },
-    )
 }
 
 /// `v` rounded to the nearest f32 at or above it.

@@ -22,8 +22,17 @@
 //! city_16384's bird view it took the scissor from 1.3 µs a caster to a
 //! fraction of that.
 
-use crate::bounds::corner;
 use glam::DVec3;
+
+/// Corner `i` of the box `(lo, hi)`: bit 0 picks x from `hi`, bit 1 y,
+/// bit 2 z.
+pub(crate) fn corner(lo: DVec3, hi: DVec3, i: usize) -> DVec3 {
+    DVec3::new(
+        if i & 1 != 0 { hi.x } else { lo.x },
+        if i & 2 != 0 { hi.y } else { lo.y },
+        if i & 4 != 0 { hi.z } else { lo.z },
+    )
+}
 
 /// Where the sweep heads from a point `p`.
 #[derive(Clone, Copy, Debug)]
