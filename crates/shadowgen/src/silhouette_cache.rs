@@ -48,6 +48,8 @@ pub struct SilhouetteCache {
     counters: Vec<Vec<i32>>,
     pub(crate) scratch: VolumeScratch,
     pub(crate) segment_scratch: SegmentScratch,
+    /// The parallel volume build's shares (`build.rs`).
+    pub(crate) build_parts: Vec<crate::volume::BuildPart>,
 }
 
 impl std::fmt::Debug for SilhouetteCache {
