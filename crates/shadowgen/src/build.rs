@@ -3,7 +3,7 @@
 //! [`raster::VolumeBuffer`] (DESIGN.md "One frame, per light", steps 5 and 7).
 
 use crate::segments::{append_segments, ClampPlan, SegmentFrame, SegmentScratch};
-use crate::volume::{append_volume, BuildPart, CasterGeometry, LocalLight, PartCounts};
+use crate::volume::{append_volume, BuildPart, CasterGeometry, LocalLight};
 use crate::{Error, MethodChoice, NearLightHull, Result, SilhouetteCache};
 use raster::{VolumeBuffer, VolumeMethod};
 use scene::{Camera, Light, ObjectId, Scene};
@@ -227,31 +227,19 @@ fn append_all(
             cache,
             hull: &hull,
         };
-        let first = split_build(&cx, (out, &mut scratch.volume), parts, casters)?;
-        add_counts(stats, &first.into());
-        merge_parts(out, parts, stats)?;
+        add_counts(
+            stats,
+            &split_build(&cx, (out, &mut scratch.volume), parts, casters)?,
+        );
+        merge_parts(out, parts)?;
         bound_all(out, request.request);
         return Ok(());
     }
     for &id in casters {
-        let sil = cache.get(id, light).expect("update() cached every caster");
-        let object = scene.object(id);
-        let mesh = scene.object_mesh(id);
         let segments = clamp.and_then(|p| p.frame(id));
-        // Worst case per caster and segment: 2 vertices per mesh vertex,
-        // 3·(2·caps + 2·edges) indices.
         let k = segments.map_or(1, |(_, i)| i.len());
-        let need_v = out.positions.len() + k * (2 * mesh.positions().len() + 1);
-        let need_i = out.indices.len() + k * 6 * (sil.caps.len() + sil.edge_count());
-        if need_v > u32::MAX as usize || need_i > u32::MAX as usize {
-            return Err(Error::BufferOverflow);
-        }
-        let caster = CasterGeometry {
-            object: id.0,
-            positions: mesh.positions(),
-            world_from_local: &object.world_from_local,
-            silhouette: sil,
-        };
+        let caster = caster_geometry(out, scene, cache, light, id, k)?;
+        let (object, sil) = (scene.object(id), caster.silhouette);
         // The method rule, on the volume's or segment's own bounds.
         let choose = |bounds: &scene::Aabb| choose_for(&hull, options.method, object, bounds);
         stats.silhouette_edges += sil.edge_count();
@@ -302,6 +290,34 @@ fn append_all(
     Ok(())
 }
 
+/// Caster `id` as [`append_volume`] reads it (its silhouette from `cache`),
+/// once `out` is known to hold `k` more of its volumes (worst case per
+/// volume: 2 vertices per mesh vertex, 3·(2·caps + 2·edges) indices)
+/// within `u32` indices.
+fn caster_geometry<'a>(
+    out: &VolumeBuffer,
+    scene: &'a Scene,
+    cache: &'a SilhouetteCache,
+    light: &Light,
+    id: ObjectId,
+    k: usize,
+) -> Result<CasterGeometry<'a>> {
+    let sil = cache.get(id, light).expect("update() cached every caster");
+    let object = scene.object(id);
+    let mesh = scene.object_mesh(id);
+    let need_v = out.positions.len() + k * (2 * mesh.positions().len() + 1);
+    let need_i = out.indices.len() + k * 6 * (sil.caps.len() + sil.edge_count());
+    if need_v > u32::MAX as usize || need_i > u32::MAX as usize {
+        return Err(Error::BufferOverflow);
+    }
+    Ok(CasterGeometry {
+        object: id.0,
+        positions: mesh.positions(),
+        world_from_local: &object.world_from_local,
+        silhouette: sil,
+    })
+}
+
 /// One unclamped caster's volume appended to `out` with `method`.
 fn append_unclamped(
     out: &mut VolumeBuffer,
@@ -337,8 +353,8 @@ struct Unclamped<'a> {
 }
 
 /// Builds `casters` in `parts.len() + 1` shares in parallel: the first into
-/// `first` (the output; its counters returned), each other into its part
-/// (by halving: `rayon::join` allocates nothing).
+/// `first` (the output), each other into its part (by halving:
+/// `rayon::join` allocates nothing); the counters of them all.
 #[cfg(feature = "parallel")]
 fn split_build(
     cx: &Unclamped<'_>,
@@ -352,26 +368,33 @@ fn split_build(
         || build_share(cx, first, mine),
         || build_parts(cx, parts, rest),
     );
-    b.and(a)
+    let (mut a, b) = (a?, b?);
+    add_counts(&mut a, &b);
+    Ok(a)
 }
 
-/// The shares of `parts`, `casters` split evenly between them.
+/// The shares of `parts`, `casters` split evenly between them; their
+/// counters.
 #[cfg(feature = "parallel")]
-fn build_parts(cx: &Unclamped<'_>, parts: &mut [BuildPart], casters: &[ObjectId]) -> Result<()> {
+fn build_parts(
+    cx: &Unclamped<'_>,
+    parts: &mut [BuildPart],
+    casters: &[ObjectId],
+) -> Result<VolumeStats> {
     match parts {
-        [] => Ok(()),
+        [] => Ok(VolumeStats::default()),
         [one] => {
             one.buffer.clear();
-            let st = build_share(cx, (&mut one.buffer, &mut one.scratch), casters)?;
-            one.counts = (&st).into();
-            Ok(())
+            build_share(cx, (&mut one.buffer, &mut one.scratch), casters)
         }
         _ => {
             let half = parts.len() / 2;
             let (pa, pb) = parts.split_at_mut(half);
             let (ca, cb) = casters.split_at(casters.len() * half / (pa.len() + pb.len()));
             let (a, b) = rayon::join(|| build_parts(cx, pa, ca), || build_parts(cx, pb, cb));
-            a.and(b)
+            let (mut a, b) = (a?, b?);
+            add_counts(&mut a, &b);
+            Ok(a)
         }
     }
 }
@@ -392,23 +415,8 @@ fn build_share(
     } = cx.request;
     let mut stats = VolumeStats::default();
     for &id in casters {
-        let sil = cx
-            .cache
-            .get(id, light)
-            .expect("update() cached every caster");
-        let object = scene.object(id);
-        let mesh = scene.object_mesh(id);
-        let need_v = out.positions.len() + 2 * mesh.positions().len() + 1;
-        let need_i = out.indices.len() + 6 * (sil.caps.len() + sil.edge_count());
-        if need_v > u32::MAX as usize || need_i > u32::MAX as usize {
-            return Err(Error::BufferOverflow);
-        }
-        let caster = CasterGeometry {
-            object: id.0,
-            positions: mesh.positions(),
-            world_from_local: &object.world_from_local,
-            silhouette: sil,
-        };
+        let caster = caster_geometry(out, scene, cx.cache, light, id, 1)?;
+        let (object, sil) = (scene.object(id), caster.silhouette);
         let method = choose_for(cx.hull, options.method, object, &object.world_bounds);
         stats.silhouette_edges += sil.edge_count();
         stats.cap_source_triangles += sil.caps.len();
@@ -417,29 +425,9 @@ fn build_share(
     Ok(stats)
 }
 
-impl From<&VolumeStats> for PartCounts {
-    fn from(s: &VolumeStats) -> Self {
-        PartCounts {
-            silhouette_edges: s.silhouette_edges,
-            cap_source_triangles: s.cap_source_triangles,
-            volume_triangles: s.volume_triangles,
-            finite_volumes: s.finite_volumes,
-            zpass: s.zpass,
-            zfail: s.zfail,
-            zpplus: s.zpplus,
-        }
-    }
-}
-
-impl From<VolumeStats> for PartCounts {
-    fn from(s: VolumeStats) -> Self {
-        (&s).into()
-    }
-}
-
-/// Adds a share's counters to `stats`.
+/// Adds a share's construction counters to `stats`.
 #[cfg(feature = "parallel")]
-fn add_counts(stats: &mut VolumeStats, c: &PartCounts) {
+fn add_counts(stats: &mut VolumeStats, c: &VolumeStats) {
     stats.silhouette_edges += c.silhouette_edges;
     stats.cap_source_triangles += c.cap_source_triangles;
     stats.volume_triangles += c.volume_triangles;
@@ -450,9 +438,9 @@ fn add_counts(stats: &mut VolumeStats, c: &PartCounts) {
 }
 
 /// Appends every part's buffer to `out` in order (indices and ranges moved
-/// by what precedes them) and adds its counters to `stats`.
+/// by what precedes them).
 #[cfg(feature = "parallel")]
-fn merge_parts(out: &mut VolumeBuffer, parts: &[BuildPart], stats: &mut VolumeStats) -> Result<()> {
+fn merge_parts(out: &mut VolumeBuffer, parts: &[BuildPart]) -> Result<()> {
     for p in parts {
         let (vo, io) = (out.positions.len(), out.indices.len());
         if vo + p.buffer.positions.len() > u32::MAX as usize
@@ -471,7 +459,6 @@ fn merge_parts(out: &mut VolumeBuffer, parts: &[BuildPart], stats: &mut VolumeSt
                 dark_cap: r.dark_cap.start + io..r.dark_cap.end + io,
                 ..r.clone()
             }));
-        add_counts(stats, &p.counts);
     }
     Ok(())
 }

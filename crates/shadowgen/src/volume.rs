@@ -160,27 +160,13 @@ pub struct VolumeScratch {
     infinite: Vec<u32>,
 }
 
-/// One share of the parallel volume build (`build.rs`): its buffer,
-/// scratch and counters, kept between frames.
+/// One share of the parallel volume build (`build.rs`): its buffer and
+/// scratch, kept between frames.
 #[derive(Clone, Debug, Default)]
 #[cfg_attr(not(feature = "parallel"), allow(dead_code))]
 pub(crate) struct BuildPart {
     pub buffer: VolumeBuffer,
     pub scratch: VolumeScratch,
-    pub counts: PartCounts,
-}
-
-/// A share's counters, as `build.rs` adds them into its `VolumeStats`.
-#[derive(Clone, Copy, Debug, Default)]
-#[cfg_attr(not(feature = "parallel"), allow(dead_code))]
-pub(crate) struct PartCounts {
-    pub silhouette_edges: usize,
-    pub cap_source_triangles: usize,
-    pub volume_triangles: usize,
-    pub finite_volumes: usize,
-    pub zpass: usize,
-    pub zfail: usize,
-    pub zpplus: usize,
 }
 
 /// How extruded vertices are placed.
