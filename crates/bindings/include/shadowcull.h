@@ -79,6 +79,20 @@
 // Only back-facing (clockwise on screen) triangles are drawn.
 #define SC_CULL_FRONT 2
 
+// The triangles are drawn one by one (`sc_draw_command.whole`).
+#define SC_WHOLE_NONE 0
+
+// The triangles bound a convex solid (a convex mesh or an occluder proxy):
+// with `SC_RASTER_INNER` at the farthest depth, a backend may cover every
+// pixel inside their silhouette (the bundled one does), not only those
+// inside one triangle. Drawing them one by one covers less and stays
+// conservative.
+#define SC_WHOLE_CONVEX 1
+
+// The triangles are a closed mesh whose hidden faces `cull` names: as
+// `SC_WHOLE_CONVEX`, for the union of its front faces.
+#define SC_WHOLE_CLOSED 2
+
 // A query over one box (`sc_query_command.kind`).
 #define SC_QUERY_BOX 0
 
@@ -593,6 +607,11 @@ typedef struct sc_draw_command {
   // that draws every face instead gets the same masks but for ties of
   // rounding at silhouette edges, and the bundled backend honours it.
   uint32_t cull;
+  // `SC_WHOLE_*`: whether the triangles may be drawn as one solid
+  // (inner-conservative draws of a coarse eye pass and of light views).
+  // (Added after `cull`: a host that never reads it draws triangle by
+  // triangle, which stays conservative.)
+  uint32_t whole;
 } sc_draw_command;
 
 // An occlusion query: how many samples of its geometry pass GEQUAL against

@@ -40,6 +40,18 @@ pub const SC_CULL_BACK: u32 = 1;
 /// Only back-facing (clockwise on screen) triangles are drawn.
 pub const SC_CULL_FRONT: u32 = 2;
 
+/// The triangles are drawn one by one (`sc_draw_command.whole`).
+pub const SC_WHOLE_NONE: u32 = 0;
+/// The triangles bound a convex solid (a convex mesh or an occluder proxy):
+/// with `SC_RASTER_INNER` at the farthest depth, a backend may cover every
+/// pixel inside their silhouette (the bundled one does), not only those
+/// inside one triangle. Drawing them one by one covers less and stays
+/// conservative.
+pub const SC_WHOLE_CONVEX: u32 = 1;
+/// The triangles are a closed mesh whose hidden faces `cull` names: as
+/// `SC_WHOLE_CONVEX`, for the union of its front faces.
+pub const SC_WHOLE_CLOSED: u32 = 2;
+
 /// A query over one box (`sc_query_command.kind`).
 pub const SC_QUERY_BOX: u32 = 0;
 /// A query over the union of several boxes (one result).
@@ -97,6 +109,11 @@ pub struct sc_draw_command {
     /// that draws every face instead gets the same masks but for ties of
     /// rounding at silhouette edges, and the bundled backend honours it.
     pub cull: u32,
+    /// `SC_WHOLE_*`: whether the triangles may be drawn as one solid
+    /// (inner-conservative draws of a coarse eye pass and of light views).
+    /// (Added after `cull`: a host that never reads it draws triangle by
+    /// triangle, which stays conservative.)
+    pub whole: u32,
 }
 
 /// An occlusion query: how many samples of its geometry pass GEQUAL against
@@ -346,6 +363,11 @@ impl OcclusionBackend for CallbackBackend {
                 CullMode::None => SC_CULL_NONE,
                 CullMode::Back => SC_CULL_BACK,
                 CullMode::Front => SC_CULL_FRONT,
+            },
+            whole: match cmd.whole {
+                raster::Whole::No => SC_WHOLE_NONE,
+                raster::Whole::Convex => SC_WHOLE_CONVEX,
+                raster::Whole::Closed => SC_WHOLE_CLOSED,
             },
         };
         self.stats.draws += 1;

@@ -752,6 +752,11 @@ mod forwarding {
                 SC_CULL_FRONT => CullMode::Front,
                 _ => CullMode::None,
             },
+            whole: match c.whole {
+                SC_WHOLE_CONVEX => shadowcull::raster::Whole::Convex,
+                SC_WHOLE_CLOSED => shadowcull::raster::Whole::Closed,
+                _ => shadowcull::raster::Whole::No,
+            },
         };
         i32::from(view(v).draw(d).is_err())
     }

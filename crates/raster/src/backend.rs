@@ -38,6 +38,49 @@ pub struct DrawCommand {
     pub coverage: Coverage,
     /// Which triangles the draw skips by facing (`glCullFace`).
     pub cull: CullMode,
+    /// Whether the triangles are drawn as one solid
+    /// ([`Whole`]): with [`Coverage::Inner`] at the farthest depth, the
+    /// bundled backends then cover the pixels inside its silhouette rather
+    /// than those inside one triangle. A host may draw the triangles
+    /// inner-conservative, which covers less and stays conservative.
+    pub whole: Whole,
+}
+
+/// How a draw's triangles make one occluder ([`DrawCommand::whole`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum Whole {
+    /// Triangle by triangle.
+    #[default]
+    No,
+    /// They bound a convex solid (a convex mesh, or an occluder proxy):
+    /// [`DepthTarget::draw_convex`].
+    Convex,
+    /// They are a closed mesh, `cull` naming its hidden faces:
+    /// [`DepthTarget::draw_closed`].
+    Closed,
+}
+
+impl DrawCommand {
+    /// Draws this command whole on `target` when it asks to and can be
+    /// ([`DrawCommand::whole`] at inner-conservative, farthest coverage);
+    /// returns whether it did.
+    fn draw_whole(&self, target: &mut DepthTarget) -> bool {
+        if self.coverage != Coverage::Inner(crate::DepthPick::Farthest) {
+            return false;
+        }
+        let item = DrawItem {
+            clip_from_local: self.clip_from_local,
+            positions: &self.positions,
+            triangles: &self.triangles,
+            object: self.object,
+            cull: self.cull,
+        };
+        match self.whole {
+            Whole::No => false,
+            Whole::Convex => target.draw_convex(&item),
+            Whole::Closed => target.draw_closed(&item),
+        }
+    }
 }
 
 /// An occlusion query.
@@ -230,9 +273,11 @@ fn execute(
                 object: d.object,
                 cull: d.cull,
             };
-            target
-                .draw(&item, d.coverage)
-                .expect("indices checked at submission");
+            if !d.draw_whole(target) {
+                target
+                    .draw(&item, d.coverage)
+                    .expect("indices checked at submission");
+            }
         }
         Command::Query(id, q) => {
             let r = receivers.as_deref();
@@ -398,9 +443,13 @@ impl SimulatedBackend {
         }
     }
 
-    /// Draws the held draws: each run of one coverage as one batch.
+    /// Draws the held draws: convex ones whole, the others each run of one
+    /// coverage as one batch (draws commute: nearest depth, then smallest
+    /// id, wins).
     fn flush(&mut self) {
         let mut items = recycle(std::mem::take(&mut self.items));
+        let target = &mut self.target;
+        self.pending.retain(|d| !d.draw_whole(target));
         let mut rest = &self.pending[..];
         while let Some(first) = rest.first() {
             let n = rest

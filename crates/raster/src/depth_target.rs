@@ -89,6 +89,10 @@ pub struct DepthTarget {
     /// Buffers of [`DepthTarget::draw_batch`] (kept: no allocation per batch).
     #[cfg_attr(not(feature = "parallel"), allow(dead_code))]
     pub(crate) batch: crate::batch_scratch::BatchScratch,
+    /// Buffers of [`DepthTarget::draw_convex`].
+    pub(crate) convex: crate::whole_draw::ConvexScratch,
+    /// Buffers of [`DepthTarget::draw_closed`].
+    pub(crate) closed: crate::whole_draw::ClosedScratch,
 }
 
 impl DepthTarget {
@@ -144,9 +148,16 @@ impl DepthTarget {
             skip: Box::new(RowSkip::new()),
             verts: crate::setup::MeshVertices::with_room(),
             batch: Default::default(),
+            convex: Default::default(),
+            closed: Default::default(),
         };
         t.clear();
         Ok(t)
+    }
+
+    /// Whether the target keeps primitive ids.
+    pub fn has_ids(&self) -> bool {
+        self.ids.is_some()
     }
 
     /// Width in pixels.
@@ -472,14 +483,27 @@ impl DepthTarget {
 
     /// Depths in row-major order (row 0 at the top), [`BACKGROUND`] for background.
     pub fn depth_rows(&self) -> Vec<f32> {
+        let mut out = Vec::new();
+        self.depth_rows_into(&mut out);
+        out
+    }
+
+    /// [`DepthTarget::depth_rows`] into `out` (cleared first; its buffer
+    /// reused).
+    pub fn depth_rows_into(&self, out: &mut Vec<f32>) {
         let (w, h) = (self.width(), self.height());
-        let mut out = Vec::with_capacity((w * h) as usize);
+        out.clear();
+        out.reserve((w * h) as usize);
+        let l = self.layout;
+        let s = 1u32 << l.shift;
         for y in 0..h {
-            for x in 0..w {
-                out.push(self.depth[self.layout.pixel_index(x, y)]);
+            // A tile row's pixels are contiguous within each tile.
+            for tx in 0..l.tiles_x {
+                let i = l.pixel_index(tx * s, y);
+                let n = s.min(w - tx * s) as usize;
+                out.extend_from_slice(&self.depth[i..i + n]);
             }
         }
-        out
     }
 
     /// Hierarchical-z bounds `(zmin, zmax)` of the written pixels of tile `(tx, ty)`;

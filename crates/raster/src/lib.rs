@@ -66,11 +66,16 @@ mod setup;
 mod volume_buffer;
 // Targets: the tile layout and hierarchical z, the depth and receiver targets.
 mod batch_scratch;
+mod closed_draw;
+mod convex_draw;
+mod depth_plane;
 mod depth_target;
 mod hiz;
 mod layout;
+mod polygon_marks;
 mod prefetch;
 mod receiver_target;
+mod whole_draw;
 // The tile walk, what is drawn, and the multiversioned per-mesh pipeline.
 mod dispatch;
 mod item;
@@ -85,15 +90,17 @@ mod stencil;
 
 pub use backend::{
     BackendStats, DrawCommand, Gate, Latency, OcclusionBackend, QueryBuffers, QueryCommand,
-    QueryId, ReadTarget, SimulatedBackend, SyncBackend, ThreadedBackend,
+    QueryId, ReadTarget, SimulatedBackend, SyncBackend, ThreadedBackend, Whole,
 };
 pub use coverage::{Coverage, DepthPick};
+pub use depth_plane::DepthPlane;
 pub use depth_target::{CullMode, DepthTarget, NO_ID};
 pub use error::{Error, Result};
 pub use isa::InstructionSet;
 pub use item::{aabb_corners, DrawItem, AABB_TRIANGLES};
 pub use layout::{TileSize, BACKGROUND};
 pub use limits::{DEPTH_ERROR, GUARD_BAND_PX, MAX_TARGET_SIZE};
+pub use polygon_marks::MAX_POLYGON_VERTICES;
 pub use query_options::{meets_apex_region, QueryMode, QueryOptions, APEX_EPS, VISIBLE};
 pub use receiver_target::{ReceiverTarget, TileMarks, RECEIVER_EPS_PX, SEGMENT_SLACK_PX};
 pub use setup::Facing;

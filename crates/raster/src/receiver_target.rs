@@ -328,7 +328,7 @@ impl ReceiverTarget {
     /// Marks pixel `i` (tile-major index) with a receiver depth range:
     /// `far` (smallest reversed-Z) and `near`.
     #[inline(always)]
-    fn mark_pixel(&mut self, i: usize, far: f32, near: f32) {
+    pub(crate) fn mark_pixel(&mut self, i: usize, far: f32, near: f32) {
         // Tile-major storage: a pixel's tile is its index over the tile size.
         let t = i >> (2 * self.layout.shift);
         // (Selects, one `minss` each, not the NaN-aware `min`: stored
@@ -533,18 +533,18 @@ struct Footprint {
 }
 
 /// Projects points into a receiver target's pixels.
-struct Projector {
-    m: Mat4,
-    w: f64,
-    h: f64,
-    eps: f64,
+pub(crate) struct Projector {
+    pub(crate) m: Mat4,
+    pub(crate) w: f64,
+    pub(crate) h: f64,
+    pub(crate) eps: f64,
     /// Clip-space reject bounds: a margin of two pixels (plus eps) per side.
-    mx: f64,
-    my: f64,
+    pub(crate) mx: f64,
+    pub(crate) my: f64,
 }
 
 impl Projector {
-    fn new(l: Layout, m: Mat4, eps_px: f64) -> Self {
+    pub(crate) fn new(l: Layout, m: Mat4, eps_px: f64) -> Self {
         let (w, h) = (l.width as f64, l.height as f64);
         let eps = eps_px.max(0.0);
         Projector {
@@ -559,7 +559,7 @@ impl Projector {
 
     /// The clip planes `(sx, sy, m)` of the region `|x| ≤ mx·w, |y| ≤ my·w`:
     /// inside, `m·w − (sx·x + sy·y) ≥ 0`.
-    fn planes(&self) -> [(f64, f64, f64); 4] {
+    pub(crate) fn planes(&self) -> [(f64, f64, f64); 4] {
         [
             (1.0, 0.0, self.mx),
             (-1.0, 0.0, self.mx),
@@ -585,7 +585,7 @@ impl Projector {
 
     /// Pixel coordinates and depth of the clip-space point `c`.
     #[inline(always)]
-    fn project_clip(&self, c: DVec4) -> (f64, f64, f64) {
+    pub(crate) fn project_clip(&self, c: DVec4) -> (f64, f64, f64) {
         let iw = 1.0 / c.w;
         (
             (c.x * iw + 1.0) * (0.5 * self.w),
@@ -767,7 +767,7 @@ impl Projector {
 /// select where that is above `v`. (A version that branched on the sign
 /// made city_16384 bird's light pass about 8 % slower.)
 #[inline(always)]
-fn floor(v: f64) -> f64 {
+pub(crate) fn floor(v: f64) -> f64 {
     const ROUND: f64 = 6_755_399_441_055_744.0; // 1.5 · 2⁵²
     let t = (v + ROUND) - ROUND;
     t - if t > v { 1.0 } else { 0.0 }

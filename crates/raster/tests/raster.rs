@@ -984,6 +984,7 @@ fn backend_script(b: &mut dyn OcclusionBackend) -> Vec<u32> {
             object: k,
             coverage: Coverage::Standard,
             cull: CullMode::None,
+            whole: raster::Whole::No,
         })
         .unwrap();
         if k % 7 == 3 {
@@ -1008,8 +1009,8 @@ fn backends_give_identical_counts() {
     assert!(a.iter().any(|&n| n > 0));
 }
 
-/// Runs of draws (1 to 9, some conservative among standard ones, in every
-/// cull mode) between
+/// Runs of draws (1 to 9, some conservative among standard ones, some of
+/// those convex and drawn whole, in every cull mode) between
 /// queries, on a target large enough for parallel batches: the bundled
 /// backends hold draws and draw each run as one batch before the next
 /// query; their counts and final depth and ids equal the threaded backend's,
@@ -1044,12 +1045,19 @@ fn held_draws_equal_immediate_draws() {
                     positions: aabb_corners(min, max).to_vec().into(),
                     triangles: AABB_TRIANGLES.to_vec().into(),
                     object: j as u32,
-                    coverage: if j % 5 == 2 {
-                        Coverage::Outer(DepthPick::Nearest)
-                    } else {
-                        Coverage::Standard
+                    coverage: match j % 5 {
+                        2 => Coverage::Outer(DepthPick::Nearest),
+                        4 => Coverage::Inner(DepthPick::Farthest),
+                        _ => Coverage::Standard,
                     },
                     cull: [CullMode::None, CullMode::Back, CullMode::Front][j % 3],
+                    // Boxes are convex and closed: some of the inner ones
+                    // drawn whole.
+                    whole: [
+                        raster::Whole::No,
+                        raster::Whole::Convex,
+                        raster::Whole::Closed,
+                    ][j % 3],
                 })
                 .unwrap();
             }

@@ -51,7 +51,7 @@ pub use graph::{MeshId, Node, NodeId, SceneGraph, Transform};
 pub use host_camera::{ClipDepth, HostBasis};
 pub use light::Light;
 pub use mesh::{Edge, EdgeRef, Mesh, Solid, Topology};
-pub use occluder_proxy::{occluder_proxy, PROXY_VERTICES};
+pub use occluder_proxy::{is_convex_solid, occluder_proxy, PROXY_VERTICES};
 pub use plane::Plane;
 pub use scene::{
     Committed, Object, ObjectFlags, ObjectId, Scene, SceneCounts, MAX_NODE_DEPTH, MAX_OBJECTS,

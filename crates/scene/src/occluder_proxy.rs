@@ -61,6 +61,31 @@ pub fn occluder_proxy(mesh: &Mesh) -> Option<Vec<[u32; 3]>> {
     (proxy.len() < triangles.len()).then_some(proxy)
 }
 
+/// Relative tolerance (of the bounds' diagonal) of [`is_convex_solid`]:
+/// tighter than a proxy's, since a convex draw covers the whole silhouette
+/// of the vertices' hull.
+const CONVEX_TOLERANCE: f64 = 1e-7;
+
+/// Whether `mesh` bounds a convex solid: it is solid (outward) and every
+/// vertex lies behind every face's plane (within 10⁻⁷ of the bounds'
+/// diagonal). Checked for meshes of at most `2 · PROXY_VERTICES` triangles
+/// (a box, a wedge; larger ones answer `false`, their proxies being the
+/// convex solids the views draw).
+pub fn is_convex_solid(mesh: &Mesh) -> bool {
+    let (positions, triangles) = (mesh.positions(), mesh.triangles());
+    if mesh.solid() != Some(Solid::Outward)
+        || triangles.len() > 2 * PROXY_VERTICES
+        || triangles.len() < 4
+    {
+        return false;
+    }
+    let b = mesh.bounds();
+    let centre = b.center();
+    let p: Vec<DVec3> = positions.iter().map(|v| v.as_dvec3() - centre).collect();
+    let diag = (b.max - b.min).as_dvec3().length();
+    diag > 0.0 && behind_every_face(&p, triangles, &p, CONVEX_TOLERANCE * diag)
+}
+
 /// Whether every point of `q` lies behind (within `tol`) every
 /// non-degenerate face's outward plane.
 fn behind_every_face(p: &[DVec3], triangles: &[[u32; 3]], q: &[DVec3], tol: f64) -> bool {

@@ -6,7 +6,7 @@
 //! stop-and-wait, CHC) and `chcpp.rs` (CHC++).
 
 use crate::hierarchy::{Hierarchy, Node, NONE};
-use crate::view_setup::{MeshData, ViewSetup};
+use crate::view_setup::{ConvexOccluders, MeshData, ViewSetup};
 use crate::Result;
 use glam::{DVec3, Vec3};
 use raster::{DrawCommand, OcclusionBackend, QueryCommand, QueryId};
@@ -271,9 +271,23 @@ impl Run<'_, '_> {
             return Ok(());
         }
         let mesh = o.mesh.0 as usize;
-        let triangles = match self.view.triangles {
-            Some(f) => f(id),
-            None => self.meshes.triangles[mesh].clone(),
+        let inner = self.view.draw_coverage == raster::Coverage::Inner(raster::DepthPick::Farthest);
+        let closed = || match self.scene.graph().meshes()[mesh].solid() {
+            Some(_) => raster::Whole::Closed,
+            None => raster::Whole::No,
+        };
+        let (triangles, whole) = match (self.view.triangles, self.view.convex) {
+            (Some(f), ConvexOccluders::Own { proxies })
+                if inner && self.meshes.convex_draw(o.mesh, proxies) =>
+            {
+                (f(id), raster::Whole::Convex)
+            }
+            (Some(f), _) => (f(id), raster::Whole::No),
+            (None, ConvexOccluders::Hulls) if inner => match self.meshes.hull_of(o.mesh) {
+                Some(h) => (h.clone(), raster::Whole::Convex),
+                None => (self.meshes.triangles[mesh].clone(), closed()),
+            },
+            (None, _) => (self.meshes.triangles[mesh].clone(), raster::Whole::No),
         };
         self.out.stats.triangles_rendered += triangles.len() as u64;
         self.backend.draw(DrawCommand {
@@ -285,6 +299,7 @@ impl Run<'_, '_> {
             cull: self.view.back_faces.map_or(raster::CullMode::None, |c| {
                 crate::eye_cull(c, o, &self.scene.graph().meshes()[mesh])
             }),
+            whole,
         })?;
         self.out.rendered.push(id);
         self.out.stats.objects_rendered += 1;

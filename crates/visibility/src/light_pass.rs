@@ -42,7 +42,7 @@ use crate::intersection_body::{intersection_body_into, BodyScratch, Polyhedron};
 use crate::light_view::{fit_light_views_into, FitScratch, LightView};
 use crate::receivers::{Marks, Prepared, ReceiverPoints};
 use crate::traverse::Culling;
-use crate::view_setup::{MeshData, Sampling, ViewSetup};
+use crate::view_setup::{ConvexOccluders, MeshData, Sampling, ViewSetup};
 use crate::view_split::cull_views_into;
 use crate::Result;
 use glam::{DMat4, DVec3, DVec4};
@@ -855,6 +855,14 @@ impl ViewSlot {
             triangles: Some(casting),
             occluder: ViewSetup::light_occluder,
             back_faces: None,
+            // (Not for kept depths: the hybrid's shadow maps are the
+            // casters' own triangles.)
+            convex: match options.keep_depth {
+                false => ConvexOccluders::Own {
+                    proxies: options.proxies,
+                },
+                true => ConvexOccluders::Off,
+            },
         };
         let r = self
             .culler

@@ -30,6 +30,8 @@ pub struct MeshData {
     /// Per mesh its occluder proxy ([`scene::occluder_proxy`]: triangles
     /// over the mesh's own vertices), `None` where the mesh is its own.
     pub(crate) proxies: Vec<Option<Arc<[[u32; 3]]>>>,
+    /// Per mesh: it bounds a convex solid ([`scene::is_convex_solid`]).
+    pub(crate) convex: Vec<bool>,
     /// The scene's mesh version each copy was made from.
     versions: Vec<u64>,
 }
@@ -41,6 +43,7 @@ impl MeshData {
             positions: Vec::new(),
             triangles: Vec::new(),
             proxies: Vec::new(),
+            convex: Vec::new(),
             versions: Vec::new(),
         };
         data.sync(scene);
@@ -50,6 +53,22 @@ impl MeshData {
     /// The triangles of mesh `mesh` (shared).
     pub(crate) fn triangles_of(&self, mesh: scene::MeshId) -> Arc<[[u32; 3]]> {
         self.triangles[mesh.0 as usize].clone()
+    }
+
+    /// The triangles of a convex solid inside mesh `mesh`, drawn whole
+    /// ([`raster::DrawCommand::whole`]): its proxy, or its own when the
+    /// mesh is convex; `None` for other meshes.
+    pub(crate) fn hull_of(&self, mesh: scene::MeshId) -> Option<&Arc<[[u32; 3]]>> {
+        let i = mesh.0 as usize;
+        self.proxy_of(mesh)
+            .or_else(|| self.convex.get(i).copied()?.then(|| &self.triangles[i]))
+    }
+
+    /// Whether the occluder triangles a view draws of mesh `mesh` bound a
+    /// convex solid: the mesh is convex, or (`proxies`) they are its proxy's.
+    pub(crate) fn convex_draw(&self, mesh: scene::MeshId, proxies: bool) -> bool {
+        let i = mesh.0 as usize;
+        self.convex.get(i).copied().unwrap_or(false) || (proxies && self.proxy_of(mesh).is_some())
     }
 
     /// The occluder proxy of mesh `mesh`, `None` when the mesh is its own.
@@ -78,6 +97,7 @@ impl MeshData {
         self.positions.truncate(meshes.len());
         self.triangles.truncate(meshes.len());
         self.proxies.truncate(meshes.len());
+        self.convex.truncate(meshes.len());
         self.versions.truncate(meshes.len());
         for (i, m) in meshes.iter().enumerate() {
             let version = scene.mesh_version(scene::MeshId(i as u32));
@@ -87,15 +107,18 @@ impl MeshData {
             let p: Arc<[Vec4]> = m.positions().iter().map(|p| p.extend(1.0)).collect();
             let t: Arc<[[u32; 3]]> = m.triangles().into();
             let proxy = scene::occluder_proxy(m).map(Arc::from);
+            let convex = scene::is_convex_solid(m);
             if i < self.positions.len() {
                 self.positions[i] = p;
                 self.triangles[i] = t;
                 self.proxies[i] = proxy;
+                self.convex[i] = convex;
                 self.versions[i] = version;
             } else {
                 self.positions.push(p);
                 self.triangles.push(t);
                 self.proxies.push(proxy);
+                self.convex.push(convex);
                 self.versions.push(version);
             }
         }
@@ -132,6 +155,32 @@ pub struct ViewSetup<'a> {
     /// The eye whose hidden faces occluder draws skip ([`crate::eye_cull`]);
     /// `None` (light views): draws keep every face.
     pub back_faces: Option<&'a scene::Camera>,
+    /// Which occluders are drawn whole as convex solids, with
+    /// inner-conservative coverage at the farthest depth
+    /// ([`raster::DrawCommand::whole`]).
+    pub convex: ConvexOccluders,
+}
+
+/// Which occluders a view draws whole as convex solids
+/// ([`ViewSetup::convex`]): drawn triangle by triangle, inner-conservative
+/// coverage leaves a crack along every edge two triangles share, through
+/// which a view sees what the solid hides.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum ConvexOccluders {
+    /// None: every occluder is drawn triangle by triangle.
+    #[default]
+    Off,
+    /// Each occluder with a convex solid inside it draws that solid's
+    /// triangles instead of its mesh's (its proxy, or its own mesh when
+    /// convex), and other closed meshes are drawn whole as closed meshes
+    /// (the eye at a coarse culling resolution).
+    Hulls,
+    /// The view's own triangles ([`ViewSetup::triangles`]), drawn whole
+    /// where they are a convex mesh's or, with `proxies`, its proxy's.
+    Own {
+        /// The triangles are proxies where a mesh has one.
+        proxies: bool,
+    },
 }
 
 impl<'a> ViewSetup<'a> {
@@ -175,6 +224,7 @@ impl<'a> ViewSetup<'a> {
             triangles: None,
             occluder: Self::eye_occluder,
             back_faces: Some(camera),
+            convex: ConvexOccluders::Off,
         }
     }
 
