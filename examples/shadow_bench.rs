@@ -1,7 +1,7 @@
 //! One view, or one camera path, through the stencil shadow pipeline, timed per stage.
 //!
 //! `cargo run --release --example shadow_bench -- SCENE CAMERA WxH [--preset batch|gpu_host] [--stencil bf|db|h|hybrid|none|auto]
-//! [--scissor on|off] [--occluders mesh|proxy] [--method auto|zpass|zfail|zpplus] [--counters 8|wide] [--tile 4|8|16]
+//! [--scissor on|off] [--occluders mesh|proxy] [--culling-resolution WxH] [--method auto|zpass|zfail|zpplus] [--counters 8|wide] [--tile 4|8|16]
 //! [--full-shadow on|off] [--map N] [--culling none|frustum|exact|chc|chcpp|auto]
 //! [--coverage conservative|point] [--threshold T] [--light-res N]
 //! [--clamping none|continuous|discrete|auto] [--slices N]
@@ -250,6 +250,10 @@ struct Cli {
     /// Every triangle casts (back-facing ones flipped).
     #[arg(long = "two-sided")]
     two_sided: bool,
+    /// The culling eye pass's size, WxH (the largest size within it with the
+    /// viewport's aspect; default: the viewport's own).
+    #[arg(long = "culling-resolution", value_name = "WxH", value_parser = parse_size)]
+    culling_resolution: Option<(u32, u32)>,
     /// What the light views draw as occluders (`proxy`: each solid convex
     /// mesh's proxy).
     #[arg(long, value_parser = one_of(OCCLUDERS),
@@ -363,7 +367,8 @@ impl Args {
             query_threshold,
             light_resolution,
             two_sided,
-            occluders
+            occluders,
+            culling_resolution
         );
         Args {
             scene: c.scene,
@@ -657,6 +662,8 @@ fn settings(a: &Args, row: &FrameRow) -> Map<String, Value> {
         "query_threshold": p.query_threshold,
         "light_resolution": p.light_resolution,
         "occluders": name_of(OCCLUDERS, &p.occluders),
+        "culling_resolution": p.culling_resolution.map(|(w, h)| [w, h]),
+        "culling_size": <[u32; 2]>::from(p.culling_size((a.width, a.height))),
         "objects": row.scene.objects,
         "triangles": row.scene.triangles,
     });

@@ -322,6 +322,87 @@ fn the_engine_scene_under_the_gpu_host_preset_is_exact() -> Result<()> {
     })
 }
 
+/// A culling resolution below the viewport (a coarse eye pass drawing
+/// occluders inner-conservative at their farthest depth, and receiver
+/// polygons): down the street with a point light, a sun and a spot, the
+/// CPU stencil's masks (its eye exact at the viewport, drawn from the PSR)
+/// equal the unculled ones and the reference, and the `gpu_host` volumes
+/// draw the reference's mask and every caster's; the coarse pass still
+/// culls casters.
+#[test]
+fn a_coarse_culling_resolution_keeps_masks_exact() -> Result<()> {
+    let (scene, path) = city();
+    let lights = lights(&scene, &path);
+    let coarse = Some((W / 4, H / 4));
+    let cpu = PipelineOptions {
+        culling_resolution: coarse,
+        ..options(CullingSpec::Chcpp, StencilBackend::Bf)
+    };
+    let gpu = PipelineOptions {
+        culling: CullingSpec::Chcpp,
+        light_resolution: 256,
+        culling_resolution: coarse,
+        ..PipelineOptions::gpu_host()
+    };
+    assert_eq!(gpu.culling_size((W, H)), (W / 4, H / 4));
+    let (mut cpu, cpu_ids) = pipeline(&scene, cpu, &lights)?;
+    let (mut gpu, gpu_ids) = pipeline(&scene, gpu, &lights)?;
+    let (mut plain, _) = pipeline(
+        &scene,
+        options(CullingSpec::None, StencilBackend::Bf),
+        &lights,
+    )?;
+    let n = scene.objects().len();
+    let mut culled = 0;
+    for frame in [0, 3, 6] {
+        let input = input(&path, frame);
+        let masks: Vec<_> = {
+            let out = cpu.frame(&input)?;
+            assert!(out.eye().is_some(), "the CPU stencil's exact eye pass");
+            culled += out.lights().filter(|l| l.psc().len() < n).count();
+            out.lights().map(|l| l.mask().unwrap().clone()).collect()
+        };
+        let out = plain.frame(&input)?;
+        for (li, (m, l)) in masks.iter().zip(out.lights()).enumerate() {
+            assert_eq!(m, l.mask().unwrap(), "frame {frame} light {li}");
+        }
+        for (li, m) in masks.iter().enumerate() {
+            let r = cpu.reference_mask(cpu_ids[li])?;
+            let c = compare(&r.mask, &r.ambiguous, m);
+            assert!(c.compared > 500, "frame {frame} light {li}: {c:?}");
+            assert_eq!(c.mismatches, 0, "frame {frame} light {li}: {c:?}");
+        }
+        assert!(gpu.frame(&input)?.eye().is_none(), "no exact eye pass");
+        for &id in &gpu_ids {
+            let c = gpu.check_gpu(id)?;
+            assert_eq!(c.mismatch_off_boundary, 0, "frame {frame}, light {id:?}");
+            assert_eq!(c.culled_vs_unculled_differing_pixels, 0, "frame {frame}");
+        }
+    }
+    assert!(culled >= 6, "{culled} of 9 light frames culled casters");
+    Ok(())
+}
+
+/// The engine scene (objects moving, added and removed) under the
+/// `gpu_host` preset with a coarse culling resolution: exact for the GPU.
+#[test]
+fn the_engine_scene_at_a_coarse_culling_resolution_is_exact() -> Result<()> {
+    let o = PipelineOptions {
+        light_resolution: 256,
+        culling: CullingSpec::Chcpp,
+        culling_resolution: Some((W / 3, H / 3)),
+        ..PipelineOptions::gpu_host()
+    };
+    engine_frames(o, |p, ids, f| {
+        for &id in ids {
+            let c = p.check_gpu(id)?;
+            assert_eq!(c.mismatch_off_boundary, 0, "frame {f}, light {id:?}");
+            assert_eq!(c.culled_vs_unculled_differing_pixels, 0, "frame {f}");
+        }
+        Ok(())
+    })
+}
+
 /// Frames 0, 13, 26 and 39 of the engine scene (its edits, lights and
 /// camera path) through a pipeline with options `o`, `after` called after
 /// each.
@@ -521,6 +602,14 @@ fn bad_options_and_inputs_name_their_field() -> Result<()> {
     assert_eq!(
         field(Pipeline::new(scene.clone(), bad_res).map(|_| ())),
         "light_resolution"
+    );
+    let bad_culling_res = PipelineOptions {
+        culling_resolution: Some((0, 240)),
+        ..Default::default()
+    };
+    assert_eq!(
+        field(Pipeline::new(scene.clone(), bad_culling_res).map(|_| ())),
+        "culling_resolution"
     );
     let good = lights(&scene, &path);
     let (mut p, ids) = pipeline(

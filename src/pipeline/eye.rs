@@ -129,10 +129,22 @@ impl EyePass {
         (width, height): (u32, u32),
         isa: raster::InstructionSet,
     ) -> Result<EyePass> {
+        Self::reusable_with(previous, (width, height), isa, true)
+    }
+
+    /// [`EyePass::reusable`], with a primitive-id target or (a coarse
+    /// culling pass, whose ids nobody reads) without.
+    pub(crate) fn reusable_with(
+        previous: Option<EyePass>,
+        (width, height): (u32, u32),
+        isa: raster::InstructionSet,
+        ids: bool,
+    ) -> Result<EyePass> {
+        let same = |t: &DepthTarget| (t.width(), t.height(), t.has_ids()) == (width, height, ids);
         let mut pass = match previous {
-            Some(p) if (p.target.width(), p.target.height()) == (width, height) => p,
+            Some(p) if same(&p.target) => p,
             _ => EyePass {
-                target: DepthTarget::new(width, height, TileSize::T8, true)?,
+                target: DepthTarget::new(width, height, TileSize::T8, ids)?,
             },
         };
         pass.target.set_instruction_set(isa);
@@ -229,6 +241,31 @@ pub(crate) fn eye_pass_of(
         )?,
     }
     Ok(EyePass { target })
+}
+
+/// The coarse culling pass of the objects a host backend's coarse
+/// traversal rendered (`subset`): their occluders drawn as
+/// [`occluder_coverage`] says into `pass` (cleared first), the bound the
+/// coarse receivers read.
+pub(crate) fn coarse_pass_of(
+    scene: &Scene,
+    meshes: &MeshCache,
+    camera: &Camera,
+    mut pass: EyePass,
+    (subset, sampling): (&[ObjectId], visibility::Sampling),
+) -> Result<EyePass> {
+    pass.target.clear();
+    pass.target.set_threads(rayon::current_num_threads());
+    let occluders = subset
+        .iter()
+        .copied()
+        .filter(|id| visibility::ViewSetup::eye_occluder(&scene.object(*id).flags));
+    let items = eye_items(scene, meshes, camera, occluders, visibility::eye_cull);
+    if !items.is_empty() {
+        let coverage = occluder_coverage(true, sampling);
+        pass.target.draw_batch(&items, coverage)?;
+    }
+    Ok(pass)
 }
 
 /// Per-run state of the culled eye pass (PSR, [Steiner §4.3]): the object
@@ -572,6 +609,25 @@ pub struct EyeTraversal {
     pub threshold: u32,
     /// Conservative or point-sampled.
     pub sampling: visibility::Sampling,
+    /// A coarse pass, for culling only: conservative occluders are drawn
+    /// inner-conservative at their farthest depth ([`occluder_coverage`]),
+    /// and visible objects that may not occlude are not drawn at all, so
+    /// the depth is a bound no visible sample of a pixel lies behind, not
+    /// the visible surface.
+    pub coarse: bool,
+}
+
+/// The coverage of the eye's occluder draws: standard at the output
+/// resolution; for a `coarse` conservative pass inner-conservative at the
+/// farthest depth: a coarse pixel is covered only where an occluder covers
+/// it wholly, and no visible output sample in it is behind that depth.
+pub fn occluder_coverage(coarse: bool, sampling: visibility::Sampling) -> raster::Coverage {
+    match (coarse, sampling) {
+        (true, visibility::Sampling::Conservative) => {
+            raster::Coverage::Inner(raster::DepthPick::Farthest)
+        }
+        _ => raster::Coverage::Standard,
+    }
 }
 
 /// The eye pass with occlusion culling: only the objects `culling` finds
@@ -636,14 +692,16 @@ pub(crate) fn eye_pass_culled_into(
         culling,
         threshold,
         sampling,
+        coarse,
     } = traversal;
     let mut left = match previous {
         Some(p) if (p.target.width(), p.target.height()) == (width, height) => p.target,
         _ => DepthTarget::new(width, height, TileSize::T8, true)?,
     };
+    let ids = left.has_ids();
     let mut right = match state.right.target.take() {
-        Some(t) if (t.width(), t.height()) == (width, height) => t,
-        _ => DepthTarget::new(width, height, TileSize::T8, true)?,
+        Some(t) if (t.width(), t.height(), t.has_ids()) == (width, height, ids) => t,
+        _ => DepthTarget::new(width, height, TileSize::T8, ids)?,
     };
     right.set_instruction_set(left.instruction_set());
     // Each half hides the other's tile columns, from the clear that starts
@@ -668,6 +726,10 @@ pub(crate) fn eye_pass_culled_into(
         let mut backend = raster::SyncBackend::reusing(target, std::mem::take(queries));
         let mut view = visibility::ViewSetup::eye_sampled(camera, &clip, threshold, sampling);
         view.planes = camera.frustum_part(min, max).planes;
+        view.draw_coverage = occluder_coverage(coarse, sampling);
+        if coarse {
+            view.convex = visibility::ConvexOccluders::Hulls;
+        }
         let r = culler.cull_into(objects, &view, culling, &mut backend, result);
         let (target, q) = backend.into_parts();
         *queries = q;
@@ -696,6 +758,9 @@ pub(crate) fn eye_pass_culled_into(
     target.take_part_from(&mut right, mid..tiles_x, 0..tiles_y)?;
     part.target = Some(right);
     join_results(result, &part.result);
+    if coarse {
+        return Ok(EyePass { target });
+    }
     // Visible objects that may not occlude were left out of the traversal's
     // draws: they join the visible surface now, hiding nothing they did not.
     let deferred = state.result.rendered.iter().copied().filter(|id| {
@@ -739,15 +804,20 @@ pub(crate) fn cull_with(
     state: &mut EyeCulling,
     camera: &Camera,
     options: &super::PipelineOptions,
+    coarse: bool,
     backend: &mut dyn raster::OcclusionBackend,
 ) -> Result<()> {
     let clip = |w: &glam::DMat4| scene::transform::clip_from_local(camera, w);
-    let view = visibility::ViewSetup::eye_sampled(
+    let mut view = visibility::ViewSetup::eye_sampled(
         camera,
         &clip,
         options.query_threshold,
         options.coverage.sampling(),
     );
+    view.draw_coverage = occluder_coverage(coarse, options.coverage.sampling());
+    if coarse {
+        view.convex = visibility::ConvexOccluders::Hulls;
+    }
     let objects = visibility::Objects::new(&state.hierarchy, scene, &state.meshes);
     state.halves = None;
     Ok(state.culler.cull_into(
@@ -790,6 +860,7 @@ pub(crate) mod tests {
             culling,
             threshold: 0,
             sampling: visibility::Sampling::Conservative,
+            coarse: false,
         };
         let size = (320, 240);
         let (eye, result) =

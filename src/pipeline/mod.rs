@@ -21,6 +21,7 @@
 //! chains run side by side.
 
 mod auto;
+mod coarse_receivers;
 mod edit;
 pub mod eye;
 mod fill_count;
@@ -133,6 +134,13 @@ pub struct Pipeline {
     /// culled, no CPU stencil, no fill count) until
     /// [`Pipeline::reference_mask`] rasterizes it.
     eye: Option<EyePass>,
+    /// The last coarse culling pass (a culling resolution below the
+    /// viewport's), kept for its buffers.
+    coarse_eye: Option<EyePass>,
+    /// The coarse pass's depths, row-major, for its receivers.
+    coarse_rows: Vec<f32>,
+    /// Per row segment of the coarse pass, its depth bounds.
+    coarse_bounds: Vec<(f32, f32)>,
     /// The last frame's camera; `None` before the first frame and after a
     /// failed one.
     camera: Option<Camera>,
@@ -200,6 +208,9 @@ impl Pipeline {
             culling: None,
             auto_eye: auto::AutoView::culling(),
             eye: None,
+            coarse_eye: None,
+            coarse_rows: Vec::new(),
+            coarse_bounds: Vec::new(),
             camera: None,
             viewport: (0, 0),
             receivers: Default::default(),
@@ -387,7 +398,13 @@ impl Pipeline {
         // the eye's choice waits for a frame that reads one.
         // [`Pipeline::reference_mask`] rasterizes one when asked.
         let eye_read = lights_culled || o.stencil != StencilBackend::None || o.count_fill;
-        let culled = may_cull && eye_read && (!auto || self.auto_eye.choose(&o.auto));
+        // A culling resolution below the viewport's: the eye culls whenever
+        // it is read (its coarse pass is what the resolution buys; `auto`
+        // compares only passes at the viewport).
+        let coarse_size = o.culling_size((w, h));
+        let culled = may_cull
+            && eye_read
+            && (!auto || coarse_size != (w, h) || self.auto_eye.choose(&o.auto));
         // `auto`'s lights model their unculled cost by every caster's triangles.
         let all_caster_triangles = if auto && may_cull {
             light_frame::triangles_of(scene, &self.all_casters)
@@ -425,67 +442,6 @@ impl Pipeline {
             self.finish_frame(frame, start, (w, h), camera, eye_ms, fill_ms, (0, 0));
             return Ok(());
         }
-        let mut previous = EyePass::reusable(
-            self.eye.take(),
-            (w, h),
-            o.instruction_set.unwrap_or_default(),
-        )?;
-        previous.target.take_stats();
-        let previous = Some(previous);
-        let (eye, eye_queries, eye_waits) = if culled {
-            let state = self.culling.get_or_insert_with(|| EyeCulling::new(scene));
-            state.set_frame(frame);
-            let eye = match &self.backends {
-                None => eye::eye_pass_culled_into(
-                    scene,
-                    &self.meshes,
-                    state,
-                    camera,
-                    (w, h),
-                    EyeTraversal {
-                        culling: o.culling(),
-                        threshold: o.query_threshold,
-                        sampling: o.coverage.sampling(),
-                    },
-                    previous,
-                )?,
-                Some(f) => {
-                    let mut backend = f(visibility::ViewRole::Eye {
-                        width: w,
-                        height: h,
-                    });
-                    eye::cull_with(scene, state, camera, &o, backend.as_mut())?;
-                    eye::eye_pass_of(
-                        scene,
-                        &self.meshes,
-                        camera,
-                        (w, h),
-                        previous,
-                        Some(&state.result.rendered),
-                    )?
-                }
-            };
-            let r = &state.result;
-            self.psr.clear();
-            self.psr.reserve(scene.objects().len());
-            let visible = r
-                .rendered
-                .iter()
-                .filter(|id| scene.object(**id).flags.visible);
-            self.psr.extend(visible.map(|id| scene.id_of(id.0)));
-            self.psr.sort_unstable();
-            (eye, r.stats.queries, r.stats.waits)
-        } else {
-            let eye = eye_pass_reusing(scene, &self.meshes, camera, w, h, previous)?;
-            self.psr.clear();
-            self.psr
-                .extend(self.all_visible.iter().map(|id| scene.id_of(id.0)));
-            if lights_culled {
-                // The light passes read the hierarchy.
-                self.culling.get_or_insert_with(|| EyeCulling::new(scene));
-            }
-            (eye, 0, 0)
-        };
         // Clamping to fragment receivers: the light passes read each
         // caster's intervals along its clamping axis, from the eye's surface
         // points and the stencil's (the stored depths). Their marks are
@@ -498,31 +454,153 @@ impl Pipeline {
         let stored_points = (self.lights.iter())
             .filter_map(|s| s.state.as_ref())
             .any(|s| s.culled && light_frame::reading(s.clamping, &o) == light::Reading::Axes);
-        // The culling lights mark the eye's visible surface points, each
-        // leaving out those of surfaces that face away from it.
+        // A culling resolution below the viewport's: the culled eye pass
+        // runs coarse. Clamping's readings are the exact eye's points, so a
+        // light reading them takes the points of an exact eye pass.
+        let coarse = culled && coarse_size != (w, h);
+        let fine_points = (self.lights.iter())
+            .filter_map(|s| s.state.as_ref())
+            .any(|s| s.culled && light_frame::reading(s.clamping, &o) != light::Reading::None);
+        let exact = !coarse || o.stencil != StencilBackend::None || o.count_fill || fine_points;
+        let isa = o.instruction_set.unwrap_or_default();
+        let mut previous = match exact {
+            true => Some(EyePass::reusable(self.eye.take(), (w, h), isa)?),
+            false => None,
+        };
+        if let Some(p) = &mut previous {
+            p.target.take_stats();
+        }
+        let (eye, eye_queries, eye_waits) = if culled {
+            let state = self.culling.get_or_insert_with(|| EyeCulling::new(scene));
+            state.set_frame(frame);
+            let size = if coarse { coarse_size } else { (w, h) };
+            let traversal = EyeTraversal {
+                culling: o.culling(),
+                threshold: o.query_threshold,
+                sampling: o.coverage.sampling(),
+                coarse,
+            };
+            let mut pass = match coarse {
+                true => {
+                    let mut p = EyePass::reusable_with(self.coarse_eye.take(), size, isa, false)?;
+                    p.target.take_stats();
+                    Some(p)
+                }
+                false => previous.take(),
+            };
+            let culled_pass = match &self.backends {
+                None => eye::eye_pass_culled_into(
+                    scene,
+                    &self.meshes,
+                    state,
+                    camera,
+                    size,
+                    traversal,
+                    pass.take(),
+                )?,
+                Some(f) => {
+                    let mut backend = f(visibility::ViewRole::Eye {
+                        width: size.0,
+                        height: size.1,
+                    });
+                    eye::cull_with(scene, state, camera, &o, coarse, backend.as_mut())?;
+                    let rendered = &state.result.rendered;
+                    match coarse {
+                        true => eye::coarse_pass_of(
+                            scene,
+                            &self.meshes,
+                            camera,
+                            pass.take().expect("made above"),
+                            (rendered, o.coverage.sampling()),
+                        )?,
+                        false => eye::eye_pass_of(
+                            scene,
+                            &self.meshes,
+                            camera,
+                            (w, h),
+                            pass.take(),
+                            Some(rendered),
+                        )?,
+                    }
+                }
+            };
+            let r = &state.result;
+            self.psr.clear();
+            self.psr.reserve(scene.objects().len());
+            let visible = r
+                .rendered
+                .iter()
+                .filter(|id| scene.object(**id).flags.visible);
+            self.psr.extend(visible.map(|id| scene.id_of(id.0)));
+            self.psr.sort_unstable();
+            // Coarse: the exact eye pass, when read, from the PSR (every
+            // object owning an output pixel is in it: the same depth and ids).
+            let eye = match coarse {
+                true => {
+                    self.coarse_eye = Some(culled_pass);
+                    match exact {
+                        true => Some(eye::eye_pass_of(
+                            scene,
+                            &self.meshes,
+                            camera,
+                            (w, h),
+                            previous.take(),
+                            Some(&r.rendered),
+                        )?),
+                        false => None,
+                    }
+                }
+                false => Some(culled_pass),
+            };
+            (eye, r.stats.queries, r.stats.waits)
+        } else {
+            let eye = eye_pass_reusing(scene, &self.meshes, camera, w, h, previous)?;
+            self.psr.clear();
+            self.psr
+                .extend(self.all_visible.iter().map(|id| scene.id_of(id.0)));
+            if lights_culled {
+                // The light passes read the hierarchy.
+                self.culling.get_or_insert_with(|| EyeCulling::new(scene));
+            }
+            (Some(eye), 0, 0)
+        };
+        // The culling lights mark the eye's visible surface points (or, from
+        // a coarse pass, its receiver polygons), each leaving out those of
+        // surfaces that face away from it.
         if lights_culled {
             receiver_skips(&mut self.lights, &o, &mut self.skip_lights);
             let skips = eye::SkipLights {
                 lights: &self.skip_lights,
                 two_sided: o.two_sided,
             };
-            visible_points_into(
-                scene,
-                camera,
-                &eye,
-                o.coverage.sampling(),
-                stored_points,
-                skips,
-                (&mut self.receivers, &mut self.receiver_runs),
-            );
+            match (&eye, &self.coarse_eye, &self.culling) {
+                (Some(eye), _, _) if !coarse || fine_points => visible_points_into(
+                    scene,
+                    camera,
+                    eye,
+                    o.coverage.sampling(),
+                    stored_points,
+                    skips,
+                    (&mut self.receivers, &mut self.receiver_runs),
+                ),
+                (_, Some(pass), Some(state)) => coarse_receivers::coarse_receivers_into(
+                    scene,
+                    camera,
+                    (&pass.target, &mut self.coarse_rows, &mut self.coarse_bounds),
+                    &state.result.rendered,
+                    skips,
+                    &mut self.receivers,
+                ),
+                _ => unreachable!("a coarse frame keeps its pass and state"),
+            }
         }
         let eye_ms = ms(start);
-        if auto && may_cull {
+        if auto && may_cull && !coarse {
             let traversal = match (&self.culling, culled) {
                 (Some(state), true) => state.result.stats,
                 _ => TraversalStats::default(),
             };
-            let raster = eye.target.stats();
+            let raster = eye.as_ref().map(|e| e.target.stats()).unwrap_or_default();
             let host = self.backends.is_some();
             let halves = (self.culling.as_ref().and_then(|s| s.halves)).filter(|_| culled);
             let cost = match &halves {
@@ -600,7 +678,7 @@ impl Pipeline {
             camera,
             options: &o,
             viewport: (w, h),
-            eye: Some(&eye),
+            eye: eye.as_ref(),
             eye_counts: light_frame::EyeCounts {
                 ms: eye_ms,
                 psr,
@@ -616,7 +694,7 @@ impl Pipeline {
             host: self.backends.is_some(),
         };
         let fill_ms = Self::run_lights_of(&mut self.lights, &shared)?;
-        self.eye = Some(eye);
+        self.eye = eye;
         let camera = *camera;
         self.finish_frame(
             frame,

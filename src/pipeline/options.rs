@@ -335,6 +335,15 @@ pub struct PipelineOptions {
     /// light pass's point-sampled light views (`coverage: point`) are the
     /// maps otherwise, at `light_resolution`.
     pub map_size: u32,
+    /// The size the culling eye pass runs at, `(width, height)` in pixels:
+    /// the largest size within it with the viewport's aspect, and never
+    /// above the viewport (`None`, the default: the viewport's own). Below
+    /// the viewport, the eye pass draws occluders inner-conservative at
+    /// their farthest depth and the light passes mark receiver polygons
+    /// (`docs/host.md`), so culling costs what this size costs, whatever
+    /// the output resolution; a CPU stencil still runs on an exact eye pass
+    /// at the viewport, drawn from the PSR, and masks are unchanged.
+    pub culling_resolution: Option<(u32, u32)>,
     /// Occlusion culling of the eye pass (the objects it draws are the
     /// potentially shadowed receivers, PSR) and of the light pass (shadow
     /// volumes only for the potential shadow casters, PSC); `auto` by
@@ -409,6 +418,7 @@ impl Default for PipelineOptions {
             tile: 8,
             full_shadow: true,
             map_size: 2048,
+            culling_resolution: None,
             culling: CullingSpec::Auto,
             query_threshold: 0,
             coverage: CoverageSpec::Conservative,
@@ -434,6 +444,22 @@ impl Default for PipelineOptions {
 }
 
 impl PipelineOptions {
+    /// The size of the culling eye pass for a `width × height` viewport
+    /// ([`PipelineOptions::culling_resolution`]): the viewport's own, or the
+    /// largest size within the culling resolution with its aspect.
+    pub fn culling_size(&self, (width, height): (u32, u32)) -> (u32, u32) {
+        let Some((cw, ch)) = self.culling_resolution else {
+            return (width, height);
+        };
+        let (w, h) = (f64::from(width), f64::from(height));
+        let s = (f64::from(cw) / w).min(f64::from(ch) / h);
+        if s >= 1.0 {
+            return (width, height);
+        }
+        let fit = |v: f64, most: u32| ((v * s).round() as u32).clamp(1, most);
+        (fit(w, cw.min(width)), fit(h, ch.min(height)))
+    }
+
     /// The culling traversal (`auto`'s culled mode is CHC++).
     pub fn culling(&self) -> visibility::Culling {
         match self.culling {
@@ -542,6 +568,15 @@ impl PipelineOptions {
         }
         if ![4, 8, 16].contains(&p.tile) {
             return bad("tile", format!("{} is not 4, 8 or 16", p.tile));
+        }
+        if let Some((w, h)) = p.culling_resolution {
+            let most = raster::MAX_TARGET_SIZE;
+            if !((1..=most).contains(&w) && (1..=most).contains(&h)) {
+                return bad(
+                    "culling_resolution",
+                    format!("{w}×{h} must be between 1×1 and {most}×{most}"),
+                );
+            }
         }
         if p.chcpp.batch == 0 || p.chcpp.revisit == 0 {
             return bad(
@@ -660,5 +695,33 @@ impl PipelineOptions {
                 && self.coverage.sampling() == visibility::Sampling::Point,
             proxies: self.occluders == OccludersSpec::Proxy,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The culling size keeps the viewport's aspect within the culling
+    /// resolution, never exceeds the viewport, and is the viewport's own
+    /// without one.
+    #[test]
+    fn the_culling_size_fits_the_resolution_to_the_viewport() {
+        let at = |r: Option<(u32, u32)>, v: (u32, u32)| {
+            PipelineOptions {
+                culling_resolution: r,
+                ..PipelineOptions::default()
+            }
+            .culling_size(v)
+        };
+        assert_eq!(at(None, (800, 600)), (800, 600));
+        assert_eq!(at(Some((200, 150)), (800, 600)), (200, 150));
+        // The narrower side of the box decides: 4:3 in 16:9.
+        assert_eq!(at(Some((1920, 1080)), (3840, 2160)), (1920, 1080));
+        assert_eq!(at(Some((960, 540)), (1280, 1024)), (675, 540));
+        assert_eq!(at(Some((320, 320)), (1280, 720)), (320, 180));
+        // Never above the viewport, and at least a pixel.
+        assert_eq!(at(Some((1920, 1080)), (800, 600)), (800, 600));
+        assert_eq!(at(Some((1, 1)), (4000, 10)), (1, 1));
     }
 }

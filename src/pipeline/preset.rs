@@ -79,7 +79,11 @@ impl PipelineOptions {
     /// - `occluders: proxy`: the light views draw each solid convex mesh's
     ///   proxy, a few triangles inside it, in place of its mesh;
     /// - `clamping: none`: the host's fill is not this library's to price
-    ///   yet, so nothing is spent on segments.
+    ///   yet, so nothing is spent on segments;
+    /// - `culling_resolution: (1920, 1080)`: above 1080p the culling eye
+    ///   pass runs coarse (conservative, `docs/host.md`), so its cost stops
+    ///   growing with the output; up to 1080p it runs at the viewport,
+    ///   where it culls far more.
     ///
     /// Every other field as in [`PipelineOptions::default`]. The exact mask
     /// is what the host's GPU draws from these volumes: culling is
@@ -92,6 +96,7 @@ impl PipelineOptions {
             scissor: true,
             occluders: OccludersSpec::Proxy,
             clamping: ClampingSpec::None,
+            culling_resolution: Some((1920, 1080)),
             ..PipelineOptions::default()
         }
     }
@@ -144,6 +149,7 @@ pipeline_section! {
     tile: u32,
     full_shadow: bool,
     map_size: u32,
+    culling_resolution: Option<(u32, u32)>,
     culling: CullingSpec,
     query_threshold: u32,
     coverage: CoverageSpec,

@@ -325,6 +325,15 @@ typedef struct sc_pipeline_options {
   // with the 88-byte layout, as the reserved field after it; an older
   // host's struct means `SC_OCCLUDERS_PRESET`.)
   uint32_t occluders;
+  // The culling eye pass's size (`PipelineOptions::culling_resolution`):
+  // the largest size within `culling_width × culling_height` with the
+  // viewport's aspect, never above the viewport; both 0: the preset's.
+  // (Added with the 96-byte layout, in the 88-byte layout's reserved
+  // field and the one after it; an older host's struct means the
+  // preset's.)
+  uint32_t culling_width;
+  // See `culling_width`.
+  uint32_t culling_height;
   // Reserved, zero.
   uint32_t reserved;
 } sc_pipeline_options;

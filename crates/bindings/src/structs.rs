@@ -180,6 +180,15 @@ pub struct sc_pipeline_options {
     /// with the 88-byte layout, as the reserved field after it; an older
     /// host's struct means `SC_OCCLUDERS_PRESET`.)
     pub occluders: u32,
+    /// The culling eye pass's size (`PipelineOptions::culling_resolution`):
+    /// the largest size within `culling_width × culling_height` with the
+    /// viewport's aspect, never above the viewport; both 0: the preset's.
+    /// (Added with the 96-byte layout, in the 88-byte layout's reserved
+    /// field and the one after it; an older host's struct means the
+    /// preset's.)
+    pub culling_width: u32,
+    /// See `culling_width`.
+    pub culling_height: u32,
     /// Reserved, zero.
     pub reserved: u32,
 }
@@ -315,6 +324,8 @@ impl Versioned for sc_pipeline_options {
             preset: SC_PRESET_BATCH,
             scissor: 0,
             occluders: SC_OCCLUDERS_PRESET,
+            culling_width: 0,
+            culling_height: 0,
             reserved: 0,
         }
     }
@@ -501,6 +512,16 @@ impl sc_pipeline_options {
                     )))
                 }
             },
+            culling_resolution: match (self.culling_width, self.culling_height) {
+                (0, 0) => base.culling_resolution,
+                (w, h) if w > 0 && h > 0 => Some((w, h)),
+                (w, h) => {
+                    return Err(Failure::invalid(format!(
+                        "options.culling_width × culling_height: {w}×{h} needs both \
+                         sides, or neither (0 × 0: the preset's)"
+                    )))
+                }
+            },
             ..base
         })
     }
@@ -601,12 +622,31 @@ mod tests {
             ..batch
         };
         assert_eq!(proxies.to_rust().unwrap().occluders, OccludersSpec::Proxy);
+        // The culling resolution: the preset's unless both sides are named.
+        assert_eq!(
+            gpu.to_rust().unwrap().culling_resolution,
+            Some((1920, 1080))
+        );
+        assert_eq!(batch.to_rust().unwrap().culling_resolution, None);
+        let coarse = sc_pipeline_options {
+            culling_width: 320,
+            culling_height: 180,
+            ..batch
+        };
+        assert_eq!(
+            coarse.to_rust().unwrap().culling_resolution,
+            Some((320, 180))
+        );
         for bad in [
             sc_pipeline_options {
                 occluders: 3,
                 ..gpu
             },
             sc_pipeline_options { reserved: 1, ..gpu },
+            sc_pipeline_options {
+                culling_width: 320,
+                ..gpu
+            },
         ] {
             assert!(bad.to_rust().is_err());
         }

@@ -59,7 +59,7 @@ pub use light_pass::{
     BackendFactory, LightPass, LightPassOptions, LightPassResult, PassInput, ViewRole,
 };
 pub use light_view::{fit_light_views, LightView, LightViewKind, DEFAULT_LIGHT_VIEW_RESOLUTION};
-pub use receivers::{ReceiverPoints, RECEIVER_PUSH};
+pub use receivers::{ReceiverPoints, ReceiverPolygons, RECEIVER_PUSH};
 pub use slice_occupancy::{SliceRatio, MAX_SLICES};
 pub use traverse::Culling;
-pub use view_setup::{MeshData, Sampling, ViewSetup};
+pub use view_setup::{ConvexOccluders, MeshData, Sampling, ViewSetup};

@@ -50,6 +50,51 @@ pub struct ReceiverPoints {
     /// pipeline gives every point of a run one). Empty: every light takes
     /// every point.
     pub skip: Vec<u32>,
+    /// Receiver polygons: pieces of surface on which visible receiver
+    /// points may lie anywhere (a coarse eye pass knows no more), each
+    /// marked as a whole ([`raster::ReceiverTarget::mark_polygons_within`]).
+    pub polygons: ReceiverPolygons,
+}
+
+/// Convex, planar polygons of world points, each a piece of receiving
+/// surface ([`ReceiverPoints::polygons`]).
+#[derive(Clone, Debug, Default)]
+pub struct ReceiverPolygons {
+    /// Every polygon's vertices, one polygon after the other, in order
+    /// around it.
+    pub vertices: Vec<DVec3>,
+    /// Per polygon, the end of its vertices in `vertices` (it starts at the
+    /// end of the one before).
+    pub ends: Vec<u32>,
+    /// Per polygon, the lights that may leave it out, as
+    /// [`ReceiverPoints::skip`]. Empty: every light takes every polygon.
+    pub skip: Vec<u32>,
+}
+
+impl ReceiverPolygons {
+    /// Forgets every polygon (the buffers stay).
+    pub fn clear(&mut self) {
+        self.vertices.clear();
+        self.ends.clear();
+        self.skip.clear();
+    }
+
+    /// Appends polygon `vertices`, which lights of bits `skip` may leave out.
+    pub fn push(&mut self, vertices: impl IntoIterator<Item = DVec3>, skip: u32) {
+        self.vertices.extend(vertices);
+        self.ends.push(self.vertices.len() as u32);
+        self.skip.push(skip);
+    }
+
+    /// The number of polygons.
+    pub fn len(&self) -> usize {
+        self.ends.len()
+    }
+
+    /// Whether there is none.
+    pub fn is_empty(&self) -> bool {
+        self.ends.is_empty()
+    }
 }
 
 impl ReceiverPoints {
@@ -59,6 +104,7 @@ impl ReceiverPoints {
             points,
             joined: Vec::new(),
             skip: Vec::new(),
+            polygons: ReceiverPolygons::default(),
         }
     }
 
@@ -73,8 +119,17 @@ impl ReceiverPoints {
     }
 }
 
-/// What one view marks.
-pub(crate) enum Marks<'a> {
+/// What one view marks: points or segments, and polygons.
+pub(crate) struct Marks<'a> {
+    /// The points or segments.
+    pub lines: LineMarks<'a>,
+    /// Polygons `(start, end)` of `vertices`: all of them, or those listed
+    /// in `only`.
+    pub polygons: PolygonMarks<'a>,
+}
+
+/// The points or segments one view marks.
+pub(crate) enum LineMarks<'a> {
     /// Points, each on its own.
     Points(&'a [Vec4]),
     /// Pieces `(first, last)` of `points`, each marked as the segment
@@ -86,19 +141,63 @@ pub(crate) enum Marks<'a> {
     },
 }
 
+/// The polygons one view marks.
+#[derive(Clone, Copy)]
+pub(crate) struct PolygonMarks<'a> {
+    pub vertices: &'a [Vec4],
+    pub ranges: &'a [(u32, u32)],
+    pub only: Option<&'a [u32]>,
+}
+
+impl PolygonMarks<'_> {
+    fn len(&self) -> usize {
+        self.only.map_or(self.ranges.len(), <[u32]>::len)
+    }
+
+    /// Marks polygons `range` (of `only`, or of every polygon) in `t`.
+    fn mark(
+        &self,
+        t: &mut raster::ReceiverTarget,
+        clip_from_local: Mat4,
+        range: std::ops::Range<usize>,
+        eps_px: f64,
+    ) {
+        let poly = |&(a, b): &(u32, u32)| &self.vertices[a as usize..b as usize];
+        match self.only {
+            Some(ix) => t.mark_polygons_within(
+                clip_from_local,
+                ix[range].iter().map(|&i| poly(&self.ranges[i as usize])),
+                eps_px,
+            ),
+            None => {
+                t.mark_polygons_within(clip_from_local, self.ranges[range].iter().map(poly), eps_px)
+            }
+        };
+    }
+}
+
 /// Segments from which a view's marking is split between two threads.
 #[cfg(feature = "parallel")]
 const SPLIT_SEGMENTS: usize = 1 << 15;
 
 impl Marks<'_> {
+    /// How many points, pieces and polygons this view marks.
+    pub fn len(&self) -> usize {
+        let lines = match self.lines {
+            LineMarks::Points(p) => p.len(),
+            LineMarks::Segments { pieces, only, .. } => only.map_or(pieces.len(), <[u32]>::len),
+        };
+        lines + self.polygons.len()
+    }
+
     /// Marks these receivers in `target` (local points, clip
-    /// `clip_from_local · p`) within `eps_px`. With many segments, a pool
-    /// of more than one thread and a `spare` target (made like `target`
-    /// when missing or unlike it), half of them are marked in the spare on
-    /// another thread and absorbed ([`raster::ReceiverTarget::absorb`]):
-    /// the same marks, as marks are minima and maxima. A street view's
-    /// receivers crowd one cube face, whose marking was the light pass's
-    /// longest single-threaded step.
+    /// `clip_from_local · p`) within `eps_px`. With many segments or
+    /// polygons, a pool of more than one thread and a `spare` target (made
+    /// like `target` when missing or unlike it), half of them are marked in
+    /// the spare on another thread and absorbed
+    /// ([`raster::ReceiverTarget::absorb`]): the same marks, as marks are
+    /// minima and maxima. A street view's receivers crowd one cube face,
+    /// whose marking was the light pass's longest single-threaded step.
     pub fn mark(
         &self,
         target: &mut raster::ReceiverTarget,
@@ -106,17 +205,16 @@ impl Marks<'_> {
         eps_px: f64,
         spare: Option<&mut Option<raster::ReceiverTarget>>,
     ) {
-        let (points, pieces, only) = match *self {
-            Marks::Points(p) => {
-                target.mark_points_within(clip_from_local, p, eps_px);
-                return;
-            }
-            Marks::Segments {
+        let polygons = self.polygons;
+        let (points, pieces, only) = match self.lines {
+            LineMarks::Points(p) => (p, &[][..], None),
+            LineMarks::Segments {
                 points,
                 pieces,
                 only,
             } => (points, pieces, only),
         };
+        let segmented = matches!(self.lines, LineMarks::Segments { .. });
         let segment = |&(a, b): &(u32, u32)| (points[a as usize], points[b as usize]);
         let count = only.map_or(pieces.len(), <[u32]>::len);
         // Marks segments `range` (of `only`, or of every piece) in `t`.
@@ -130,9 +228,10 @@ impl Marks<'_> {
                 t.mark_segments_within(clip_from_local, pieces[range].iter().map(segment), eps_px)
             }
         };
+        let polys = polygons.len();
         #[cfg(feature = "parallel")]
         if let Some(spare) = spare {
-            if count >= SPLIT_SEGMENTS && rayon::current_num_threads() > 1 {
+            if segmented && count + polys >= SPLIT_SEGMENTS && rayon::current_num_threads() > 1 {
                 let other = match spare {
                     Some(s)
                         if s.size() == target.size()
@@ -142,15 +241,29 @@ impl Marks<'_> {
                     }
                     _ => spare.insert(target.unmarked_like()),
                 };
-                let half = count / 2;
-                rayon::join(|| mark(target, 0..half), || mark(other, half..count));
+                let (half, half_polys) = (count / 2, polys / 2);
+                rayon::join(
+                    || {
+                        mark(target, 0..half);
+                        polygons.mark(target, clip_from_local, 0..half_polys, eps_px);
+                    },
+                    || {
+                        mark(other, half..count);
+                        polygons.mark(other, clip_from_local, half_polys..polys, eps_px);
+                    },
+                );
                 target.absorb(other).expect("a spare made like the target");
                 return;
             }
         }
         #[cfg(not(feature = "parallel"))]
         let _ = spare;
-        mark(target, 0..count);
+        if segmented {
+            mark(target, 0..count);
+        } else {
+            target.mark_points_within(clip_from_local, points, eps_px);
+        }
+        polygons.mark(target, clip_from_local, 0..polys, eps_px);
     }
 }
 
@@ -166,6 +279,12 @@ pub(crate) struct Prepared {
     face_points: [Vec<Vec4>; 6],
     /// Segmented, per cube face: the indices of the pieces that can mark it.
     face_pieces: [Vec<u32>; 6],
+    /// Every polygon's vertices, pushed and relative to the views' origin.
+    polygon_local: Vec<Vec4>,
+    /// The polygons the light takes, as (start, end) into `polygon_local`.
+    polygons: Vec<(u32, u32)>,
+    /// Per cube face: the indices of the polygons that can mark it.
+    face_polygons: [Vec<u32>; 6],
     segmented: bool,
     cube: bool,
 }
@@ -233,6 +352,24 @@ impl Prepared {
             rest = tail;
             offset += r.points.len() as u32;
         }
+        self.polygon_local.clear();
+        self.polygons.clear();
+        for r in parts {
+            let p = &r.polygons;
+            let mut start = 0;
+            for (k, &end) in p.ends.iter().enumerate() {
+                let taken = p.skip.get(k).is_none_or(|&s| s & skip == 0);
+                let vertices = &p.vertices[start as usize..end as usize];
+                start = end;
+                if !taken || vertices.is_empty() {
+                    continue;
+                }
+                let first = self.polygon_local.len() as u32;
+                self.polygon_local
+                    .extend(vertices.iter().map(|&v| place(v)));
+                self.polygons.push((first, self.polygon_local.len() as u32));
+            }
+        }
         let cube_res = views
             .iter()
             .filter(|v| matches!(v.kind, LightViewKind::CubeFace(_)))
@@ -258,23 +395,27 @@ impl Prepared {
             (LightViewKind::CubeFace(k), true) => Some(k as usize),
             _ => None,
         };
-        match (face, self.segmented) {
-            (face, true) => Marks::Segments {
+        let lines = match (face, self.segmented) {
+            (face, true) => LineMarks::Segments {
                 points: &self.local,
                 pieces: &self.pieces,
                 only: face.map(|k| &self.face_pieces[k][..]),
             },
-            (Some(k), false) => Marks::Points(&self.face_points[k]),
-            (None, false) => Marks::Points(&self.local),
-        }
+            (Some(k), false) => LineMarks::Points(&self.face_points[k]),
+            (None, false) => LineMarks::Points(&self.local),
+        };
+        let polygons = PolygonMarks {
+            vertices: &self.polygon_local,
+            ranges: &self.polygons,
+            only: face.map(|k| &self.face_polygons[k][..]),
+        };
+        Marks { lines, polygons }
     }
 
-    /// How many points or pieces `view` marks ([`Prepared::for_view`]).
+    /// How many points, pieces and polygons `view` marks
+    /// ([`Prepared::for_view`]).
     pub fn count_for(&self, view: &LightView) -> usize {
-        match self.for_view(view) {
-            Marks::Points(points) => points.len(),
-            Marks::Segments { pieces, only, .. } => only.map_or(pieces.len(), <[u32]>::len),
-        }
+        self.for_view(view).len()
     }
 
     /// Sends every point or piece to the cube faces whose widened cone it
@@ -290,6 +431,21 @@ impl Prepared {
         }
         for f in &mut self.face_pieces {
             f.clear();
+        }
+        // A polygon with every vertex clear of one face lies in that face's
+        // cone (convex, as the pieces' test says): it goes there alone; any
+        // other, to every face (a few along the cube's edges).
+        for f in &mut self.face_polygons {
+            f.clear();
+        }
+        for (i, &(a, b)) in self.polygons.iter().enumerate() {
+            let vertices = &self.polygon_local[a as usize..b as usize];
+            let face = |v: &Vec4| clear_face(v.truncate().as_dvec3(), slack);
+            let first = face(&vertices[0]);
+            match first.filter(|_| vertices[1..].iter().all(|v| face(v) == first)) {
+                Some(k) => self.face_polygons[k].push(i as u32),
+                None => self.face_polygons.iter_mut().for_each(|f| f.push(i as u32)),
+            }
         }
         if self.segmented {
             let at = |i: u32| self.local[i as usize].truncate().as_dvec3();
@@ -404,6 +560,7 @@ mod tests {
             points,
             joined,
             skip,
+            polygons: ReceiverPolygons::default(),
         };
         let mut pieces = vec![(0, 0)];
         cut_pieces(&r, 0, 10, &mut pieces);

@@ -187,6 +187,9 @@ def test_the_gpu_host_preset():
     g = sc.gpu_host_options()
     assert (g["stencil"], g["culling"], g["scissor"], g["reference_every"]) == ("none", "auto", True, 0)
     assert (g["occluders"], sc.default_options()["occluders"]) == ("proxy", "mesh")
+    assert (g["culling_resolution"], sc.default_options()["culling_resolution"]) == ([1920, 1080], None)
+    coarse = sc.Pipeline(preset="gpu_host", culling_resolution=(320, 180))
+    assert coarse.options["culling_resolution"] == [320, 180]
     assert set(g) == set(sc.default_options())
     assert sc.Pipeline(preset="gpu_host").options == g
     p = sc.Pipeline(preset="gpu_host", culling="chcpp", occluders="mesh")
