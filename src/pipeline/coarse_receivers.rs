@@ -318,31 +318,12 @@ fn triangle_polygons(grid: &Grid<'_>, tri: [Vertex; 3], mut emit: impl FnMut(&[V
     let mut full: Option<((u32, u32), (u32, u32))> = None;
     let mut runs: [(u32, u32); 8] = [(0, 0); 8];
     for r in r0 as u32..=r1 as u32 {
-        let (b0, b1) = (f64::from(r), f64::from(r) + 1.0);
         // The slice's x extent and nearest depth.
-        let (mut xlo, mut xhi, mut znear) = (f64::INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY);
-        for (i, p) in s.iter().enumerate() {
-            let n = s[(i + 1) % s.len()];
-            let (mut t0, mut t1) = (0.0f64, 1.0f64);
-            let dy = n.1 - p.1;
-            if dy == 0.0 {
-                if p.1 < b0 || p.1 > b1 {
-                    continue;
-                }
-            } else {
-                let (ta, tb) = ((b0 - p.1) / dy, (b1 - p.1) / dy);
-                t0 = t0.max(ta.min(tb));
-                t1 = t1.min(ta.max(tb));
-                if t0 > t1 {
-                    continue;
-                }
-            }
-            for t in [t0, t1] {
-                let x = p.0 + (n.0 - p.0) * t;
-                (xlo, xhi) = (xlo.min(x), xhi.max(x));
-                znear = znear.max(p.2 + (n.2 - p.2) * t);
-            }
-        }
+        let Some(((xlo, xhi), (_, znear))) =
+            raster::band_extent(s, (f64::from(r), f64::from(r) + 1.0))
+        else {
+            continue;
+        };
         let c0 = (xlo - 1.0).ceil().max(0.0);
         let c1 = xhi.floor().min(grid.w - 1.0);
         if c0.is_nan() || c1.is_nan() || c0 > c1 {

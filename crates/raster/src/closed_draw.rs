@@ -14,6 +14,7 @@
 //! over the square's corners, and the least over the face's part in the
 //! pixel's row). Edges met by other than two faces count as silhouette.
 
+use crate::band_extent::{band_clip, band_extent};
 use crate::depth_plane::DepthPlane;
 use crate::depth_target::DepthTarget;
 use crate::item::DrawItem;
@@ -237,19 +238,9 @@ fn front_face(tri: &[(f64, f64, f64); 3], r: &Rect, depth: &mut [f64]) {
         return;
     }
     for y in y0 as u32..=y1 as u32 {
-        let (b0, b1) = (f64::from(y), f64::from(y) + 1.0);
-        let (mut xa, mut xb, mut zf) = (f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY);
-        for k in 0..3 {
-            let (p, q) = (tri[k], tri[(k + 1) % 3]);
-            let Some((t0, t1)) = band_clip(p.1, q.1, b0, b1) else {
-                continue;
-            };
-            for t in [t0, t1] {
-                let x = p.0 + (q.0 - p.0) * t;
-                (xa, xb) = (xa.min(x), xb.max(x));
-                zf = zf.min(p.2 + (q.2 - p.2) * t);
-            }
-        }
+        let Some(((xa, xb), (zf, _))) = band_extent(tri, (f64::from(y), f64::from(y) + 1.0)) else {
+            continue;
+        };
         let x0 = (xa - 1.0).ceil().max(f64::from(r.x0));
         let x1 = xb.floor().min(f64::from(r.x0 + r.w - 1));
         if x0.is_nan() || x1.is_nan() || x0 > x1 {
@@ -267,19 +258,6 @@ fn front_face(tri: &[(f64, f64, f64); 3], r: &Rect, depth: &mut [f64]) {
     }
 }
 
-/// The parameters `t0 ≤ t1` of the part of the segment from y `pa` to
-/// `pb` within the band `[b0, b1]`, `None` when it misses it.
-#[inline(always)]
-fn band_clip(pa: f64, pb: f64, b0: f64, b1: f64) -> Option<(f64, f64)> {
-    let dy = pb - pa;
-    if dy == 0.0 {
-        return (pa >= b0 && pa <= b1).then_some((0.0, 1.0));
-    }
-    let (ta, tb) = ((b0 - pa) / dy, (b1 - pa) / dy);
-    let (t0, t1) = (ta.min(tb).max(0.0), ta.max(tb).min(1.0));
-    (t0 <= t1).then_some((t0, t1))
-}
-
 /// Flags, in `edge` (the rectangle's pixels), every pixel whose closed
 /// square, widened by [`EDGE_MARGIN_PX`], the segment `p q` meets.
 fn mark_segment(p: (f64, f64), q: (f64, f64), r: &Rect, edge: &mut [bool]) {
@@ -291,7 +269,7 @@ fn mark_segment(p: (f64, f64), q: (f64, f64), r: &Rect, edge: &mut [bool]) {
         return;
     }
     for y in y0 as u32..=y1 as u32 {
-        let Some((t0, t1)) = band_clip(p.1, q.1, f64::from(y) - e, f64::from(y) + 1.0 + e) else {
+        let Some((t0, t1)) = band_clip(p.1, q.1, (f64::from(y) - e, f64::from(y) + 1.0 + e)) else {
             continue;
         };
         let (xa, xb) = (p.0 + (q.0 - p.0) * t0, p.0 + (q.0 - p.0) * t1);

@@ -267,25 +267,8 @@ mod tests {
 
     /// A cube's 12 triangles, outward, over its 8 corners (±1).
     fn cube() -> (Vec<Vec4>, Vec<[u32; 3]>) {
-        let p = (0..8)
-            .map(|i| {
-                let f = |b: u32| if i & b != 0 { 1.0 } else { -1.0 };
-                Vec4::new(f(1), f(2), f(4), 1.0)
-            })
-            .collect();
-        let quads = [
-            [0, 2, 3, 1],
-            [4, 5, 7, 6],
-            [0, 1, 5, 4],
-            [2, 6, 7, 3],
-            [0, 4, 6, 2],
-            [1, 3, 7, 5],
-        ];
-        let t = quads
-            .iter()
-            .flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]])
-            .collect();
-        (p, t)
+        let c = crate::aabb_corners(glam::Vec3::splat(-1.0), glam::Vec3::ONE);
+        (c.to_vec(), crate::AABB_TRIANGLES.to_vec())
     }
 
     fn perspective() -> Mat4 {

@@ -65,6 +65,7 @@ mod edge;
 mod setup;
 mod volume_buffer;
 // Targets: the tile layout and hierarchical z, the depth and receiver targets.
+mod band_extent;
 mod batch_scratch;
 mod closed_draw;
 mod convex_draw;
@@ -92,6 +93,7 @@ pub use backend::{
     BackendStats, DrawCommand, Gate, Latency, OcclusionBackend, QueryBuffers, QueryCommand,
     QueryId, ReadTarget, SimulatedBackend, SyncBackend, ThreadedBackend, Whole,
 };
+pub use band_extent::band_extent;
 pub use coverage::{Coverage, DepthPick};
 pub use depth_plane::DepthPlane;
 pub use depth_target::{CullMode, DepthTarget, NO_ID};

@@ -15,6 +15,7 @@
 //! depths, tightened to the polygon's depth plane over the pixel's
 //! widened square where the plane is well conditioned.
 
+use crate::band_extent::band_extent;
 use crate::depth_plane::DepthPlane;
 use crate::receiver_target::{floor, Projector, ReceiverTarget, SEGMENT_SLACK_PX};
 use glam::{DVec4, Mat4, Vec4};
@@ -144,32 +145,11 @@ impl ReceiverTarget {
         let plane = DepthPlane::fit(v);
         let mut marked = 0;
         for y in y0 as u32..=y1 as u32 {
-            let (b0, b1) = (f64::from(y) - e, f64::from(y) + 1.0 + e);
-            let (mut xlo, mut xhi) = (f64::INFINITY, f64::NEG_INFINITY);
-            let (mut zlo, mut zhi) = (f64::INFINITY, f64::NEG_INFINITY);
-            for (i, p) in v.iter().enumerate() {
-                let q = v[(i + 1) % v.len()];
-                // The edge p q clipped to the band.
-                let (mut t0, mut t1) = (0.0f64, 1.0f64);
-                let dy = q.1 - p.1;
-                if dy == 0.0 {
-                    if p.1 < b0 || p.1 > b1 {
-                        continue;
-                    }
-                } else {
-                    let (ta, tb) = ((b0 - p.1) / dy, (b1 - p.1) / dy);
-                    t0 = t0.max(ta.min(tb));
-                    t1 = t1.min(ta.max(tb));
-                    if t0 > t1 {
-                        continue;
-                    }
-                }
-                for t in [t0, t1] {
-                    let (x, z) = (p.0 + (q.0 - p.0) * t, p.2 + (q.2 - p.2) * t);
-                    (xlo, xhi) = (xlo.min(x), xhi.max(x));
-                    (zlo, zhi) = (zlo.min(z), zhi.max(z));
-                }
-            }
+            let Some(((xlo, xhi), (zlo, zhi))) =
+                band_extent(v, (f64::from(y) - e, f64::from(y) + 1.0 + e))
+            else {
+                continue;
+            };
             let x0 = (-floor(1.0 + e - xlo)).max(0.0);
             let x1 = floor(xhi + e).min(pr.w - 1.0);
             if x0.is_nan() || x1.is_nan() || x0 > x1 {
