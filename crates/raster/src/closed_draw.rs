@@ -18,7 +18,6 @@ use crate::band_extent::{band_clip, band_extent};
 use crate::depth_plane::DepthPlane;
 use crate::depth_target::DepthTarget;
 use crate::item::DrawItem;
-use crate::layout::TileRows;
 use crate::setup::facing_f64;
 use crate::whole_draw::{snap_slack, to_f32_below, ClosedScratch, HULL_MARGIN_PX};
 
@@ -52,6 +51,7 @@ impl DepthTarget {
         let (w, h) = (f64::from(self.width()), f64::from(self.height()));
         let m = item.clip_from_local;
         s.points.clear();
+        s.clip.clear();
         let (mut xlo, mut xhi, mut ylo, mut yhi) = (
             f64::INFINITY,
             f64::NEG_INFINITY,
@@ -73,6 +73,7 @@ impl DepthTarget {
             );
             (xlo, xhi, ylo, yhi) = (xlo.min(q.0), xhi.max(q.0), ylo.min(q.1), yhi.max(q.1));
             s.points.push(q);
+            s.clip.push(c);
         }
         self.stats.triangles_in += item.triangles.len() as u64;
         // The bounding rectangle of pixels, inclusive, cut to the target and
@@ -123,8 +124,7 @@ impl DepthTarget {
             if t.iter().any(|&i| i as usize >= s.points.len()) {
                 return false;
             }
-            let c = t.map(|i| (m * item.positions[i as usize]).as_dvec4());
-            let front = !item.cull.skips(facing_f64(c));
+            let front = !item.cull.skips(facing_f64(t.map(|i| s.clip[i as usize])));
             for k in 0..3 {
                 let (a, b) = (s.weld[t[k] as usize], s.weld[t[(k + 1) % 3] as usize]);
                 s.edges.push((a.min(b), a.max(b), front));
@@ -154,7 +154,8 @@ impl DepthTarget {
         let mut written = 0u64;
         // No depth it writes is nearer than its nearest vertex.
         let znear = crate::coverage::f32_up(s.points.iter().fold(0.0f64, |z, p| z.max(p.2)));
-        let touched = &mut s.touched;
+        let id = u64::from(item.object) << 32;
+        let mut touched = std::mem::take(&mut s.touched);
         touched.clear();
         for y in 0..bh {
             for x in 0..bw {
@@ -173,35 +174,15 @@ impl DepthTarget {
                 if z.is_nan() || z <= 0.0 {
                     continue;
                 }
-                let i = l.pixel_index(px, py);
-                let id = u64::from(item.object) << 32;
-                let d = self.depth[i];
-                if z > d || (z == d && self.ids.as_ref().is_some_and(|ids| id < ids[i])) {
-                    self.depth[i] = z;
-                    if let Some(ids) = &mut self.ids {
-                        ids[i] = id;
-                    }
+                if self.write_bound(l.pixel_index(px, py), z, id) {
                     touched.push(t as u32);
                     written += 1;
                 }
             }
         }
         self.stats.pixels_written += written;
-        if !touched.is_empty() {
-            touched.sort_unstable();
-            touched.dedup();
-            let touched = &*touched;
-            let mut rows = TileRows::of(
-                l,
-                (0, l.tiles_y),
-                &mut self.depth,
-                self.ids.as_deref_mut(),
-                &mut self.tiles,
-            );
-            for &t in touched {
-                rows.refresh_tile(t % l.tiles_x, t / l.tiles_x);
-            }
-        }
+        self.refresh_tiles(&mut touched);
+        s.touched = touched;
         true
     }
 }

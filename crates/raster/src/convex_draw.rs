@@ -154,15 +154,7 @@ impl DepthTarget {
                     let mut wrote = false;
                     for (k, &z) in zs.iter().enumerate() {
                         let z = to_f32_below(z);
-                        let i = base + k;
-                        let d = self.depth[i];
-                        let wins =
-                            z > d || (z == d && self.ids.as_ref().is_some_and(|ids| id < ids[i]));
-                        if wins && z > 0.0 {
-                            self.depth[i] = z;
-                            if let Some(ids) = &mut self.ids {
-                                ids[i] = id;
-                            }
+                        if z > 0.0 && self.write_bound(base + k, z, id) {
                             wrote = true;
                             written += 1;
                         }
@@ -175,21 +167,45 @@ impl DepthTarget {
             }
         }
         self.stats.pixels_written += written;
-        if !s.tiles.is_empty() {
-            s.tiles.sort_unstable();
-            s.tiles.dedup();
-            let mut rows = TileRows::of(
-                l,
-                (0, l.tiles_y),
-                &mut self.depth,
-                self.ids.as_deref_mut(),
-                &mut self.tiles,
-            );
-            for &t in &s.tiles {
-                rows.refresh_tile(t % l.tiles_x, t / l.tiles_x);
+        self.refresh_tiles(&mut s.tiles);
+        true
+    }
+
+    /// Writes depth `z` and id `id` at pixel `i` (tile-major) when it wins
+    /// the GREATER test (ties to the smaller id); returns whether it did.
+    /// The tile bounds are left to [`DepthTarget::refresh_tiles`].
+    #[inline(always)]
+    pub(crate) fn write_bound(&mut self, i: usize, z: f32, id: u64) -> bool {
+        let d = self.depth[i];
+        let wins = z > d || (z == d && self.ids.as_ref().is_some_and(|ids| id < ids[i]));
+        if wins {
+            self.depth[i] = z;
+            if let Some(ids) = &mut self.ids {
+                ids[i] = id;
             }
         }
-        true
+        wins
+    }
+
+    /// Recomputes the bounds of the tiles `tiles` names (row-major tile
+    /// indices, any order, repeats allowed; sorted in place).
+    pub(crate) fn refresh_tiles(&mut self, tiles: &mut Vec<u32>) {
+        if tiles.is_empty() {
+            return;
+        }
+        tiles.sort_unstable();
+        tiles.dedup();
+        let l = self.layout;
+        let mut rows = TileRows::of(
+            l,
+            (0, l.tiles_y),
+            &mut self.depth,
+            self.ids.as_deref_mut(),
+            &mut self.tiles,
+        );
+        for &t in tiles.iter() {
+            rows.refresh_tile(t % l.tiles_x, t / l.tiles_x);
+        }
     }
 }
 

@@ -60,6 +60,8 @@ pub(crate) struct ConvexScratch {
 pub(crate) struct ClosedScratch {
     /// Projected vertices by index (pixel coordinates, depth).
     pub(crate) points: Vec<(f64, f64, f64)>,
+    /// Their clip points, for the faces' facing.
+    pub(crate) clip: Vec<glam::DVec4>,
     /// Undirected edges `(low, high, front)` of every face, over welded
     /// vertices.
     pub(crate) edges: Vec<(u32, u32, bool)>,
