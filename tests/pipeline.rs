@@ -383,6 +383,176 @@ fn a_coarse_culling_resolution_keeps_masks_exact() -> Result<()> {
     Ok(())
 }
 
+/// A wedge (a ramp rising along +x to a wall at x = 4), a small cube over
+/// its slope, inside the wedge's bounds but outside its solid (an invisible
+/// shadow caster), and a ground: the cube's shadow falls on the slope. The wedge's occluder is `occluder`.
+fn wedge_pipeline(
+    options: PipelineOptions,
+    occluder: (glam::Vec3, glam::Vec3),
+) -> Result<(Pipeline, LightId, ObjectId)> {
+    use glam::{DMat4, Vec3};
+    use scene::procedural::analytic::{box_mesh, ground_with_boxes};
+    let ground = ground_with_boxes(20.0, &[]).unwrap();
+    let mut p = Pipeline::new(Arc::new(Scene::new(ground.graph).unwrap()), options)?;
+    let v = |x, y, z| Vec3::new(x, y, z);
+    let positions = [
+        v(0., 0., -1.),
+        v(4., 0., -1.),
+        v(4., 4., -1.),
+        v(0., 0., 1.),
+        v(4., 0., 1.),
+        v(4., 4., 1.),
+    ];
+    let triangles = [
+        [0, 1, 4],
+        [0, 4, 3],
+        [0, 2, 1],
+        [3, 4, 5],
+        [1, 2, 5],
+        [1, 5, 4],
+        [0, 3, 5],
+        [0, 5, 2],
+    ];
+    let wedge = p.add_mesh(scene::Mesh::new("wedge", &positions, &triangles).unwrap());
+    let cube = p.add_mesh(box_mesh("cube", v(0.3, 2.5, -0.4), v(1.3, 3.2, 0.4)).unwrap());
+    let occluder = p.add_mesh(box_mesh("occluder", occluder.0, occluder.1).unwrap());
+    let id = p.add_object(wedge, DMat4::IDENTITY, ObjectFlags::ALL)?;
+    // An invisible shadow proxy: only its shadow is seen.
+    let proxy = ObjectFlags {
+        visible: false,
+        receives: false,
+        ..ObjectFlags::ALL
+    };
+    p.add_object(cube, DMat4::IDENTITY, proxy)?;
+    p.set_occluder(id, Some(occluder))?;
+    let sun = p.add_light(Light::Directional {
+        direction: DVec3::new(0.15, -1.0, 0.05).normalize(),
+    })?;
+    Ok((p, sun, id))
+}
+
+fn wedge_view() -> FrameInput {
+    let camera = scene::LookAt {
+        eye: DVec3::new(-5.0, 7.0, 8.0),
+        target: DVec3::new(1.5, 1.0, 0.0),
+        up: DVec3::Y,
+        fov_y_deg: 60.0,
+        near: 0.1,
+    }
+    .camera(f64::from(W) / f64::from(H))
+    .unwrap();
+    FrameInput::new(W, H, camera)
+}
+
+/// A host's own occluder (`Pipeline::set_occluder`) stands in for its
+/// object's mesh under `occluders: proxy`: one inside the wedge keeps the
+/// mask exact (culled = unculled = the reference, and the GPU check 0 and
+/// 0), one that pokes out of it (its bounding box, which hides the cube
+/// from the sun) makes culling drop the cube, and the GPU check counts the
+/// pixels of its lost shadow. Bounds that reach outside the mesh's are
+/// refused, naming the object.
+#[test]
+fn a_host_occluder_stands_in_for_its_mesh_and_the_gpu_check_catches_one_that_pokes_out(
+) -> Result<()> {
+    use glam::Vec3;
+    let o = PipelineOptions {
+        occluders: OccludersSpec::Proxy,
+        ..options(CullingSpec::Chcpp, StencilBackend::Bf)
+    };
+    let inside = (Vec3::new(2.2, 0.1, -0.9), Vec3::new(3.9, 2.0, 0.9));
+    let (mut p, sun, wedge) = wedge_pipeline(o, inside)?;
+    let (mut plain, _, _) = wedge_pipeline(options(CullingSpec::None, StencilBackend::Bf), inside)?;
+    let input = wedge_view();
+    // CHC++ queries a visible object again after a few frames: by the
+    // twelfth, every hidden one is culled.
+    let settle = |p: &mut Pipeline| -> Result<Vec<usize>> {
+        (0..12)
+            .map(|_| Ok(p.frame(&input)?.lights().next().unwrap().psc().len()))
+            .collect()
+    };
+    let psc = settle(&mut p)?;
+    assert_eq!(
+        psc.last(),
+        Some(&3),
+        "the wedge, the cube and the ground cast: {psc:?}"
+    );
+    let mask = p
+        .last_output()
+        .unwrap()
+        .lights()
+        .next()
+        .unwrap()
+        .mask()
+        .unwrap()
+        .clone();
+    assert_eq!(
+        &mask,
+        plain
+            .frame(&input)?
+            .lights()
+            .next()
+            .unwrap()
+            .mask()
+            .unwrap()
+    );
+    let r = p.reference_mask(sun)?;
+    let c = compare(&r.mask, &r.ambiguous, &mask);
+    assert!(c.compared > 5_000, "{c:?}");
+    assert_eq!(c.mismatches, 0, "{c:?}");
+    let check = p.check_gpu(sun)?;
+    assert_eq!(check.mismatch_off_boundary, 0);
+    assert_eq!(check.culled_vs_unculled_differing_pixels, 0);
+    // And for a GPU host whose coarse eye pass draws it too.
+    let gpu = PipelineOptions {
+        culling: CullingSpec::Chcpp,
+        light_resolution: 256,
+        culling_resolution: Some((W / 4, H / 4)),
+        occluders: OccludersSpec::Proxy,
+        ..PipelineOptions::gpu_host()
+    };
+    let (mut p, sun, _) = wedge_pipeline(gpu, inside)?;
+    settle(&mut p)?;
+    let check = p.check_gpu(sun)?;
+    assert_eq!(check.mismatch_off_boundary, 0);
+    assert_eq!(check.culled_vs_unculled_differing_pixels, 0);
+
+    // The wedge's bounding box hides the cube from the sun.
+    let bounds = (Vec3::new(0.0, 0.0, -1.0), Vec3::new(4.0, 4.0, 1.0));
+    let (mut p, sun, _) = wedge_pipeline(o, bounds)?;
+    let psc = settle(&mut p)?;
+    assert_eq!(psc.last(), Some(&2), "the cube culled: {psc:?}");
+    let check = p.check_gpu(sun)?;
+    let (off, differing) = (
+        check.mismatch_off_boundary,
+        check.culled_vs_unculled_differing_pixels,
+    );
+    assert!(
+        off > 20 && differing >= off,
+        "{off} off the boundary, {differing} differing"
+    );
+    // The same occluder under `occluders: mesh` is not drawn.
+    let (mut p, sun, _) = wedge_pipeline(
+        PipelineOptions {
+            occluders: OccludersSpec::Mesh,
+            ..o
+        },
+        bounds,
+    )?;
+    assert_eq!(settle(&mut p)?.last(), Some(&3));
+    assert_eq!(p.check_gpu(sun)?.culled_vs_unculled_differing_pixels, 0);
+
+    // An occluder larger than its object's mesh is refused.
+    let big = p.add_mesh(
+        scene::procedural::analytic::box_mesh("big", Vec3::splat(-1.0), Vec3::splat(5.0)).unwrap(),
+    );
+    let e = p.set_occluder(wedge, Some(big)).unwrap_err().to_string();
+    assert!(
+        e.contains("occluder of object") && e.contains("reach outside"),
+        "{e}"
+    );
+    Ok(())
+}
+
 /// The engine scene (objects moving, added and removed) under the
 /// `gpu_host` preset with a coarse culling resolution: exact for the GPU.
 #[test]

@@ -91,6 +91,28 @@ impl Pipeline {
         Ok(())
     }
 
+    /// Gives object `id` the host's own occluder from the next frame on:
+    /// `occluder` (a mesh added with [`Pipeline::add_mesh`], placed by the
+    /// object's transform) is what the light views and a coarse eye pass
+    /// draw for it in place of its mesh, under `occluders: proxy`
+    /// ([`crate::OccludersSpec::Proxy`]); `None` goes back to its own mesh
+    /// or automatic proxy. Engines author such occluders low-poly and inside
+    /// the visible mesh; the host promises the occluder hides nothing the
+    /// object does not hide, from any eye or light (it lies inside the
+    /// object's solid, or on its surface). An occluder that breaks the
+    /// promise makes culling drop casters and receivers that are visible:
+    /// [`Pipeline::check_gpu`] finds it (shadow_bench `--check-gpu`).
+    ///
+    /// # Errors
+    /// [`Error::Scene`] for an unknown, removed or stale object id; an
+    /// unknown, removed or empty mesh; or an occluder whose bounds reach
+    /// outside the bounds of the object's own mesh (naming both).
+    pub fn set_occluder(&mut self, id: ObjectId, occluder: Option<MeshId>) -> Result<()> {
+        self.scene_mut().set_occluder(id, occluder)?;
+        self.edited = true;
+        Ok(())
+    }
+
     /// Moves object `id` to `world_from_local` from the next frame on (its
     /// cached silhouettes are recomputed: the cache compares transforms).
     ///

@@ -615,6 +615,10 @@ pub struct EyeTraversal {
     /// the depth is a bound no visible sample of a pixel lies behind, not
     /// the visible surface.
     pub coarse: bool,
+    /// A coarse pass draws objects' host-given occluders
+    /// ([`scene::Object::occluder`], `occluders: proxy`) in place of their
+    /// meshes.
+    pub host_occluders: bool,
 }
 
 /// The coverage of the eye's occluder draws: standard at the output
@@ -693,6 +697,7 @@ pub(crate) fn eye_pass_culled_into(
         threshold,
         sampling,
         coarse,
+        host_occluders,
     } = traversal;
     let mut left = match previous {
         Some(p) if (p.target.width(), p.target.height()) == (width, height) => p.target,
@@ -729,6 +734,7 @@ pub(crate) fn eye_pass_culled_into(
         view.draw_coverage = occluder_coverage(coarse, sampling);
         if coarse {
             view.convex = visibility::ConvexOccluders::Hulls;
+            view.host_occluders = host_occluders;
         }
         let r = culler.cull_into(objects, &view, culling, &mut backend, result);
         let (target, q) = backend.into_parts();
@@ -817,6 +823,7 @@ pub(crate) fn cull_with(
     view.draw_coverage = occluder_coverage(coarse, options.coverage.sampling());
     if coarse {
         view.convex = visibility::ConvexOccluders::Hulls;
+        view.host_occluders = options.occluders == super::OccludersSpec::Proxy;
     }
     let objects = visibility::Objects::new(&state.hierarchy, scene, &state.meshes);
     state.halves = None;
@@ -861,6 +868,7 @@ pub(crate) mod tests {
             threshold: 0,
             sampling: visibility::Sampling::Conservative,
             coarse: false,
+            host_occluders: false,
         };
         let size = (320, 240);
         let (eye, result) =

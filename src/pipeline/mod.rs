@@ -479,6 +479,7 @@ impl Pipeline {
                 threshold: o.query_threshold,
                 sampling: o.coverage.sampling(),
                 coarse,
+                host_occluders: o.occluders == OccludersSpec::Proxy,
             };
             let mut pass = match coarse {
                 true => {

@@ -88,10 +88,12 @@ pub enum OccludersSpec {
     /// Every object's own mesh (its light-facing triangles).
     #[default]
     Mesh,
-    /// Each solid convex mesh's proxy ([`scene::occluder_proxy`]: the hull
-    /// of 16 of its vertices, inside the solid, conservative); other meshes
-    /// (open, non-convex, or with few triangles) their own. Not with the
-    /// hybrid's point-sampled shadow maps, which keep the casters' surfaces.
+    /// Each object's host-given occluder ([`crate::Pipeline::set_occluder`])
+    /// where it has one; else each solid convex mesh's proxy
+    /// ([`scene::occluder_proxy`]: the hull of 16 of its vertices, inside
+    /// the solid, conservative); other meshes (open, non-convex, or with few
+    /// triangles) their own. Not with the hybrid's point-sampled shadow
+    /// maps, which keep the casters' surfaces.
     Proxy,
 }
 

@@ -771,6 +771,14 @@ enum sc_status sc_object_set_transform_f32(sc_pipeline pipeline,
 // Sets an object's `SC_*` flags.
 enum sc_status sc_object_set_flags(sc_pipeline pipeline, sc_object object, uint32_t flags);
 
+// Gives an object the host's own occluder: mesh `occluder`, placed by the
+// object's transform, is drawn in place of its mesh by the light views and
+// a coarse eye pass under `SC_OCCLUDERS_PROXY`. It must hide nothing the
+// object does not (lie inside its solid, or on its surface); its bounds
+// must lie within the object's mesh's. The null handle (0) goes back to the
+// object's own mesh or automatic proxy.
+enum sc_status sc_object_set_occluder(sc_pipeline pipeline, sc_object object, sc_mesh occluder);
+
 // Removes an object. The null handle is a no-op; a removed or stale one
 // (double destroy) is `SC_INVALID_ARGUMENT`.
 enum sc_status sc_object_destroy(sc_pipeline pipeline, sc_object object);

@@ -427,6 +427,28 @@ pub extern "C" fn sc_object_set_flags(
     })
 }
 
+/// Gives an object the host's own occluder: mesh `occluder`, placed by the
+/// object's transform, is drawn in place of its mesh by the light views and
+/// a coarse eye pass under `SC_OCCLUDERS_PROXY`. It must hide nothing the
+/// object does not (lie inside its solid, or on its surface); its bounds
+/// must lie within the object's mesh's. The null handle (0) goes back to the
+/// object's own mesh or automatic proxy.
+#[no_mangle]
+pub extern "C" fn sc_object_set_occluder(
+    pipeline: sc_pipeline,
+    object: sc_object,
+    occluder: sc_mesh,
+) -> sc_status {
+    guard("sc_object_set_occluder", || {
+        let id = ObjectId(id_of(object, "object")?);
+        let mesh = match occluder {
+            0 => None,
+            h => Some(MeshId(id_of(h, "occluder")?)),
+        };
+        handles::with(pipeline, |e| Ok(e.pipeline.set_occluder(id, mesh)?))
+    })
+}
+
 /// Removes an object. The null handle is a no-op; a removed or stale one
 /// (double destroy) is `SC_INVALID_ARGUMENT`.
 #[no_mangle]

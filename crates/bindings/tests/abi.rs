@@ -304,6 +304,45 @@ fn output_equals_the_rust_pipeline() {
     ok(sc_pipeline_destroy(p));
 }
 
+/// `sc_object_set_occluder`: a mesh inside the object's is taken (and
+/// framed), one reaching outside it is refused with a message naming the
+/// object, the null handle goes back to the object's own mesh.
+#[test]
+fn a_host_occluder_is_set_refused_and_cleared() {
+    use sc_status::*;
+    let (p, objects, _) = c_pipeline();
+    let (pos, idx) = cube();
+    let scaled =
+        |s: f32, o: f32| -> Vec<[f32; 3]> { pos.iter().map(|v| v.map(|c| c * s + o)).collect() };
+    let mesh = |positions: &[[f32; 3]]| {
+        let mut m = 0;
+        ok(sc_mesh_create(p, &cube_desc(positions, &idx), &mut m));
+        m
+    };
+    let inner = mesh(&scaled(0.5, 0.25));
+    let outer = mesh(&scaled(2.0, -0.5));
+    ok(sc_object_set_occluder(p, objects[0], inner));
+    let mut out = empty_output();
+    ok(sc_pipeline_frame(p, &input(0), &mut out));
+    assert_eq!(
+        sc_object_set_occluder(p, objects[1], outer),
+        SC_INVALID_ARGUMENT
+    );
+    let e = last_error();
+    assert!(
+        e.contains("occluder of object") && e.contains("reach outside"),
+        "{e}"
+    );
+    assert_eq!(
+        sc_object_set_occluder(p, objects[1], u64::MAX),
+        SC_INVALID_ARGUMENT
+    );
+    assert!(last_error().contains("occluder"), "{}", last_error());
+    ok(sc_object_set_occluder(p, objects[0], 0));
+    ok(sc_pipeline_frame(p, &input(1), &mut out));
+    ok(sc_pipeline_destroy(p));
+}
+
 #[test]
 fn misuse_gives_statuses_and_messages() {
     use sc_status::*;

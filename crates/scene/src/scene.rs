@@ -108,6 +108,10 @@ pub struct Object {
     pub alive: bool,
     /// What it takes part in.
     pub flags: ObjectFlags,
+    /// The host's occluder for it ([`Scene::set_occluder`]): a mesh drawn in
+    /// its place, with its transform, where views draw occluders from
+    /// proxies (`occluders: proxy`); `None`: its own mesh or automatic proxy.
+    pub occluder: Option<MeshId>,
 }
 
 /// A scene ready for culling: the graph, its objects, bounds and object BVH.
@@ -503,11 +507,15 @@ impl Scene {
             .objects
             .iter()
             .enumerate()
-            .find(|(_, o)| o.alive && o.mesh == mesh)
+            .find(|(_, o)| o.alive && (o.mesh == mesh || o.occluder == Some(mesh)))
         {
+            let what = match self.objects[slot].mesh == mesh {
+                true => "instanced",
+                false => "the occluder",
+            };
             return Err(Error::UnknownMesh {
                 mesh: mesh.0,
-                message: format!("still instanced by object {}", self.id_of(slot as u32).0),
+                message: format!("still {what} of object {}", self.id_of(slot as u32).0),
             });
         }
         let empty = Mesh::new(
@@ -546,6 +554,7 @@ impl Scene {
             world_bounds: world_bounds(&bounds, &world_from_local, node)?,
             alive: true,
             flags,
+            occluder: None,
         };
         let slot = match self.free_slots.pop() {
             Some(slot) => {
@@ -596,6 +605,46 @@ impl Scene {
         Ok(())
     }
 
+    /// Sets the host's occluder of object `id` (immediately: it changes no
+    /// bounds): `mesh`, with the object's transform, stands in for the
+    /// object's own mesh wherever views draw occluders from proxies. The host
+    /// promises that it hides nothing the object does not: it lies inside
+    /// the object's solid (or on its surface), as an engine's hand-made
+    /// low-poly occluder does. `None` goes back to the object's own mesh.
+    ///
+    /// # Errors
+    /// As [`Scene::live_slot`]; [`Error::UnknownMesh`] for an unknown,
+    /// removed or empty mesh, or one whose bounds reach outside the bounds
+    /// of the object's own mesh (beyond 10⁻⁶ of their diagonal): such an
+    /// occluder would hide what its object does not.
+    pub fn set_occluder(&mut self, id: ObjectId, mesh: Option<MeshId>) -> Result<()> {
+        let slot = self.live_slot(id)? as usize;
+        if let Some(m) = mesh {
+            let occluder = self.live_mesh(m)?;
+            let own = self.graph.meshes()[self.objects[slot].mesh.0 as usize].bounds();
+            let b = occluder.bounds();
+            let slack = 1e-6 * (own.max - own.min).length();
+            if occluder.triangles().is_empty() {
+                return Err(Error::UnknownMesh {
+                    mesh: m.0,
+                    message: format!("occluder of object {}: has no triangles", id.0),
+                });
+            }
+            if b.min.cmplt(own.min - slack).any() || b.max.cmpgt(own.max + slack).any() {
+                return Err(Error::UnknownMesh {
+                    mesh: m.0,
+                    message: format!(
+                        "occluder of object {}: its bounds {:?}..{:?} reach outside the \
+                         object's mesh's {:?}..{:?}",
+                        id.0, b.min, b.max, own.min, own.max
+                    ),
+                });
+            }
+        }
+        self.objects[slot].occluder = mesh;
+        Ok(())
+    }
+
     /// Removes object `id`: it draws the empty mesh and has empty bounds; its
     /// slot is freed for reuse with the next generation (or retired when the
     /// generation would wrap). Takes effect at [`Scene::commit_edits`].
@@ -615,6 +664,7 @@ impl Scene {
         let o = &mut self.objects[slot as usize];
         o.alive = false;
         o.mesh = empty;
+        o.occluder = None;
         o.world_bounds = Aabb::EMPTY;
         let generations = &mut self.generations;
         if generations.len() <= slot as usize {
@@ -787,6 +837,7 @@ fn flatten(graph: &SceneGraph) -> Result<Vec<Object>> {
                 world_bounds: mesh.bounds().transformed(&world),
                 alive: true,
                 flags: ObjectFlags::ALL,
+                occluder: None,
             });
         }
         for &c in node.children.iter().rev() {
@@ -1012,5 +1063,41 @@ mod tests {
                 ObjectFlags::ALL
             )
             .is_err());
+    }
+
+    /// A host's occluder must fit the object's mesh's bounds; a mesh used as
+    /// one cannot be removed; removing the object (and so reusing its slot)
+    /// forgets it.
+    #[test]
+    fn host_occluders_fit_their_objects() {
+        use crate::procedural::analytic::box_mesh;
+        let mut s = Scene::new(SceneGraph::new()).unwrap();
+        let cube = s.add_mesh(box_mesh("cube", Vec3::ZERO, Vec3::ONE).unwrap());
+        let inner = s.add_mesh(box_mesh("inner", Vec3::splat(0.2), Vec3::splat(0.8)).unwrap());
+        let outer = s.add_mesh(box_mesh("outer", Vec3::splat(0.2), Vec3::splat(1.1)).unwrap());
+        let empty = s.add_mesh(Mesh::new("empty", &[], &[]).unwrap());
+        let a = s
+            .stage_add_object(cube, DMat4::IDENTITY, ObjectFlags::ALL)
+            .unwrap();
+        s.set_occluder(a, Some(inner)).unwrap();
+        assert_eq!(s.object(a).occluder, Some(inner));
+        let e = s.set_occluder(a, Some(outer)).unwrap_err().to_string();
+        assert!(
+            e.contains("occluder of object 0") && e.contains("reach outside"),
+            "{e}"
+        );
+        let e = s.set_occluder(a, Some(empty)).unwrap_err().to_string();
+        assert!(e.contains("no triangles"), "{e}");
+        assert!(s.set_occluder(a, Some(MeshId(99))).is_err());
+        assert_eq!(s.object(a).occluder, Some(inner), "refusals change nothing");
+        let e = s.stage_remove_mesh(inner).unwrap_err().to_string();
+        assert!(e.contains("the occluder of object 0"), "{e}");
+        s.stage_remove_object(a).unwrap();
+        assert!(s.set_occluder(a, None).is_err(), "a stale id");
+        let b = s
+            .stage_add_object(cube, DMat4::IDENTITY, ObjectFlags::ALL)
+            .unwrap();
+        assert_eq!((b.slot(), s.object(b).occluder), (a.slot(), None));
+        s.stage_remove_mesh(inner).unwrap();
     }
 }

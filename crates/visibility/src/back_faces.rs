@@ -75,6 +75,7 @@ mod tests {
             world_bounds: Aabb::from_points(corners),
             alive: true,
             flags: ObjectFlags::ALL,
+            occluder: None,
         }
     }
 

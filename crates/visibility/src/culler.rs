@@ -270,7 +270,8 @@ impl Run<'_, '_> {
             self.out.stats.objects_rendered += 1;
             return Ok(());
         }
-        let mesh = o.mesh.0 as usize;
+        let drawn = self.view.occluder_mesh(o);
+        let mesh = drawn.0 as usize;
         let inner = self.view.draw_coverage == raster::Coverage::Inner(raster::DepthPick::Farthest);
         let closed = || match self.scene.graph().meshes()[mesh].solid() {
             Some(_) => raster::Whole::Closed,
@@ -278,12 +279,12 @@ impl Run<'_, '_> {
         };
         let (triangles, whole) = match (self.view.triangles, self.view.convex) {
             (Some(f), ConvexOccluders::Own { proxies })
-                if inner && self.meshes.convex_draw(o.mesh, proxies) =>
+                if inner && self.meshes.convex_draw(drawn, proxies) =>
             {
                 (f(id), raster::Whole::Convex)
             }
             (Some(f), _) => (f(id), raster::Whole::No),
-            (None, ConvexOccluders::Hulls) if inner => match self.meshes.hull_of(o.mesh) {
+            (None, ConvexOccluders::Hulls) if inner => match self.meshes.hull_of(drawn) {
                 Some(h) => (h.clone(), raster::Whole::Convex),
                 None => (self.meshes.triangles[mesh].clone(), closed()),
             },

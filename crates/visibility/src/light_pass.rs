@@ -42,7 +42,7 @@ use crate::intersection_body::{intersection_body_into, BodyScratch, Polyhedron};
 use crate::light_view::{fit_light_views_into, FitScratch, LightView};
 use crate::receivers::{Marks, Prepared, ReceiverPoints};
 use crate::traverse::Culling;
-use crate::view_setup::{ConvexOccluders, MeshData, Sampling, ViewSetup};
+use crate::view_setup::{drawn_mesh, ConvexOccluders, MeshData, Sampling, ViewSetup};
 use crate::view_split::cull_views_into;
 use crate::Result;
 use glam::{DMat4, DVec3, DVec4};
@@ -329,33 +329,32 @@ fn refill(list: &mut Arc<[[u32; 3]]>, found: &[[u32; 3]], all: usize) {
 }
 
 /// The triangles of object `id` facing `light` (the shared facing rule):
-/// of its mesh, or of `proxy` (triangles over the mesh's vertices) when
-/// given.
+/// of `mesh` (the one it draws as an occluder, [`drawn_mesh`]), or of
+/// `proxy` (triangles over that mesh's vertices) when given.
 fn facing_triangles<'a>(
     scene: &'a Scene,
     light: &'a Light,
     id: ObjectId,
+    mesh: scene::MeshId,
     proxy: Option<&'a [[u32; 3]]>,
 ) -> impl Iterator<Item = [u32; 3]> + 'a {
-    let mesh = scene.object_mesh(id);
-    let m = scene.object(id).world_from_local;
-    let world =
-        move |t: &[u32; 3]| t.map(|i| m.transform_point3(mesh.positions()[i as usize].as_dvec3()));
-    let (all, proxied) = match proxy {
-        Some(p) => (&[][..], p),
-        None => (mesh.triangles(), &[][..]),
+    let o = scene.object(id);
+    let positions = scene.graph().meshes()[mesh.0 as usize].positions();
+    let (m, mirrored) = (o.world_from_local, o.mirrored);
+    // Counter-clockwise is front even for mirrored objects (as
+    // `Scene::world_triangle`).
+    let world = move |t: &[u32; 3]| {
+        let [a, b, c] = t.map(|i| scene::transform::world_point(&m, positions[i as usize]));
+        match mirrored {
+            true => [a, c, b],
+            false => [a, b, c],
+        }
     };
-    let own = all
+    let triangles = proxy.unwrap_or(scene.graph().meshes()[mesh.0 as usize].triangles());
+    triangles
         .iter()
-        .enumerate()
-        .filter(move |&(k, _)| faces_light(&scene.world_triangle(id, k), light))
-        .map(|(_, t)| *t);
-    own.chain(
-        proxied
-            .iter()
-            .filter(move |t| faces_light(&world(t), light))
-            .copied(),
-    )
+        .filter(move |t| faces_light(&world(t), light))
+        .copied()
 }
 
 /// One object's casting triangles and what they were found for.
@@ -390,7 +389,8 @@ impl CastingCache {
         self.entries.resize_with(n, OnceLock::new);
         for (k, (e, o)) in self.entries.iter_mut().zip(scene.objects()).enumerate() {
             let Some(c) = e.get() else { continue };
-            if c.mesh != o.mesh || c.version != scene.mesh_version(o.mesh) {
+            let drawn = drawn_mesh(o, proxies);
+            if c.mesh != drawn || c.version != scene.mesh_version(drawn) {
                 e.take();
             } else if c.world_from_local.to_cols_array().map(f64::to_bits)
                 != o.world_from_local.to_cols_array().map(f64::to_bits)
@@ -400,12 +400,17 @@ impl CastingCache {
                 let mut c = e.take().expect("checked");
                 if !two_sided {
                     let id = ObjectId(k as u32);
-                    let proxy = meshes.proxy_of(o.mesh).filter(|_| proxies);
-                    let all = proxy.map_or(scene.object_mesh(id).triangles().len(), |p| p.len());
+                    let proxy = meshes.proxy_of(drawn).filter(|_| proxies);
+                    let all = proxy.map_or(meshes.triangles[drawn.0 as usize].len(), |p| p.len());
                     self.found.clear();
                     self.found.reserve(all);
-                    self.found
-                        .extend(facing_triangles(scene, light, id, proxy.map(|p| &p[..])));
+                    self.found.extend(facing_triangles(
+                        scene,
+                        light,
+                        id,
+                        drawn,
+                        proxy.map(|p| &p[..]),
+                    ));
                     if c.triangles[..] != self.found[..] {
                         refill(&mut c.triangles, &self.found, all);
                     }
@@ -428,16 +433,19 @@ impl CastingCache {
         self.entries[id.0 as usize]
             .get_or_init(|| {
                 let o = scene.object(id);
-                let proxy = meshes.proxy_of(o.mesh).filter(|_| proxies);
+                let drawn = drawn_mesh(o, proxies);
+                let proxy = meshes.proxy_of(drawn).filter(|_| proxies);
                 let triangles = match (two_sided, proxy) {
                     (true, Some(p)) => p.clone(),
-                    (true, None) => meshes.triangles_of(o.mesh),
-                    (false, p) => facing_triangles(scene, light, id, p.map(|p| &p[..])).collect(),
+                    (true, None) => meshes.triangles_of(drawn),
+                    (false, p) => {
+                        facing_triangles(scene, light, id, drawn, p.map(|p| &p[..])).collect()
+                    }
                 };
                 Box::new(Casting {
                     world_from_local: o.world_from_local,
-                    mesh: o.mesh,
-                    version: scene.mesh_version(o.mesh),
+                    mesh: drawn,
+                    version: scene.mesh_version(drawn),
                     triangles,
                 })
             })
@@ -863,6 +871,7 @@ impl ViewSlot {
                 },
                 true => ConvexOccluders::Off,
             },
+            host_occluders: options.proxies && !options.keep_depth,
         };
         let r = self
             .culler

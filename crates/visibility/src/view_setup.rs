@@ -77,14 +77,15 @@ impl MeshData {
     }
 
     /// Triangles an occluder draw of every mesh with an object holds:
-    /// `(full meshes, with proxies where they have one)`, per object of
+    /// `(full meshes, with host occluders or proxies where they have one)`, per object of
     /// `scene` (what `occluders: proxy` saves a view that draws them all).
     pub fn occluder_triangles(&self, scene: &Scene) -> (u64, u64) {
         let (mut full, mut proxied) = (0u64, 0u64);
         for o in scene.objects() {
-            let n = self.triangles[o.mesh.0 as usize].len() as u64;
-            full += n;
-            proxied += self.proxy_of(o.mesh).map_or(n, |p| p.len() as u64);
+            full += self.triangles[o.mesh.0 as usize].len() as u64;
+            let m = drawn_mesh(o, true);
+            let n = self.triangles[m.0 as usize].len() as u64;
+            proxied += self.proxy_of(m).map_or(n, |p| p.len() as u64);
         }
         (full, proxied)
     }
@@ -125,6 +126,15 @@ impl MeshData {
     }
 }
 
+/// The mesh object `o` draws as an occluder: its host-given occluder when
+/// `host` (views that draw proxies), else its own.
+pub(crate) fn drawn_mesh(o: &scene::Object, host: bool) -> scene::MeshId {
+    match (host, o.occluder) {
+        (true, Some(m)) => m,
+        _ => o.mesh,
+    }
+}
+
 /// One view: how objects and boxes reach its clip space, its culling planes,
 /// and the coverage of its draws and queries.
 pub struct ViewSetup<'a> {
@@ -159,6 +169,9 @@ pub struct ViewSetup<'a> {
     /// inner-conservative coverage at the farthest depth
     /// ([`raster::DrawCommand::whole`]).
     pub convex: ConvexOccluders,
+    /// Objects with a host-given occluder ([`scene::Object::occluder`])
+    /// draw it in place of their mesh (`occluders: proxy`).
+    pub host_occluders: bool,
 }
 
 /// Which occluders a view draws whole as convex solids
@@ -225,7 +238,14 @@ impl<'a> ViewSetup<'a> {
             occluder: Self::eye_occluder,
             back_faces: Some(camera),
             convex: ConvexOccluders::Off,
+            host_occluders: false,
         }
+    }
+
+    /// The mesh object `o` draws as an occluder in this view: its host-given
+    /// occluder when the view takes them, else its own.
+    pub(crate) fn occluder_mesh(&self, o: &scene::Object) -> scene::MeshId {
+        drawn_mesh(o, self.host_occluders)
     }
 
     /// The eye's occluders: visible objects that may occlude.

@@ -186,7 +186,10 @@ pub fn run(data: &[u8]) {
             }
             10 => {
                 let (p, o) = (b.handle(&pipelines), b.handle(&objects));
-                check(sc_object_set_flags(p, o, b.u32() % 20));
+                match b.u32() % 24 {
+                    f @ 0..20 => check(sc_object_set_flags(p, o, f)),
+                    _ => check(sc_object_set_occluder(p, o, b.handle(&meshes))),
+                }
             }
             11 => {
                 let p = b.handle(&pipelines);

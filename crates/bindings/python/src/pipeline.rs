@@ -279,6 +279,13 @@ impl Pipeline {
         self.inner.set_flags(ObjectId(object), f).map_err(to_py)
     }
 
+    #[pyo3(signature = (object, mesh=None))]
+    fn set_occluder(&mut self, object: u32, mesh: Option<u32>) -> PyResult<()> {
+        self.inner
+            .set_occluder(ObjectId(object), mesh.map(MeshId))
+            .map_err(to_py)
+    }
+
     fn remove_object(&mut self, object: u32) -> PyResult<()> {
         self.inner.remove_object(ObjectId(object)).map_err(to_py)
     }

@@ -153,6 +153,23 @@ def test_edits_between_frames():
         p.set_transform(cubes[1], np.eye(4))  # a removed object's id is stale
 
 
+def test_a_host_occluder_inside_its_object_keeps_the_mask_exact():
+    p, cubes, lamp, sun = box_scene(stencil="bf", culling="chcpp", occluders="proxy")
+    pos, idx = cube_arrays()
+    inner = p.add_mesh(0.25 + 0.5 * np.asarray(pos), idx, name="inner")
+    for c in cubes:
+        p.set_occluder(c, inner)
+    for frame in range(3):
+        f = p.frame(320, 240, camera=CAMERA)
+        for light in (lamp, sun):
+            assert p.reference_mask(light).mismatches(f.mask[light]) == 0
+    outer = p.add_mesh(2.0 * np.asarray(pos) - 0.5, idx, name="outer")
+    with pytest.raises(ValueError, match="reach outside"):
+        p.set_occluder(cubes[0], outer)
+    p.set_occluder(cubes[0])  # back to its own mesh
+    p.frame(320, 240, camera=CAMERA)
+
+
 def test_reset_history_equals_a_fresh_pipeline():
     def path_frame(p, i):
         return p.frame(200, 150, camera=sc.look_at((6.0 - 0.3 * i, 5.0, 8.0), (0, 0, 0)))

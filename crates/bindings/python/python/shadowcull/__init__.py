@@ -349,6 +349,16 @@ class Pipeline:
         """Sets every flag of an object (each defaults to on)."""
         self._p.set_flags(obj, casts, receives, occludes, visible)
 
+    def set_occluder(self, obj: int, mesh: "int | None" = None) -> None:
+        """Gives an object the host's own occluder: ``mesh`` (from
+        :meth:`add_mesh`, placed by the object's transform) is drawn in place
+        of its mesh by the light views and a coarse eye pass under
+        ``occluders="proxy"``. It must hide nothing the object does not (lie
+        inside its solid); its bounds must lie within the object's mesh's
+        (``ValueError`` otherwise). ``None`` goes back to the object's own
+        mesh."""
+        self._p.set_occluder(obj, mesh)
+
     def remove_object(self, obj: int) -> None:
         """Removes an object; its id is stale afterwards."""
         self._p.remove_object(obj)
