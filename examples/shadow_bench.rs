@@ -6,7 +6,7 @@
 //! [--coverage conservative|point] [--threshold T] [--light-res N]
 //! [--clamping none|continuous|discrete|auto] [--slices N]
 //! [--clamping-receivers all|psr|fragment] [--count-fill]
-//! [--two-sided] [--reference | --check-gpu] [--mask OUT.png] [--reps R | --path NAME [--frames N]]`
+//! [--two-sided] [--reference | --check-gpu] [--host-depth] [--mask OUT.png] [--reps R | --path NAME [--frames N]]`
 //! (defaults `--tile 8 --counters 8 --map 2048 --full-shadow on --culling none
 //! --coverage conservative --threshold 0 --light-res 1024 --reps 5`; `--threshold` is the
 //! query threshold in samples, and `point` coverage or a threshold above 0 are aggressive;
@@ -50,7 +50,11 @@
 //! drawn by the brute-force stencil on an exact eye depth, as a GPU host draws them)
 //! `mismatch_pixels`, `mismatch_off_boundary` (against the reference) and
 //! `culled_vs_unculled_differing_pixels` (against every caster's volumes), summed over
-//! the lights.
+//! the lights. `--host-depth` gives every frame the host's own depth
+//! (`FrameInput::host_depth`: the frame's exact eye depth reduced to the culling size,
+//! made outside every timed stage: every frame's before the first, or, for the engine
+//! scene whose edits change it, before each frame, whose caches it leaves cold), as a
+//! GPU host with a depth pre-pass would; the JSON's `host_depth` says so.
 //!
 //! **A camera path** (`--path NAME --frames N`, N defaults to 8): renders frames
 //! 0..N of the scene's camera path NAME (`city` and box cities: `street`, a dolly down
@@ -81,8 +85,8 @@ use serde_json::{json, Map, Value};
 use shadowcull::jobs::config::LightSpec;
 use shadowcull::jobs::frame::{FrameRunner, LightFrame};
 use shadowcull::pipeline::{
-    ClampReceiversSpec, ClampingSpec, CoverageSpec, CullingSpec, OccludersSpec, PipelineOptions,
-    StencilBackend,
+    eye, ClampReceiversSpec, ClampingSpec, CoverageSpec, CullingSpec, HostDepth, OccludersSpec,
+    PipelineOptions, StencilBackend,
 };
 use shadowcull::stats::FrameRow;
 use shadowgen::MethodChoice;
@@ -270,6 +274,12 @@ struct Cli {
     /// frame of one view, every frame of a path).
     #[arg(long = "check-gpu", conflicts_with = "reference")]
     check_gpu: bool,
+    /// Give every frame the host's own depth (`FrameInput::host_depth`), as
+    /// a GPU host with a depth pre-pass would: the frame's exact eye depth,
+    /// reduced to the culling size, made outside every timed stage. The
+    /// eye pass then only queries it.
+    #[arg(long = "host-depth")]
+    host_depth: bool,
     /// Write the last frame's raw stencil result here as an 8-bit PNG (the
     /// stencil runs only at the pixels whose class it decides: receivers the
     /// light reaches).
@@ -320,6 +330,7 @@ struct Args {
     pipeline: PipelineOptions,
     reference: bool,
     check_gpu: bool,
+    host_depth: bool,
     mask: Option<PathBuf>,
     /// Frames of one view.
     reps: usize,
@@ -379,6 +390,7 @@ impl Args {
             pipeline,
             reference: c.reference,
             check_gpu: c.check_gpu,
+            host_depth: c.host_depth,
             mask: c.mask,
             reps: c.reps,
             path: c.path,
@@ -532,6 +544,10 @@ struct Frames<'a> {
     /// Scene edits before frame `f` (the engine scene's), through the
     /// runner's pipeline.
     edit: &'a mut dyn FnMut(u32, &mut FrameRunner) -> anyhow::Result<()>,
+    /// Whether `edit` changes the scene (else `--host-depth` makes every
+    /// frame's depth before the first, so that making it does not leave the
+    /// timed frames' caches cold).
+    edits: bool,
 }
 
 /// One frame's rows summed over its lights: the per-light stage times and
@@ -610,9 +626,22 @@ fn run(
 ) -> anyhow::Result<(Vec<Sample>, LightFrame)> {
     let mut samples = Vec::with_capacity(frames as usize);
     let mut last = None;
+    let mut depths = match a.host_depth && !changes.edits {
+        true => (0..frames)
+            .map(|f| host_depth(a, runner.scene(), &camera(f)?).map(Some))
+            .collect::<anyhow::Result<Vec<_>>>()?,
+        false => Vec::new(),
+    };
     for f in 0..frames {
         let cam = camera(f)?;
         (changes.edit)(f, runner)?;
+        if a.host_depth {
+            let depth = match depths.get_mut(f as usize) {
+                Some(d) => d.take(),
+                None => Some(host_depth(a, runner.scene(), &cam)?),
+            };
+            runner.set_host_depth(depth);
+        }
         let t = Instant::now();
         let out = runner.frame(
             f,
@@ -635,6 +664,21 @@ fn run(
         last = out.into_iter().next();
     }
     Ok((samples, last.context("at least one frame and one light")?))
+}
+
+/// `--host-depth`: the exact eye depth of `scene` seen by `camera`, reduced
+/// to the frame's culling size, as a host's depth pre-pass and its
+/// min-reduction give it.
+fn host_depth(a: &Args, scene: &Scene, camera: &Camera) -> anyhow::Result<HostDepth> {
+    let (w, h) = (a.width, a.height);
+    let eye = eye::eye_pass(scene, &eye::MeshCache::new(scene), camera, w, h)?;
+    let mut rows = Vec::with_capacity(w as usize * h as usize);
+    for y in 0..h {
+        eye.target
+            .for_each_in_row(y, |_, d, _| rows.push(d.max(0.0)));
+    }
+    let size = a.pipeline.culling_size((w, h));
+    Ok(HostDepth::reduce(*camera, (w, h), &rows, size)?)
 }
 
 /// The settings and scene size, common to both modes.
@@ -664,6 +708,7 @@ fn settings(a: &Args, row: &FrameRow) -> Map<String, Value> {
         "occluders": name_of(OCCLUDERS, &p.occluders),
         "culling_resolution": p.culling_resolution.map(|(w, h)| [w, h]),
         "culling_size": <[u32; 2]>::from(p.culling_size((a.width, a.height))),
+        "host_depth": a.host_depth,
         "objects": row.scene.objects,
         "triangles": row.scene.triangles,
     });
@@ -684,6 +729,7 @@ fn one_view(
     let changes = Frames {
         lights,
         edit: &mut |_, _| Ok(()),
+        edits: false,
     };
     let (samples, lf) = run(a, runner, changes, reps as u32, &|_| Ok(*camera), &|f| {
         a.reference && f + 1 == reps as u32
@@ -881,6 +927,7 @@ fn main() -> anyhow::Result<()> {
             let changes = Frames {
                 lights: &lights,
                 edit: &mut edit,
+                edits: engine_scene.is_some(),
             };
             along_path(&a, &mut runner, &path, changes)?
         }

@@ -74,8 +74,8 @@ pub use pipeline::gpu_check::GpuCheck;
 pub use pipeline::memory;
 pub use pipeline::{
     AutoSpec, ClampReceiversSpec, ClampingSpec, CoverageSpec, CullingSpec, FrameInput, FrameOutput,
-    LightId, LightOutput, OccludersSpec, Pipeline, PipelineOptions, Preset, StencilBackend,
-    StencilCosts,
+    HostDepth, LightId, LightOutput, OccludersSpec, Pipeline, PipelineOptions, Preset,
+    StencilBackend, StencilCosts,
 };
 pub use raster;
 pub use scene;

@@ -6,8 +6,8 @@ use glam::DVec3;
 use scene::{Camera, CameraPath, Light, ObjectFlags, ObjectId, Scene};
 use shadowcull::mask::compare;
 use shadowcull::{
-    CullingSpec, Error, FrameInput, LightId, OccludersSpec, Pipeline, PipelineOptions, Result,
-    StencilBackend,
+    CullingSpec, Error, FrameInput, HostDepth, LightId, OccludersSpec, Pipeline, PipelineOptions,
+    Result, StencilBackend,
 };
 use std::sync::Arc;
 
@@ -380,6 +380,104 @@ fn a_coarse_culling_resolution_keeps_masks_exact() -> Result<()> {
         }
     }
     assert!(culled >= 6, "{culled} of 9 light frames culled casters");
+    Ok(())
+}
+
+/// The exact eye depth of `input`'s frame (a pipeline with no culling and
+/// a CPU stencil draws it), reduced to `size` as a host's pre-pass would.
+fn host_depth_of(scene: &Arc<Scene>, input: &FrameInput, size: (u32, u32)) -> HostDepth {
+    let o = options(CullingSpec::None, StencilBackend::Bf);
+    let mut p = Pipeline::new(scene.clone(), o).unwrap();
+    let out = p.frame(input).unwrap();
+    let eye = &out.eye().expect("a CPU stencil's eye").target;
+    let (w, h) = (input.width, input.height);
+    let rows: Vec<f32> = (0..h)
+        .flat_map(|y| (0..w).map(move |x| (x, y)))
+        .map(|(x, y)| eye.depth_at(x, y).unwrap_or(0.0))
+        .collect();
+    HostDepth::reduce(input.camera, (w, h), &rows, size).unwrap()
+}
+
+/// The host's own depth of each frame (`FrameInput::host_depth`): the eye
+/// pass is queries against it alone, and the masks stay exact — a CPU
+/// stencil's equal the unculled ones and the reference, the `gpu_host`
+/// volumes pass the GPU check — at a coarse size and at the viewport's.
+/// An earlier frame's depth, or one of another size, is refused.
+#[test]
+fn the_hosts_own_depth_keeps_masks_exact() -> Result<()> {
+    let (scene, path) = city();
+    let lights = lights(&scene, &path);
+    let (mut plain, _) = pipeline(
+        &scene,
+        options(CullingSpec::None, StencilBackend::Bf),
+        &lights,
+    )?;
+    for size in [(W / 4, H / 4), (W, H)] {
+        let cpu = PipelineOptions {
+            culling_resolution: Some(size),
+            ..options(CullingSpec::Chcpp, StencilBackend::Bf)
+        };
+        let gpu = PipelineOptions {
+            culling: CullingSpec::Chcpp,
+            light_resolution: 256,
+            culling_resolution: Some(size),
+            ..PipelineOptions::gpu_host()
+        };
+        let (mut cpu, cpu_ids) = pipeline(&scene, cpu, &lights)?;
+        let (mut gpu, gpu_ids) = pipeline(&scene, gpu, &lights)?;
+        let mut culled = 0;
+        for frame in [0, 3, 6] {
+            let own = input(&path, frame);
+            let depth = host_depth_of(&scene, &own, size);
+            let input = own.clone().with_host_depth(depth);
+            let masks: Vec<_> = {
+                let out = cpu.frame(&input)?;
+                assert!(out.stats().eye_queries > 0, "the eye queries the depth");
+                culled += out
+                    .lights()
+                    .filter(|l| l.psc().len() < scene.objects().len())
+                    .count();
+                out.lights().map(|l| l.mask().unwrap().clone()).collect()
+            };
+            let out = plain.frame(&own)?;
+            for (li, (m, l)) in masks.iter().zip(out.lights()).enumerate() {
+                assert_eq!(m, l.mask().unwrap(), "{size:?} frame {frame} light {li}");
+            }
+            for (li, m) in masks.iter().enumerate() {
+                let r = cpu.reference_mask(cpu_ids[li])?;
+                let c = compare(&r.mask, &r.ambiguous, m);
+                assert_eq!(c.mismatches, 0, "{size:?} frame {frame} light {li}: {c:?}");
+            }
+            assert!(gpu.frame(&input)?.eye().is_none(), "no exact eye pass");
+            for &id in &gpu_ids {
+                let c = gpu.check_gpu(id)?;
+                assert_eq!(c.mismatch_off_boundary, 0, "{size:?} frame {frame}, {id:?}");
+                assert_eq!(c.culled_vs_unculled_differing_pixels, 0, "{size:?} {frame}");
+            }
+        }
+        assert!(
+            culled >= 6,
+            "{size:?}: {culled} of 9 light frames culled casters"
+        );
+    }
+    // Last frame's depth for this frame's camera, and a depth of another size.
+    let (mut gpu, _) = pipeline(&scene, PipelineOptions::gpu_host(), &lights)?;
+    let old = host_depth_of(&scene, &input(&path, 0), (W, H));
+    let e = gpu
+        .frame(&input(&path, 1).with_host_depth(old.clone()))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("host_depth") && e.contains("another camera"),
+        "{e}"
+    );
+    let small = HostDepth::reduce(old.camera, (W, H), &old.depth, (W / 2, H / 2))?;
+    let e = gpu
+        .frame(&input(&path, 0).with_host_depth(small))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("culling size"), "{e}");
+    gpu.frame(&input(&path, 0).with_host_depth(old))?;
     Ok(())
 }
 

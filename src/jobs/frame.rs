@@ -9,7 +9,7 @@
 //! so the comparison measures the shadow stage alone.
 
 use crate::mask::{compare, Mask};
-use crate::pipeline::{FrameInput, LightId, Pipeline, PipelineOptions, ShadowFrame};
+use crate::pipeline::{FrameInput, HostDepth, LightId, Pipeline, PipelineOptions, ShadowFrame};
 use crate::reference::ReferenceMask;
 use crate::stats::{CheckStats, FrameRow, ReferenceStats, SceneStats};
 use crate::Result;
@@ -35,6 +35,8 @@ pub struct FrameRunner {
     pub bvh_ms: f64,
     /// Reset all coherent state at frames that are multiples of this.
     keyframe: Option<u32>,
+    /// The next frame's host depth ([`FrameRunner::set_host_depth`]).
+    host_depth: Option<HostDepth>,
 }
 
 /// One light's result within a frame.
@@ -73,7 +75,21 @@ impl FrameRunner {
             references: None,
             bvh_ms: 0.0,
             keyframe: None,
+            host_depth: None,
         }
+    }
+
+    /// The scene the next frame sees: the pipeline's (with the edits staged
+    /// since), or the runner's own before the first frame.
+    pub fn scene(&self) -> &Scene {
+        self.pipeline.as_ref().map_or(&self.scene, |p| p.scene())
+    }
+
+    /// Gives the next [`FrameRunner::frame`] the host's own depth of that
+    /// frame ([`crate::FrameInput::host_depth`]; taken by it): for
+    /// benches of a GPU host with a depth pre-pass.
+    pub fn set_host_depth(&mut self, depth: Option<HostDepth>) {
+        self.host_depth = depth;
     }
 
     /// The pipeline's ids of the lights of the last frame, in the order
@@ -146,11 +162,9 @@ impl FrameRunner {
         if frame == 0 || self.keyframe.is_some_and(|k| frame.is_multiple_of(k)) {
             pipeline.reset_history();
         }
-        let out = pipeline.frame(&FrameInput {
-            width,
-            height,
-            camera: *camera,
-        })?;
+        let mut input = FrameInput::new(width, height, *camera);
+        input.host_depth = self.host_depth.take();
+        let out = pipeline.frame(&input)?;
         let frame_stats = *out.stats();
         let mut rows: Vec<LightFrame> = self
             .lights

@@ -799,6 +799,44 @@ fn join_results(left: &mut visibility::CullResult, right: &visibility::CullResul
     s.objects_visible = left.visible.len() as u64;
 }
 
+/// The culled eye traversal against the host's own depth of this frame
+/// ([`super::HostDepth`], `depth` at `pass`'s size) loaded into `pass`'s
+/// target: queries only, no draws (the host's depth holds every occluder),
+/// one traversal over the whole view. The result is left in
+/// `state.result`; the pass keeps the depth for the coarse receivers.
+///
+/// # Errors
+/// Rasterizer errors (a depth of another size).
+pub(crate) fn cull_on_host_depth(
+    scene: &Scene,
+    state: &mut EyeCulling,
+    camera: &Camera,
+    traversal: EyeTraversal,
+    depth: &[f32],
+    mut pass: EyePass,
+) -> Result<EyePass> {
+    pass.target.load_rows(depth)?;
+    let clip = |w: &glam::DMat4| scene::transform::clip_from_local(camera, w);
+    let mut view =
+        visibility::ViewSetup::eye_sampled(camera, &clip, traversal.threshold, traversal.sampling);
+    view.preloaded = true;
+    let objects = visibility::Objects::new(&state.hierarchy, scene, &state.meshes);
+    let queries = std::mem::take(&mut state.queries);
+    let mut backend = raster::SyncBackend::reusing(pass.target, queries);
+    state.halves = None;
+    let r = state.culler.cull_into(
+        objects,
+        &view,
+        traversal.culling,
+        &mut backend,
+        &mut state.result,
+    );
+    let (target, queries) = backend.into_parts();
+    state.queries = queries;
+    r?;
+    Ok(EyePass { target })
+}
+
 /// The culled eye traversal through a host's `backend`: the same view and
 /// culling as [`eye_pass_culled`], without the bundled target; the result is
 /// left in `state.result`.

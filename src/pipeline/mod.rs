@@ -26,6 +26,7 @@ mod edit;
 pub mod eye;
 mod fill_count;
 pub(crate) mod gpu_check;
+mod host_depth;
 mod light;
 mod light_frame;
 mod light_state;
@@ -42,6 +43,7 @@ pub use eye::{
     eye_pass, eye_pass_culled, eye_pass_reusing, visible_points, EyeCulling, EyePass, EyeTraversal,
     MeshCache,
 };
+pub use host_depth::HostDepth;
 pub use options::{
     AutoSpec, BadOption, ChcppSpec, ClampReceiversSpec, ClampingSpec, CoverageSpec, CullingSpec,
     OccludersSpec, PipelineOptions, StencilBackend, StencilCosts, DEFAULT_CLAMP_PIXEL_COST,
@@ -64,9 +66,10 @@ use std::sync::Arc;
 use std::time::Instant;
 use visibility::{LightView, TraversalStats};
 
-/// What one frame is computed for: the viewport and the camera. The lights
-/// are the pipeline's own ([`Pipeline::add_light`]).
-#[derive(Clone, Copy, Debug)]
+/// What one frame is computed for: the viewport, the camera and, from a GPU
+/// host with a depth pre-pass, a coarse copy of this frame's depth. The
+/// lights are the pipeline's own ([`Pipeline::add_light`]).
+#[derive(Clone, Debug)]
 pub struct FrameInput {
     /// Viewport width in pixels, `1..=`[`raster::MAX_TARGET_SIZE`].
     pub width: u32,
@@ -75,6 +78,13 @@ pub struct FrameInput {
     /// The eye (reversed Z, infinite far plane; see [`Camera`], and
     /// [`Camera::from_view_projection`] for a host's own matrices).
     pub camera: Camera,
+    /// The host's own depth of this frame at the culling size
+    /// ([`HostDepth`]): when given and the eye culls, no CPU eye raster
+    /// runs; the PSR and the light passes' receivers come from queries
+    /// against it (see `host_depth.rs` for why that is exact, and
+    /// `docs/host.md` for the latency it costs). `None`: the pipeline
+    /// rasterizes its own eye pass.
+    pub host_depth: Option<HostDepth>,
 }
 
 impl FrameInput {
@@ -84,6 +94,15 @@ impl FrameInput {
             width,
             height,
             camera,
+            host_depth: None,
+        }
+    }
+
+    /// This input with the host's depth of this frame ([`FrameInput::host_depth`]).
+    pub fn with_host_depth(self, depth: HostDepth) -> Self {
+        FrameInput {
+            host_depth: Some(depth),
+            ..self
         }
     }
 }
@@ -402,9 +421,25 @@ impl Pipeline {
         // it is read (its coarse pass is what the resolution buys; `auto`
         // compares only passes at the viewport).
         let coarse_size = o.culling_size((w, h));
+        // The host's depth of this frame, checked even when no view culls.
+        if let Some(d) = &input.host_depth {
+            d.check(input, coarse_size)?;
+            if self.backends.is_some() {
+                return Err(Error::Options {
+                    field: "host_depth".into(),
+                    message: "not with a host backend factory (its queries would run on the \
+                              host's own targets, not on this depth)"
+                        .into(),
+                });
+            }
+        }
+        let host_depth = input.host_depth.as_ref();
         let culled = may_cull
             && eye_read
-            && (!auto || coarse_size != (w, h) || self.auto_eye.choose(&o.auto));
+            && (!auto
+                || coarse_size != (w, h)
+                || host_depth.is_some()
+                || self.auto_eye.choose(&o.auto));
         // `auto`'s lights model their unculled cost by every caster's triangles.
         let all_caster_triangles = if auto && may_cull {
             light_frame::triangles_of(scene, &self.all_casters)
@@ -457,7 +492,8 @@ impl Pipeline {
         // A culling resolution below the viewport's: the culled eye pass
         // runs coarse. Clamping's readings are the exact eye's points, so a
         // light reading them takes the points of an exact eye pass.
-        let coarse = culled && coarse_size != (w, h);
+        // The host's depth stands in for a coarse pass at any size.
+        let coarse = culled && (coarse_size != (w, h) || host_depth.is_some());
         let fine_points = (self.lights.iter())
             .filter_map(|s| s.state.as_ref())
             .any(|s| s.culled && light_frame::reading(s.clamping, &o) != light::Reading::None);
@@ -489,8 +525,16 @@ impl Pipeline {
                 }
                 false => previous.take(),
             };
-            let culled_pass = match &self.backends {
-                None => eye::eye_pass_culled_into(
+            let culled_pass = match (&self.backends, host_depth) {
+                (_, Some(d)) => eye::cull_on_host_depth(
+                    scene,
+                    state,
+                    camera,
+                    traversal,
+                    &d.depth,
+                    pass.take().expect("made above"),
+                )?,
+                (None, None) => eye::eye_pass_culled_into(
                     scene,
                     &self.meshes,
                     state,
@@ -499,7 +543,7 @@ impl Pipeline {
                     traversal,
                     pass.take(),
                 )?,
-                Some(f) => {
+                (Some(f), None) => {
                     let mut backend = f(visibility::ViewRole::Eye {
                         width: size.0,
                         height: size.1,

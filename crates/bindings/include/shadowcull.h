@@ -404,6 +404,17 @@ typedef struct sc_frame_input {
   double view[16];
   // View → clip, column-major.
   double projection[16];
+  // The host's own depth of this frame, or NULL: `host_depth_width ×
+  // host_depth_height` floats, row-major, row 0 at the top, reversed Z
+  // (`near / view distance`, 1 at the near plane, 0 where nothing was
+  // drawn), per pixel of the culling size the farthest depth over the
+  // output pixels whose centres it holds (see `docs/host.md`, "The host's
+  // own depth"). Copied during the call.
+  const float *host_depth;
+  // Width of `host_depth`: the frame's culling size.
+  uint32_t host_depth_width;
+  // Height of `host_depth`.
+  uint32_t host_depth_height;
 } sc_frame_input;
 
 // One caster's shadow volume in the light's volume buffer.

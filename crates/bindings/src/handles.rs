@@ -20,6 +20,8 @@ pub type sc_pipeline = u64;
 pub(crate) struct Entry {
     pub pipeline: Pipeline,
     pub outputs: Outputs,
+    /// The host depth of the last frame that had one, its buffer reused.
+    pub host_depth: Option<std::sync::Arc<[f32]>>,
 }
 
 struct Slot {

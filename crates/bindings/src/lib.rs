@@ -215,6 +215,7 @@ fn create(options: *const sc_pipeline_options, scene: Scene, out: *mut sc_pipeli
     let h = handles::insert(handles::Entry {
         pipeline,
         outputs: Default::default(),
+        host_depth: None,
     });
     put(out, "out", h)
 }
@@ -559,9 +560,34 @@ pub extern "C" fn sc_pipeline_frame(
         let projection = matrix(i.projection.as_ptr(), "input.projection")?;
         let camera = Camera::from_view_projection(view, projection, i.depth()?)?;
         handles::with(pipeline, |e| {
-            let o = e
-                .pipeline
-                .frame(&FrameInput::new(i.width, i.height, camera))?;
+            let mut input = FrameInput::new(i.width, i.height, camera);
+            if !i.host_depth.is_null() {
+                let (w, h) = (i.host_depth_width, i.host_depth_height);
+                let n = w as usize * h as usize;
+                if n == 0 {
+                    return Err(Failure::invalid(format!(
+                        "input.host_depth: a {w}×{h} buffer"
+                    )));
+                }
+                // SAFETY: non-NULL, and by the API's contract `w × h`
+                // readable floats for the duration of the call.
+                let src = unsafe { std::slice::from_raw_parts(i.host_depth, n) };
+                // The last frame's buffer, when no input holds it any more
+                // and it has this size: no allocation a frame.
+                let reused = e.host_depth.as_mut().and_then(std::sync::Arc::get_mut);
+                match reused.filter(|b| b.len() == n) {
+                    Some(b) => b.copy_from_slice(src),
+                    None => e.host_depth = Some(src.into()),
+                }
+                let depth = e.host_depth.clone().expect("set above");
+                input.host_depth = Some(shadowcull::HostDepth {
+                    camera,
+                    width: w,
+                    height: h,
+                    depth,
+                });
+            }
+            let o = e.pipeline.frame(&input)?;
             // SAFETY: checked non-NULL and at least as large as the struct.
             let c = unsafe { &mut *out };
             e.outputs.fill(&o, c);

@@ -256,6 +256,17 @@ pub struct sc_frame_input {
     pub view: [f64; 16],
     /// View → clip, column-major.
     pub projection: [f64; 16],
+    /// The host's own depth of this frame, or NULL: `host_depth_width ×
+    /// host_depth_height` floats, row-major, row 0 at the top, reversed Z
+    /// (`near / view distance`, 1 at the near plane, 0 where nothing was
+    /// drawn), per pixel of the culling size the farthest depth over the
+    /// output pixels whose centres it holds (see `docs/host.md`, "The host's
+    /// own depth"). Copied during the call.
+    pub host_depth: *const f32,
+    /// Width of `host_depth`: the frame's culling size.
+    pub host_depth_width: u32,
+    /// Height of `host_depth`.
+    pub host_depth_height: u32,
 }
 
 /// Structs read by [`read`]: a default for the fields an older host leaves out.
@@ -385,6 +396,9 @@ impl Versioned for sc_frame_input {
             clip_depth: SC_CLIP_DEPTH_NEGATIVE_ONE_TO_ONE,
             view: [0.0; 16],
             projection: [0.0; 16],
+            host_depth: std::ptr::null(),
+            host_depth_width: 0,
+            host_depth_height: 0,
         }
     }
 }

@@ -205,6 +205,9 @@ fn input(f: u32) -> sc_frame_input {
         clip_depth: SC_CLIP_DEPTH_NEGATIVE_ONE_TO_ONE,
         view: view.to_cols_array(),
         projection: proj.to_cols_array(),
+        host_depth: std::ptr::null(),
+        host_depth_width: 0,
+        host_depth_height: 0,
     }
 }
 
@@ -301,6 +304,46 @@ fn output_equals_the_rust_pipeline() {
         }
     }
     assert!(masks_with_shadow > 0, "the scene casts shadows");
+    ok(sc_pipeline_destroy(p));
+}
+
+/// The host's own depth through `sc_frame_input.host_depth`: a depth with
+/// nothing drawn hides nothing (every visible object in the PSR), a wall
+/// at the near plane hides everything (an empty PSR, once CHC++ has queried
+/// each object again); one of another size
+/// than the culling size is refused, naming the field.
+#[test]
+fn a_host_depth_decides_the_psr() {
+    use sc_status::*;
+    let (p, _, _) = c_pipeline();
+    let mut out = empty_output();
+    ok(sc_pipeline_frame(p, &input(0), &mut out));
+    let culled = out.psr_count;
+    assert!(culled > 0);
+    let frame = |depth: &[f32], w: u32, h: u32, out: &mut sc_frame_output| {
+        let mut i = input(0);
+        (i.host_depth, i.host_depth_width, i.host_depth_height) = (depth.as_ptr(), w, h);
+        sc_pipeline_frame(p, &i, out)
+    };
+    let n = (W * H) as usize;
+    ok(frame(&vec![0.0; n], W, H, &mut out));
+    assert!(out.psr_count >= culled, "{} < {culled}", out.psr_count);
+    // (CHC++ queries what was visible again within a few frames.)
+    let wall = vec![1.0; n];
+    let counts: Vec<usize> = (0..12)
+        .map(|_| {
+            ok(frame(&wall, W, H, &mut out));
+            out.psr_count
+        })
+        .collect();
+    assert_eq!(
+        counts.last(),
+        Some(&0),
+        "a wall at the near plane hides all: {counts:?}"
+    );
+    let small = vec![0.0; n / 4];
+    assert_eq!(frame(&small, W / 2, H / 2, &mut out), SC_INVALID_ARGUMENT);
+    assert!(last_error().contains("host_depth"), "{}", last_error());
     ok(sc_pipeline_destroy(p));
 }
 

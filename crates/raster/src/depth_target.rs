@@ -390,6 +390,58 @@ impl DepthTarget {
             }));
     }
 
+    /// Replaces every pixel's depth with `depth` (row-major, row 0 at the
+    /// top, `width × height` values, reversed Z), every id with [`NO_ID`],
+    /// and recomputes every tile's bounds: a depth buffer made elsewhere (a
+    /// host's depth pre-pass, reduced to this size) for queries to test
+    /// against. A value that is not above 0 (0: nothing drawn, or infinitely
+    /// far; NaN too) is background. The statistics are untouched and the
+    /// tiles [`DepthTarget::set_draw_tiles`] hid stay hidden.
+    ///
+    /// # Errors
+    /// [`Error::SizeMismatch`] when `depth` does not hold `width × height`
+    /// values.
+    pub fn load_rows(&mut self, depth: &[f32]) -> Result<()> {
+        let l = self.layout;
+        let (w, h) = (l.width as usize, l.height as usize);
+        if depth.len() != w * h {
+            return Err(Error::SizeMismatch {
+                expected: (l.width, l.height),
+                got: (depth.len().min(u32::MAX as usize) as u32, 1),
+            });
+        }
+        self.show_hidden();
+        let s = 1u32 << l.shift;
+        for (y, row) in depth.chunks_exact(w).enumerate() {
+            for tx in 0..l.tiles_x {
+                let x0 = tx * s;
+                let n = s.min(l.width - x0) as usize;
+                let i = l.pixel_index(x0, y as u32);
+                let src = &row[x0 as usize..x0 as usize + n];
+                for (d, &v) in self.depth[i..i + n].iter_mut().zip(src) {
+                    *d = if v > 0.0 { v } else { BACKGROUND };
+                }
+            }
+        }
+        if let Some(ids) = &mut self.ids {
+            ids.fill(u64::MAX);
+        }
+        let mut rows = TileRows::of(
+            l,
+            (0, l.tiles_y),
+            &mut self.depth,
+            self.ids.as_deref_mut(),
+            &mut self.tiles,
+        );
+        for ty in 0..l.tiles_y {
+            for tx in 0..l.tiles_x {
+                rows.refresh_tile(tx, ty);
+            }
+        }
+        self.hide();
+        Ok(())
+    }
+
     /// Depth at pixel `(x, y)` (row 0 at the top); `None` for background.
     ///
     /// # Panics
@@ -724,6 +776,36 @@ pub(crate) mod tests {
         let mut t = DepthTarget::new(37, 29, TileSize::T8, with_ids).unwrap();
         draw_pair(&mut t);
         t
+    }
+
+    /// A drawn target's depth read out row by row and loaded into another
+    /// gives the same pixels and tile bounds; a buffer of the wrong length
+    /// is refused.
+    #[test]
+    fn loaded_rows_equal_the_drawn_target() {
+        let a = drawn(true);
+        let (w, h) = (a.width(), a.height());
+        let rows: Vec<f32> = (0..h)
+            .flat_map(|y| (0..w).map(move |x| (x, y)))
+            .map(|(x, y)| a.depth_at(x, y).unwrap_or(0.0))
+            .collect();
+        assert!(rows.contains(&0.0) && rows.iter().any(|&d| d > 0.0));
+        let mut b = DepthTarget::new(w, h, TileSize::T8, true).unwrap();
+        draw_pair(&mut b);
+        b.load_rows(&vec![0.5; (w * h) as usize]).unwrap();
+        b.load_rows(&rows).unwrap();
+        for y in 0..h {
+            for x in 0..w {
+                assert_eq!(a.depth_at(x, y), b.depth_at(x, y), "({x}, {y})");
+                assert_eq!(b.id_at(x, y), None);
+            }
+        }
+        let (tx, ty) = a.tile_counts();
+        for (x, y) in (0..ty).flat_map(|y| (0..tx).map(move |x| (x, y))) {
+            assert_eq!(a.tile_bounds(x, y), b.tile_bounds(x, y));
+            assert_eq!(a.tile_background(x, y), b.tile_background(x, y));
+        }
+        assert!(b.load_rows(&rows[1..]).is_err());
     }
 
     /// A xorshift generator of values in `[-1, 1)` from `seed` (the

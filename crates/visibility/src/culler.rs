@@ -265,7 +265,7 @@ impl Run<'_, '_> {
     pub fn render(&mut self, node: &Node) -> Result<()> {
         let id = ObjectId(node.object);
         let o = self.scene.object(id);
-        if !(self.view.occluder)(&o.flags) {
+        if self.view.preloaded || !(self.view.occluder)(&o.flags) {
             self.out.rendered.push(id);
             self.out.stats.objects_rendered += 1;
             return Ok(());

@@ -872,6 +872,7 @@ impl ViewSlot {
                 true => ConvexOccluders::Off,
             },
             host_occluders: options.proxies && !options.keep_depth,
+            preloaded: false,
         };
         let r = self
             .culler

@@ -101,7 +101,9 @@ impl ViewCuller {
             self.state.resize(h.len(), NodeState::default());
             self.origin = self.frame;
         }
-        backend.clear();
+        if !view.preloaded {
+            backend.clear();
+        }
         out.clear();
         let mut s = std::mem::take(&mut self.scratch);
         let mut boxes = std::mem::take(&mut self.boxes);

@@ -172,6 +172,10 @@ pub struct ViewSetup<'a> {
     /// Objects with a host-given occluder ([`scene::Object::occluder`])
     /// draw it in place of their mesh (`occluders: proxy`).
     pub host_occluders: bool,
+    /// The backend already holds the view's depth (a host's own depth
+    /// buffer of this frame): the traversal neither clears nor draws into
+    /// it, and rendered objects are only listed; its queries decide.
+    pub preloaded: bool,
 }
 
 /// Which occluders a view draws whole as convex solids
@@ -239,6 +243,7 @@ impl<'a> ViewSetup<'a> {
             back_faces: Some(camera),
             convex: ConvexOccluders::Off,
             host_occluders: false,
+            preloaded: false,
         }
     }
 

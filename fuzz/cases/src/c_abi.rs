@@ -162,6 +162,9 @@ pub fn run(data: &[u8]) {
                     clip_depth: b.u32() % 3,
                     view: [0.0; 16],
                     projection: [0.0; 16],
+                    host_depth: std::ptr::null(),
+                    host_depth_width: 0,
+                    host_depth_height: 0,
                 };
                 for v in i.view.iter_mut().chain(i.projection.iter_mut()) {
                     *v = b.f64();
@@ -174,6 +177,19 @@ pub fn run(data: &[u8]) {
                     i.projection = [
                         1., 0., 0., 0., 0., 1., 0., 0., 0., 0., -1.002, -1., 0., 0., -0.2002, 0.,
                     ];
+                }
+                // Now and then a host depth of any size and values.
+                let depth: Vec<f32> = match b.u8() % 4 {
+                    0 => {
+                        i.host_depth_width = b.u32() % 48;
+                        i.host_depth_height = b.u32() % 48;
+                        let n = (i.host_depth_width * i.host_depth_height) as usize;
+                        (0..n).map(|_| b.f64() as f32).collect()
+                    }
+                    _ => Vec::new(),
+                };
+                if !depth.is_empty() {
+                    i.host_depth = depth.as_ptr();
                 }
                 // SAFETY: plain data; zero is a valid value of every field.
                 let mut out: sc_frame_output = unsafe { std::mem::zeroed() };

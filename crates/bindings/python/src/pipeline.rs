@@ -16,7 +16,7 @@ use shadowcull::scene::load::Loaded;
 use shadowcull::scene::{
     self, Camera, ClipDepth, LookAt, Mesh, MeshId, ObjectFlags, ObjectId, Scene,
 };
-use shadowcull::{FrameInput, LightId, LightOutput, PipelineOptions};
+use shadowcull::{FrameInput, HostDepth, LightId, LightOutput, PipelineOptions};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
@@ -378,7 +378,7 @@ impl Pipeline {
 
     /// Runs one frame (the GIL released) and returns its outputs as a dict
     /// of arrays: `psr`, `stats` (JSON), `lights` (one dict per light).
-    #[pyo3(signature = (width, height, camera=None, view=None, projection=None, clip_depth="negative_one_to_one"))]
+    #[pyo3(signature = (width, height, camera=None, view=None, projection=None, clip_depth="negative_one_to_one", host_depth=None))]
     // Each parameter is a Python keyword argument of `frame`: a struct would change the Python API.
     #[allow(clippy::too_many_arguments)]
     fn frame<'py>(
@@ -390,6 +390,7 @@ impl Pipeline {
         view: Option<PyReadonlyArray2<'_, f64>>,
         projection: Option<PyReadonlyArray2<'_, f64>>,
         clip_depth: &str,
+        host_depth: Option<PyReadonlyArray2<'_, f32>>,
     ) -> PyResult<Bound<'py, PyDict>> {
         let depth = match clip_depth {
             "negative_one_to_one" => ClipDepth::NegativeOneToOne,
@@ -421,7 +422,17 @@ impl Pipeline {
                 ))
             }
         };
-        let input = FrameInput::new(width, height, camera);
+        let mut input = FrameInput::new(width, height, camera);
+        if let Some(d) = host_depth {
+            let a = d.as_array();
+            let (h, w) = a.dim();
+            input.host_depth = Some(HostDepth {
+                camera,
+                width: w as u32,
+                height: h as u32,
+                depth: a.iter().copied().collect(),
+            });
+        }
         let inner = &mut self.inner;
         py.detach(|| inner.frame(&input).map(|_| ()))
             .map_err(to_py)?;

@@ -170,6 +170,23 @@ def test_a_host_occluder_inside_its_object_keeps_the_mask_exact():
     p.frame(320, 240, camera=CAMERA)
 
 
+def test_a_host_depth_stands_in_for_the_eye_pass():
+    p, cubes, lamp, sun = box_scene(stencil="bf", culling="chcpp")
+    # Nothing drawn: nothing hidden, the masks exact.
+    f = p.frame(320, 240, camera=CAMERA, host_depth=np.zeros((240, 320), np.float32))
+    assert set(cubes) <= set(f.psr.tolist())
+    for light in (lamp, sun):
+        assert p.reference_mask(light).mismatches(f.mask[light]) == 0
+    # A wall at the near plane hides everything, once each object is queried again.
+    for _ in range(12):
+        f = p.frame(320, 240, camera=CAMERA, host_depth=np.ones((240, 320)))
+    assert f.psr.size == 0
+    with pytest.raises(ValueError, match="host_depth.*culling size"):
+        p.frame(320, 240, camera=CAMERA, host_depth=np.zeros((120, 160)))
+    with pytest.raises(ValueError, match="host_depth"):
+        p.frame(320, 240, camera=CAMERA, host_depth=np.zeros(10))
+
+
 def test_reset_history_equals_a_fresh_pipeline():
     def path_frame(p, i):
         return p.frame(200, 150, camera=sc.look_at((6.0 - 0.3 * i, 5.0, 8.0), (0, 0, 0)))

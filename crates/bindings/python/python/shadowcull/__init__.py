@@ -457,16 +457,27 @@ class Pipeline:
         view: Any = None,
         projection: Any = None,
         clip_depth: str = "negative_one_to_one",
+        host_depth: Any = None,
     ) -> Frame:
         """Computes one ``width × height`` frame seen by ``camera`` (a
         :func:`look_at` pose) or by the host's ``view`` and perspective
         ``projection`` matrices (right-handed; ``clip_depth`` is
         ``"negative_one_to_one"`` for OpenGL, ``"zero_to_one"`` for
-        Direct3D, Vulkan and Metal)."""
+        Direct3D, Vulkan and Metal).
+
+        ``host_depth``: the host's own depth of this frame, an ``(h, w)``
+        array at the culling size (reversed Z, ``near / view distance``, 0
+        where nothing was drawn; per pixel the farthest over the output
+        pixels whose centres it holds). The eye pass then only queries it."""
         cam = None if camera is None else _json("camera", camera)
         v = None if view is None else _matrix("view", view)
         p = None if projection is None else _matrix("projection", projection)
-        return Frame(self._p.frame(width, height, cam, v, p, clip_depth))
+        d = None
+        if host_depth is not None:
+            d = np.ascontiguousarray(host_depth, dtype=np.float32)
+            if d.ndim != 2:
+                raise ValueError(f"host_depth: an (h, w) array, got shape {d.shape}")
+        return Frame(self._p.frame(width, height, cam, v, p, clip_depth, d))
 
     def reference_mask(self, light: int) -> ReferenceMask:
         """The exact ray-cast mask of ``light`` for the last frame: what every
