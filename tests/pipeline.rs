@@ -932,6 +932,14 @@ fn bad_options_and_inputs_name_their_field() -> Result<()> {
         p.set_transform(ObjectId(0), glam::DMat4::from_cols_array(&[f64::NAN; 16])),
         Err(Error::Scene(_))
     ));
+    // A projective matrix would give masks the reference disagrees with.
+    let mut projective = glam::DMat4::IDENTITY;
+    projective.x_axis.w = 0.05;
+    let e = p
+        .set_transform(ObjectId(0), projective)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("object 0: transform is projective"), "{e}");
     assert!(matches!(
         p.add_object(
             scene::MeshId(1 << 20),

@@ -64,7 +64,8 @@ impl Pipeline {
     /// valid until [`Pipeline::remove_object`].
     ///
     /// # Errors
-    /// [`Error::Scene`] for an unknown mesh, a non-finite matrix, or past
+    /// [`Error::Scene`] for an unknown mesh, a non-finite or projective
+    /// matrix (bottom row not (0, 0, 0, 1), naming the object), or past
     /// [`scene::MAX_OBJECTS`] objects.
     pub fn add_object(
         &mut self,
@@ -118,7 +119,7 @@ impl Pipeline {
     ///
     /// # Errors
     /// [`Error::Scene`] for an unknown, removed or stale id, or a non-finite
-    /// matrix.
+    /// or projective matrix (naming the object).
     pub fn set_transform(&mut self, id: ObjectId, world_from_local: DMat4) -> Result<()> {
         self.scene_mut().stage_set_transform(id, world_from_local)?;
         Ok(())

@@ -450,6 +450,15 @@ fn misuse_gives_statuses_and_messages() {
         sc_object_set_transform(p, objects[1], std::ptr::null()),
         SC_INVALID_ARGUMENT
     );
+    // A projective matrix (bottom row not (0, 0, 0, 1)), named.
+    let mut projective = DMat4::IDENTITY.to_cols_array();
+    projective[3] = 0.05;
+    assert_eq!(
+        sc_object_set_transform(p, objects[1], projective.as_ptr()),
+        SC_INVALID_ARGUMENT
+    );
+    let e = last_error();
+    assert!(e.contains("object") && e.contains("projective"), "{e}");
     let mut i = input(0);
     i.view[0] = f64::NAN;
     let mut out = empty_output();

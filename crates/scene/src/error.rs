@@ -76,8 +76,21 @@ pub enum Error {
         /// What is wrong with it.
         message: String,
     },
+    /// A host object's transform is unusable: an element is not finite, or
+    /// it is projective (its bottom row is not (0, 0, 0, 1): meshes are
+    /// placed by affine transforms, and a projective one would give masks
+    /// that disagree with the reference). `object` names the object: its id,
+    /// or the mesh of the object being added.
+    #[error("{object}: transform {message}")]
+    Transform {
+        /// The object: `object 5`, or `the object being added (mesh 2)`.
+        object: String,
+        /// What is wrong.
+        message: String,
+    },
     /// The scene graph is malformed: a node cycle, a dangling node or mesh index,
-    /// a non-finite transform, or nesting deeper than [`crate::MAX_NODE_DEPTH`].
+    /// a non-finite or projective transform, or nesting deeper than
+    /// [`crate::MAX_NODE_DEPTH`].
     #[error("scene graph: node {node}: {message}")]
     Graph {
         /// Index of the offending node.

@@ -340,7 +340,8 @@ impl Scene {
     /// transform and bounds; the BVH is refit, not rebuilt.
     ///
     /// # Errors
-    /// [`Error::Graph`] when the node does not exist or the transform is not finite.
+    /// [`Error::Graph`] when the node does not exist or the transform is not
+    /// finite or is projective.
     pub fn set_node_transform(&mut self, node: NodeId, transform: Transform) -> Result<()> {
         check_transform(node, &transform)?;
         if self
@@ -365,13 +366,14 @@ impl Scene {
     /// objects themselves) and refits the BVH.
     ///
     /// # Errors
-    /// [`Error::Graph`] naming the object's node when the matrix is not finite.
+    /// [`Error::Transform`] naming the object when the matrix is not finite or
+    /// is projective.
     pub fn set_object_transform(&mut self, id: ObjectId, world_from_local: DMat4) -> Result<()> {
         let o = self.objects.get(id.0 as usize).ok_or(Error::Graph {
             node: u32::MAX,
             message: format!("no object {}", id.0),
         })?;
-        check_transform(o.node, &Transform::Matrix(world_from_local))?;
+        check_object_transform(|| format!("object {}", id.0), &world_from_local)?;
         let mesh_bounds = self.graph.meshes()[o.mesh.0 as usize].bounds();
         let world = world_bounds(&mesh_bounds, &world_from_local, o.node)?;
         let o = &mut self.objects[id.0 as usize];
@@ -534,7 +536,8 @@ impl Scene {
     /// retired instead) or a new one. Takes effect at [`Scene::commit_edits`].
     ///
     /// # Errors
-    /// [`Error::UnknownMesh`]; [`Error::Graph`] for a non-finite matrix or past
+    /// [`Error::UnknownMesh`]; [`Error::Transform`] for a non-finite or projective
+    /// matrix; [`Error::Graph`] past
     /// [`MAX_OBJECTS`] slots.
     pub fn stage_add_object(
         &mut self,
@@ -545,7 +548,8 @@ impl Scene {
         let bounds = self.live_mesh(mesh)?.bounds();
         // Host objects belong to no graph node.
         let node = NodeId(u32::MAX);
-        check_transform(node, &Transform::Matrix(world_from_local))?;
+        let adding = || format!("the object being added (mesh {})", mesh.0);
+        check_object_transform(adding, &world_from_local)?;
         let object = Object {
             node,
             mesh,
@@ -580,11 +584,12 @@ impl Scene {
     /// Moves object `id` to `world_from_local`. Takes effect at [`Scene::commit_edits`].
     ///
     /// # Errors
-    /// As [`Scene::live_slot`]; [`Error::Graph`] for a non-finite matrix.
+    /// As [`Scene::live_slot`]; [`Error::Transform`] naming the object for a
+    /// non-finite or projective matrix.
     pub fn stage_set_transform(&mut self, id: ObjectId, world_from_local: DMat4) -> Result<()> {
         let slot = self.live_slot(id)? as usize;
         let o = &self.objects[slot];
-        check_transform(o.node, &Transform::Matrix(world_from_local))?;
+        check_object_transform(|| format!("object {}", id.0), &world_from_local)?;
         let bounds = self.graph.meshes()[o.mesh.0 as usize].bounds();
         let world = world_bounds(&bounds, &world_from_local, o.node)?;
         let o = &mut self.objects[slot];
@@ -759,7 +764,12 @@ fn to_obvhs(b: &Aabb) -> obvhs::aabb::Aabb {
     obvhs::aabb::Aabb::new(Vec3A::from(b.min), Vec3A::from(b.max))
 }
 
-fn check_transform(node: NodeId, t: &Transform) -> Result<()> {
+/// What makes transform `t` unusable, if anything: a non-finite element, or
+/// a projective matrix (its bottom row not (0, 0, 0, 1), within 10⁻⁹).
+/// Every stage places points by the affine part alone
+/// (`DMat4::transform_point3`), so a projective transform would be read as
+/// another one than the host meant, and the reference with it.
+pub(crate) fn transform_fault(t: &Transform) -> Option<String> {
     let finite = match t {
         Transform::Trs {
             translation,
@@ -768,13 +778,43 @@ fn check_transform(node: NodeId, t: &Transform) -> Result<()> {
         } => translation.is_finite() && rotation.is_finite() && scale.is_finite(),
         Transform::Matrix(m) => m.is_finite(),
     };
-    if finite {
-        Ok(())
-    } else {
-        Err(Error::Graph {
+    if !finite {
+        return Some("is not finite".into());
+    }
+    let Transform::Matrix(m) = t else {
+        return None;
+    };
+    let row = m.row(3);
+    let affine = (row - glam::DVec4::W).abs().max_element() <= 1e-9;
+    (!affine).then(|| {
+        format!(
+            "is projective: its bottom row is ({}, {}, {}, {}), not (0, 0, 0, 1) (meshes are \
+             placed by affine transforms)",
+            row.x, row.y, row.z, row.w
+        )
+    })
+}
+
+/// [`transform_fault`] as an error naming graph node `node`.
+fn check_transform(node: NodeId, t: &Transform) -> Result<()> {
+    match transform_fault(t) {
+        None => Ok(()),
+        Some(message) => Err(Error::Graph {
             node: node.0,
-            message: "transform is not finite".into(),
-        })
+            message: format!("transform {message}"),
+        }),
+    }
+}
+
+/// [`transform_fault`] of a host object's matrix, as an error naming the
+/// object (`object()`: its id, or the mesh of the one being added).
+fn check_object_transform(object: impl FnOnce() -> String, m: &DMat4) -> Result<()> {
+    match transform_fault(&Transform::Matrix(*m)) {
+        None => Ok(()),
+        Some(message) => Err(Error::Transform {
+            object: object(),
+            message,
+        }),
     }
 }
 
@@ -1063,6 +1103,44 @@ mod tests {
                 ObjectFlags::ALL
             )
             .is_err());
+    }
+
+    /// A projective matrix (bottom row not (0, 0, 0, 1)) is refused on every
+    /// path, naming the object or the node; a bottom row within 10⁻⁹ of it
+    /// is taken.
+    #[test]
+    fn projective_transforms_are_refused() {
+        use crate::procedural::analytic::box_mesh;
+        let mut projective = DMat4::IDENTITY;
+        projective.x_axis.w = 0.05;
+        let cube = box_mesh("cube", Vec3::ZERO, Vec3::ONE).unwrap();
+        let mut s = Scene::new(SceneGraph::new()).unwrap();
+        let m = s.add_mesh(cube.clone());
+        let e = s
+            .stage_add_object(m, projective, ObjectFlags::ALL)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("the object being added (mesh 0): transform is projective"),
+            "{e}"
+        );
+        assert!(e.contains("(0.05, 0, 0, 1)"), "{e}");
+        let a = s
+            .stage_add_object(m, DMat4::IDENTITY, ObjectFlags::ALL)
+            .unwrap();
+        let e = s
+            .stage_set_transform(a, projective)
+            .unwrap_err()
+            .to_string();
+        assert!(e.starts_with("object 0: transform is projective"), "{e}");
+        let mut nearly = DMat4::IDENTITY;
+        nearly.w_axis.w = 1.0 + 1e-12;
+        s.stage_set_transform(a, nearly).unwrap();
+        let mut g = SceneGraph::new();
+        let mesh = g.add_mesh(cube);
+        g.add_instance("tilted", mesh, Transform::Matrix(projective));
+        let e = Scene::new(g).expect_err("refused").to_string();
+        assert!(e.contains("node 0: transform is projective"), "{e}");
     }
 
     /// A host's occluder must fit the object's mesh's bounds; a mesh used as

@@ -234,6 +234,14 @@ def test_the_gpu_host_preset():
     assert p.options == dict(sc.default_options(), tile=4)
 
 
+def _projective(call):
+    """``call(pipeline, cube mesh, matrix)`` with a matrix whose bottom row is not (0, 0, 0, 1)."""
+    p = sc.Pipeline()
+    m = np.eye(4)
+    m[3, 0] = 0.05
+    call(p, p.add_mesh(*cube_arrays()), m)
+
+
 @pytest.mark.parametrize(
     "call, match",
     [
@@ -247,6 +255,8 @@ def test_the_gpu_host_preset():
         (lambda: sc.Pipeline().add_mesh(np.zeros((4, 3), np.float32), np.array([[0, -1, 2]])), "-1"),
         (lambda: sc.Pipeline().add_mesh(np.full((3, 3), np.nan, np.float32), np.array([0, 1, 2])), "finite"),
         (lambda: sc.Pipeline().add_object(7), "mesh"),
+        (lambda: _projective(lambda p, m, t: p.add_object(m, t)), r"being added.*projective"),
+        (lambda: _projective(lambda p, m, t: p.set_transform(p.add_object(m), t)), r"object 0: transform is projective"),
         (lambda: sc.Pipeline().add_light("laser"), "unknown kind"),
         (lambda: sc.Pipeline().add_light("point", position=(0, 1, 0), rnage=3.0), "rnage"),
         (lambda: sc.Pipeline().add_light("directional", (0.0, 0.0, 0.0)), "direction"),

@@ -307,8 +307,8 @@ fn local_transform(node: &RawNode, i: usize, ctx: &mut Ctx<'_>) -> Result<Transf
     let has_trs = node.translation.is_some() || node.rotation.is_some() || node.scale.is_some();
     if let Some(m) = node.matrix {
         let m = DMat4::from_cols_array(&m);
-        if !m.is_finite() {
-            return Err(ctx.err(element, "matrix is not finite"));
+        if let Some(fault) = crate::scene::transform_fault(&Transform::Matrix(m)) {
+            return Err(ctx.err(element, format!("matrix {fault}")));
         }
         if !has_trs {
             return Ok(Transform::Matrix(m));
