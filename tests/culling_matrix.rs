@@ -14,6 +14,10 @@
 //!   10th frame (`.ci/run`'s `test-heavy` step; the default run takes the
 //!   first 30 frames, as do the clamping tests' street paths).
 //!
+//! The same cases check the `gpu_host` preset's volumes as a GPU draws them
+//! (`Pipeline::check_gpu`), at the viewport and at a coarse culling
+//! resolution with the boxes' inscribed occluders.
+//!
 //! Scenes, their mesh caches and the reference's triangle BVH are built once
 //! per test binary ([`OnceLock`]); silhouette caches live in each runner's
 //! per-light scratch and are reused along a runner's frames.
@@ -1218,4 +1222,97 @@ fn crosses(p: DVec3, d: DVec3, end: f64, t: &[DVec3; 3], m: f64) -> bool {
         && u + v < 1.0 - m
         && hit > m.max(1e-9) * (1.0 + d.length())
         && hit < end * (1.0 - m)
+}
+
+// --------------------------------------------------------- GPU host
+
+/// The `gpu_host` preset's volumes draw the exact mask on the culling cases:
+/// for the assembled and the shared Cornell box, the closed box (lights
+/// inside it) and the city street's first frames, a pipeline with CHC++
+/// culling at the viewport, and one at a coarse culling resolution (half
+/// the viewport's side) drawing each box's inscribed occluder
+/// (`Pipeline::set_occluder`: the box shrunk by a tenth about its centre),
+/// pass the GPU check on every view and light: 0 pixels off the reference's
+/// boundaries, 0 that differ from every caster's volumes.
+#[test]
+fn gpu_host_volumes_are_exact_on_the_culling_cases() {
+    let mut cases = vec![cornell_case(), closed_box_case(), street_case(10)];
+    if let Some(job) = shared_cornell() {
+        cases.push(Case {
+            label: "shared Cornell box job",
+            fixture: &job.fixture,
+            views: job.views.clone(),
+            lights: job.lights.clone(),
+            resolution: job.resolution,
+            light_resolutions: &[128],
+            reference_every: 1,
+        });
+    } else {
+        eprintln!("note: ../shared/data absent: the shared Cornell box job is skipped");
+    }
+    let (mut checked, mut inscribed) = (0, 0);
+    for case in &cases {
+        let (w, h) = case.resolution;
+        for coarse in [false, true] {
+            let o = PipelineOptions {
+                culling: CullingSpec::Chcpp,
+                light_resolution: 128,
+                culling_resolution: coarse.then_some((w / 2, h / 2)),
+                ..PipelineOptions::gpu_host()
+            };
+            let mut p = shadowcull::Pipeline::new(case.fixture.scene.clone(), o).unwrap();
+            if coarse {
+                inscribed += inscribe_box_occluders(&mut p);
+            }
+            let ids: Vec<_> = case
+                .lights
+                .iter()
+                .map(|l| p.add_light(l.1).unwrap())
+                .collect();
+            for (view, cam) in &case.views {
+                p.frame(&shadowcull::FrameInput::new(w, h, *cam)).unwrap();
+                for (k, &id) in ids.iter().enumerate() {
+                    let c = p.check_gpu(id).unwrap();
+                    let what = format!(
+                        "{} view {view} light {} (coarse: {coarse})",
+                        case.label, case.lights[k].0
+                    );
+                    assert_eq!(c.mismatch_off_boundary, 0, "{what}");
+                    assert_eq!(c.culled_vs_unculled_differing_pixels, 0, "{what}");
+                    checked += 1;
+                }
+            }
+        }
+    }
+    assert!(checked >= 80, "{checked} views and lights checked");
+    assert!(
+        inscribed > 100,
+        "{inscribed} objects drew inscribed occluders"
+    );
+}
+
+/// Gives every object whose mesh is a box (8 vertices on its bounds'
+/// corners) the box shrunk by a tenth about its centre as its own
+/// occluder: inside it, as a host's hand-made occluder is. Returns how many.
+fn inscribe_box_occluders(p: &mut shadowcull::Pipeline) -> usize {
+    let scene = p.scene().clone();
+    let (mut occluders, mut n) = (std::collections::HashMap::new(), 0);
+    for (slot, o) in scene.objects().iter().enumerate() {
+        let mesh = &scene.graph().meshes()[o.mesh.0 as usize];
+        let b = mesh.bounds();
+        let corners = analytic::box_corners(b.min, b.max);
+        let boxy =
+            mesh.positions().len() == 8 && mesh.positions().iter().all(|v| corners.contains(v));
+        if !o.alive || !boxy || b.is_empty() {
+            continue;
+        }
+        let occluder = *occluders.entry(o.mesh).or_insert_with(|| {
+            let (c, half) = (0.5 * (b.min + b.max), 0.45 * (b.max - b.min));
+            p.add_mesh(analytic::box_mesh("occluder", c - half, c + half).unwrap())
+        });
+        p.set_occluder(scene.id_of(slot as u32), Some(occluder))
+            .unwrap();
+        n += 1;
+    }
+    n
 }
