@@ -4,7 +4,9 @@
 //! most 0.01% of the image more, each on a reference shadow boundary; where
 //! several counting methods are legal they give the same mask. Continuous
 //! clamping (`shadow_mask`) and discrete clamping (the culled pipeline)
-//! change only ambiguous pixels.
+//! change only ambiguous pixels, and the `gpu_host` preset's volumes pass
+//! the GPU check (`Pipeline::check_gpu`) at the viewport's culling size and
+//! at a quarter of it.
 
 use crate::common::{boxes_on_ground, scene_of};
 use glam::{DMat4, DQuat, DVec3, Vec3};
@@ -217,6 +219,33 @@ fn try_run(
         let out = p.frame(&FrameInput::new(W, H, *cam))?;
         Ok(out.light(id).and_then(|l| l.mask().cloned()))
     };
+    // The `gpu_host` preset's volumes (CHC++, culling at the viewport and at
+    // a quarter of its side) pass the GPU check: a GPU drawing them gets the
+    // reference's mask and every caster's.
+    if method == MethodChoice::Auto {
+        for coarse in [None, Some((W / 4, H / 4))] {
+            let options = PipelineOptions {
+                two_sided,
+                culling: CullingSpec::Chcpp,
+                light_resolution: 256,
+                culling_resolution: coarse,
+                ..PipelineOptions::gpu_host()
+            };
+            let mut p = Pipeline::new(scene.clone(), options)?;
+            let id = p.add_light(*light)?;
+            p.frame(&FrameInput::new(W, H, *cam))?;
+            let c = p.check_gpu(id)?;
+            let found = (
+                c.mismatch_off_boundary,
+                c.culled_vs_unculled_differing_pixels,
+            );
+            assert_eq!(
+                found,
+                (0, 0),
+                "gpu_host, culling size {coarse:?} ({light:?})"
+            );
+        }
+    }
     let (plain, sliced) = (culled(ClampingSpec::None)?, culled(ClampingSpec::Discrete)?);
     let (plain, sliced) = (plain.expect("a mask"), sliced.expect("a mask"));
     for (i, (a, b)) in plain.pixels.iter().zip(&sliced.pixels).enumerate() {
