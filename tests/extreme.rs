@@ -1512,3 +1512,90 @@ fn scissor_and_depth_bounds_behind_the_eye_and_straddling_w0() {
         "shadows of the straddling caster must be visible"
     );
 }
+
+// ------------------------------------------------- degenerate placements
+
+/// A closed box flattened by its transform into a sheet (one axis scaled
+/// by 0, or by 10⁻²⁰⁰, which rounding makes 0) would lose its shadow (a box
+/// scaled by 0 in y: all 328 of its shadow's pixels lit): such a placement
+/// is refused, naming the node, the object or the object being added. At
+/// 10⁻⁹ the box is thin but solid, and a box scaled by 0 in every axis
+/// vanishes: both match the reference under every method and sidedness.
+#[test]
+fn flattened_objects() {
+    let placed = |scale: DVec3| {
+        DMat4::from_translation(DVec3::new(0.5, 2.0, 0.0))
+            * DMat4::from_rotation_z(0.3)
+            * DMat4::from_scale(scale)
+    };
+    let scene = |scale: DVec3| {
+        let mut g = SceneGraph::new();
+        let gm = g.add_mesh(ground(10.0));
+        let b = g.add_mesh(
+            analytic::box_mesh("box", Vec3::new(-1.0, -1.0, -1.0), Vec3::new(1.0, 1.0, 1.0))
+                .unwrap(),
+        );
+        g.add_instance("ground", gm, Transform::default());
+        g.add_instance("box", b, Transform::Matrix(placed(scale)));
+        Scene::new(g)
+    };
+    for (what, scale) in [
+        ("scaled to 1e-9 in y", DVec3::new(1.0, 1e-9, 1.0)),
+        ("scaled to 0", DVec3::ZERO),
+    ] {
+        mesh_scene_checks(&format!("a box {what}"), &scene(scale).unwrap());
+    }
+    for scale in [
+        DVec3::new(1.0, 0.0, 1.0),
+        DVec3::new(0.0, 1.0, 1.0),
+        DVec3::new(1.0, 1e-200, 1.0),
+    ] {
+        let e = scene(scale)
+            .err()
+            .map(|e| e.to_string())
+            .unwrap_or_default();
+        assert!(
+            e.contains("node 1: transform flattens its mesh"),
+            "{scale}: {e:?}"
+        );
+        let mut s = scene(DVec3::ONE).unwrap();
+        let m = s.add_mesh(analytic::box_mesh("b", Vec3::ZERO, Vec3::ONE).unwrap());
+        let e = s.stage_add_object(m, placed(scale), scene::ObjectFlags::ALL);
+        let e = e.err().map(|e| e.to_string()).unwrap_or_default();
+        assert!(
+            e.contains("the object being added (mesh 2): transform flattens"),
+            "{e:?}"
+        );
+        let mut p = Pipeline::new(s, PipelineOptions::default()).unwrap();
+        let e = p
+            .set_transform(ObjectId(1), placed(scale))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("object 1: transform flattens"), "{e}");
+    }
+}
+
+/// A point light nearer the eye than the near plane (between the eye and
+/// the near rectangle, and beside the eye): every volume reaches the near
+/// plane, and the masks still match the reference.
+#[test]
+fn point_light_inside_the_near_plane() {
+    let s = crate::common::boxes_on_ground(Transform::default());
+    let eye = DVec3::new(2.0, 9.0, 12.0);
+    let cam = camera(eye, DVec3::ZERO, 0.5);
+    let forward = (DVec3::ZERO - eye).normalize();
+    for (what, light) in [
+        ("ahead, inside the near distance", eye + 0.2 * forward),
+        ("at the eye", eye),
+        ("beside the eye", eye + DVec3::new(0.3, 0.0, 0.0)),
+    ] {
+        assert_exact_all_methods(
+            &format!("point light {what}"),
+            &s,
+            &cam,
+            &point(light),
+            false,
+            1000,
+        );
+    }
+}

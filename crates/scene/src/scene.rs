@@ -375,6 +375,11 @@ impl Scene {
         })?;
         check_object_transform(|| format!("object {}", id.0), &world_from_local)?;
         let mesh_bounds = self.graph.meshes()[o.mesh.0 as usize].bounds();
+        check_flattening(
+            || format!("object {}", id.0),
+            &mesh_bounds,
+            &world_from_local,
+        )?;
         let world = world_bounds(&mesh_bounds, &world_from_local, o.node)?;
         let o = &mut self.objects[id.0 as usize];
         o.world_from_local = world_from_local;
@@ -550,6 +555,7 @@ impl Scene {
         let node = NodeId(u32::MAX);
         let adding = || format!("the object being added (mesh {})", mesh.0);
         check_object_transform(adding, &world_from_local)?;
+        check_flattening(adding, &bounds, &world_from_local)?;
         let object = Object {
             node,
             mesh,
@@ -591,6 +597,7 @@ impl Scene {
         let o = &self.objects[slot];
         check_object_transform(|| format!("object {}", id.0), &world_from_local)?;
         let bounds = self.graph.meshes()[o.mesh.0 as usize].bounds();
+        check_flattening(|| format!("object {}", id.0), &bounds, &world_from_local)?;
         let world = world_bounds(&bounds, &world_from_local, o.node)?;
         let o = &mut self.objects[slot];
         o.world_from_local = world_from_local;
@@ -795,6 +802,82 @@ pub(crate) fn transform_fault(t: &Transform) -> Option<String> {
     })
 }
 
+/// Relative thinness below which a placed mesh counts as flattened: its
+/// thinnest extent over the size of its coordinates (the distance of its
+/// bounds' centre from the origin plus its extents), about 4,500 f64 ulps.
+/// Below it the placement rounds a solid into a sheet (a box scaled by 0 in
+/// one axis, or by 10⁻²⁰⁰), whose faces coincide, and the masks disagree
+/// with the reference (a box scaled by 0 in y lost its whole shadow); at
+/// 10⁻⁹ of a unit box they still agree.
+const FLAT_RELATIVE: f64 = 1e-12;
+
+/// How much thinner, relative to its coordinates, the transform must make a
+/// mesh than it is in its own space to count as flattening it: a mesh that
+/// is thin in its own coordinates is the host's shape, not the placement's.
+const FLATTENED_BY: f64 = 1e3;
+
+/// The thinnest extent of the box spanned by `axes` (its edge vectors),
+/// over the size of its coordinates (`centre`'s distance from the origin
+/// plus the edges' lengths); `None` for a box of fewer than two edges or of
+/// size 0 (a point).
+fn relative_thinness(axes: &[glam::DVec3], centre: glam::DVec3) -> Option<f64> {
+    let size: f64 = axes.iter().map(|v| v.length()).sum();
+    if size == 0.0 {
+        return None;
+    }
+    let thinnest = match *axes {
+        [a, b, c] => {
+            let face = [a.cross(b), b.cross(c), c.cross(a)]
+                .iter()
+                .map(|n| n.length())
+                .fold(0.0, f64::max);
+            match face {
+                0.0 => 0.0,
+                f => a.dot(b.cross(c)).abs() / f,
+            }
+        }
+        [a, b] => a.cross(b).length() / a.length().max(b.length()),
+        _ => return None,
+    };
+    Some(thinnest / (size + centre.length()))
+}
+
+/// Whether `world_from_local` flattens a mesh with local bounds `bounds`:
+/// the world image of its bounds' box (along the axes the mesh extends in)
+/// is thinner than [`FLAT_RELATIVE`] of its coordinates' size, and
+/// [`FLATTENED_BY`] times thinner so than in the mesh's own space. A
+/// transform that collapses the box to a point (scaled by 0) is not
+/// flattening: the object has no pixels and casts nothing, consistently.
+fn flattening(bounds: &Aabb, world_from_local: &DMat4) -> Option<String> {
+    if bounds.is_empty() {
+        return None;
+    }
+    let e = (bounds.max - bounds.min).as_dvec3();
+    let centre = bounds.center();
+    let local: Vec<glam::DVec3> = [
+        glam::DVec3::X * e.x,
+        glam::DVec3::Y * e.y,
+        glam::DVec3::Z * e.z,
+    ]
+    .into_iter()
+    .filter(|v| v.length() > 0.0)
+    .collect();
+    let world: Vec<glam::DVec3> = local
+        .iter()
+        .map(|&v| world_from_local.transform_vector3(v))
+        .collect();
+    let placed = relative_thinness(&world, world_from_local.transform_point3(centre))?;
+    let own = relative_thinness(&local, centre)?;
+    (placed < FLAT_RELATIVE && placed * FLATTENED_BY < own).then(|| {
+        format!(
+            "flattens its mesh: its thinnest extent becomes {placed:e} of its coordinates' \
+             size ({own:e} in its own space), which rounding turns into a sheet whose shadow \
+             is wrong (scale an object by 0 in every axis, or switch it off with its flags, \
+             to hide it)"
+        )
+    })
+}
+
 /// [`transform_fault`] as an error naming graph node `node`.
 fn check_transform(node: NodeId, t: &Transform) -> Result<()> {
     match transform_fault(t) {
@@ -802,6 +885,17 @@ fn check_transform(node: NodeId, t: &Transform) -> Result<()> {
         Some(message) => Err(Error::Graph {
             node: node.0,
             message: format!("transform {message}"),
+        }),
+    }
+}
+
+/// [`flattening`] as an error naming the object.
+fn check_flattening(object: impl FnOnce() -> String, bounds: &Aabb, m: &DMat4) -> Result<()> {
+    match flattening(bounds, m) {
+        None => Ok(()),
+        Some(message) => Err(Error::Transform {
+            object: object(),
+            message,
         }),
     }
 }
@@ -863,6 +957,12 @@ fn flatten(graph: &SceneGraph) -> Result<Vec<Object>> {
                 node: id.0,
                 message: format!("mesh {} referenced, but there are only {n_meshes}", m.0),
             })?;
+            if let Some(message) = flattening(&mesh.bounds(), &world) {
+                return Err(Error::Graph {
+                    node: id.0,
+                    message: format!("transform {message}"),
+                });
+            }
             if objects.len() >= MAX_OBJECTS {
                 return Err(Error::Graph {
                     node: id.0,
