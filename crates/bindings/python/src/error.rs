@@ -37,12 +37,54 @@ pub(crate) fn bad(message: impl Into<String>) -> PyErr {
 /// serde types reject (an unknown option, a wrong type): a `ValueError`
 /// starting with `what`.
 pub(crate) fn bad_json(what: &str, e: serde_json::Error) -> PyErr {
-    // serde_json appends where in the text it stopped; the caller wrote
-    // keywords, not text, so only the message is shown.
+    bad(format!("{what}: {}", in_python_words(&e)))
+}
+
+/// A serde_json error in the words of the Python caller, who wrote keywords
+/// and values, not JSON text: no position in the text, Python's names for
+/// the values (`None`, `True`, a list, a dict) and plain words for the
+/// Rust types it expected (an integer ≥ 0, a number). Unknown fields and
+/// variants keep their lists of what is allowed.
+pub(crate) fn in_python_words(e: &serde_json::Error) -> String {
     let message = e.to_string();
-    let message = match message.rfind(" at line ") {
-        Some(i) => &message[..i],
-        None => &message,
+    // serde_json appends where in the text it stopped.
+    let mut m = match message.rfind(" at line ") {
+        Some(i) => message[..i].to_string(),
+        None => message,
     };
-    bad(format!("{what}: {message}"))
+    for (from, to) in [
+        ("invalid type: null", "got None"),
+        ("invalid type: boolean `true`", "got True"),
+        ("invalid type: boolean `false`", "got False"),
+        ("invalid type: sequence", "got a list"),
+        ("invalid type: map", "got a dict"),
+        ("invalid type: string", "got the string"),
+        ("invalid type: integer", "got the integer"),
+        ("invalid type: floating point", "got the number"),
+        ("invalid value: integer", "got"),
+        ("invalid value: floating point", "got"),
+        ("invalid length", "got the length"),
+        ("expected u8", "expected an integer from 0 to 255"),
+        ("expected u16", "expected an integer from 0 to 65535"),
+        ("expected u32", "expected an integer from 0 to 4294967295"),
+        ("expected u64", "expected an integer ≥ 0"),
+        ("expected usize", "expected an integer ≥ 0"),
+        ("expected i32", "expected an integer"),
+        ("expected f32", "expected a number"),
+        ("expected f64", "expected a number"),
+        ("expected a boolean", "expected True or False"),
+        ("unknown field", "no such keyword"),
+        ("unknown variant", "no such choice"),
+    ] {
+        m = m.replace(from, to);
+    }
+    // `got `-1``: the value as Python shows it, without serde's quotes.
+    if let Some(i) = m.find("got `") {
+        let start = i + "got ".len();
+        if let Some(len) = m[start + 1..].find('`') {
+            let value = m[start + 1..start + 1 + len].to_string();
+            m.replace_range(start..start + len + 2, &value);
+        }
+    }
+    m
 }

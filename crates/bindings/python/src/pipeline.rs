@@ -41,6 +41,33 @@ fn from_json<'a, T: serde::Deserialize<'a>>(what: &str, text: &'a str) -> PyResu
     serde_json::from_str(text).map_err(|e| bad_json(what, e))
 }
 
+/// The options of keywords (JSON from the Python layer). A refused value is
+/// named by its keyword: each keyword is tried alone (with the preset, which
+/// the others start from) until one is refused.
+fn options_from_json(text: &str) -> PyResult<PipelineOptions> {
+    let e = match serde_json::from_str(text) {
+        Ok(o) => return Ok(o),
+        Err(e) => e,
+    };
+    if let Ok(serde_json::Value::Object(all)) = serde_json::from_str(text) {
+        let preset = all.get("preset");
+        for (key, value) in &all {
+            let mut one = serde_json::Map::new();
+            if let Some(p) = preset.filter(|_| key != "preset") {
+                one.insert("preset".into(), p.clone());
+            }
+            one.insert(key.clone(), value.clone());
+            if let Err(e) = serde_json::from_value::<PipelineOptions>(one.into()) {
+                return Err(bad(format!(
+                    "options: `{key}`: {}",
+                    crate::error::in_python_words(&e)
+                )));
+            }
+        }
+    }
+    Err(bad_json("options", e))
+}
+
 fn to_json<T: serde::Serialize>(value: &T) -> PyResult<String> {
     serde_json::to_string(value).map_err(|e| bad(e.to_string()))
 }
@@ -193,7 +220,7 @@ impl Pipeline {
     /// An empty pipeline with `options` (JSON of the RON job's `pipeline` fields).
     #[new]
     fn new(options: &str) -> PyResult<Self> {
-        let options: PipelineOptions = from_json("options", options)?;
+        let options = options_from_json(options)?;
         let scene = Scene::new(scene::SceneGraph::new()).map_err(scene_to_py)?;
         Ok(Pipeline {
             inner: shadowcull::Pipeline::new(scene, options).map_err(to_py)?,
@@ -209,7 +236,7 @@ impl Pipeline {
 
     /// Replaces the options (JSON); keeps the scene, lights and histories.
     fn set_options(&mut self, options: &str) -> PyResult<()> {
-        let options: PipelineOptions = from_json("options", options)?;
+        let options = options_from_json(options)?;
         self.inner.set_options(options).map_err(to_py)
     }
 

@@ -28,21 +28,26 @@ masks are ``(height, width)`` arrays, row 0 at the top, of the pixel classes
 :data:`LIT`, :data:`SHADOW`, :data:`UNLIT` and :data:`BACKGROUND`.
 
 Every array a frame returns is a copy the caller owns: it stays valid and
-unchanged after later frames. A pipeline is used by one thread at a time
-(another thread's call while a frame runs raises ``RuntimeError``); the GIL
-is released while a frame, a reference mask, a load, a job or a merge runs.
+unchanged after later frames. A pipeline runs one call at a time: another
+thread's call while a frame runs waits for it to return; the GIL is
+released while a frame, a reference mask, a load, a job or a merge runs.
 
-Errors are ``ValueError`` for bad input (an unknown option, a malformed
-array, a stale id, a frame over ``max_memory``), ``OSError`` for files
-(unreadable scenes or jobs, a busy output directory) and ``MemoryError``
-when a buffer cannot be allocated, with the library's message naming the
-file, object or field.
+Errors are ``ValueError`` for bad values (an unknown option, a value out of
+its range, a malformed array, a stale id, a frame over ``max_memory``),
+``TypeError`` for a value of the wrong type (a string for an id, an array
+for a ``look_at`` pose), ``OSError`` for files (unreadable scenes or jobs, a
+busy output directory) and ``MemoryError`` when a buffer cannot be
+allocated, with a message naming the keyword, file, object or field.
 """
 
 from __future__ import annotations
 
+import functools
 import json
+import math
+import numbers
 import os
+import threading
 from typing import Any, Dict, Iterable, List, NamedTuple, Optional, Sequence, Tuple
 
 import numpy as np
@@ -133,13 +138,71 @@ def _plain(value: Any) -> Any:
     raise TypeError(f"{type(value).__name__} is not a number, string, list or dict")
 
 
+def _non_finite(value: Any, path: str) -> Optional[str]:
+    """The path of the first NaN or infinity within ``value``, if any."""
+    if isinstance(value, dict):
+        for k, v in value.items():
+            found = _non_finite(v, f"{path}.{k}" if path else str(k))
+            if found is not None:
+                return found
+    elif isinstance(value, (list, tuple)) or (isinstance(value, np.ndarray) and value.ndim > 0):
+        for i, v in enumerate(value):
+            found = _non_finite(v, f"{path}[{i}]")
+            if found is not None:
+                return found
+    elif isinstance(value, (float, np.floating)) and not math.isfinite(float(value)):
+        return path or "the value"
+    return None
+
+
 def _json(what: str, value: Any) -> str:
     try:
         return json.dumps(value, default=_plain, allow_nan=False)
-    except ValueError as e:
-        raise ValueError(f"{what}: NaN and infinity are not allowed ({e})") from None
+    except ValueError:
+        where = _non_finite(value, "")
+        raise ValueError(f"{what}: {where} is {'NaN' if where else 'NaN or infinity'}: "
+                         "values must be finite") from None
     except TypeError as e:
-        raise ValueError(f"{what}: {e}") from None
+        raise TypeError(f"{what}: {e}") from None
+
+
+def _index(name: str, value: Any) -> int:
+    """``value`` as an id or size the library takes (0 to 2³² − 1): a
+    ``TypeError`` for a non-integer, a ``ValueError`` out of range."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral):
+        raise TypeError(f"{name}: an integer, got {type(value).__name__}")
+    v = int(value)
+    if not 0 <= v < 2**32:
+        raise ValueError(f"{name}: {v} is out of range (0 to 2**32 - 1)")
+    return v
+
+
+def _camera(camera: Any) -> str:
+    """The JSON of a :func:`look_at` pose, or a ``TypeError`` naming what
+    was given instead."""
+    if not isinstance(camera, dict):
+        raise TypeError(
+            f"camera: a pose from look_at() (a dict), got {type(camera).__name__}; "
+            "for 4×4 matrices pass view= and projection="
+        )
+    return _json("camera", camera)
+
+
+def _one_call_at_a_time(cls: Any) -> Any:
+    """Makes every public method of ``cls`` hold the instance's lock: a
+    second thread calling into a pipeline while another thread's call (a
+    frame, which releases the GIL) runs waits until it returns."""
+    for name, f in list(vars(cls).items()):
+        if name.startswith("_") or not callable(f):
+            continue
+
+        def locked(self: Any, *args: Any, __f: Any = f, **kwargs: Any) -> Any:
+            with self._lock:
+                return __f(self, *args, **kwargs)
+
+        functools.update_wrapper(locked, f)
+        setattr(cls, name, locked)
+    return cls
 
 
 def _matrix(name: str, m: Any) -> np.ndarray:
@@ -269,6 +332,7 @@ class Frame:
         )
 
 
+@_one_call_at_a_time
 class Pipeline:
     """The shadow-volume culling pipeline.
 
@@ -279,9 +343,13 @@ class Pipeline:
     (see :func:`default_options`). An unknown name is a ``ValueError``.
     ``preset="gpu_host"`` starts from :func:`gpu_host_options` instead of
     the defaults; the other keywords override it.
+
+    One pipeline runs one call at a time: a thread that calls into it while
+    another thread's call runs (a frame releases the GIL) waits for it.
     """
 
     def __init__(self, **options: Any):
+        self._lock = threading.RLock()
         self._p = _native.Pipeline(_json("options", options))
 
     @property
@@ -307,11 +375,11 @@ class Pipeline:
 
     def update_mesh_positions(self, mesh: int, positions: Any, indices: Any) -> None:
         """Deforms ``mesh``: new positions, the same triangles."""
-        self._p.update_mesh_positions(mesh, positions, indices)
+        self._p.update_mesh_positions(_index("mesh", mesh), positions, indices)
 
     def remove_mesh(self, mesh: int) -> None:
         """Removes a mesh no object draws any more."""
-        self._p.remove_mesh(mesh)
+        self._p.remove_mesh(_index("mesh", mesh))
 
     def add_object(
         self,
@@ -327,15 +395,15 @@ class Pipeline:
         local; identity when None). The flags say what it takes part in.
         Returns its id, valid until :meth:`remove_object`."""
         m = np.eye(4) if transform is None else _matrix("transform", transform)
-        return self._p.add_object(mesh, m, casts, receives, occludes, visible)
+        return self._p.add_object(_index("mesh", mesh), m, casts, receives, occludes, visible)
 
     def set_transform(self, obj: int, transform: Any) -> None:
         """Moves an object from the next frame on."""
-        self._p.set_transform(obj, _matrix("transform", transform))
+        self._p.set_transform(_index("obj", obj), _matrix("transform", transform))
 
     def transform(self, obj: int) -> np.ndarray:
         """An object's world matrix (as of the last frame or edit)."""
-        return self._p.transform(obj)
+        return self._p.transform(_index("obj", obj))
 
     def set_flags(
         self,
@@ -347,7 +415,7 @@ class Pipeline:
         visible: bool = True,
     ) -> None:
         """Sets every flag of an object (each defaults to on)."""
-        self._p.set_flags(obj, casts, receives, occludes, visible)
+        self._p.set_flags(_index("obj", obj), casts, receives, occludes, visible)
 
     def set_occluder(self, obj: int, mesh: "int | None" = None) -> None:
         """Gives an object the host's own occluder: ``mesh`` (from
@@ -357,11 +425,11 @@ class Pipeline:
         inside its solid); its bounds must lie within the object's mesh's
         (``ValueError`` otherwise). ``None`` goes back to the object's own
         mesh."""
-        self._p.set_occluder(obj, mesh)
+        self._p.set_occluder(_index("obj", obj), None if mesh is None else _index("mesh", mesh))
 
     def remove_object(self, obj: int) -> None:
         """Removes an object; its id is stale afterwards."""
-        self._p.remove_object(obj)
+        self._p.remove_object(_index("obj", obj))
 
     def load(self, path: "os.PathLike[str] | str") -> Loaded:
         """Adds every object of a glTF (``.gltf``, ``.glb``), OBJ (``.obj``
@@ -385,7 +453,7 @@ class Pipeline:
 
     def path_camera(self, name: str, frame: int) -> Optional[Dict[str, Any]]:
         """The pose of a loaded camera path at ``frame`` (None past its end)."""
-        pose = self._p.path_camera(name, frame)
+        pose = self._p.path_camera(name, _index("frame", frame))
         return None if pose is None else json.loads(pose)
 
     # Lights ----------------------------------------------------------------
@@ -422,15 +490,15 @@ class Pipeline:
 
     def set_light(self, light: int, kind: str, value: Any = None, **fields: Any) -> None:
         """Replaces a light (same spelling as :meth:`add_light`)."""
-        self._p.set_light(light, self._light_spec(kind, value, fields))
+        self._p.set_light(_index("light", light), self._light_spec(kind, value, fields))
 
     def remove_light(self, light: int) -> None:
         """Removes a light; its id is stale afterwards."""
-        self._p.remove_light(light)
+        self._p.remove_light(_index("light", light))
 
     def light(self, light: int) -> Dict[str, Any]:
         """A light as the library holds it (``{"Point": {...}}``, ...)."""
-        return json.loads(self._p.light(light))
+        return json.loads(self._p.light(_index("light", light)))
 
     @property
     def lights(self) -> List[int]:
@@ -442,7 +510,7 @@ class Pipeline:
     def set_frame_number(self, frame: int) -> None:
         """The job frame number of the next frame (culling coherence follows
         numbers, not calls: a jump starts a new history)."""
-        self._p.set_frame_number(frame)
+        self._p.set_frame_number(_index("frame", frame))
 
     def reset_history(self) -> None:
         """Forgets the culling histories and caches (a camera cut)."""
@@ -469,7 +537,7 @@ class Pipeline:
         array at the culling size (reversed Z, ``near / view distance``, 0
         where nothing was drawn; per pixel the farthest over the output
         pixels whose centres it holds). The eye pass then only queries it."""
-        cam = None if camera is None else _json("camera", camera)
+        cam = None if camera is None else _camera(camera)
         v = None if view is None else _matrix("view", view)
         p = None if projection is None else _matrix("projection", projection)
         d = None
@@ -477,12 +545,13 @@ class Pipeline:
             d = np.ascontiguousarray(host_depth, dtype=np.float32)
             if d.ndim != 2:
                 raise ValueError(f"host_depth: an (h, w) array, got shape {d.shape}")
-        return Frame(self._p.frame(width, height, cam, v, p, clip_depth, d))
+        w, h = _index("width", width), _index("height", height)
+        return Frame(self._p.frame(w, h, cam, v, p, clip_depth, d))
 
     def reference_mask(self, light: int) -> ReferenceMask:
         """The exact ray-cast mask of ``light`` for the last frame: what every
         culling and stencil option is measured against."""
-        mask, ambiguous = self._p.reference_mask(light)
+        mask, ambiguous = self._p.reference_mask(_index("light", light))
         return ReferenceMask(mask, ambiguous)
 
 
