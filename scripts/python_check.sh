@@ -2,7 +2,8 @@
 # The Python package in CI: build the wheel with maturin, install it with its
 # test and Ray extras into a fresh virtual environment, run its pytest suite
 # (arrays, frames against the reference, errors, jobs, shards, the Ray
-# fan-out on a local loopback cluster) and examples/python/path_stats.py.
+# fan-out on a local loopback cluster), mypy over examples/python/ and
+# examples/python/path_stats.py.
 # Everything comes from PyPI and crates.io; nothing is installed outside
 # the temporary directory.
 #
@@ -33,6 +34,9 @@ wheel=$(ls "$work"/wheels/shadowcull-*.whl)
 # Ray: no usage reports (the machines have no network but the registries).
 export RAY_USAGE_STATS_ENABLED=0
 (cd "$work" && "$work/venv/bin/python" -m pytest -q -p no:cacheprovider "$OLDPWD/crates/bindings/python/tests")
+# The package is typed (py.typed, inline hints): mypy accepts the examples.
+"$work/venv/bin/python" -m mypy --cache-dir "$work/mypy" examples/python/
+"$work/venv/bin/python" -c "import shadowcull as sc; help(sc.Pipeline.close)" > /dev/null
 line=$("$work/venv/bin/python" examples/python/path_stats.py --out "$work/path_stats.png" | tail -n 1)
 echo "path_stats: $line"
 test -s "$work/path_stats.png"

@@ -502,6 +502,19 @@ impl Pipeline {
     }
 
     /// World matrix of an object (numpy layout), for checks and tools.
+    /// An object's flags: (casts, receives, occludes, visible).
+    fn flags(&self, object: u32) -> PyResult<(bool, bool, bool, bool)> {
+        let scene = self.inner.scene();
+        let slot = scene.live_slot(ObjectId(object)).map_err(scene_to_py)?;
+        let f = scene.objects()[slot as usize].flags;
+        Ok((f.casts, f.receives, f.occludes, f.visible))
+    }
+
+    /// Live objects.
+    fn object_count(&self) -> usize {
+        self.inner.scene().counts().objects
+    }
+
     fn transform<'py>(
         &self,
         py: Python<'py>,

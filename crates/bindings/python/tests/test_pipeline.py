@@ -473,3 +473,41 @@ def test_clamping_keeps_the_mask_and_numbers_segments(clamping, receivers):
         assert s["bf_fill_unclamped"] == a.light_stats[light]["pixels_processed"] > 0
         assert s["bf_fill_clamped"] == b.light_stats[light]["pixels_processed"] > 0
 
+
+
+def test_python_habits(tmp_path):
+    import struct
+    import zlib
+
+    with sc.Pipeline(stencil="bf", culling="chcpp") as p:
+        ground = p.add_mesh(*[a.tolist() for a in quad_arrays()])  # sequences are arrays
+        cube = p.add_mesh(*cube_arrays())
+        p.add_object(ground)
+        c = p.add_object(cube, translation(0.0, 1.0, 0.0))
+        lamp = p.add_light("point", position=(2.0, 8.0, 1.0))
+        assert repr(p) == f"Pipeline(objects=2, lights=[{lamp}], culling='chcpp', stencil='bf')"
+        # Flags read back; setting one keeps the others.
+        assert p.flags(c) == dict(casts=True, receives=True, occludes=True, visible=True)
+        p.set_flags(c, receives=False)
+        assert p.flags(c) == dict(casts=True, receives=False, occludes=True, visible=True)
+        f = p.frame(160, 120, camera=CAMERA)
+        img = sc.mask_to_image(f.mask[lamp])
+        assert img.dtype == np.uint8 and img.shape == (120, 160)
+        assert set(np.unique(img)) <= set(sc.MASK_GREYS.tolist())
+        assert (img == sc.MASK_GREYS[sc.SHADOW]).sum() == (f.mask[lamp] == sc.SHADOW).sum() > 0
+        f.save_mask(lamp, tmp_path / "mask.png")
+        png = (tmp_path / "mask.png").read_bytes()
+        assert png[:8] == b"\x89PNG\r\n\x1a\n"
+        w, h = struct.unpack(">II", png[16:24])
+        assert (w, h) == (160, 120)
+        n = struct.unpack(">I", png[33:37])[0]
+        raw = zlib.decompress(png[41 : 41 + n])
+        rows = np.frombuffer(raw, np.uint8).reshape(120, 161)[:, 1:]
+        np.testing.assert_array_equal(rows, img)
+        with pytest.raises(ValueError, match="not in this frame"):
+            f.save_mask(lamp + 1, tmp_path / "x.png")
+    assert repr(p) == "Pipeline(closed)"
+    with pytest.raises(ValueError, match="closed"):
+        p.frame(160, 120, camera=CAMERA)
+    p.close()  # twice is fine
+    assert "Frees the pipeline" in (sc.Pipeline.close.__doc__ or "")

@@ -47,7 +47,9 @@ import json
 import math
 import numbers
 import os
+import struct
 import threading
+import zlib
 from typing import Any, Dict, Iterable, List, NamedTuple, Optional, Sequence, Tuple
 
 import numpy as np
@@ -243,6 +245,44 @@ def gpu_host_options() -> Dict[str, Any]:
     return json.loads(_native.preset_options("gpu_host"))
 
 
+#: Grey levels of :func:`mask_to_image`, per pixel class: lit white, shadow
+#: dark grey, unlit (facing away from the light) black, background mid grey.
+MASK_GREYS = np.array([255, 64, 0, 160], np.uint8)
+
+
+def mask_to_image(mask: Any) -> np.ndarray:
+    """A shadow mask's pixel classes (``LIT``, ``SHADOW``, ``UNLIT``,
+    ``BACKGROUND``: codes 0–3) as an ``(h, w)`` uint8 grey image
+    (:data:`MASK_GREYS`), ready for any image writer: saved directly, the
+    codes 0–3 look black."""
+    m = np.asarray(mask)
+    if m.ndim != 2:
+        raise ValueError(f"mask: an (h, w) array, got shape {m.shape}")
+    if m.size and (m.min() < 0 or m.max() > BACKGROUND):
+        raise ValueError(f"mask: pixel classes are 0 to {BACKGROUND}, got {m.min()} to {m.max()}")
+    return MASK_GREYS[m.astype(np.intp)]
+
+
+def save_png(path: "os.PathLike[str] | str", image: Any) -> None:
+    """Writes an ``(h, w)`` uint8 grey image as an 8-bit greyscale PNG
+    (the standard library's zlib: no image package needed)."""
+    a = np.ascontiguousarray(image, dtype=np.uint8)
+    if a.ndim != 2:
+        raise ValueError(f"image: an (h, w) array, got shape {a.shape}")
+    h, w = a.shape
+    raw = b"".join(b"\x00" + a[y].tobytes() for y in range(h))
+
+    def chunk(kind: bytes, data: bytes) -> bytes:
+        body = kind + data
+        return struct.pack(">I", len(data)) + body + struct.pack(">I", zlib.crc32(body))
+
+    header = struct.pack(">IIBBBBB", w, h, 8, 0, 0, 0, 0)
+    png = b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", header)
+    png += chunk(b"IDAT", zlib.compress(raw, 6)) + chunk(b"IEND", b"")
+    with open(path, "wb") as f:
+        f.write(png)
+
+
 class Volumes(NamedTuple):
     """One light's shadow volumes, ready to draw: ``positions`` ``(n, 4)``
     float32 homogeneous local-space vertices (``w`` is 0 at infinity),
@@ -331,6 +371,24 @@ class Frame:
             f"frame_ms={self.stats['frame_ms']:.2f})"
         )
 
+    def save_mask(self, light: int, path: "os.PathLike[str] | str") -> None:
+        """Writes light ``light``'s mask as a greyscale PNG
+        (:func:`mask_to_image`); a ``ValueError`` without a CPU stencil
+        (``stencil="none"``) or for a light the frame did not compute."""
+        if light not in self.mask:
+            raise ValueError(f"light {light}: not in this frame (its lights: {sorted(self.mask)})")
+        m = self.mask[light]
+        if m is None:
+            raise ValueError(f"light {light}: no mask (stencil=\"none\" computes none)")
+        save_png(path, mask_to_image(m))
+
+
+class _Closed:
+    """What a closed :class:`Pipeline` holds in place of its native object."""
+
+    def __getattr__(self, name: str) -> Any:
+        raise ValueError("the pipeline is closed")
+
 
 @_one_call_at_a_time
 class Pipeline:
@@ -350,7 +408,28 @@ class Pipeline:
 
     def __init__(self, **options: Any):
         self._lock = threading.RLock()
-        self._p = _native.Pipeline(_json("options", options))
+        self._p: Any = _native.Pipeline(_json("options", options))
+
+    def close(self) -> None:
+        """Frees the pipeline's scene, caches and buffers now, not when the
+        object is collected; any later call is a ``ValueError``. Closing
+        twice is allowed. ``with Pipeline(...) as p:`` closes on leaving."""
+        self._p = _Closed()
+
+    def __enter__(self) -> "Pipeline":
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.close()
+
+    def __repr__(self) -> str:
+        if isinstance(self._p, _Closed):
+            return "Pipeline(closed)"
+        o = self.options
+        return (
+            f"Pipeline(objects={self._p.object_count()}, lights={self._p.light_ids()}, "
+            f"culling={o['culling']!r}, stencil={o['stencil']!r})"
+        )
 
     @property
     def options(self) -> Dict[str, Any]:
@@ -370,7 +449,12 @@ class Pipeline:
     def add_mesh(self, positions: Any, indices: Any, name: str = "mesh") -> int:
         """Adds a mesh: ``positions`` an ``(n, 3)`` float32 or float64 array
         (any strides), ``indices`` an ``(m, 3)`` or ``(3m,)`` integer array.
-        The library copies it once and welds its vertices. Returns its id."""
+        The library copies it once and welds its vertices. Returns its id.
+        Sequences (nested lists, tuples) are taken as arrays."""
+        if not isinstance(positions, np.ndarray):
+            positions = np.asarray(positions, dtype=np.float64)
+        if not isinstance(indices, np.ndarray):
+            indices = np.asarray(indices, dtype=np.int64)
         return self._p.add_mesh(positions, indices, name)
 
     def update_mesh_positions(self, mesh: int, positions: Any, indices: Any) -> None:
@@ -409,13 +493,23 @@ class Pipeline:
         self,
         obj: int,
         *,
-        casts: bool = True,
-        receives: bool = True,
-        occludes: bool = True,
-        visible: bool = True,
+        casts: Optional[bool] = None,
+        receives: Optional[bool] = None,
+        occludes: Optional[bool] = None,
+        visible: Optional[bool] = None,
     ) -> None:
-        """Sets every flag of an object (each defaults to on)."""
-        self._p.set_flags(_index("obj", obj), casts, receives, occludes, visible)
+        """Sets the flags named (the others keep their values; see
+        :meth:`flags`)."""
+        old = self.flags(obj)
+        new = dict(casts=casts, receives=receives, occludes=occludes, visible=visible)
+        f = {k: old[k] if v is None else bool(v) for k, v in new.items()}
+        self._p.set_flags(_index("obj", obj), f["casts"], f["receives"], f["occludes"], f["visible"])
+
+    def flags(self, obj: int) -> Dict[str, bool]:
+        """An object's flags: ``casts``, ``receives``, ``occludes`` and
+        ``visible``."""
+        casts, receives, occludes, visible = self._p.flags(_index("obj", obj))
+        return dict(casts=casts, receives=receives, occludes=occludes, visible=visible)
 
     def set_occluder(self, obj: int, mesh: "int | None" = None) -> None:
         """Gives an object the host's own occluder: ``mesh`` (from
