@@ -333,54 +333,95 @@ fn the_engine_scene_under_the_gpu_host_preset_is_exact() -> Result<()> {
 fn a_coarse_culling_resolution_keeps_masks_exact() -> Result<()> {
     let (scene, path) = city();
     let lights = lights(&scene, &path);
-    let coarse = Some((W / 4, H / 4));
-    let cpu = PipelineOptions {
-        culling_resolution: coarse,
-        ..options(CullingSpec::Chcpp, StencilBackend::Bf)
-    };
-    let gpu = PipelineOptions {
-        culling: CullingSpec::Chcpp,
-        light_resolution: 256,
-        culling_resolution: coarse,
-        ..PipelineOptions::gpu_host()
-    };
-    assert_eq!(gpu.culling_size((W, H)), (W / 4, H / 4));
-    let (mut cpu, cpu_ids) = pipeline(&scene, cpu, &lights)?;
-    let (mut gpu, gpu_ids) = pipeline(&scene, gpu, &lights)?;
-    let (mut plain, _) = pipeline(
-        &scene,
-        options(CullingSpec::None, StencilBackend::Bf),
-        &lights,
-    )?;
-    let n = scene.objects().len();
+    let mut views = CoarseViews::new(&scene, &lights, (W / 4, H / 4))?;
+    assert_eq!(views.gpu.options().culling_size((W, H)), (W / 4, H / 4));
     let mut culled = 0;
     for frame in [0, 3, 6] {
         let input = input(&path, frame);
-        let masks: Vec<_> = {
-            let out = cpu.frame(&input)?;
-            assert!(out.eye().is_some(), "the CPU stencil's exact eye pass");
-            culled += out.lights().filter(|l| l.psc().len() < n).count();
-            out.lights().map(|l| l.mask().unwrap().clone()).collect()
-        };
-        let out = plain.frame(&input)?;
-        for (li, (m, l)) in masks.iter().zip(out.lights()).enumerate() {
-            assert_eq!(m, l.mask().unwrap(), "frame {frame} light {li}");
-        }
-        for (li, m) in masks.iter().enumerate() {
-            let r = cpu.reference_mask(cpu_ids[li])?;
-            let c = compare(&r.mask, &r.ambiguous, m);
-            assert!(c.compared > 500, "frame {frame} light {li}: {c:?}");
-            assert_eq!(c.mismatches, 0, "frame {frame} light {li}: {c:?}");
-        }
-        assert!(gpu.frame(&input)?.eye().is_none(), "no exact eye pass");
-        for &id in &gpu_ids {
-            let c = gpu.check_gpu(id)?;
-            assert_eq!(c.mismatch_off_boundary, 0, "frame {frame}, light {id:?}");
-            assert_eq!(c.culled_vs_unculled_differing_pixels, 0, "frame {frame}");
-        }
+        culled += views.check(&input, &input, &format!("frame {frame}"))?;
     }
     assert!(culled >= 6, "{culled} of 9 light frames culled casters");
     Ok(())
+}
+
+/// The pipelines that check a culling size: a CPU stencil's (CHC++, culling
+/// at `size`), the `gpu_host` preset's at `size`, and an unculled one.
+struct CoarseViews {
+    cpu: Pipeline,
+    cpu_ids: Vec<LightId>,
+    gpu: Pipeline,
+    gpu_ids: Vec<LightId>,
+    plain: Pipeline,
+    objects: usize,
+}
+
+impl CoarseViews {
+    fn new(scene: &Arc<Scene>, lights: &[Light], size: (u32, u32)) -> Result<Self> {
+        let cpu = PipelineOptions {
+            culling_resolution: Some(size),
+            ..options(CullingSpec::Chcpp, StencilBackend::Bf)
+        };
+        let gpu = PipelineOptions {
+            culling: CullingSpec::Chcpp,
+            light_resolution: 256,
+            culling_resolution: Some(size),
+            ..PipelineOptions::gpu_host()
+        };
+        let (cpu, cpu_ids) = pipeline(scene, cpu, lights)?;
+        let (gpu, gpu_ids) = pipeline(scene, gpu, lights)?;
+        let plain = options(CullingSpec::None, StencilBackend::Bf);
+        let (plain, _) = pipeline(scene, plain, lights)?;
+        Ok(CoarseViews {
+            cpu,
+            cpu_ids,
+            gpu,
+            gpu_ids,
+            plain,
+            objects: scene.objects().len(),
+        })
+    }
+
+    /// One frame of `input` (the unculled pipeline sees `own`, the same
+    /// frame without a host's depth): the CPU stencil's masks equal the
+    /// unculled ones and the reference, the GPU host runs no exact eye and
+    /// its volumes pass the GPU check. Returns the lights that culled
+    /// casters.
+    fn check(&mut self, input: &FrameInput, own: &FrameInput, what: &str) -> Result<usize> {
+        let (masks, culled): (Vec<_>, usize) = {
+            let out = self.cpu.frame(input)?;
+            assert!(
+                out.eye().is_some(),
+                "{what}: the CPU stencil's exact eye pass"
+            );
+            assert!(out.stats().eye_queries > 0, "{what}: the eye culls");
+            let culled = out.lights().filter(|l| l.psc().len() < self.objects);
+            let culled = culled.count();
+            (
+                out.lights().map(|l| l.mask().unwrap().clone()).collect(),
+                culled,
+            )
+        };
+        let out = self.plain.frame(own)?;
+        for (li, (m, l)) in masks.iter().zip(out.lights()).enumerate() {
+            assert_eq!(m, l.mask().unwrap(), "{what} light {li}");
+        }
+        for (li, m) in masks.iter().enumerate() {
+            let r = self.cpu.reference_mask(self.cpu_ids[li])?;
+            let c = compare(&r.mask, &r.ambiguous, m);
+            assert!(c.compared > 500, "{what} light {li}: {c:?}");
+            assert_eq!(c.mismatches, 0, "{what} light {li}: {c:?}");
+        }
+        assert!(
+            self.gpu.frame(input)?.eye().is_none(),
+            "{what}: no exact eye pass"
+        );
+        for &id in &self.gpu_ids {
+            let c = self.gpu.check_gpu(id)?;
+            assert_eq!(c.mismatch_off_boundary, 0, "{what}, light {id:?}");
+            assert_eq!(c.culled_vs_unculled_differing_pixels, 0, "{what}, {id:?}");
+        }
+        Ok(culled)
+    }
 }
 
 /// The exact eye depth of `input`'s frame (a pipeline with no culling and
@@ -407,53 +448,14 @@ fn host_depth_of(scene: &Arc<Scene>, input: &FrameInput, size: (u32, u32)) -> Ho
 fn the_hosts_own_depth_keeps_masks_exact() -> Result<()> {
     let (scene, path) = city();
     let lights = lights(&scene, &path);
-    let (mut plain, _) = pipeline(
-        &scene,
-        options(CullingSpec::None, StencilBackend::Bf),
-        &lights,
-    )?;
     for size in [(W / 4, H / 4), (W, H)] {
-        let cpu = PipelineOptions {
-            culling_resolution: Some(size),
-            ..options(CullingSpec::Chcpp, StencilBackend::Bf)
-        };
-        let gpu = PipelineOptions {
-            culling: CullingSpec::Chcpp,
-            light_resolution: 256,
-            culling_resolution: Some(size),
-            ..PipelineOptions::gpu_host()
-        };
-        let (mut cpu, cpu_ids) = pipeline(&scene, cpu, &lights)?;
-        let (mut gpu, gpu_ids) = pipeline(&scene, gpu, &lights)?;
+        let mut views = CoarseViews::new(&scene, &lights, size)?;
         let mut culled = 0;
         for frame in [0, 3, 6] {
             let own = input(&path, frame);
             let depth = host_depth_of(&scene, &own, size);
             let input = own.clone().with_host_depth(depth);
-            let masks: Vec<_> = {
-                let out = cpu.frame(&input)?;
-                assert!(out.stats().eye_queries > 0, "the eye queries the depth");
-                culled += out
-                    .lights()
-                    .filter(|l| l.psc().len() < scene.objects().len())
-                    .count();
-                out.lights().map(|l| l.mask().unwrap().clone()).collect()
-            };
-            let out = plain.frame(&own)?;
-            for (li, (m, l)) in masks.iter().zip(out.lights()).enumerate() {
-                assert_eq!(m, l.mask().unwrap(), "{size:?} frame {frame} light {li}");
-            }
-            for (li, m) in masks.iter().enumerate() {
-                let r = cpu.reference_mask(cpu_ids[li])?;
-                let c = compare(&r.mask, &r.ambiguous, m);
-                assert_eq!(c.mismatches, 0, "{size:?} frame {frame} light {li}: {c:?}");
-            }
-            assert!(gpu.frame(&input)?.eye().is_none(), "no exact eye pass");
-            for &id in &gpu_ids {
-                let c = gpu.check_gpu(id)?;
-                assert_eq!(c.mismatch_off_boundary, 0, "{size:?} frame {frame}, {id:?}");
-                assert_eq!(c.culled_vs_unculled_differing_pixels, 0, "{size:?} {frame}");
-            }
+            culled += views.check(&input, &own, &format!("{size:?} frame {frame}"))?;
         }
         assert!(
             culled >= 6,

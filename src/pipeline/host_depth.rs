@@ -1,4 +1,4 @@
-//! The host's own depth ([`FrameInput::host_depth`]): a GPU host that runs a
+//! The host's own depth ([`super::FrameInput::host_depth`]): a GPU host that runs a
 //! depth pre-pass hands the pipeline a coarse copy of this frame's depth
 //! buffer, and the eye's culling pass becomes queries against it — no CPU
 //! eye raster runs. PSR and the light passes' receivers come from it as
@@ -22,12 +22,11 @@
 //! what is behind it (as the GPU's own depth test will), but it is not a
 //! receiver the light passes know of.
 
-use super::FrameInput;
 use crate::{Error, Result};
 use scene::Camera;
 use std::sync::Arc;
 
-/// A host's coarse depth buffer of this frame ([`FrameInput::host_depth`]).
+/// A host's coarse depth buffer of this frame ([`super::FrameInput::host_depth`]).
 ///
 /// Reversed Z as the library's eye ([`Camera`]: `near / view distance`, 1
 /// at the near plane, 0 at infinity). Coarse pixel `(x, y)` of a
@@ -40,7 +39,7 @@ use std::sync::Arc;
 #[derive(Clone, Debug)]
 pub struct HostDepth {
     /// The camera the depth was rendered with: the frame's own
-    /// ([`FrameInput::camera`]); a depth from another camera (an earlier
+    /// ([`super::FrameInput::camera`]); a depth from another camera (an earlier
     /// frame's) is refused, since it bounds nothing of this frame.
     pub camera: Camera,
     /// Width in coarse pixels: the frame's culling size
@@ -113,9 +112,15 @@ impl HostDepth {
     }
 
     /// Checks this depth against the frame it comes with: the frame's
-    /// camera, its culling size `size`, and every value in `0 ..= 1`.
-    pub(crate) fn check(&self, input: &FrameInput, size: (u32, u32)) -> Result<()> {
-        if self.camera != input.camera {
+    /// `camera`, its culling size `size` (of the `viewport`), and every
+    /// value in `0 ..= 1`.
+    pub(crate) fn check(
+        &self,
+        camera: &Camera,
+        viewport: (u32, u32),
+        size: (u32, u32),
+    ) -> Result<()> {
+        if self.camera != *camera {
             return Err(field_error(
                 "rendered from another camera than the frame's (an earlier frame's depth \
                  bounds nothing of this one: give this frame's pre-pass)"
@@ -126,7 +131,7 @@ impl HostDepth {
             return Err(field_error(format!(
                 "{}×{} is not the frame's culling size {}×{} (culling_resolution within \
                  the {}×{} viewport)",
-                self.width, self.height, size.0, size.1, input.width, input.height
+                self.width, self.height, size.0, size.1, viewport.0, viewport.1
             )));
         }
         if self.depth.len() != size.0 as usize * size.1 as usize {
@@ -195,17 +200,20 @@ mod tests {
     /// refused by name.
     #[test]
     fn a_depth_must_be_of_the_frame() {
-        let input = FrameInput::new(8, 8, camera());
+        let input = (camera(), (8, 8));
         let d = HostDepth::reduce(camera(), (8, 8), &[0.5; 64], (4, 4)).unwrap();
-        d.check(&input, (4, 4)).unwrap();
-        let e = d.check(&input, (2, 2)).unwrap_err().to_string();
+        d.check(&input.0, input.1, (4, 4)).unwrap();
+        let e = d.check(&input.0, input.1, (2, 2)).unwrap_err().to_string();
         assert!(
             e.contains("host_depth") && e.contains("culling size"),
             "{e}"
         );
         let mut moved = d.clone();
         moved.camera.position.x += 1.0;
-        let e = moved.check(&input, (4, 4)).unwrap_err().to_string();
+        let e = moved
+            .check(&input.0, input.1, (4, 4))
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("another camera"), "{e}");
         for bad in [f32::NAN, -0.5, 1.5] {
             let mut v = vec![0.5; 16];
@@ -214,7 +222,7 @@ mod tests {
                 depth: v.into(),
                 ..d.clone()
             };
-            let e = d.check(&input, (4, 4)).unwrap_err().to_string();
+            let e = d.check(&input.0, input.1, (4, 4)).unwrap_err().to_string();
             assert!(e.contains("pixel (2, 1)"), "{e}");
         }
     }

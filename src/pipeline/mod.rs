@@ -423,7 +423,7 @@ impl Pipeline {
         let coarse_size = o.culling_size((w, h));
         // The host's depth of this frame, checked even when no view culls.
         if let Some(d) = &input.host_depth {
-            d.check(input, coarse_size)?;
+            d.check(&input.camera, (w, h), coarse_size)?;
             if self.backends.is_some() {
                 return Err(Error::Options {
                     field: "host_depth".into(),
