@@ -29,6 +29,11 @@ fi
 CARGO_TARGET_DIR="$PWD/target" "$work/build/bin/maturin" build --release \
   -m crates/bindings/python/Cargo.toml --out "$work/wheels"
 wheel=$(ls "$work"/wheels/shadowcull-*.whl)
+# One wheel for every CPython from 3.9 on: the stable ABI's tag.
+case "$wheel" in
+  *-cp39-abi3-*) ;;
+  *) echo "python_check: $wheel is not an abi3 wheel" >&2; exit 1 ;;
+esac
 "$python" -m venv "$work/venv"
 "$work/venv/bin/pip" install --quiet --disable-pip-version-check "$wheel[test,ray]"
 # Ray: no usage reports (the machines have no network but the registries).

@@ -275,6 +275,34 @@ impl FrameRow {
         "tiles_scanned",
     ];
 
+    /// The columns a sharded run reproduces byte for byte, whatever its
+    /// warm-up: those derived from the masks (conservative culling makes a
+    /// mask independent of the coherent history a shard starts without).
+    /// `scripts/shard_check.sh` checks them; README.md lists them.
+    pub const MASK_COLUMNS: &'static [&'static str] = &[
+        "lit",
+        "shadow",
+        "unlit",
+        "background",
+        "ambiguous",
+        "shadowed_pixels",
+        "mismatch_pixels",
+        "mismatch_off_boundary",
+        "ambiguous_pixels",
+        "compared_pixels",
+    ];
+
+    /// The columns that depend on coherent history (culling state, caches),
+    /// so that a shard's may differ from a single run's: every column but
+    /// the frame's and scene's identity (`frame`, `light`, `objects`,
+    /// `triangles`), the times (`*_ms`) and [`FrameRow::MASK_COLUMNS`].
+    pub fn history_columns() -> impl Iterator<Item = &'static str> {
+        let identity = ["frame", "light", "objects", "triangles"];
+        Self::COLUMNS.iter().copied().filter(move |c| {
+            !identity.contains(c) && !c.ends_with("_ms") && !Self::MASK_COLUMNS.contains(c)
+        })
+    }
+
     /// The row's cells in [`FrameRow::COLUMNS`] order.
     pub fn cells(&self) -> Vec<Cell> {
         let mut leaves = flat::cells(self);

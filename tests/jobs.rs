@@ -152,3 +152,35 @@ fn the_batch_modules_resolve_at_their_old_and_new_paths() {
         shadowcull::jobs::merge::merge_shards as *const ()
     );
 }
+
+/// The backticked names between `<!-- name -->` and `<!-- /name -->` in `text`.
+fn listed(text: &str, name: &str) -> Vec<String> {
+    let open = format!("<!-- {name} -->");
+    let start = text.find(&open).unwrap_or_else(|| panic!("no {open}")) + open.len();
+    let end = start + text[start..].find(&format!("<!-- /{name} -->")).unwrap();
+    text[start..end]
+        .split('`')
+        .skip(1)
+        .step_by(2)
+        .map(str::to_string)
+        .collect()
+}
+
+/// The README's lists of the columns a sharded run keeps and of those that
+/// depend on history, and `scripts/shard_check.sh`'s checked columns, are
+/// the code's (`FrameRow::MASK_COLUMNS`, `FrameRow::history_columns`).
+#[test]
+fn the_shard_column_lists_are_the_codes() {
+    use shadowcull::stats::FrameRow;
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let readme = std::fs::read_to_string(root.join("README.md")).unwrap();
+    assert_eq!(listed(&readme, "mask-columns"), FrameRow::MASK_COLUMNS);
+    let history: Vec<&str> = FrameRow::history_columns().collect();
+    assert_eq!(listed(&readme, "history-columns"), history);
+    assert!(history.contains(&"silhouette_edges") && history.contains(&"h_fragments"));
+    let script = std::fs::read_to_string(root.join("scripts/shard_check.sh")).unwrap();
+    let start = script.find("mask_cols=(").unwrap() + "mask_cols=(".len();
+    let end = start + script[start..].find(')').unwrap();
+    let checked: Vec<&str> = script[start..end].split_whitespace().collect();
+    assert_eq!(checked, FrameRow::MASK_COLUMNS);
+}
