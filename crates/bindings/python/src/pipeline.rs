@@ -352,35 +352,23 @@ impl Pipeline {
             })
             .and_then(|r| r)
             .map_err(scene_to_py)?;
-        let mut meshes: HashMap<u32, MeshId> = HashMap::new();
-        let mut objects = Vec::with_capacity(scene.objects().len());
-        for o in scene.objects().iter().filter(|o| o.alive) {
-            let mesh = match meshes.get(&o.mesh.0) {
-                Some(&m) => m,
-                None => {
-                    let m = self
-                        .inner
-                        .add_mesh(scene.graph().meshes()[o.mesh.0 as usize].clone());
-                    meshes.insert(o.mesh.0, m);
-                    m
-                }
-            };
-            let id = self
-                .inner
-                .add_object(mesh, o.world_from_local, o.flags)
-                .map_err(to_py)?;
-            objects.push(id.0);
-        }
-        self.bounds = self.bounds.union(&scene.bounds());
-        let meta = serde_json::json!({
-            "cameras": loaded.cameras.iter().cloned().collect::<HashMap<_, _>>(),
-            "paths": loaded.paths.iter().map(|(n, _)| n.clone()).collect::<Vec<_>>(),
-            "lights": loaded.lights.iter().map(|(n, _)| n.clone()).collect::<Vec<_>>(),
-            "warnings": scene.warnings(),
-            "path": path.display().to_string(),
-        });
-        self.named.merge(loaded);
-        Ok((objects, meta.to_string()))
+        self.add_loaded(loaded, scene, &path.display().to_string())
+    }
+
+    /// Adds the procedural city of `params` (JSON `CityParams`: the RON
+    /// job's `City(...)` fields, each defaulted) with its cameras, paths and
+    /// lights, as [`Pipeline::load`] adds a file's.
+    fn add_city(&mut self, py: Python<'_>, params: &str) -> PyResult<(Vec<u32>, String)> {
+        let params: scene::procedural::city::CityParams = from_json("city", params)?;
+        let (loaded, scene) = py
+            .detach(|| {
+                let mut loaded = scene::procedural::city::city(&params)?;
+                let graph = std::mem::take(&mut loaded.graph);
+                Ok(Scene::new(graph).map(|s| (loaded, s)))
+            })
+            .and_then(|r| r)
+            .map_err(scene_to_py)?;
+        self.add_loaded(loaded, scene, "the procedural city")
     }
 
     /// The pose (JSON `LookAt`) of a loaded camera path at `frame`, or None
@@ -526,5 +514,50 @@ impl Pipeline {
             py,
             &scene.objects()[slot as usize].world_from_local,
         ))
+    }
+}
+
+impl Pipeline {
+    /// Adds every object of `scene` (what a loader gave, named `what` in
+    /// the metadata) and `loaded`'s cameras, paths and lights: the new
+    /// objects' ids and the JSON metadata, with each object's node name.
+    fn add_loaded(
+        &mut self,
+        loaded: Loaded,
+        scene: Scene,
+        what: &str,
+    ) -> PyResult<(Vec<u32>, String)> {
+        let mut names = Vec::with_capacity(scene.objects().len());
+        let mut meshes: HashMap<u32, MeshId> = HashMap::new();
+        let mut objects = Vec::with_capacity(scene.objects().len());
+        for o in scene.objects().iter().filter(|o| o.alive) {
+            let mesh = match meshes.get(&o.mesh.0) {
+                Some(&m) => m,
+                None => {
+                    let m = self
+                        .inner
+                        .add_mesh(scene.graph().meshes()[o.mesh.0 as usize].clone());
+                    meshes.insert(o.mesh.0, m);
+                    m
+                }
+            };
+            let id = self
+                .inner
+                .add_object(mesh, o.world_from_local, o.flags)
+                .map_err(to_py)?;
+            objects.push(id.0);
+            names.push(scene.graph().nodes()[o.node.0 as usize].name.clone());
+        }
+        self.bounds = self.bounds.union(&scene.bounds());
+        let meta = serde_json::json!({
+            "cameras": loaded.cameras.iter().cloned().collect::<HashMap<_, _>>(),
+            "paths": loaded.paths.iter().map(|(n, _)| n.clone()).collect::<Vec<_>>(),
+            "lights": loaded.lights.iter().map(|(n, _)| n.clone()).collect::<Vec<_>>(),
+            "warnings": scene.warnings(),
+            "path": what,
+            "names": names,
+        });
+        self.named.merge(loaded);
+        Ok((objects, meta.to_string()))
     }
 }

@@ -511,3 +511,16 @@ def test_python_habits(tmp_path):
         p.frame(160, 120, camera=CAMERA)
     p.close()  # twice is fine
     assert "Frees the pipeline" in (sc.Pipeline.close.__doc__ or "")
+
+
+def test_the_procedural_city_from_python():
+    p = sc.Pipeline(stencil="bf", culling="chcpp")
+    city = p.add_city(blocks_x=2, blocks_z=2, seed=7)
+    assert len(city.objects) == len(city.names) > 50
+    assert sum(1 for n in city.names if n) > 50, "objects keep their names"
+    assert "street" in city.paths and {"light", "sun"} <= set(city.lights)
+    sun = p.add_light("named", "sun")
+    f = p.frame(160, 120, camera=p.path_camera("street", 0))
+    assert p.reference_mask(sun).mismatches(f.mask[sun]) == 0
+    with pytest.raises(ValueError, match="city: no such keyword `blokcs_x`"):
+        p.add_city(blokcs_x=2)

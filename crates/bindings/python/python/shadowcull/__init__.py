@@ -313,7 +313,9 @@ class ReferenceMask(NamedTuple):
 
 
 class Loaded(NamedTuple):
-    """What :meth:`Pipeline.load` added: the new objects' ids, and the
+    """What :meth:`Pipeline.load` or :meth:`Pipeline.add_city` added: the
+    new objects' ids and, in the same order, their names in the file (the
+    node's, or the loader's for a nameless one; may be empty), and the
     file's named cameras (``LookAt`` dicts), camera paths and lights (use
     them with :meth:`Pipeline.path_camera` and ``add_light("named", name)``)."""
 
@@ -322,6 +324,7 @@ class Loaded(NamedTuple):
     paths: List[str]
     lights: List[str]
     warnings: List[str]
+    names: List[str]
 
 
 class Frame:
@@ -381,6 +384,18 @@ class Frame:
         if m is None:
             raise ValueError(f"light {light}: no mask (stencil=\"none\" computes none)")
         save_png(path, mask_to_image(m))
+
+
+def _loaded(objects: Any, meta: str) -> Loaded:
+    m = json.loads(meta)
+    return Loaded(
+        np.asarray(objects, dtype=np.uint32),
+        m["cameras"],
+        m["paths"],
+        m["lights"],
+        m["warnings"],
+        m["names"],
+    )
 
 
 class _Closed:
@@ -528,15 +543,15 @@ class Pipeline:
     def load(self, path: "os.PathLike[str] | str") -> Loaded:
         """Adds every object of a glTF (``.gltf``, ``.glb``), OBJ (``.obj``
         or a directory of them) or box-city (``.txt``) file."""
-        objects, meta = self._p.load(os.fspath(path))
-        meta = json.loads(meta)
-        return Loaded(
-            np.asarray(objects, dtype=np.uint32),
-            meta["cameras"],
-            meta["paths"],
-            meta["lights"],
-            meta["warnings"],
-        )
+        return _loaded(*self._p.load(os.fspath(path)))
+
+    def add_city(self, **params: Any) -> Loaded:
+        """Adds the procedural city (the RON job's ``City(...)`` scene) with
+        its cameras, paths (``street``, ``bird``) and lights (``light``,
+        ``sun``): keywords are its parameters (``seed``, ``blocks_x``,
+        ``blocks_z``, ``block_size``, ...), each defaulted (20 × 20 blocks,
+        about 17,400 objects)."""
+        return _loaded(*self._p.add_city(_json("city", params)))
 
     @property
     def bounds(self) -> Tuple[np.ndarray, np.ndarray]:
