@@ -592,18 +592,7 @@ fn sharded_runs_merge_into_the_single_run() {
         (out, dirs)
     };
     // Mask-derived columns: identical under any split.
-    let mask_columns = [
-        "lit",
-        "shadow",
-        "unlit",
-        "background",
-        "ambiguous",
-        "shadowed_pixels",
-        "mismatch_pixels",
-        "mismatch_off_boundary",
-        "ambiguous_pixels",
-        "compared_pixels",
-    ];
+    let mask_columns = shadowcull::stats::FrameRow::MASK_COLUMNS;
     let single = d("single");
     run(&single, &[]);
     let mut history_differs = false;
