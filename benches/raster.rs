@@ -58,7 +58,7 @@ fn bench_city(c: &mut Criterion) {
                                 &cam,
                                 &o.world_from_local,
                             ),
-                            o.mesh.0 as usize,
+                            o.mesh.index(),
                             i as u32,
                         )
                     })

@@ -475,17 +475,18 @@ struct Args {
 }
 
 /// Writes frame `k`'s id lists and volume buffers as little-endian binary
-/// files, as `examples/c/host.c` does: `frame_KKK_psr.bin` (u32 slot ids),
+/// files, as `examples/c/host.c` does: `frame_KKK_psr.bin` (u32 slots),
 /// per light `frame_KKK_light_L_psc.bin` (u32) and `_volumes.bin` (the
-/// positions as f32 × 4, the u32 indices, then per range its object, method,
-/// first index and index count as u32).
+/// positions as f32 × 4, the u32 indices, then per range its object's slot,
+/// method, first index and index count as u32).
 fn write_outputs(
     dir: &std::path::Path,
     k: u32,
     out: &shadowcull::FrameOutput<'_>,
 ) -> std::io::Result<()> {
-    let ids =
-        |ids: &[ObjectId]| -> Vec<u8> { ids.iter().flat_map(|id| id.0.to_le_bytes()).collect() };
+    let ids = |ids: &[ObjectId]| -> Vec<u8> {
+        ids.iter().flat_map(|id| id.slot().to_le_bytes()).collect()
+    };
     std::fs::write(dir.join(format!("frame_{k:03}_psr.bin")), ids(out.psr()))?;
     for (l, light) in out.lights().enumerate() {
         let name = |what: &str| dir.join(format!("frame_{k:03}_light_{l}_{what}.bin"));
@@ -499,7 +500,13 @@ fn write_outputs(
             .collect();
         b.extend(v.indices.iter().flat_map(|i| i.to_le_bytes()));
         for r in &v.ranges {
-            for x in [r.object, r.method as u32, r.first_index, r.index_count] {
+            // The object's slot: the low half of its id bits.
+            for x in [
+                r.object as u32,
+                r.method as u32,
+                r.first_index,
+                r.index_count,
+            ] {
                 b.extend(x.to_le_bytes());
             }
         }

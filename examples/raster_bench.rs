@@ -88,7 +88,7 @@ fn main() -> anyhow::Result<()> {
             continue;
         }
         for m in &node.meshes {
-            let b = graph.meshes()[m.0 as usize].bounds();
+            let b = graph.meshes()[m.index()].bounds();
             boxes.push((b.min, b.max));
         }
     }

@@ -93,7 +93,7 @@ fn mismatches(pick: &str) {
         // All world triangles (f64), for brute-force rays.
         let mut tris: Vec<(ObjectId, u32, [DVec3; 3])> = Vec::new();
         for o in 0..scene.objects().len() {
-            let id = ObjectId(o as u32);
+            let id = ObjectId::from_slot(o as u32);
             for t in 0..scene.object_mesh(id).triangles().len() {
                 tris.push((id, t as u32, scene.world_triangle(id, t)));
             }
@@ -152,7 +152,7 @@ fn mismatches(pick: &str) {
                     &cam,
                     &light,
                     &(0..scene.objects().len() as u32)
-                        .map(ObjectId)
+                        .map(ObjectId::from_slot)
                         .collect::<Vec<_>>(),
                     shadowgen::BuildOptions {
                         method: MethodChoice::Auto,
@@ -328,7 +328,7 @@ fn one_pixel(pick: &str, frame: u32, li: usize, (x, y): (u32, u32), all: bool) {
         };
         let mut per: std::collections::BTreeMap<u32, Vec<u32>> = Default::default();
         for o in 0..scene.objects().len() {
-            let id = ObjectId(o as u32);
+            let id = ObjectId::from_slot(o as u32);
             for t in 0..scene.object_mesh(id).triangles().len() {
                 let tri = scene.world_triangle(id, t);
                 if !faces_light(&tri, &light) {
@@ -378,7 +378,7 @@ fn one_pixel(pick: &str, frame: u32, li: usize, (x, y): (u32, u32), all: bool) {
             &cam,
             &light,
             &(0..scene.objects().len() as u32)
-                .map(ObjectId)
+                .map(ObjectId::from_slot)
                 .collect::<Vec<_>>(),
             shadowgen::BuildOptions {
                 method,

@@ -70,6 +70,9 @@ pub mod jobs;
 pub use jobs::{calibrate, compare, config, frame, merge, out_dir, run, shard};
 
 pub use error::{Error, Result};
+/// The glam and rayon this API uses (`DMat4`, `Vec3`, thread pools), so a
+/// host names the same versions.
+pub use glam;
 pub use pipeline::gpu_check::GpuCheck;
 pub use pipeline::memory;
 pub use pipeline::{
@@ -78,6 +81,7 @@ pub use pipeline::{
     StencilBackend, StencilCosts,
 };
 pub use raster;
+pub use rayon;
 pub use scene;
 pub use shadowgen;
 pub use stats::FrameStats;

@@ -130,13 +130,18 @@ impl TriangleBvh {
         // Exact capacities: grown by doubling, the f64 triangles alone
         // would reserve up to twice their 72 bytes per triangle.
         let total: usize = (0..scene.objects().len())
-            .map(|oi| scene.object_mesh(ObjectId(oi as u32)).triangles().len())
+            .map(|oi| {
+                scene
+                    .object_mesh(ObjectId::from_slot(oi as u32))
+                    .triangles()
+                    .len()
+            })
             .sum();
         let mut tris = Vec::with_capacity(total);
         let mut ids = Vec::with_capacity(total);
         let mut flags = Vec::with_capacity(total);
         for (oi, o) in scene.objects().iter().enumerate() {
-            let id = ObjectId(oi as u32);
+            let id = ObjectId::from_slot(oi as u32);
             let n = scene.object_mesh(id).triangles().len();
             for t in 0..n {
                 tris.push(scene.world_triangle(id, t));
@@ -152,7 +157,10 @@ impl TriangleBvh {
         let mut firsts = Vec::with_capacity(scene.objects().len() + 1);
         let mut first = 0u32;
         for oi in 0..scene.objects().len() {
-            let n = scene.object_mesh(ObjectId(oi as u32)).triangles().len() as u32;
+            let n = scene
+                .object_mesh(ObjectId::from_slot(oi as u32))
+                .triangles()
+                .len() as u32;
             firsts.push(first);
             let object = &tris[first as usize..(first + n) as usize];
             push_clusters(object, first, center, pad, &mut starts, &mut boxes);
@@ -187,7 +195,7 @@ impl TriangleBvh {
     pub fn refit(&mut self, scene: &Scene) {
         let mut k = 0;
         for (oi, o) in scene.objects().iter().enumerate() {
-            let id = ObjectId(oi as u32);
+            let id = ObjectId::from_slot(oi as u32);
             for t in 0..scene.object_mesh(id).triangles().len() {
                 self.tris[k] = scene.world_triangle(id, t);
                 self.flags[k] = o.flags;
@@ -215,7 +223,7 @@ impl TriangleBvh {
 
     /// The triangle of primitive `id`, if the scene holds it.
     fn index_of(&self, (object, t): PrimitiveId) -> Option<usize> {
-        let o = object.0 as usize;
+        let o = object.index();
         let (first, end) = (*self.firsts.get(o)?, *self.firsts.get(o + 1)?);
         (t < end - first).then_some((first + t) as usize)
     }
@@ -777,8 +785,8 @@ mod tests {
         for (k, &id) in bvh.ids.iter().enumerate() {
             assert_eq!(bvh.index_of(id), Some(k), "{id:?}");
         }
-        assert_eq!(bvh.index_of((ObjectId(1), 12)), None);
-        assert_eq!(bvh.index_of((ObjectId(3), 0)), None);
+        assert_eq!(bvh.index_of((ObjectId::from_slot(1), 12)), None);
+        assert_eq!(bvh.index_of((ObjectId::from_slot(3), 0)), None);
     }
 
     /// A box's twelve triangles make three full clusters (its faces come in

@@ -107,7 +107,7 @@ impl<'a> EyeSurface<'a> {
                 assert!(x < width, "pixel ({x}, {y}) outside the surface");
                 primitive[y as usize * width as usize + x as usize]
             }
-            Source::Target(t) => t.id_at(x, y).map(|(o, k)| (ObjectId(o), k)),
+            Source::Target(t) => t.id_at(x, y).map(|(o, k)| (ObjectId::from_slot(o), k)),
         }
     }
 
@@ -140,7 +140,7 @@ impl<'a> EyeSurface<'a> {
     ) {
         if let Source::Target(t) = self.source {
             t.for_each_id_run_in_row(y, |x0, x1, id| {
-                f(x0, x1, id.map(|(o, k)| (ObjectId(o), k)));
+                f(x0, x1, id.map(|(o, k)| (ObjectId::from_slot(o), k)));
             });
             return;
         }
@@ -222,7 +222,7 @@ impl<'a> EyeSurface<'a> {
                 }
             }
             Source::Target(t) => t.for_each_in_row(y, |x, _, id| {
-                f(x, id.map(|(o, k)| (ObjectId(o), k)));
+                f(x, id.map(|(o, k)| (ObjectId::from_slot(o), k)));
             }),
         }
     }
@@ -329,7 +329,7 @@ mod tests {
         ) {
             let h = (cells.len() as u32).div_ceil(w);
             let mut ids: Vec<Option<PrimitiveId>> =
-                cells.iter().map(|c| c.map(|k| (ObjectId(k % 2), k))).collect();
+                cells.iter().map(|c| c.map(|k| (ObjectId::from_slot(k % 2), k))).collect();
             ids.resize((w * h) as usize, None);
             let surface = EyeSurface::from_rows(w, &ids, None);
             let mut calls = 0;
@@ -340,7 +340,7 @@ mod tests {
                 &mut scratch,
                 |p: PrimitiveId| {
                     calls += 1;
-                    p.1 * 10 + p.0 .0
+                    p.1 * 10 + p.0 .slot()
                 },
                 |y, x0, x1, p, d| got.push((y, x0, x1, p, d)),
             );
@@ -348,7 +348,7 @@ mod tests {
             proptest::prop_assert_eq!(got.len(), want.len());
             for (g, n) in got.iter().zip(&want) {
                 proptest::prop_assert_eq!((g.0, g.1, g.2, g.3), *n);
-                proptest::prop_assert_eq!(g.4, g.3 .1 * 10 + g.3 .0 .0);
+                proptest::prop_assert_eq!(g.4, g.3 .1 * 10 + g.3 .0 .slot());
             }
             // Calls: one per run that overlaps no run of the same primitive above.
             let fresh = want

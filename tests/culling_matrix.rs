@@ -1036,8 +1036,8 @@ fn segments_hold_every_shadowed_eye_sample(
     ] {
         let fx = case.fixture;
         let (w, h) = case.resolution;
-        let slots: HashMap<u32, u32> = (0..fx.scene.objects().len() as u32)
-            .map(|k| (fx.scene.id_of(k).0, k))
+        let slots: HashMap<u64, u32> = (0..fx.scene.objects().len() as u32)
+            .map(|k| (fx.scene.id_of(k).to_bits(), k))
             .collect();
         for light_resolution in [1024, 64] {
             let options = PipelineOptions {
@@ -1080,7 +1080,7 @@ fn segments_hold_every_shadowed_eye_sample(
                         segments.values().filter(|v| v[0].0 != [None, None]).count() as u64;
                     let drawn: Vec<(Vec<[DVec3; 3]>, scene::Aabb, &Vec<_>)> = (segments.iter())
                         .map(|(&c, planes)| {
-                            let id = scene::ObjectId(c);
+                            let id = scene::ObjectId::from_slot(c);
                             let tris = (0..fx.scene.object_mesh(id).triangles().len())
                                 .map(|k| fx.scene.world_triangle(id, k))
                                 .filter(|t| scene::faces_light(t, light))
@@ -1298,7 +1298,7 @@ fn inscribe_box_occluders(p: &mut shadowcull::Pipeline) -> usize {
     let scene = p.scene().clone();
     let (mut occluders, mut n) = (std::collections::HashMap::new(), 0);
     for (slot, o) in scene.objects().iter().enumerate() {
-        let mesh = &scene.graph().meshes()[o.mesh.0 as usize];
+        let mesh = &scene.graph().meshes()[o.mesh.index()];
         let b = mesh.bounds();
         let corners = analytic::box_corners(b.min, b.max);
         let boxy =

@@ -1355,7 +1355,9 @@ fn check_bounds(what: &str, s: &Scene, cam: &Camera, light: &Light, caster: Obje
     let eye = eye_of(s, cam);
     let mut buf = raster::VolumeBuffer::default();
     let mut cache = shadowgen::SilhouetteCache::default();
-    let ids: Vec<ObjectId> = (0..s.objects().len() as u32).map(ObjectId).collect();
+    let ids: Vec<ObjectId> = (0..s.objects().len() as u32)
+        .map(ObjectId::from_slot)
+        .collect();
     shadowgen::build_volumes(
         &mut buf,
         s,
@@ -1394,7 +1396,11 @@ fn check_bounds(what: &str, s: &Scene, cam: &Camera, light: &Light, caster: Obje
             r.depth_far
         );
     }
-    let range = buf.ranges.iter().find(|r| r.object == caster.0).unwrap();
+    let range = buf
+        .ranges
+        .iter()
+        .find(|r| r.object == caster.to_bits())
+        .unwrap();
     let reference = reference_mask(
         &TriangleBvh::new(s),
         cam,
@@ -1457,14 +1463,14 @@ fn scissor_and_depth_bounds_behind_the_eye_and_straddling_w0() {
         &s,
         &cam,
         &point(DVec3::new(0.0, 6.0, 14.0)),
-        ObjectId(1),
+        ObjectId::from_slot(1),
     );
     let sb = check_bounds(
         "behind the eye, straddling w = 0 (sun)",
         &s,
         &cam,
         &sun(DVec3::new(0.0, -1.0, -3.0)),
-        ObjectId(1),
+        ObjectId::from_slot(1),
     );
     assert!(
         pb > 100 && sb > 100,
@@ -1477,7 +1483,7 @@ fn scissor_and_depth_bounds_behind_the_eye_and_straddling_w0() {
         &s,
         &cam,
         &point(DVec3::new(0.0, 5.0, 2.0)),
-        ObjectId(1),
+        ObjectId::from_slot(1),
     );
     assert_eq!(bt, 0);
     // Caster straddling the eye plane (partly behind, partly in view).
@@ -1494,14 +1500,14 @@ fn scissor_and_depth_bounds_behind_the_eye_and_straddling_w0() {
         &s,
         &cam,
         &point(DVec3::new(-3.0, 6.0, 12.0)),
-        ObjectId(1),
+        ObjectId::from_slot(1),
     );
     let ss = check_bounds(
         "caster straddling the eye plane (sun)",
         &s,
         &cam,
         &sun(DVec3::new(0.3, -1.0, -2.5)),
-        ObjectId(1),
+        ObjectId::from_slot(1),
     );
     assert!(
         dmin < 0.0 && dmax > 0.0,
@@ -1568,7 +1574,7 @@ fn flattened_objects() {
         );
         let mut p = Pipeline::new(s, PipelineOptions::default()).unwrap();
         let e = p
-            .set_transform(ObjectId(1), placed(scale))
+            .set_transform(ObjectId::from_slot(1), placed(scale))
             .unwrap_err()
             .to_string();
         assert!(e.contains("object 1: transform flattens"), "{e}");

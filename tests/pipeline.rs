@@ -103,7 +103,7 @@ fn culled_frames_equal_unculled_frames_and_the_reference() -> Result<()> {
                     .volumes()
                     .ranges
                     .iter()
-                    .map(|r| ObjectId(r.object))
+                    .map(|r| ObjectId::from_bits(r.object))
                     .collect();
                 assert_eq!(named, psc, "one volume range per caster, in PSC order");
                 assert_eq!(l.stats().psc as usize, psc.len());
@@ -931,20 +931,23 @@ fn bad_options_and_inputs_name_their_field() -> Result<()> {
         Err(Error::Scene(_))
     ));
     assert!(matches!(
-        p.set_transform(ObjectId(0), glam::DMat4::from_cols_array(&[f64::NAN; 16])),
+        p.set_transform(
+            ObjectId::from_slot(0),
+            glam::DMat4::from_cols_array(&[f64::NAN; 16])
+        ),
         Err(Error::Scene(_))
     ));
     // A projective matrix would give masks the reference disagrees with.
     let mut projective = glam::DMat4::IDENTITY;
     projective.x_axis.w = 0.05;
     let e = p
-        .set_transform(ObjectId(0), projective)
+        .set_transform(ObjectId::from_slot(0), projective)
         .unwrap_err()
         .to_string();
     assert!(e.contains("object 0: transform is projective"), "{e}");
     assert!(matches!(
         p.add_object(
-            scene::MeshId(1 << 20),
+            scene::MeshId::from_slot(1 << 20),
             glam::DMat4::IDENTITY,
             ObjectFlags::ALL
         ),
@@ -1122,9 +1125,7 @@ fn scene_edits_keep_masks_exact() -> Result<()> {
             out.lights().any(|l| l.psc().contains(&id)),
             "the slab casts"
         );
-        assert!(out
-            .lights()
-            .any(|l| l.volumes().ranges.iter().any(|r| r.object == id.0)));
+        assert!(out.lights().any(|l| l.ranges().any(|(o, _)| o == id)));
     }
     // Move it: its shadow follows; every other caster keeps its silhouette.
     culled.set_transform(id, at(3.0))?;
@@ -1174,12 +1175,36 @@ fn scene_edits_keep_masks_exact() -> Result<()> {
         "a topology change is refused"
     );
     assert!(culled.remove_mesh(mesh).is_err(), "the mesh is instanced");
-    culled.remove_object(again)?;
-    culled.remove_mesh(mesh)?;
-    assert!(
-        culled.add_object(mesh, at(0.0), ObjectFlags::ALL).is_err(),
-        "the mesh is gone"
+    for p in [&mut culled, &mut plain] {
+        p.remove_object(again)?;
+        p.remove_mesh(mesh)?;
+        assert!(
+            p.add_object(mesh, at(0.0), ObjectFlags::ALL).is_err(),
+            "the mesh is gone"
+        );
+    }
+    // The next mesh takes the freed slot at the next generation: the old id
+    // stays dead, and every copy of the slot's mesh (the culler's, the
+    // reference's) takes the new shape.
+    let wide = scene::procedural::analytic::box_mesh(
+        "wide",
+        shadowcull::glam::Vec3::new(-3.0, 0.0, -0.5),
+        shadowcull::glam::Vec3::new(3.0, 5.0, 0.5),
+    )?;
+    let reused = culled.add_mesh(wide.clone());
+    assert_eq!(plain.add_mesh(wide), reused);
+    assert_eq!(
+        (reused.slot(), reused.generation()),
+        (mesh.slot(), mesh.generation() + 1)
     );
+    assert!(culled.remove_mesh(mesh).is_err(), "the old id stays dead");
+    let wall = culled.add_object(reused, at(0.0), ObjectFlags::ALL)?;
+    plain.add_object(reused, at(0.0), ObjectFlags::ALL)?;
+    let walled = check(&mut culled, &mut plain, "a new mesh in the freed slot")?;
+    assert_ne!(walled, before, "the wall casts");
+    assert_ne!(walled, with, "the wall is not the slab");
+    let out = culled.last_output().unwrap();
+    assert!(out.lights().any(|l| l.ranges().any(|(o, _)| o == wall)));
     Ok(())
 }
 
@@ -1201,7 +1226,7 @@ fn results_are_identical_for_any_thread_count() -> Result<()> {
             &lights,
         )?;
         if let Some(n) = host_pool {
-            let pool = rayon::ThreadPoolBuilder::new()
+            let pool = shadowcull::rayon::ThreadPoolBuilder::new()
                 .num_threads(n)
                 .build()
                 .unwrap();
@@ -1397,7 +1422,7 @@ fn host_backends_give_identical_results() -> Result<()> {
                 let (w, h) = (eye.target.width(), eye.target.height());
                 let mut shown: Vec<_> = (0..h)
                     .flat_map(|y| (0..w).filter_map(move |x| eye.primitive(x, y)))
-                    .map(|p| scene.id_of(p.0 .0))
+                    .map(|p| scene.id_of(p.0.slot()))
                     .collect();
                 shown.sort_unstable();
                 shown.dedup();
@@ -1465,7 +1490,12 @@ fn object_flags_keep_masks_exact() -> Result<()> {
         let psc: Vec<_> = out.lights().map(|l| l.psc().to_vec()).collect();
         let named: Vec<_> = out
             .lights()
-            .flat_map(|l| l.volumes().ranges.iter().map(|r| ObjectId(r.object)))
+            .flat_map(|l| {
+                l.volumes()
+                    .ranges
+                    .iter()
+                    .map(|r| ObjectId::from_bits(r.object))
+            })
             .collect();
         let masks: Vec<_> = out.lights().map(|l| l.mask().unwrap().clone()).collect();
         let eye_ids = out.eye().expect("an eye pass").primitives();

@@ -21,7 +21,7 @@ fn city_boxes(loaded: &scene::load::Loaded) -> (Boxes, Cameras) {
             continue;
         }
         for m in &node.meshes {
-            let b = g.meshes()[m.0 as usize].bounds();
+            let b = g.meshes()[m.index()].bounds();
             boxes.push((b.min, b.max));
         }
     }

@@ -375,7 +375,7 @@ fn refit_after_moving_matches_a_rebuild() {
     let light = test_lamp();
     let before = mask(&bvh, &cam, &light, 160, 120);
     s.set_object_transform(
-        ObjectId(1),
+        ObjectId::from_slot(1),
         DMat4::from_translation(DVec3::new(3.0, 0.0, -2.0)),
     )
     .unwrap();
@@ -426,7 +426,7 @@ fn spot_cone_and_range_make_pixels_unlit() {
     for (i, c) in r.mask.pixels.iter().enumerate() {
         if *c == PixelClass::Lit {
             let (obj, _) = r.primitive[i].unwrap();
-            assert!(obj.0 <= 2);
+            assert!(obj.slot() <= 2);
         }
     }
 }

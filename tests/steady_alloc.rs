@@ -18,6 +18,14 @@
 //! of the path in both directions (the frames' lists grow to what they hold,
 //! with headroom); the second round's backward pass is counted. Printed: the
 //! allocations and bytes of every round's worst frame.
+//!
+//! Then churn: a host streaming meshes, objects and lights in and out of a
+//! level keeps a bounded heap. Each of 400,000 cycles removes the oldest of
+//! a few streamed meshes (with its object) and light and adds new ones, with
+//! a frame every 1,000 cycles; the live heap (bytes allocated less bytes
+//! freed) after the last frame is within 1 MiB of its value after the first
+//! 1,000 cycles. Slots are reused (their generations guard stale ids, which
+//! the test also checks), so nothing grows per cycle.
 
 use glam::{DMat4, DVec3, Vec3};
 use scene::procedural::city::{city, CityParams};
@@ -32,11 +40,15 @@ struct Counting;
 static ON: AtomicBool = AtomicBool::new(false);
 static ALLOCATIONS: AtomicU64 = AtomicU64::new(0);
 static BYTES: AtomicU64 = AtomicU64::new(0);
+/// Bytes allocated and freed over the whole run (counted always).
+static ALLOCATED: AtomicU64 = AtomicU64::new(0);
+static FREED: AtomicU64 = AtomicU64::new(0);
 
 // SAFETY: forwards every call to the system allocator unchanged; the counters
 // are atomics and allocate nothing.
 unsafe impl GlobalAlloc for Counting {
     unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        ALLOCATED.fetch_add(layout.size() as u64, Ordering::Relaxed);
         if ON.load(Ordering::Relaxed) {
             ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
             BYTES.fetch_add(layout.size() as u64, Ordering::Relaxed);
@@ -46,11 +58,14 @@ unsafe impl GlobalAlloc for Counting {
     }
 
     unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        FREED.fetch_add(layout.size() as u64, Ordering::Relaxed);
         // SAFETY: the caller's contract, passed on.
         unsafe { System.dealloc(ptr, layout) }
     }
 
     unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        ALLOCATED.fetch_add(new_size as u64, Ordering::Relaxed);
+        FREED.fetch_add(layout.size() as u64, Ordering::Relaxed);
         if ON.load(Ordering::Relaxed) {
             ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
             BYTES.fetch_add(new_size as u64, Ordering::Relaxed);
@@ -69,14 +84,14 @@ const W: u32 = 320;
 const H: u32 = 240;
 
 fn main() {
-    if let Err(e) = run() {
+    if let Err(e) = steady().and_then(|()| churn()) {
         eprintln!("steady_alloc: FAILED: {e}");
         std::process::exit(1);
     }
     println!("steady_alloc: ok");
 }
 
-fn run() -> Result<(), String> {
+fn steady() -> Result<(), String> {
     let loaded = city(&CityParams {
         blocks_x: 4,
         blocks_z: 4,
@@ -191,6 +206,112 @@ fn run() -> Result<(), String> {
     if a != 0 {
         return Err(format!(
             "a steady frame made {a} allocations ({bytes} bytes); want 0"
+        ));
+    }
+    Ok(())
+}
+
+/// The live heap: bytes allocated less bytes freed.
+fn live_bytes() -> i64 {
+    ALLOCATED.load(Ordering::SeqCst) as i64 - FREED.load(Ordering::SeqCst) as i64
+}
+
+/// Churn cycles, a frame every `CHURN_FRAME_EVERY` of them.
+const CHURN_CYCLES: u32 = 400_000;
+const CHURN_FRAME_EVERY: u32 = 1_000;
+/// Streamed meshes (each with one object) and lights alive at a time.
+const STREAMED: usize = 4;
+
+fn churn() -> Result<(), String> {
+    let e = |e: shadowcull::Error| e.to_string();
+    let loaded = city(&CityParams {
+        blocks_x: 2,
+        blocks_z: 2,
+        ..Default::default()
+    })
+    .map_err(|e| e.to_string())?;
+    let scene = Scene::new(loaded.graph).map_err(|e| e.to_string())?;
+    let b = scene.bounds();
+    let centre = ((b.min + b.max) * 0.5).as_dvec3();
+    let options = PipelineOptions {
+        threads: 1,
+        light_resolution: 128,
+        ..Default::default()
+    };
+    let mut p = Pipeline::new(scene, options).map_err(e)?;
+    p.add_light(Light::Directional {
+        direction: DVec3::new(0.4, -0.8, 0.3),
+    })
+    .map_err(e)?;
+    let eye = centre + DVec3::new(0.0, 30.0, 60.0);
+    let camera = scene::Camera::look_at(eye, centre, DVec3::Y, 60f64.to_radians(), 4.0 / 3.0, 0.5)
+        .map_err(|e| e.to_string())?;
+    let input = FrameInput::new(64, 48, camera);
+    let mut streamed = std::collections::VecDeque::new();
+    let mut lights = std::collections::VecDeque::new();
+    let mut stale = None;
+    let mut after_first = 0;
+    for i in 0..CHURN_CYCLES {
+        let a = f64::from(i) * 0.01;
+        let at = centre + DVec3::new(10.0 * a.cos(), 2.0, 10.0 * a.sin());
+        let size = 0.5 + 0.25 * (i % 3) as f32;
+        let cube = scene::procedural::analytic::box_mesh("streamed", Vec3::ZERO, Vec3::splat(size))
+            .map_err(|e| e.to_string())?;
+        let mesh = p.add_mesh(cube);
+        let object = p
+            .add_object(mesh, DMat4::from_translation(at), ObjectFlags::ALL)
+            .map_err(e)?;
+        streamed.push_back((mesh, object));
+        let light = p
+            .add_light(Light::Point {
+                position: at + DVec3::new(0.0, 5.0, 0.0),
+                range: None,
+            })
+            .map_err(e)?;
+        lights.push_back(light);
+        if streamed.len() > STREAMED {
+            let (mesh, object) = streamed.pop_front().ok_or("empty ring")?;
+            p.remove_object(object).map_err(e)?;
+            p.remove_mesh(mesh).map_err(e)?;
+            let light = lights.pop_front().ok_or("empty ring")?;
+            p.remove_light(light).map_err(e)?;
+            if stale.is_none() {
+                stale = Some((mesh, object, light));
+            }
+        }
+        if (i + 1) % CHURN_FRAME_EVERY == 0 {
+            p.frame(&input).map_err(e)?;
+            if i + 1 == CHURN_FRAME_EVERY {
+                after_first = live_bytes();
+            }
+            if (i + 1) % (CHURN_CYCLES / 8) == 0 {
+                println!(
+                    "steady_alloc: churn: after {} cycles: live heap grown by {} bytes",
+                    i + 1,
+                    live_bytes() - after_first
+                );
+            }
+        }
+    }
+    // The first removed ids stay dead although their slots were reused
+    // hundreds of thousands of times.
+    let (mesh, object, light) = stale.ok_or("nothing was removed")?;
+    if p.set_transform(object, DMat4::IDENTITY).is_ok()
+        || p.light(light).is_ok()
+        || p.remove_mesh(mesh).is_ok()
+    {
+        return Err("a stale id named a live mesh, object or light".into());
+    }
+    let grown = live_bytes() - after_first;
+    println!(
+        "steady_alloc: churn: {CHURN_CYCLES} cycles, live heap {} bytes after the first \
+         {CHURN_FRAME_EVERY}, grown by {grown} bytes ({:.1} bytes a cycle)",
+        after_first,
+        grown as f64 / f64::from(CHURN_CYCLES - CHURN_FRAME_EVERY)
+    );
+    if grown > 1 << 20 {
+        return Err(format!(
+            "churn grew the live heap by {grown} bytes (more than 1 MiB) over {CHURN_CYCLES} cycles"
         ));
     }
     Ok(())

@@ -133,7 +133,7 @@ fn a_count_of_256_wraps_to_lit_in_8_bits_and_stays_shadow_wide() {
                 "pixel ({x}, {y}) sees the ground"
             );
             assert_eq!(
-                eye.primitive(x, y).unwrap().0 .0,
+                eye.primitive(x, y).unwrap().0.slot(),
                 0,
                 "only the ground is visible"
             );

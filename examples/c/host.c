@@ -180,7 +180,7 @@ static void write_bin(const char *dir, int f, const char *name, const void *head
 
 /* Frame f's id lists and volume buffers as host_loop --write-masks writes
  * them: slot ids (handle - 1) as u32; per light the positions, the indices,
- * then per range its object, method, first index and index count. */
+ * then per range its object's slot, method, first index and index count. */
 static void write_outputs(const char *dir, int f, const sc_frame_output *out) {
   uint32_t *ids = malloc((out->psr_count + 1) * sizeof *ids);
   for (size_t i = 0; i < out->psr_count; i++) ids[i] = (uint32_t)(out->psr[i] - 1);

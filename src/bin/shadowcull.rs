@@ -430,7 +430,7 @@ fn inspect(path: &Path, json: bool, list_objects: bool) -> anyhow::Result<()> {
             .iter()
             .enumerate()
             .map(|(i, o)| {
-                let mesh = &scene.graph().meshes()[o.mesh.0 as usize];
+                let mesh = &scene.graph().meshes()[o.mesh.index()];
                 let b = o.world_bounds;
                 serde_json::json!({
                     "id": i,

@@ -447,7 +447,7 @@ pub fn classify(
     let casters: Vec<Vec<[u32; 3]>> = (0..scene.objects().len())
         .into_par_iter()
         .map(|i| {
-            let id = ObjectId(i as u32);
+            let id = ObjectId::from_slot(i as u32);
             let tris = scene.object_mesh(id).triangles();
             if !scene.objects()[i].flags.casts {
                 return Vec::new();
@@ -483,7 +483,7 @@ pub fn classify(
                 .iter()
                 .map(|&(_, i)| DrawItem {
                     clip_from_local: v.clip_from_local(&objects[i].world_from_local),
-                    positions: &positions[objects[i].mesh.0 as usize],
+                    positions: &positions[objects[i].mesh.index()],
                     triangles: &casters[i],
                     object: i as u32,
                     cull: raster::CullMode::None,

@@ -447,7 +447,7 @@ fn write_shaded(mask: &Mask, r: &ReferenceMask, path: &Path) -> std::io::Result<
         let px = match (class, r.primitive[i]) {
             (PixelClass::Background, _) | (_, None) => [38, 44, 64],
             (c, Some((obj, _))) => {
-                let base = object_colour(obj.0);
+                let base = object_colour(obj.slot());
                 let k = match c {
                     PixelClass::Lit => 0.3 + 0.7 * r.lambert[i],
                     PixelClass::Shadow => 0.3,

@@ -53,7 +53,7 @@ impl Pipeline {
         let new = Mesh::new(name, positions, triangles)?;
         let slots = self.scene_mut().stage_replace_mesh(mesh, new)?;
         for slot in slots {
-            self.invalidate_silhouettes(ObjectId(slot));
+            self.invalidate_silhouettes(ObjectId::from_slot(slot));
         }
         Ok(())
     }
@@ -145,7 +145,7 @@ impl Pipeline {
         let slot = match self
             .lights
             .iter()
-            .position(|s| s.state.is_none() && s.generation < u8::MAX)
+            .position(|s| s.state.is_none() && s.generation < u32::MAX)
         {
             Some(i) => {
                 self.lights[i].generation += 1;
@@ -156,7 +156,7 @@ impl Pipeline {
                 self.lights.len() - 1
             }
         };
-        let id = LightId::new(slot, self.lights[slot].generation);
+        let id = LightId::new(slot as u32, self.lights[slot].generation);
         self.lights[slot].state = Some(LightState::new(light, id));
         Ok(id)
     }
@@ -178,7 +178,7 @@ impl Pipeline {
     /// [`Error::Options`] for an unknown or stale id.
     pub fn remove_light(&mut self, id: LightId) -> Result<()> {
         self.light_state_mut(id)?;
-        self.lights[id.slot()].state = None;
+        self.lights[id.index()].state = None;
         Ok(())
     }
 
@@ -200,7 +200,7 @@ impl Pipeline {
     }
 
     pub(super) fn light_state(&self, id: LightId) -> Result<&LightState> {
-        match self.lights.get(id.slot()) {
+        match self.lights.get(id.index()) {
             Some(LightSlot {
                 generation,
                 state: Some(s),
@@ -210,7 +210,7 @@ impl Pipeline {
     }
 
     fn light_state_mut(&mut self, id: LightId) -> Result<&mut LightState> {
-        match self.lights.get_mut(id.slot()) {
+        match self.lights.get_mut(id.index()) {
             Some(LightSlot {
                 generation,
                 state: Some(s),
@@ -222,7 +222,10 @@ impl Pipeline {
     /// Drops every light's cached silhouette of the object in `id`'s slot.
     fn invalidate_silhouettes(&mut self, id: ObjectId) {
         for s in self.lights.iter_mut().filter_map(|s| s.state.as_mut()) {
-            s.scratch.volume.cache.invalidate(ObjectId(id.slot()));
+            s.scratch
+                .volume
+                .cache
+                .invalidate(ObjectId::from_slot(id.slot()));
         }
     }
 
@@ -266,6 +269,6 @@ fn check_light(light: &Light) -> Result<()> {
 fn unknown_light(id: LightId) -> Error {
     Error::Options {
         field: "light".into(),
-        message: format!("light {} is unknown, removed or stale", id.0),
+        message: format!("light {id} is unknown, removed or stale"),
     }
 }

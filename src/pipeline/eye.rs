@@ -38,7 +38,7 @@ impl MeshCache {
         self.positions.truncate(meshes.len());
         self.versions.truncate(meshes.len());
         for (i, m) in meshes.iter().enumerate() {
-            let version = scene.mesh_version(scene::MeshId(i as u32));
+            let version = scene.mesh_version(scene::MeshId::from_slot(i as u32));
             if self.versions.get(i) == Some(&version) {
                 continue;
             }
@@ -94,13 +94,13 @@ fn eye_items<'a>(
         })
         .collect();
     order.sort_by(|a, b| a.0.total_cmp(&b.0));
-    let mesh = |o: &scene::Object| &scene.graph().meshes()[o.mesh.0 as usize];
+    let mesh = |o: &scene::Object| &scene.graph().meshes()[o.mesh.index()];
     order
         .iter()
         .map(|&(_, i)| (i, &objects[i]))
         .map(|(i, o)| DrawItem {
             clip_from_local: scene::transform::clip_from_local(camera, &o.world_from_local),
-            positions: &meshes.positions[o.mesh.0 as usize],
+            positions: &meshes.positions[o.mesh.index()],
             triangles: mesh(o).triangles(),
             object: i as u32,
             cull: cull(camera, o, mesh(o)),
@@ -237,7 +237,7 @@ pub(crate) fn eye_pass_of(
             meshes,
             camera,
             &mut target,
-            (0..scene.objects().len() as u32).map(ObjectId),
+            (0..scene.objects().len() as u32).map(ObjectId::from_slot),
         )?,
     }
     Ok(EyePass { target })
@@ -922,7 +922,7 @@ pub(crate) mod tests {
     fn both_eye_paths_skip_the_hidden_faces_of_solid_objects() {
         let (scene, camera) = small_street();
         let solid = (scene.objects().iter())
-            .filter(|o| scene.graph().meshes()[o.mesh.0 as usize].solid().is_some())
+            .filter(|o| scene.graph().meshes()[o.mesh.index()].solid().is_some())
             .count();
         assert!(2 * solid > scene.objects().len(), "{solid} solid objects");
         let meshes = MeshCache::new(&scene);
@@ -932,7 +932,7 @@ pub(crate) mod tests {
         assert_eq!(plain.primitives(), culled.primitives());
         // Every face of every object, in the same order.
         let mut all = DepthTarget::new(320, 240, TileSize::T8, true).unwrap();
-        let ids = (0..scene.objects().len()).map(|i| ObjectId(i as u32));
+        let ids = (0..scene.objects().len()).map(|i| ObjectId::from_slot(i as u32));
         let items = eye_items(&scene, &meshes, &camera, ids, |_, _, _| {
             raster::CullMode::None
         });

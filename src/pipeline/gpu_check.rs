@@ -88,7 +88,7 @@ impl Pipeline {
                 &mut all.volume,
             )?;
             for r in &mut all.volume.buffer.ranges {
-                r.object = self.scene.id_of(r.object).0;
+                r.object = self.scene.id_of(r.object as u32).to_bits();
             }
             let unculled = stencil_volumes(input, eye, &options, &mut all, stats, None, None)?;
             Ok((culled.mask, unculled.mask))

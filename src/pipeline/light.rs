@@ -64,7 +64,7 @@ pub(crate) enum Reading {
 /// The pass's error.
 pub(crate) fn light_pass(
     light: Light,
-    (key, skip): (u32, u32),
+    (key, skip): (scene::LightId, u32),
     c: &mut LightCulling,
     reading: Reading,
     input: &LightPassInput<'_>,

@@ -114,13 +114,7 @@ pub(super) fn run(s: &mut LightState, f: &FrameShared<'_>) -> Result<f64> {
     // `count_fill`), not kept from the last frame.
     s.scratch.shadowable.forget();
     if let (true, Some(input)) = (s.culled, &f.pass) {
-        light::light_pass(
-            s.light,
-            (s.id.0, s.skip_bit),
-            &mut s.culling,
-            reading,
-            input,
-        )?;
+        light::light_pass(s.light, (s.id, s.skip_bit), &mut s.culling, reading, input)?;
     }
     let casters: &[ObjectId] = if s.culled {
         s.casters.clear();
@@ -170,9 +164,10 @@ pub(super) fn run(s: &mut LightState, f: &FrameShared<'_>) -> Result<f64> {
     // Public ids (slot and generation) in the outputs.
     s.psc.clear();
     s.psc.reserve(scene.objects().len());
-    s.psc.extend(casters.iter().map(|id| scene.id_of(id.0)));
+    s.psc
+        .extend(casters.iter().map(|id| scene.id_of(id.slot())));
     for r in &mut s.scratch.volume.buffer.ranges {
-        r.object = scene.id_of(r.object).0;
+        r.object = scene.id_of(r.object as u32).to_bits();
     }
     // The hybrid's shadow maps: this frame's point-sampled light views,
     // unless no light pass ran or a host's backends drew them (then it
@@ -274,7 +269,7 @@ pub(super) fn run(s: &mut LightState, f: &FrameShared<'_>) -> Result<f64> {
         tracing::debug!(
             target: "shadowcull::auto",
             view = "stencil",
-            light = s.id.0,
+            light = s.id.to_bits(),
             hierarchical,
             cost,
             stencil_ms = f.stencil_ms,
@@ -308,7 +303,7 @@ pub(super) fn run(s: &mut LightState, f: &FrameShared<'_>) -> Result<f64> {
         tracing::debug!(
             target: "shadowcull::auto",
             view = "light",
-            light = s.id.0,
+            light = s.id.to_bits(),
             culled = s.culled,
             cost,
             unculled = unculled.unwrap_or(f64::NAN),
@@ -366,7 +361,7 @@ fn observe_clamping(
     tracing::debug!(
         target: "shadowcull::auto",
         view = "clamping",
-        light = s.id.0,
+        light = s.id.to_bits(),
         clamping = ?s.clamping,
         cost,
         read,
@@ -391,10 +386,6 @@ pub(super) fn triangles_of(scene: &Scene, ids: &[ObjectId]) -> u64 {
     let meshes = scene.graph().meshes();
     let objects = scene.objects();
     ids.iter()
-        .map(|id| {
-            meshes[objects[id.0 as usize].mesh.0 as usize]
-                .triangles()
-                .len() as u64
-        })
+        .map(|id| meshes[objects[id.index()].mesh.index()].triangles().len() as u64)
         .sum()
 }

@@ -7,29 +7,8 @@ use super::light::LightCulling;
 use super::options::ClampingSpec;
 use super::stencil::{ShadowFrame, ShadowScratch};
 use crate::stats::ShadowStats;
-use scene::{Light, ObjectId};
+use scene::{Light, LightId, ObjectId};
 use shadowgen::VolumeStats;
-
-/// Identifies a light of a [`Pipeline`](super::Pipeline): the low 24 bits are its slot, the
-/// high 8 bits a generation bumped when a removed light's slot is reused, so a
-/// stale id is an error, never another light. Per-light state (silhouette
-/// cache, light views, culling history) follows the id.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize)]
-pub struct LightId(pub u32);
-
-impl LightId {
-    pub(super) fn new(slot: usize, generation: u8) -> LightId {
-        LightId(slot as u32 | (u32::from(generation) << 24))
-    }
-
-    pub(super) fn slot(self) -> usize {
-        (self.0 & 0x00ff_ffff) as usize
-    }
-
-    pub(super) fn generation(self) -> u8 {
-        (self.0 >> 24) as u8
-    }
-}
 
 /// One light's persistent state and last result.
 #[derive(Debug)]
@@ -88,6 +67,6 @@ impl LightState {
 /// A light slot: its generation and, while the light exists, its state.
 #[derive(Debug, Default)]
 pub(super) struct LightSlot {
-    pub(super) generation: u8,
+    pub(super) generation: u32,
     pub(super) state: Option<LightState>,
 }

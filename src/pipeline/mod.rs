@@ -57,9 +57,9 @@ use crate::mask::Mask;
 use crate::reference::{try_reference_mask, ReferenceMask, TriangleBvh};
 use crate::stats::{FrameStats, ShadowStats};
 use crate::{Error, Result};
-pub use light_state::LightId;
 use light_state::{LightSlot, LightState};
 use raster::VolumeBuffer;
+pub use scene::LightId;
 use scene::{Camera, Light, ObjectId, Scene};
 use shadowgen::VolumeStats;
 use std::sync::Arc;
@@ -132,9 +132,9 @@ impl FrameInput {
 /// let lamp = pipeline.add_light(Light::Point { position: DVec3::new(2.0, 8.0, 1.0), range: None })?;
 /// let camera = Camera::look_at(DVec3::new(6.0, 5.0, 8.0), DVec3::ZERO, DVec3::Y, 1.0, 4.0 / 3.0, 0.1)?;
 /// let out = pipeline.frame(&FrameInput::new(320, 240, camera))?;
-/// assert_eq!(out.psr(), &[ObjectId(0), ObjectId(1)]);
+/// assert_eq!(out.psr(), &[ObjectId::from_slot(0), ObjectId::from_slot(1)]);
 /// let light = out.light(lamp).unwrap();
-/// assert!(light.psc().contains(&ObjectId(1)));
+/// assert!(light.psc().contains(&ObjectId::from_slot(1)));
 /// let volumes = light.volumes(); // one range per caster: draw its indices with its method
 /// let cube_volume = volumes.ranges.iter().find(|r| r.object == 1).unwrap();
 /// assert!(!volumes.indices[cube_volume.indices()].is_empty());
@@ -450,7 +450,7 @@ impl Pipeline {
             self.eye = None;
             self.psr.clear();
             self.psr
-                .extend(self.all_visible.iter().map(|id| scene.id_of(id.0)));
+                .extend(self.all_visible.iter().map(|id| scene.id_of(id.slot())));
             let eye_ms = ms(start);
             let shared = light_frame::FrameShared {
                 scene,
@@ -576,7 +576,7 @@ impl Pipeline {
                 .rendered
                 .iter()
                 .filter(|id| scene.object(**id).flags.visible);
-            self.psr.extend(visible.map(|id| scene.id_of(id.0)));
+            self.psr.extend(visible.map(|id| scene.id_of(id.slot())));
             self.psr.sort_unstable();
             // Coarse: the exact eye pass, when read, from the PSR (every
             // object owning an output pixel is in it: the same depth and ids).
@@ -602,7 +602,7 @@ impl Pipeline {
             let eye = eye_pass_reusing(scene, &self.meshes, camera, w, h, previous)?;
             self.psr.clear();
             self.psr
-                .extend(self.all_visible.iter().map(|id| scene.id_of(id.0)));
+                .extend(self.all_visible.iter().map(|id| scene.id_of(id.slot())));
             if lights_culled {
                 // The light passes read the hierarchy.
                 self.culling.get_or_insert_with(|| EyeCulling::new(scene));
@@ -686,7 +686,7 @@ impl Pipeline {
             (Some(state), true) => {
                 let mut r = vec![false; scene.objects().len()];
                 for id in &state.result.rendered {
-                    r[id.0 as usize] = scene.object(*id).flags.receives;
+                    r[id.index()] = scene.object(*id).flags.receives;
                 }
                 Some(r)
             }
@@ -1014,6 +1014,16 @@ impl<'a> LightOutput<'a> {
         &self.state.scratch.volume.buffer
     }
 
+    /// The volume ranges with their casters as typed ids: each range of
+    /// [`LightOutput::volumes`] with `ObjectId::from_bits(range.object)`
+    /// (raster, which holds the ranges, knows no scene ids).
+    pub fn ranges(
+        &self,
+    ) -> impl ExactSizeIterator<Item = (ObjectId, &'a raster::VolumeRange)> + 'a {
+        let ranges = &self.state.scratch.volume.buffer.ranges;
+        ranges.iter().map(|r| (ObjectId::from_bits(r.object), r))
+    }
+
     /// The light views the light pass used (empty when the light did not
     /// cull this frame: without culling, or as `culling: auto` chose).
     pub fn views(&self) -> &'a [LightView] {
@@ -1108,7 +1118,7 @@ fn live_slots(scene: &Scene, keep: fn(&scene::ObjectFlags) -> bool, out: &mut Ve
             .iter()
             .enumerate()
             .filter(|(_, o)| o.alive && keep(&o.flags))
-            .map(|(i, _)| ObjectId(i as u32)),
+            .map(|(i, _)| ObjectId::from_slot(i as u32)),
     );
 }
 

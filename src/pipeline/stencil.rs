@@ -127,7 +127,9 @@ pub fn shadow_mask(
     options: &ShadowOptions,
     scratch: &mut ShadowScratch,
 ) -> Result<ShadowFrame> {
-    let casters: Vec<ObjectId> = (0..scene.objects().len() as u32).map(ObjectId).collect();
+    let casters: Vec<ObjectId> = (0..scene.objects().len() as u32)
+        .map(ObjectId::from_slot)
+        .collect();
     shadow_mask_for(scene, camera, light, eye, options, scratch, &casters)
 }
 

@@ -4,7 +4,7 @@
 //! the state of one view for one frame and `end_view` drops it.
 
 use crate::error::Failure;
-use crate::frame::sc_light;
+use crate::frame::{light_handle, sc_light};
 use crate::handles;
 use crate::handles::sc_pipeline;
 use crate::structs::{read, Versioned};
@@ -525,7 +525,7 @@ pub extern "C" fn sc_pipeline_set_backend(
                         width: size,
                         height: size,
                         view,
-                        light: u64::from(light) + 1,
+                        light: light_handle(light),
                     },
                 };
                 let begin = t.0.begin_view.expect("checked when set");

@@ -6,7 +6,7 @@
 
 use shadowcull::mask::PixelClass;
 use shadowcull::raster::{VolumeMethod, VolumeRange};
-use shadowcull::scene::ObjectId;
+use shadowcull::scene::{LightId, MeshId, ObjectId};
 use shadowcull::FrameOutput;
 
 /// An object: 0 is the null handle.
@@ -214,14 +214,25 @@ pub(crate) struct Outputs {
 // documented lifetime; the entry moves between threads only behind its mutex.
 unsafe impl Send for Outputs {}
 
-/// The handle of object id `id`.
+/// The handle of object id `id`: its bits plus 1 (0 is the null handle;
+/// slots stay below 2²⁴, so it never wraps).
 pub(crate) fn object_handle(id: ObjectId) -> sc_object {
-    u64::from(id.0) + 1
+    id.to_bits() + 1
+}
+
+/// The handle (`sc_mesh`) of mesh `id`, as [`object_handle`].
+pub(crate) fn mesh_handle(id: MeshId) -> u64 {
+    id.to_bits() + 1
+}
+
+/// The handle of light `id`, as [`object_handle`].
+pub(crate) fn light_handle(id: LightId) -> sc_light {
+    id.to_bits() + 1
 }
 
 fn range_of(r: &VolumeRange) -> sc_volume_range {
     sc_volume_range {
-        object: u64::from(r.object) + 1,
+        object: r.object + 1,
         segment: r.segment,
         method: match r.method {
             VolumeMethod::ZPass => SC_ZPASS,
@@ -276,7 +287,7 @@ impl Outputs {
             });
             let s = l.stats();
             self.lights.push(sc_light_output {
-                light: u64::from(l.id().0) + 1,
+                light: light_handle(l.id()),
                 psc: psc.as_ptr(),
                 psc_count: psc.len(),
                 positions: v.positions.as_ptr(),

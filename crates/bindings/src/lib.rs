@@ -37,7 +37,7 @@ pub use handles::sc_pipeline;
 pub use structs::*;
 
 use error::{guard, Failure, Result};
-use frame::object_handle;
+use frame::{light_handle, mesh_handle, object_handle};
 use glam::{DMat4, Vec3};
 use shadowcull::scene::{Camera, Mesh, MeshId, ObjectId, Scene, SceneGraph};
 use shadowcull::LightId;
@@ -68,11 +68,10 @@ fn put<T>(out: *mut T, name: &str, value: T) -> Result<()> {
 }
 
 /// The id inside a handle of kind `what` (`0` is the null handle).
-fn id_of(h: u64, what: &str) -> Result<u32> {
+fn id_of(h: u64, what: &str) -> Result<u64> {
     match h {
         0 => Err(Failure::invalid(format!("{what}: the null handle"))),
-        h if h <= u64::from(u32::MAX) + 1 => Ok((h - 1) as u32),
-        h => Err(Failure::invalid(format!("{what} {h:#x}: not a handle"))),
+        h => Ok(h - 1),
     }
 }
 
@@ -295,7 +294,7 @@ pub extern "C" fn sc_mesh_create(
         let (positions, triangles) = mesh_arrays(&d)?;
         let mesh = Mesh::new("mesh", &positions, &triangles)?;
         let id = handles::with(pipeline, |e| Ok(e.pipeline.add_mesh(mesh)))?;
-        put(out, "out", u64::from(id.0) + 1)
+        put(out, "out", mesh_handle(id))
     })
 }
 
@@ -308,7 +307,7 @@ pub extern "C" fn sc_mesh_update_positions(
     desc: *const sc_mesh_desc,
 ) -> sc_status {
     guard("sc_mesh_update_positions", || {
-        let id = MeshId(id_of(mesh, "mesh")?);
+        let id = MeshId::from_bits(id_of(mesh, "mesh")?);
         let d = read(desc, "mesh")?;
         let (positions, triangles) = mesh_arrays(&d)?;
         handles::with(pipeline, |e| {
@@ -326,7 +325,7 @@ pub extern "C" fn sc_mesh_destroy(pipeline: sc_pipeline, mesh: sc_mesh) -> sc_st
         if mesh == 0 {
             return handles::get(pipeline).map(|_| ());
         }
-        let id = MeshId(id_of(mesh, "mesh")?);
+        let id = MeshId::from_bits(id_of(mesh, "mesh")?);
         handles::with(pipeline, |e| Ok(e.pipeline.remove_mesh(id)?))
     })
 }
@@ -364,7 +363,7 @@ fn object_create(
     if out.is_null() {
         return Err(Failure::invalid("out: NULL"));
     }
-    let id = MeshId(id_of(mesh, "mesh")?);
+    let id = MeshId::from_bits(id_of(mesh, "mesh")?);
     let m = world_from_local()?;
     let f = structs::flags(flags)?;
     let o = handles::with(pipeline, |e| Ok(e.pipeline.add_object(id, m, f)?))?;
@@ -394,7 +393,7 @@ pub extern "C" fn sc_object_set_transform(
     world_from_local: *const f64,
 ) -> sc_status {
     guard("sc_object_set_transform", || {
-        let id = ObjectId(id_of(object, "object")?);
+        let id = ObjectId::from_bits(id_of(object, "object")?);
         let m = matrix(world_from_local, "world_from_local")?;
         handles::with(pipeline, |e| Ok(e.pipeline.set_transform(id, m)?))
     })
@@ -408,7 +407,7 @@ pub extern "C" fn sc_object_set_transform_f32(
     world_from_local: *const f32,
 ) -> sc_status {
     guard("sc_object_set_transform_f32", || {
-        let id = ObjectId(id_of(object, "object")?);
+        let id = ObjectId::from_bits(id_of(object, "object")?);
         let m = matrix_f32(world_from_local, "world_from_local")?;
         handles::with(pipeline, |e| Ok(e.pipeline.set_transform(id, m)?))
     })
@@ -422,7 +421,7 @@ pub extern "C" fn sc_object_set_flags(
     flags: u32,
 ) -> sc_status {
     guard("sc_object_set_flags", || {
-        let id = ObjectId(id_of(object, "object")?);
+        let id = ObjectId::from_bits(id_of(object, "object")?);
         let f = structs::flags(flags)?;
         handles::with(pipeline, |e| Ok(e.pipeline.set_flags(id, f)?))
     })
@@ -441,10 +440,10 @@ pub extern "C" fn sc_object_set_occluder(
     occluder: sc_mesh,
 ) -> sc_status {
     guard("sc_object_set_occluder", || {
-        let id = ObjectId(id_of(object, "object")?);
+        let id = ObjectId::from_bits(id_of(object, "object")?);
         let mesh = match occluder {
             0 => None,
-            h => Some(MeshId(id_of(h, "occluder")?)),
+            h => Some(MeshId::from_bits(id_of(h, "occluder")?)),
         };
         handles::with(pipeline, |e| Ok(e.pipeline.set_occluder(id, mesh)?))
     })
@@ -458,7 +457,7 @@ pub extern "C" fn sc_object_destroy(pipeline: sc_pipeline, object: sc_object) ->
         if object == 0 {
             return handles::get(pipeline).map(|_| ());
         }
-        let id = ObjectId(id_of(object, "object")?);
+        let id = ObjectId::from_bits(id_of(object, "object")?);
         handles::with(pipeline, |e| Ok(e.pipeline.remove_object(id)?))
     })
 }
@@ -476,7 +475,7 @@ pub extern "C" fn sc_light_create(
         }
         let l = read(desc, "light")?.to_rust()?;
         let id = handles::with(pipeline, |e| Ok(e.pipeline.add_light(l)?))?;
-        put(out, "out", u64::from(id.0) + 1)
+        put(out, "out", light_handle(id))
     })
 }
 
@@ -488,7 +487,7 @@ pub extern "C" fn sc_light_set(
     desc: *const sc_light_desc,
 ) -> sc_status {
     guard("sc_light_set", || {
-        let id = LightId(id_of(light, "light")?);
+        let id = LightId::from_bits(id_of(light, "light")?);
         let l = read(desc, "light")?.to_rust()?;
         handles::with(pipeline, |e| Ok(e.pipeline.set_light(id, l)?))
     })
@@ -501,7 +500,7 @@ pub extern "C" fn sc_light_destroy(pipeline: sc_pipeline, light: sc_light) -> sc
         if light == 0 {
             return handles::get(pipeline).map(|_| ());
         }
-        let id = LightId(id_of(light, "light")?);
+        let id = LightId::from_bits(id_of(light, "light")?);
         handles::with(pipeline, |e| Ok(e.pipeline.remove_light(id)?))
     })
 }

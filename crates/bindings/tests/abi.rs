@@ -236,7 +236,7 @@ fn output_equals_the_rust_pipeline() {
     let (p, objects, _) = c_pipeline();
     let mut r = rust_pipeline();
     let ids: Vec<_> = (0..OBJECTS as u32)
-        .map(shadowcull::scene::ObjectId)
+        .map(shadowcull::scene::ObjectId::from_slot)
         .collect();
     let mut out = empty_output();
     let mut masks_with_shadow = 0;
@@ -269,14 +269,14 @@ fn output_equals_the_rust_pipeline() {
         let number = if f < 5 { f } else { f + 35 };
         assert_eq!((out.stats.frame, o.stats().frame), (number, number));
         assert_eq!(out.stats.eye_queries, o.stats().eye_queries, "frame {f}");
-        let psr: Vec<u64> = o.psr().iter().map(|id| u64::from(id.0) + 1).collect();
+        let psr: Vec<u64> = o.psr().iter().map(|id| id.to_bits() + 1).collect();
         assert_eq!(slice(out.psr, out.psr_count), &psr[..], "frame {f}: PSR");
         let lights = slice(out.lights, out.light_count);
         assert_eq!(lights.len(), o.light_count());
         for (c, l) in lights.iter().zip(o.lights()) {
-            assert_eq!(c.light, u64::from(l.id().0) + 1);
+            assert_eq!(c.light, l.id().to_bits() + 1);
             assert_eq!(c.stats.queries, l.stats().queries, "frame {f}: queries");
-            let psc: Vec<u64> = l.psc().iter().map(|id| u64::from(id.0) + 1).collect();
+            let psc: Vec<u64> = l.psc().iter().map(|id| id.to_bits() + 1).collect();
             assert_eq!(slice(c.psc, c.psc_count), &psc[..], "frame {f}: PSC");
             let v = l.volumes();
             assert_eq!(slice(c.positions, c.position_count), &v.positions[..]);
@@ -284,7 +284,7 @@ fn output_equals_the_rust_pipeline() {
             let ranges = slice(c.ranges, c.range_count);
             assert_eq!(ranges.len(), v.ranges.len());
             for (a, b) in ranges.iter().zip(&v.ranges) {
-                assert_eq!(a.object, u64::from(b.object) + 1);
+                assert_eq!(a.object, b.object + 1);
                 assert_eq!(
                     (a.first_index, a.index_count),
                     (b.first_index, b.index_count)
@@ -495,6 +495,37 @@ fn misuse_gives_statuses_and_messages() {
         sc_light_set(p, lights[0], &light_desc(&lights_0())),
         SC_INVALID_ARGUMENT
     );
+    // The freed slots are reused under new handles; the old ones stay stale.
+    let (mut object, mut light) = (0, 0);
+    let m = DMat4::IDENTITY.to_cols_array();
+    ok(sc_object_create(
+        p,
+        1,
+        m.as_ptr(),
+        SC_FLAGS_ALL,
+        &mut object,
+    ));
+    ok(sc_light_create(p, &light_desc(&lights_0()), &mut light));
+    assert!(object != objects[2] && light != lights[0]);
+    assert_eq!(
+        object & 0xffff_ffff,
+        objects[2] & 0xffff_ffff,
+        "the slot is reused"
+    );
+    assert_eq!(
+        light & 0xffff_ffff,
+        lights[0] & 0xffff_ffff,
+        "the slot is reused"
+    );
+    assert_eq!(
+        sc_object_set_flags(p, objects[2], SC_FLAGS_ALL),
+        SC_INVALID_ARGUMENT
+    );
+    assert!(last_error().contains("stale"), "{}", last_error());
+    assert_eq!(sc_light_destroy(p, lights[0]), SC_INVALID_ARGUMENT);
+    ok(sc_object_set_flags(p, object, SC_FLAGS_ALL));
+    ok(sc_object_destroy(p, object));
+    ok(sc_light_destroy(p, light));
     // NULL for the remaining pointer arguments.
     let m = DMat4::IDENTITY.to_cols_array();
     let nul = std::ptr::null_mut();

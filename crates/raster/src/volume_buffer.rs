@@ -41,8 +41,8 @@ pub enum VolumeMethod {
 /// builds it.
 #[derive(Clone, Debug, PartialEq)]
 pub struct VolumeRange {
-    /// The caster's object id (scene's `ObjectId` as a plain `u32`).
-    pub object: u32,
+    /// The caster's object id (scene's `ObjectId`, its `to_bits`).
+    pub object: u64,
     /// Segment of the caster's volume; 0 until clamping produces segments.
     pub segment: u32,
     /// The transform the range's local-space positions are drawn with (f64,

@@ -1097,7 +1097,7 @@ fn all_volumes(b: &Built, method: VolumeMethod) -> VolumeBuffer {
     for (k, v) in b.volumes.iter().enumerate() {
         let (one, mut range) = volume(&v.pos, &v.tris, method);
         let (scissor, near, far) = conservative_bounds(b.m, &v.pos);
-        range.object = k as u32;
+        range.object = k as u64;
         range.first_vertex = buf.positions.len() as u32;
         range.first_index = buf.indices.len() as u32;
         range.scissor = scissor;

@@ -36,8 +36,8 @@ pub enum Error {
     /// `add_object` returned, and stop using it after removing the object.
     #[error("object {id}: {message}")]
     UnknownObject {
-        /// The id as given (slot and generation bits).
-        id: u32,
+        /// The id as given.
+        id: crate::ObjectId,
         /// Why it is not a live object.
         message: String,
     },
@@ -46,7 +46,7 @@ pub enum Error {
     #[error("mesh {mesh}: {message}")]
     UnknownMesh {
         /// The mesh id.
-        mesh: u32,
+        mesh: crate::MeshId,
         /// What is wrong.
         message: String,
     },

@@ -1,12 +1,8 @@
 //! The scene graph as loaded or built in code: nodes with local transforms
 //! and children, meshes shared between instances.
 
-use crate::{Error, Mesh, Result};
+use crate::{Error, Mesh, MeshId, Result};
 use glam::{DMat4, DQuat, DVec3};
-
-/// Index of a mesh in a [`SceneGraph`].
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize)]
-pub struct MeshId(pub u32);
 
 /// Index of a node in a [`SceneGraph`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize)]
@@ -87,12 +83,12 @@ impl SceneGraph {
     /// Adds a mesh; instances refer to it by the returned id.
     pub fn add_mesh(&mut self, mesh: Mesh) -> MeshId {
         self.meshes.push(mesh);
-        MeshId(self.meshes.len() as u32 - 1)
+        MeshId::from_slot(self.meshes.len() as u32 - 1)
     }
 
     /// Replaces mesh `id` (the scene's mesh removal).
     pub(crate) fn replace_mesh(&mut self, id: MeshId, mesh: Mesh) {
-        self.meshes[id.0 as usize] = mesh;
+        self.meshes[id.index()] = mesh;
     }
 
     /// Adds a node that is not yet attached to anything.
@@ -135,7 +131,7 @@ impl SceneGraph {
         self.meshes.extend(other.meshes);
         self.nodes.extend(other.nodes.into_iter().map(|mut n| {
             for m in &mut n.meshes {
-                m.0 += mesh_base;
+                *m = MeshId::from_slot(m.slot() + mesh_base);
             }
             for c in &mut n.children {
                 c.0 += node_base;

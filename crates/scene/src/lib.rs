@@ -31,6 +31,7 @@ mod facing;
 mod frustum;
 mod graph;
 mod host_camera;
+mod ids;
 pub mod load;
 mod loaded;
 mod mesh;
@@ -47,15 +48,14 @@ pub use camera_path::CameraPath;
 pub use error::{Error, Result};
 pub use facing::faces_light;
 pub use frustum::Frustum;
-pub use graph::{MeshId, Node, NodeId, SceneGraph, Transform};
+pub use graph::{Node, NodeId, SceneGraph, Transform};
 pub use host_camera::{ClipDepth, HostBasis};
+pub use ids::{LightId, MeshId, ObjectId};
 pub use light::Light;
 pub use mesh::{Edge, EdgeRef, Mesh, Solid, Topology};
 pub use occluder_proxy::{is_convex_solid, occluder_proxy, PROXY_VERTICES};
 pub use plane::Plane;
-pub use scene::{
-    Committed, Object, ObjectFlags, ObjectId, Scene, SceneCounts, MAX_NODE_DEPTH, MAX_OBJECTS,
-};
+pub use scene::{Committed, Object, ObjectFlags, Scene, SceneCounts, MAX_NODE_DEPTH, MAX_OBJECTS};
 pub use splitmix::splitmix64;
 
 mod light;

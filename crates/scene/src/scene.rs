@@ -2,7 +2,8 @@
 //! world bounds and an object BVH (obvhs) that is refit, not rebuilt, when
 //! objects move.
 
-use crate::{Aabb, Error, Mesh, MeshId, NodeId, Result, SceneGraph, Topology, Transform};
+use crate::ids::next_generation;
+use crate::{Aabb, Error, Mesh, MeshId, NodeId, ObjectId, Result, SceneGraph, Topology, Transform};
 use glam::{DMat4, DVec3, Vec3, Vec3A};
 use obvhs::bvh2::Bvh2;
 
@@ -11,46 +12,6 @@ pub const MAX_NODE_DEPTH: usize = 4096;
 
 /// Most objects a scene may flatten into (guards against exponential instancing).
 pub const MAX_OBJECTS: usize = 1 << 24;
-
-/// Identifies a scene object; every output names objects by it.
-///
-/// The low 24 bits are the object's slot, which indexes dense per-object
-/// arrays ([`Scene::objects`]); the high 8 bits a generation, which a host
-/// edit API (the facade's `Pipeline`) bumps each time a removed object's
-/// slot is reused, so that a stale id is an error, never another object. A
-/// scene flattened from a graph has generation 0 everywhere: its ids are its
-/// slots.
-#[derive(
-    Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize, serde::Deserialize,
-)]
-pub struct ObjectId(pub u32);
-
-impl ObjectId {
-    /// Bits of the slot.
-    pub const SLOT_BITS: u32 = 24;
-
-    /// The id of `slot` (below [`MAX_OBJECTS`]) at `generation`.
-    pub fn new(slot: u32, generation: u8) -> ObjectId {
-        debug_assert!((slot as usize) < MAX_OBJECTS);
-        ObjectId(slot | (u32::from(generation) << Self::SLOT_BITS))
-    }
-
-    /// The slot: the index into dense per-object arrays.
-    pub fn slot(self) -> u32 {
-        self.0 & ((1 << Self::SLOT_BITS) - 1)
-    }
-
-    /// The generation.
-    pub fn generation(self) -> u8 {
-        (self.0 >> Self::SLOT_BITS) as u8
-    }
-}
-
-impl From<ObjectId> for u32 {
-    fn from(id: ObjectId) -> u32 {
-        id.0
-    }
-}
 
 /// What an object takes part in; every flag on by default.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
@@ -129,16 +90,34 @@ pub struct Scene {
     pending: Pending,
     /// The mesh removed objects draw (no triangles), added on first removal.
     empty_mesh: Option<MeshId>,
-    /// Meshes removed by [`Scene::stage_remove_mesh`] (their slot now holds an empty mesh).
-    removed_meshes: Vec<bool>,
+    /// Per mesh slot: its generation, whether it is free, and its version.
+    mesh_slots: Vec<MeshSlot>,
+    /// Mesh slots freed by [`Scene::stage_remove_mesh`] (each holds an empty
+    /// mesh until reused), lowest last.
+    free_meshes: Vec<u32>,
     /// Bumped whenever the BVH is rebuilt (its topology changed).
     bvh_version: u64,
-    /// Generation per slot (missing entries are 0).
-    generations: Vec<u8>,
-    /// Per mesh, bumped whenever its vertices change ([`Scene::stage_replace_mesh`]).
-    mesh_versions: Vec<u64>,
-    /// Freed slots, lowest last.
+    /// Generation per object slot (missing entries are 0).
+    generations: Vec<u32>,
+    /// Freed object slots, lowest last.
     free_slots: Vec<u32>,
+}
+
+/// A mesh slot's bookkeeping.
+#[derive(Clone, Copy, Debug, Default)]
+struct MeshSlot {
+    generation: u32,
+    /// Removed: the slot holds an empty mesh and waits for reuse (or is retired).
+    free: bool,
+    /// Bumped whenever the slot's vertices change (deformation, removal,
+    /// reuse), so that copies kept outside the scene know when to refresh.
+    version: u64,
+}
+
+/// Pushes `slot` on a free list kept lowest last (`pop` reuses the lowest).
+fn free_slot(list: &mut Vec<u32>, slot: u32) {
+    let at = list.partition_point(|&s| s > slot);
+    list.insert(at, slot);
 }
 
 /// Staged edits of a [`Scene`].
@@ -204,11 +183,11 @@ impl Scene {
             refit_order: Vec::new(),
             pending: Pending::default(),
             empty_mesh: None,
-            removed_meshes: vec![false; meshes],
+            mesh_slots: vec![MeshSlot::default(); meshes],
+            free_meshes: Vec::new(),
             bvh_version: 0,
             generations: Vec::new(),
             free_slots: Vec::new(),
-            mesh_versions: vec![0; meshes],
         };
         scene.bounds = scene.compute_bounds();
         scene.set_bvh(scene.build_bvh());
@@ -275,7 +254,7 @@ impl Scene {
 
     /// The mesh an object draws.
     pub fn object_mesh(&self, id: ObjectId) -> &Mesh {
-        &self.graph.meshes()[self.object(id).mesh.0 as usize]
+        &self.graph.meshes()[self.object(id).mesh.index()]
     }
 
     /// World bounds of all objects (the scene bounds S of [Steiner §4.3.3]).
@@ -283,7 +262,7 @@ impl Scene {
         self.bounds
     }
 
-    /// The object BVH: leaf primitive `i` is `ObjectId(bvh.primitive_indices[i])`.
+    /// The object BVH: leaf primitive `i` is `ObjectId::from_slot(bvh.primitive_indices[i])`.
     pub fn object_bvh(&self) -> &Bvh2 {
         &self.bvh
     }
@@ -297,7 +276,7 @@ impl Scene {
     /// path), counter-clockwise = front even for mirrored objects.
     pub fn world_triangle(&self, id: ObjectId, t: usize) -> [DVec3; 3] {
         let o = self.object(id);
-        let mesh = &self.graph.meshes()[o.mesh.0 as usize];
+        let mesh = &self.graph.meshes()[o.mesh.index()];
         let [a, b, c] = mesh
             .triangle(t)
             .map(|p| crate::transform::world_point(&o.world_from_local, p));
@@ -312,21 +291,19 @@ impl Scene {
     pub fn counts(&self) -> SceneCounts {
         let mut c = SceneCounts {
             objects: self.objects.iter().filter(|o| o.alive).count(),
-            meshes: self.removed_meshes.iter().filter(|&&r| !r).count()
+            meshes: self.mesh_slots.iter().filter(|m| !m.free).count()
                 - usize::from(self.empty_mesh.is_some()),
             ..Default::default()
         };
         for o in self.objects.iter().filter(|o| o.alive) {
-            let m = &self.graph.meshes()[o.mesh.0 as usize];
+            let m = &self.graph.meshes()[o.mesh.index()];
             c.triangles += m.triangles().len() + m.topology().degenerate_triangles;
             c.drawn_triangles += m.triangles().len();
             c.vertices += m.positions().len();
         }
-        for (_, m) in
-            self.graph.meshes().iter().enumerate().filter(|&(i, _)| {
-                !self.removed_meshes[i] && Some(MeshId(i as u32)) != self.empty_mesh
-            })
-        {
+        for (_, m) in self.graph.meshes().iter().enumerate().filter(|&(i, _)| {
+            !self.mesh_slots[i].free && self.empty_mesh.is_none_or(|e| e.index() != i)
+        }) {
             let t = m.topology();
             c.topology.boundary_edges += t.boundary_edges;
             c.topology.non_manifold_edges += t.non_manifold_edges;
@@ -369,19 +346,15 @@ impl Scene {
     /// [`Error::Transform`] naming the object when the matrix is not finite or
     /// is projective.
     pub fn set_object_transform(&mut self, id: ObjectId, world_from_local: DMat4) -> Result<()> {
-        let o = self.objects.get(id.0 as usize).ok_or(Error::Graph {
+        let o = self.objects.get(id.index()).ok_or(Error::Graph {
             node: u32::MAX,
-            message: format!("no object {}", id.0),
+            message: format!("no object {}", id),
         })?;
-        check_object_transform(|| format!("object {}", id.0), &world_from_local)?;
-        let mesh_bounds = self.graph.meshes()[o.mesh.0 as usize].bounds();
-        check_flattening(
-            || format!("object {}", id.0),
-            &mesh_bounds,
-            &world_from_local,
-        )?;
+        check_object_transform(|| format!("object {}", id), &world_from_local)?;
+        let mesh_bounds = self.graph.meshes()[o.mesh.index()].bounds();
+        check_flattening(|| format!("object {}", id), &mesh_bounds, &world_from_local)?;
         let world = world_bounds(&mesh_bounds, &world_from_local, o.node)?;
-        let o = &mut self.objects[id.0 as usize];
+        let o = &mut self.objects[id.index()];
         o.world_from_local = world_from_local;
         o.mirrored = world_from_local.determinant() < 0.0;
         o.world_bounds = world;
@@ -406,11 +379,11 @@ impl Scene {
         match self.objects.get(slot as usize) {
             Some(o) if o.alive && self.generation(slot) == id.generation() => Ok(slot),
             Some(_) => Err(Error::UnknownObject {
-                id: id.0,
+                id,
                 message: "removed (a stale id: its slot was freed or reused)".into(),
             }),
             None => Err(Error::UnknownObject {
-                id: id.0,
+                id,
                 message: format!(
                     "slot {slot} is out of range ({} objects)",
                     self.objects.len()
@@ -420,7 +393,7 @@ impl Scene {
     }
 
     /// The generation of `slot` (0 for a never-reused slot).
-    pub fn generation(&self, slot: u32) -> u8 {
+    pub fn generation(&self, slot: u32) -> u32 {
         self.generations.get(slot as usize).copied().unwrap_or(0)
     }
 
@@ -429,21 +402,31 @@ impl Scene {
         ObjectId::new(slot, self.generation(slot))
     }
 
-    /// Adds `mesh` and returns its id; objects may then instance it.
+    /// Adds `mesh` and returns its id; objects may then instance it. It
+    /// takes the lowest slot a removed mesh freed (at that slot's next
+    /// generation), or a new one.
     pub fn add_mesh(&mut self, mesh: Mesh) -> MeshId {
-        self.removed_meshes.push(false);
-        self.mesh_versions.push(0);
-        self.graph.add_mesh(mesh)
+        match self.free_meshes.pop() {
+            Some(slot) => {
+                let m = &mut self.mesh_slots[slot as usize];
+                m.free = false;
+                m.version += 1;
+                let id = MeshId::new(slot, m.generation);
+                self.graph.replace_mesh(id, mesh);
+                id
+            }
+            None => {
+                self.mesh_slots.push(MeshSlot::default());
+                self.graph.add_mesh(mesh)
+            }
+        }
     }
 
     /// The version of `mesh`'s vertex data: bumped by every replacement
     /// (deformation, removal), so copies kept outside the scene know when to
     /// refresh. 0 for an unknown mesh.
     pub fn mesh_version(&self, mesh: MeshId) -> u64 {
-        self.mesh_versions
-            .get(mesh.0 as usize)
-            .copied()
-            .unwrap_or(0)
+        self.mesh_slots.get(mesh.index()).map_or(0, |m| m.version)
     }
 
     /// Replaces live `mesh` by `new` (a deformation: the same triangles with
@@ -460,7 +443,7 @@ impl Scene {
             || old.positions().len() != new.positions().len()
         {
             return Err(Error::UnknownMesh {
-                mesh: mesh.0,
+                mesh,
                 message: format!(
                     "the new vertices change the topology ({} triangles and {} welded vertices, \
                      were {} and {}): add a new mesh instead",
@@ -476,7 +459,7 @@ impl Scene {
             world_bounds(&bounds, &o.world_from_local, o.node)?;
         }
         self.graph.replace_mesh(mesh, new);
-        self.mesh_versions[mesh.0 as usize] += 1;
+        self.mesh_slots[mesh.index()].version += 1;
         let mut slots = Vec::new();
         for (i, o) in self.objects.iter_mut().enumerate() {
             if o.alive && o.mesh == mesh {
@@ -493,17 +476,24 @@ impl Scene {
     /// # Errors
     /// [`Error::UnknownMesh`] when out of range or removed.
     pub fn live_mesh(&self, mesh: MeshId) -> Result<&Mesh> {
-        let i = mesh.0 as usize;
+        let i = mesh.index();
         match self.graph.meshes().get(i) {
-            Some(m) if !self.removed_meshes[i] && Some(mesh) != self.empty_mesh => Ok(m),
+            Some(m)
+                if !self.mesh_slots[i].free
+                    && self.mesh_slots[i].generation == mesh.generation()
+                    && Some(mesh) != self.empty_mesh =>
+            {
+                Ok(m)
+            }
             _ => Err(Error::UnknownMesh {
-                mesh: mesh.0,
+                mesh,
                 message: "out of range or removed".into(),
             }),
         }
     }
 
-    /// Removes `mesh` (its slot keeps an empty mesh and is never reused).
+    /// Removes `mesh`: its slot holds an empty mesh until [`Scene::add_mesh`]
+    /// reuses it at the next generation (the old id stays dead).
     ///
     /// # Errors
     /// [`Error::UnknownMesh`] when out of range, removed, or instanced by a
@@ -521,18 +511,23 @@ impl Scene {
                 false => "the occluder",
             };
             return Err(Error::UnknownMesh {
-                mesh: mesh.0,
-                message: format!("still {what} of object {}", self.id_of(slot as u32).0),
+                mesh,
+                message: format!("still {what} of object {}", self.id_of(slot as u32)),
             });
         }
         let empty = Mesh::new(
-            self.graph.meshes()[mesh.0 as usize].name().to_string(),
+            self.graph.meshes()[mesh.index()].name().to_string(),
             &[],
             &[],
         )?;
         self.graph.replace_mesh(mesh, empty);
-        self.removed_meshes[mesh.0 as usize] = true;
-        self.mesh_versions[mesh.0 as usize] += 1;
+        let m = &mut self.mesh_slots[mesh.index()];
+        m.free = true;
+        m.version += 1;
+        if let Some(g) = next_generation(m.generation) {
+            m.generation = g;
+            free_slot(&mut self.free_meshes, mesh.slot());
+        }
         Ok(())
     }
 
@@ -553,7 +548,7 @@ impl Scene {
         let bounds = self.live_mesh(mesh)?.bounds();
         // Host objects belong to no graph node.
         let node = NodeId(u32::MAX);
-        let adding = || format!("the object being added (mesh {})", mesh.0);
+        let adding = || format!("the object being added (mesh {mesh})");
         check_object_transform(adding, &world_from_local)?;
         check_flattening(adding, &bounds, &world_from_local)?;
         let object = Object {
@@ -595,9 +590,9 @@ impl Scene {
     pub fn stage_set_transform(&mut self, id: ObjectId, world_from_local: DMat4) -> Result<()> {
         let slot = self.live_slot(id)? as usize;
         let o = &self.objects[slot];
-        check_object_transform(|| format!("object {}", id.0), &world_from_local)?;
-        let bounds = self.graph.meshes()[o.mesh.0 as usize].bounds();
-        check_flattening(|| format!("object {}", id.0), &bounds, &world_from_local)?;
+        check_object_transform(|| format!("object {}", id), &world_from_local)?;
+        let bounds = self.graph.meshes()[o.mesh.index()].bounds();
+        check_flattening(|| format!("object {}", id), &bounds, &world_from_local)?;
         let world = world_bounds(&bounds, &world_from_local, o.node)?;
         let o = &mut self.objects[slot];
         o.world_from_local = world_from_local;
@@ -633,22 +628,22 @@ impl Scene {
         let slot = self.live_slot(id)? as usize;
         if let Some(m) = mesh {
             let occluder = self.live_mesh(m)?;
-            let own = self.graph.meshes()[self.objects[slot].mesh.0 as usize].bounds();
+            let own = self.graph.meshes()[self.objects[slot].mesh.index()].bounds();
             let b = occluder.bounds();
             let slack = 1e-6 * (own.max - own.min).length();
             if occluder.triangles().is_empty() {
                 return Err(Error::UnknownMesh {
-                    mesh: m.0,
-                    message: format!("occluder of object {}: has no triangles", id.0),
+                    mesh: m,
+                    message: format!("occluder of object {}: has no triangles", id),
                 });
             }
             if b.min.cmplt(own.min - slack).any() || b.max.cmpgt(own.max + slack).any() {
                 return Err(Error::UnknownMesh {
-                    mesh: m.0,
+                    mesh: m,
                     message: format!(
                         "occluder of object {}: its bounds {:?}..{:?} reach outside the \
                          object's mesh's {:?}..{:?}",
-                        id.0, b.min, b.max, own.min, own.max
+                        id, b.min, b.max, own.min, own.max
                     ),
                 });
             }
@@ -682,11 +677,9 @@ impl Scene {
         if generations.len() <= slot as usize {
             generations.resize(slot as usize + 1, 0);
         }
-        if generations[slot as usize] < u8::MAX {
-            generations[slot as usize] += 1;
-            self.free_slots.push(slot);
-            // Lowest slot first: `pop` takes from the end.
-            self.free_slots.sort_unstable_by(|a, b| b.cmp(a));
+        if let Some(g) = next_generation(generations[slot as usize]) {
+            generations[slot as usize] = g;
+            free_slot(&mut self.free_slots, slot);
         }
         self.pending.refit = true;
         Ok(())
@@ -953,9 +946,12 @@ fn flatten(graph: &SceneGraph) -> Result<Vec<Object>> {
         path.push(id);
         let world = parent * node.transform.matrix();
         for &m in &node.meshes {
-            let mesh = graph.meshes().get(m.0 as usize).ok_or(Error::Graph {
+            let mesh = graph.meshes().get(m.index()).ok_or(Error::Graph {
                 node: id.0,
-                message: format!("mesh {} referenced, but there are only {n_meshes}", m.0),
+                message: format!(
+                    "mesh {} referenced, but there are only {n_meshes}",
+                    m.slot()
+                ),
             })?;
             if let Some(message) = flattening(&mesh.bounds(), &world) {
                 return Err(Error::Graph {
@@ -1034,7 +1030,7 @@ mod tests {
         assert_eq!(s.counts().triangles, 2);
         assert_eq!(s.counts().meshes, 1);
         assert_eq!(
-            s.object(ObjectId(1)).world_bounds.min,
+            s.object(ObjectId::from_slot(1)).world_bounds.min,
             Vec3::new(10.0, 1.0, -1.0)
         );
         assert_eq!(s.bounds().max, Vec3::new(11.0, 1.0, 0.0));
@@ -1075,13 +1071,16 @@ mod tests {
             Transform::Matrix(DMat4::from_scale(DVec3::new(-1.0, 1.0, 1.0))),
         );
         let s = Scene::new(g).unwrap();
-        assert!(s.object(ObjectId(0)).mirrored);
+        assert!(s.object(ObjectId::from_slot(0)).mirrored);
         let above = Light::Point {
             position: DVec3::new(-0.2, 3.0, -0.2),
             range: None,
         };
         // The mirror image of an upward-facing triangle still faces up.
-        assert!(faces_light(&s.world_triangle(ObjectId(0), 0), &above));
+        assert!(faces_light(
+            &s.world_triangle(ObjectId::from_slot(0), 0),
+            &above
+        ));
     }
 
     #[test]
@@ -1097,7 +1096,7 @@ mod tests {
         let root = s.object_bvh().nodes[0];
         assert_eq!(root.aabb().max.y, 100.0);
         s.set_object_transform(
-            ObjectId(1),
+            ObjectId::from_slot(1),
             DMat4::from_translation(DVec3::new(0.0, -7.0, 0.0)),
         )
         .unwrap();
@@ -1123,7 +1122,7 @@ mod tests {
         assert!(s.stage_set_transform(a, huge).is_err());
         s.commit_edits();
         assert_eq!(
-            s.object(ObjectId(a.slot())).world_from_local,
+            s.object(ObjectId::from_slot(a.slot())).world_from_local,
             DMat4::IDENTITY
         );
         assert!(s.bounds().max.is_finite());
@@ -1171,13 +1170,24 @@ mod tests {
         assert!(!s.commit_edits().rebuilt, "a reused slot refits");
         assert!(s.live_slot(b).is_err() && s.live_slot(c).is_ok());
         assert!(s.live_slot(ObjectId::new(7, 0)).is_err(), "out of range");
-        // A slot whose generation would wrap is retired, never reused.
+        // Churn reuses the one slot, each time at the next generation.
         let mut id = c;
         for _ in 0..300 {
             s.stage_remove_object(id).unwrap();
             id = s.stage_add_object(m, at(2.0), ObjectFlags::ALL).unwrap();
         }
-        assert!(id.slot() >= 2, "slot 1 retired after generation 255");
+        assert_eq!((id.slot(), id.generation()), (1, 301));
+        assert_eq!(s.objects().len(), 2, "no slot added");
+        // A slot whose generation would wrap is retired, never reused.
+        s.generations[1] = u32::MAX - 1;
+        let old = s.id_of(1);
+        s.stage_remove_object(old).unwrap();
+        id = s.stage_add_object(m, at(2.0), ObjectFlags::ALL).unwrap();
+        assert_eq!(id.slot(), 1, "generation u32::MAX is still used");
+        s.stage_remove_object(id).unwrap();
+        id = s.stage_add_object(m, at(2.0), ObjectFlags::ALL).unwrap();
+        assert_eq!(id.slot(), 2, "slot 1 retired after generation u32::MAX");
+        assert!(s.live_slot(old).is_err());
         s.commit_edits();
         assert_eq!(s.counts().objects, 2);
         // A mesh cannot go while instanced; afterwards its id is dead.
@@ -1193,9 +1203,18 @@ mod tests {
         s.commit_edits();
         assert_eq!(s.counts().objects, 0);
         assert!(s.bounds().is_empty());
-        // Non-finite matrices are refused.
+        // The next mesh takes the freed mesh slot at the next generation, and
+        // the old id stays dead.
+        let meshes = s.graph().meshes().len();
+        let version = s.mesh_version(m);
         let m2 =
             s.add_mesh(crate::procedural::analytic::box_mesh("c2", Vec3::ZERO, Vec3::ONE).unwrap());
+        assert_eq!((m2.slot(), m2.generation()), (m.slot(), m.generation() + 1));
+        assert_eq!(s.graph().meshes().len(), meshes, "no mesh slot added");
+        assert!(s.mesh_version(m2) > version, "copies see the new mesh");
+        assert!(s.live_mesh(m).is_err() && s.live_mesh(m2).is_ok());
+        assert!(s.stage_add_object(m, at(0.0), ObjectFlags::ALL).is_err());
+        assert_eq!(s.counts().meshes, 1);
         assert!(s
             .stage_add_object(
                 m2,
@@ -1266,7 +1285,7 @@ mod tests {
         );
         let e = s.set_occluder(a, Some(empty)).unwrap_err().to_string();
         assert!(e.contains("no triangles"), "{e}");
-        assert!(s.set_occluder(a, Some(MeshId(99))).is_err());
+        assert!(s.set_occluder(a, Some(MeshId::from_slot(99))).is_err());
         assert_eq!(s.object(a).occluder, Some(inner), "refusals change nothing");
         let e = s.stage_remove_mesh(inner).unwrap_err().to_string();
         assert!(e.contains("the occluder of object 0"), "{e}");

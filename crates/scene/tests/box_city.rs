@@ -81,13 +81,13 @@ fn box_city_4096_counts_geometry_cameras_and_paths() {
             Vec3::new(b[3] as f32, b[4] as f32, b[5] as f32),
         );
         let corners = box_corners(min, max);
-        let o = scene.object(ObjectId(k as u32));
+        let o = scene.object(ObjectId::from_slot(k as u32));
         assert_eq!(o.world_bounds.min, min);
         assert_eq!(o.world_bounds.max, max);
         for (t, tri) in box_triangles().iter().enumerate() {
             let want = tri.map(|i| corners[i as usize].as_dvec3());
             assert_eq!(
-                scene.world_triangle(ObjectId(k as u32), t),
+                scene.world_triangle(ObjectId::from_slot(k as u32), t),
                 want,
                 "box {k} triangle {t}"
             );
@@ -95,7 +95,7 @@ fn box_city_4096_counts_geometry_cameras_and_paths() {
     }
     assert_eq!(boxes[0], [4.25, 0.0, 5.25, 14.75, 44.75, 12.0]);
     // The ground: last object, 2 triangles facing up.
-    let g = ObjectId(4096);
+    let g = ObjectId::from_slot(4096);
     for t in 0..2 {
         let [a, b, c] = scene.world_triangle(g, t);
         let n = (b - a).cross(c - a);

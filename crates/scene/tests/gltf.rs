@@ -196,7 +196,7 @@ fn gltf_real_scenes_have_the_expected_counts() {
             .objects()
             .iter()
             .map(|o| {
-                scene.graph().meshes()[o.mesh.0 as usize]
+                scene.graph().meshes()[o.mesh.index()]
                     .topology()
                     .degenerate_triangles
             })
@@ -219,9 +219,9 @@ fn gltf_real_scenes_have_the_expected_counts() {
         // scene bounds (a union of transformed boxes) contain them.
         let (mut lo, mut hi) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
         for (id, o) in scene.objects().iter().enumerate() {
-            let n = scene.graph().meshes()[o.mesh.0 as usize].triangles().len();
+            let n = scene.graph().meshes()[o.mesh.index()].triangles().len();
             for t in 0..n {
-                for p in scene.world_triangle(ObjectId(id as u32), t) {
+                for p in scene.world_triangle(ObjectId::from_slot(id as u32), t) {
                     (lo, hi) = (lo.min(p), hi.max(p));
                 }
             }
@@ -488,8 +488,8 @@ fn gltf_primitive_modes() {
             "Mesh_PrimitiveMode_{k:02}"
         );
         if expected > 0 {
-            let n0 = normal(&scene.world_triangle(ObjectId(0), 0));
-            let n1 = normal(&scene.world_triangle(ObjectId(0), 1));
+            let n0 = normal(&scene.world_triangle(ObjectId::from_slot(0), 0));
+            let n1 = normal(&scene.world_triangle(ObjectId::from_slot(0), 1));
             assert!(n0.dot(n1) > 0.0, "{k}: {n0} vs {n1}");
         }
     }
@@ -557,7 +557,10 @@ fn gltf_trs_and_matrix_give_the_same_world_transform() {
     assert_eq!(graph.nodes()[2].transform, Transform::Matrix(m));
     let scene = Scene::new(graph).unwrap();
     assert_eq!(scene.counts().objects, 2);
-    let (a, b) = (scene.object(ObjectId(0)), scene.object(ObjectId(1)));
+    let (a, b) = (
+        scene.object(ObjectId::from_slot(0)),
+        scene.object(ObjectId::from_slot(1)),
+    );
     assert!(a.world_from_local.abs_diff_eq(b.world_from_local, 1e-12));
     assert!(a.world_from_local.abs_diff_eq(m, 1e-12));
 }
@@ -567,11 +570,11 @@ fn gltf_mirrored_node_keeps_world_facing() {
     let doc = quad_doc(None, json!([{"mesh": 0, "scale": [-1.0, 1.0, 1.0]}]));
     let scene = Scene::new(from_json(&doc).unwrap()).unwrap();
     assert_eq!(scene.counts().triangles, 2);
-    let o = scene.object(ObjectId(0));
+    let o = scene.object(ObjectId::from_slot(0));
     assert!(o.mirrored);
     // The quad is CCW seen from +z; its mirror image still faces +z.
     for t in 0..2 {
-        assert!(normal(&scene.world_triangle(ObjectId(0), t)).z > 0.0);
+        assert!(normal(&scene.world_triangle(ObjectId::from_slot(0), t)).z > 0.0);
     }
     assert_eq!(o.world_bounds.min.x, -1.0);
 }
@@ -587,7 +590,7 @@ fn gltf_u8_u16_u32_indices() {
         let scene = Scene::new(from_json(&doc).unwrap()).unwrap();
         assert_eq!(scene.counts().triangles, 2, "componentType {ct}");
         assert_eq!(scene.counts().vertices, 4, "componentType {ct}");
-        assert!(normal(&scene.world_triangle(ObjectId(0), 0)).z > 0.0);
+        assert!(normal(&scene.world_triangle(ObjectId::from_slot(0), 0)).z > 0.0);
     }
     // Float and signed indices are errors naming the accessor.
     let floats: Vec<u8> = idx.iter().flat_map(|&i| (i as f32).to_le_bytes()).collect();

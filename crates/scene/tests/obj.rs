@@ -833,7 +833,7 @@ fn far_off_obj_is_recentred_and_round_trips_world_positions() {
         let m = node.transform.matrix();
         assert_eq!(m, glam::DMat4::from_translation(centre), "{}", node.name);
         // Local vertices are centred and small.
-        let mesh = &graph.meshes()[node.meshes[0].0 as usize];
+        let mesh = &graph.meshes()[node.meshes[0].index()];
         for p in mesh.positions() {
             assert!(
                 p.abs().cmple(glam::Vec3::new(2.0, 1.125, 1.5)).all(),
@@ -854,7 +854,7 @@ fn far_off_obj_is_recentred_and_round_trips_world_positions() {
     let s = scene(graph);
     let mut seen = Vec::new();
     for (o, obj) in s.objects().iter().enumerate() {
-        let mesh = s.object_mesh(scene::ObjectId(o as u32));
+        let mesh = s.object_mesh(scene::ObjectId::from_slot(o as u32));
         for p in mesh.positions() {
             let w = scene::transform::world_point(&obj.world_from_local, *p);
             assert!(corners.contains(&w), "world {w} is not a file corner");
@@ -892,7 +892,7 @@ fn far_off_obj_keeps_world_positions_within_f32_of_the_small_local_values() {
     ];
     let graph = load_obj(&write_temp("far_roof.obj", text)).unwrap();
     let s = scene(graph);
-    let id = scene::ObjectId(0);
+    let id = scene::ObjectId::from_slot(0);
     assert_eq!(s.object_mesh(id).triangles().len(), 2, "none degenerate");
     let got: Vec<DVec3> = (0..2).flat_map(|t| s.world_triangle(id, t)).collect();
     for w in want {

@@ -77,7 +77,11 @@ fn procedural_default_city_matches_steiner_and_is_well_formed() {
         assert!(kinds.contains(&n), "no mesh with {n} triangles: {kinds:?}");
     }
     // Trees and lamps are instanced: two meshes shared by many objects.
-    let tree_objects = scene.objects().iter().filter(|o| o.mesh.0 == 0).count();
+    let tree_objects = scene
+        .objects()
+        .iter()
+        .filter(|o| o.mesh.slot() == 0)
+        .count();
     assert_eq!(tree_objects, (params.trees_per_block as usize) * tiles);
 
     // Bounds: inside city_bounds, spanning it in x and z, tallest object near city_height.
@@ -179,7 +183,7 @@ fn procedural_city_is_deterministic_per_seed() {
     assert!(
         Scene::new(city(&small).unwrap().graph)
             .unwrap()
-            .object(ObjectId(0))
+            .object(ObjectId::from_slot(0))
             .world_bounds
             .min
             .y
@@ -250,16 +254,16 @@ fn procedural_analytic_scenes() {
     );
     let s = Scene::new(l.graph).unwrap();
     assert_eq!(
-        s.object(ObjectId(0)).world_bounds.min,
+        s.object(ObjectId::from_slot(0)).world_bounds.min,
         Vec3::new(-0.5, 1.0, -0.5)
     );
     assert_eq!(
-        s.object(ObjectId(0)).world_bounds.max,
+        s.object(ObjectId::from_slot(0)).world_bounds.max,
         Vec3::new(0.5, 2.0, 0.5)
     );
     assert_eq!(s.counts().topology.boundary_edges, 4);
     let l = stacked_occluders(4).unwrap();
     assert!(l.cameras[0].1.camera(1.0).is_ok());
     let s = Scene::new(l.graph).unwrap();
-    assert_eq!(s.object(ObjectId(3)).world_bounds.max.y, 4.25);
+    assert_eq!(s.object(ObjectId::from_slot(3)).world_bounds.max.y, 4.25);
 }

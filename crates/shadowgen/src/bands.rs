@@ -50,7 +50,7 @@ pub fn split_into_bands<'b>(
     scratch.clear();
     scratch.extend(out.ranges.drain(first..));
     for r in scratch.drain(..) {
-        let runs = match bands(ObjectId(r.object)) {
+        let runs = match bands(ObjectId::from_bits(r.object)) {
             Some(runs) if keep(&r) => runs,
             _ => {
                 out.ranges.push(r);
@@ -88,7 +88,7 @@ mod tests {
     use raster::VolumeMethod;
     use scene::{Camera, Light};
 
-    fn range(object: u32) -> VolumeRange {
+    fn range(object: u64) -> VolumeRange {
         VolumeRange {
             object,
             segment: 0,
@@ -134,11 +134,11 @@ mod tests {
             &mut buf,
             1,
             &rows,
-            |id| (id.0 != 2).then_some(&runs[..]),
+            |id| (id.slot() != 2).then_some(&runs[..]),
             |r| r.object != 3,
             &mut scratch,
         );
-        let got: Vec<(u32, u32, [u32; 4])> = buf
+        let got: Vec<(u64, u32, [u32; 4])> = buf
             .ranges
             .iter()
             .map(|r| (r.object, r.segment, r.band))

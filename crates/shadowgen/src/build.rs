@@ -147,8 +147,11 @@ fn build(
     out.clear();
     light.validate()?;
     let objects = scene.objects().len();
-    if let Some(bad) = casters.iter().find(|id| id.0 as usize >= objects) {
-        return Err(Error::UnknownObject { id: bad.0, objects });
+    if let Some(bad) = casters.iter().find(|id| id.index() >= objects) {
+        return Err(Error::UnknownObject {
+            id: bad.slot(),
+            objects,
+        });
     }
     let mut stats = VolumeStats {
         casters: casters.len(),
@@ -311,7 +314,7 @@ fn caster_geometry<'a>(
         return Err(Error::BufferOverflow);
     }
     Ok(CasterGeometry {
-        object: id.0,
+        object: id.slot(),
         positions: mesh.positions(),
         world_from_local: &object.world_from_local,
         silhouette: sil,
@@ -562,7 +565,9 @@ mod tests {
             0.1,
         )
         .unwrap();
-        let casters: Vec<ObjectId> = (0..scene.objects().len() as u32).map(ObjectId).collect();
+        let casters: Vec<ObjectId> = (0..scene.objects().len() as u32)
+            .map(ObjectId::from_slot)
+            .collect();
         assert!(casters.len() >= PARALLEL_CASTERS);
         let lights = [
             Light::Point {

@@ -134,7 +134,7 @@ impl LightClamp {
             cost,
         } = *input;
         let objects = scene.objects();
-        let receiving = |c: &ObjectId| receives.get(c.0 as usize).copied().unwrap_or(false);
+        let receiving = |c: &ObjectId| receives.get(c.index()).copied().unwrap_or(false);
         let mut other_casters: Vec<ObjectId> =
             casters.iter().copied().filter(|c| !receiving(c)).collect();
         other_casters.sort_unstable();
@@ -181,19 +181,19 @@ impl LightClamp {
             });
         }
         for &c in casters {
-            let Some(bounds) = objects.get(c.0 as usize).map(|o| o.world_bounds) else {
+            let Some(bounds) = objects.get(c.index()).map(|o| o.world_bounds) else {
                 continue;
             };
-            if self.raw.contains_key(&c.0) {
+            if self.raw.contains_key(&c.slot()) {
                 stats.cached_casters += 1;
             } else {
                 let Some(axis) = SegmentAxis::new(light, &bounds) else {
                     continue;
                 };
                 let raw = self.raw_intervals(input, c, &axis, &bounds);
-                self.raw.insert(c.0, (axis, raw));
+                self.raw.insert(c.slot(), (axis, raw));
             }
-            let (axis, raw) = &self.raw[&c.0];
+            let (axis, raw) = &self.raw[&c.slot()];
             let [first, rest @ ..] = raw.as_slice() else {
                 continue;
             };
@@ -350,7 +350,7 @@ impl LightClamp {
         let stamp = self.stamp;
         self.depths.clear();
         for sap in &self.planes {
-            for &r in sap.neighbours(c.0) {
+            for &r in sap.neighbours(c.slot()) {
                 let seen = &mut self.seen[r as usize];
                 if *seen != stamp && input.receives.get(r as usize).copied().unwrap_or(false) {
                     *seen = stamp;
@@ -396,7 +396,7 @@ impl LightClamp {
         let objects = scene.objects();
         let mut is_caster = vec![false; n];
         for c in casters {
-            if let Some(f) = is_caster.get_mut(c.0 as usize) {
+            if let Some(f) = is_caster.get_mut(c.index()) {
                 *f = true;
             }
         }
@@ -424,7 +424,7 @@ fn with_depths<'a>(
 ) -> impl Iterator<Item = (ObjectId, Aabb, &'a [[f64; 2]])> + 'a {
     let objects = input.scene.objects();
     (input.casters.iter()).filter_map(move |&c| {
-        let bounds = objects.get(c.0 as usize)?.world_bounds;
+        let bounds = objects.get(c.index())?.world_bounds;
         Some((c, bounds, depths.depths(c)?))
     })
 }
@@ -436,7 +436,7 @@ fn changed_objects(key: &CacheKey, receives: &[bool], other_casters: &[ObjectId]
     let mark = |ids: &[ObjectId]| {
         let mut v = vec![false; n];
         for id in ids {
-            if let Some(f) = v.get_mut(id.0 as usize) {
+            if let Some(f) = v.get_mut(id.index()) {
                 *f = true;
             }
         }

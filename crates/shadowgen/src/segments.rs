@@ -219,11 +219,11 @@ impl ClampPlan {
     /// removes the entry.
     pub fn set(&mut self, caster: ObjectId, axis: SegmentAxis, intervals: &[[f64; 2]]) {
         if intervals.is_empty() {
-            self.entries.remove(&caster.0);
+            self.entries.remove(&caster.slot());
             return;
         }
         axis.widened(intervals, &mut self.widened);
-        let e = (self.entries.entry(caster.0)).or_insert((Frame::Axis(axis), Vec::new()));
+        let e = (self.entries.entry(caster.slot())).or_insert((Frame::Axis(axis), Vec::new()));
         e.0 = Frame::Axis(axis);
         e.1.clone_from(&self.widened);
     }
@@ -236,10 +236,10 @@ impl ClampPlan {
     /// edge-on for the eye. An empty list removes the entry.
     pub fn set_sliced(&mut self, caster: ObjectId, slices: EyeSlices, intervals: &[[f64; 2]]) {
         if intervals.is_empty() {
-            self.entries.remove(&caster.0);
+            self.entries.remove(&caster.slot());
             return;
         }
-        let e = (self.entries.entry(caster.0)).or_insert((Frame::Eye(slices), Vec::new()));
+        let e = (self.entries.entry(caster.slot())).or_insert((Frame::Eye(slices), Vec::new()));
         e.0 = Frame::Eye(slices);
         e.1.clear();
         e.1.extend_from_slice(intervals);
@@ -248,7 +248,7 @@ impl ClampPlan {
     /// The axis and widened intervals of `caster`, if continuous clamping
     /// clamps it.
     pub fn get(&self, caster: ObjectId) -> Option<(&SegmentAxis, &[[f64; 2]])> {
-        match self.entries.get(&caster.0) {
+        match self.entries.get(&caster.slot()) {
             Some((Frame::Axis(a), i)) => Some((a, i.as_slice())),
             _ => None,
         }
@@ -257,7 +257,7 @@ impl ClampPlan {
     /// The oriented slices and intervals of `caster`, if discrete clamping
     /// clamps it.
     pub fn get_sliced(&self, caster: ObjectId) -> Option<(&EyeSlices, &[[f64; 2]])> {
-        match self.entries.get(&caster.0) {
+        match self.entries.get(&caster.slot()) {
             Some((Frame::Eye(e), i)) => Some((e, i.as_slice())),
             _ => None,
         }
@@ -265,7 +265,7 @@ impl ClampPlan {
 
     /// How `caster` is cut and where, if it is clamped.
     pub(crate) fn frame(&self, caster: ObjectId) -> Option<(SegmentFrame<'_>, &[[f64; 2]])> {
-        let (f, i) = self.entries.get(&caster.0)?;
+        let (f, i) = self.entries.get(&caster.slot())?;
         let f = match f {
             Frame::Axis(a) => SegmentFrame::Axis(a),
             Frame::Eye(e) => SegmentFrame::Eye(e),
@@ -420,7 +420,7 @@ pub(crate) fn append_segments(
         counts.segments += 1;
         counts.triangles += index_count as usize / 3;
         out.ranges.push(VolumeRange {
-            object,
+            object: object.into(),
             segment: k,
             world_from_local: *world_from_local,
             method,

@@ -159,7 +159,7 @@ mod tests {
         let mut out = Silhouette::default();
         silhouette(
             &s,
-            ObjectId(0),
+            ObjectId::from_slot(0),
             &point(DVec3::new(0.5, 0.5, 3.0)),
             false,
             &mut out,
@@ -171,9 +171,9 @@ mod tests {
         assert_eq!(dir, vec![(0, 1), (1, 2), (2, 3), (3, 0)]);
         // Seen from below: nothing casts one-sided, the reversed loop two-sided.
         let below = point(DVec3::new(0.5, 0.5, -3.0));
-        silhouette(&s, ObjectId(0), &below, false, &mut out);
+        silhouette(&s, ObjectId::from_slot(0), &below, false, &mut out);
         assert!(out.edges.is_empty() && out.caps.is_empty());
-        silhouette(&s, ObjectId(0), &below, true, &mut out);
+        silhouette(&s, ObjectId::from_slot(0), &below, true, &mut out);
         let mut dir: Vec<(u32, u32)> = out.edges.iter().map(|e| (e.from, e.to)).collect();
         dir.sort_unstable();
         assert_eq!(dir, vec![(0, 3), (1, 0), (2, 1), (3, 2)]);
@@ -196,7 +196,7 @@ mod tests {
         let mut out = Silhouette::default();
         silhouette(
             &s,
-            ObjectId(0),
+            ObjectId::from_slot(0),
             &point(DVec3::new(0.3, 0.1, 5.0)),
             false,
             &mut out,
@@ -212,7 +212,7 @@ mod tests {
         // Light on the fin's front side: (0,1) is traversed by t0 (+), t1 (−), t2 (+).
         silhouette(
             &s,
-            ObjectId(0),
+            ObjectId::from_slot(0),
             &point(DVec3::new(0.3, -0.1, 5.0)),
             false,
             &mut out,
@@ -237,19 +237,19 @@ mod tests {
         let mut out = Silhouette::default();
         silhouette(
             &s,
-            ObjectId(0),
+            ObjectId::from_slot(0),
             &point(DVec3::new(-0.5, 0.5, 3.0)),
             false,
             &mut out,
         );
         assert_eq!(out.caps.len(), 2);
         // The cap triangles are CCW seen from the light in world space.
-        let o = s.object(ObjectId(0));
+        let o = s.object(ObjectId::from_slot(0));
         for c in &out.caps {
             let w = c.map(|i| {
                 scene::transform::world_point(
                     &o.world_from_local,
-                    s.object_mesh(ObjectId(0)).positions()[i as usize],
+                    s.object_mesh(ObjectId::from_slot(0)).positions()[i as usize],
                 )
             });
             assert!((w[1] - w[0]).cross(w[2] - w[0]).z > 0.0);

@@ -107,7 +107,7 @@ impl SilhouetteCache {
     /// slot now holds another object): the next update recomputes it.
     pub fn invalidate(&mut self, id: ObjectId) {
         for l in &mut self.lights {
-            if let Some(e) = l.objects.get_mut(id.0 as usize) {
+            if let Some(e) = l.objects.get_mut(id.index()) {
                 *e = None;
             }
         }
@@ -141,7 +141,7 @@ impl SilhouetteCache {
         work.clear();
         for &id in ids {
             let w = &scene.object(id).world_from_local;
-            let e = &mut table.objects[id.0 as usize];
+            let e = &mut table.objects[id.index()];
             let current = e
                 .as_ref()
                 .is_some_and(|e| e.two_sided == two_sided && same_bits(&e.world_from_local, w));
@@ -189,7 +189,7 @@ impl SilhouetteCache {
             .zip(self.counters.iter_mut())
             .for_each(compute);
         for (id, s) in work.drain(..) {
-            if let Some(e) = &mut table.objects[id.0 as usize] {
+            if let Some(e) = &mut table.objects[id.index()] {
                 e.silhouette = s;
             }
         }
@@ -204,7 +204,7 @@ impl SilhouetteCache {
             .iter()
             .find(|l| l.key == key)?
             .objects
-            .get(id.0 as usize)?
+            .get(id.index())?
             .as_ref()
             .map(|e| &e.silhouette)
     }
@@ -244,26 +244,26 @@ mod tests {
         let mut s = scene_of(m, Transform::default());
         let l = point(DVec3::new(0.2, 0.2, 2.0));
         let mut c = SilhouetteCache::new();
-        c.update(&s, &l, false, &[ObjectId(0)]);
-        c.update(&s, &l, false, &[ObjectId(0)]);
+        c.update(&s, &l, false, &[ObjectId::from_slot(0)]);
+        c.update(&s, &l, false, &[ObjectId::from_slot(0)]);
         assert_eq!(c.hits_misses(), (1, 1));
-        assert_eq!(c.get(ObjectId(0), &l).unwrap().edge_count(), 3);
+        assert_eq!(c.get(ObjectId::from_slot(0), &l).unwrap().edge_count(), 3);
         s.set_object_transform(
-            ObjectId(0),
+            ObjectId::from_slot(0),
             DMat4::from_translation(DVec3::new(0.0, 0.0, 5.0)),
         )
         .unwrap();
-        c.update(&s, &l, false, &[ObjectId(0)]);
+        c.update(&s, &l, false, &[ObjectId::from_slot(0)]);
         assert_eq!(c.hits_misses(), (1, 2));
-        assert_eq!(c.get(ObjectId(0), &l).unwrap().edge_count(), 0);
+        assert_eq!(c.get(ObjectId::from_slot(0), &l).unwrap().edge_count(), 0);
         let l2 = point(DVec3::new(0.2, 0.2, 9.0));
-        c.update(&s, &l2, false, &[ObjectId(0)]);
+        c.update(&s, &l2, false, &[ObjectId::from_slot(0)]);
         assert_eq!(c.hits_misses(), (1, 3));
         assert_eq!(c.len(), 2);
         c.next_frame();
-        c.update(&s, &l2, false, &[ObjectId(0)]);
+        c.update(&s, &l2, false, &[ObjectId::from_slot(0)]);
         c.evict_unused(0);
         assert_eq!(c.len(), 1);
-        assert!(c.get(ObjectId(0), &l).is_none());
+        assert!(c.get(ObjectId::from_slot(0), &l).is_none());
     }
 }

@@ -277,7 +277,7 @@ pub fn append_volume(
     }
     let out = emit.out;
     out.ranges.push(VolumeRange {
-        object,
+        object: object.into(),
         segment: 0,
         world_from_local: *world_from_local,
         method,

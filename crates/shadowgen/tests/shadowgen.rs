@@ -145,7 +145,7 @@ proptest! {
         let mesh = if use_box { unit_box() } else { star_sphere(&radii, lat, lon) };
         let s = scene_with(mesh, w);
         let mut out = Silhouette::default();
-        silhouette(&s, ObjectId(0), &l, two_sided, &mut out);
+        silhouette(&s, ObjectId::from_slot(0), &l, two_sided, &mut out);
         prop_assert!(imbalance(&out).is_empty());
         if !two_sided {
             prop_assert!(out.edges.iter().all(|e| e.multiplicity == 1));
@@ -173,7 +173,7 @@ proptest! {
         if mesh.triangles().is_empty() { return Ok(()); }
         let s = scene_with(mesh, w);
         let mut out = Silhouette::default();
-        silhouette(&s, ObjectId(0), &l, two_sided, &mut out);
+        silhouette(&s, ObjectId::from_slot(0), &l, two_sided, &mut out);
         prop_assert!(imbalance(&out).is_empty(), "{:?}", out.edges);
     }
 
@@ -202,7 +202,9 @@ proptest! {
 fn build(s: &Scene, l: &Light, choice: MethodChoice) -> VolumeBuffer {
     let mut buf = VolumeBuffer::new();
     let mut cache = SilhouetteCache::new();
-    let ids: Vec<ObjectId> = (0..s.objects().len() as u32).map(ObjectId).collect();
+    let ids: Vec<ObjectId> = (0..s.objects().len() as u32)
+        .map(ObjectId::from_slot)
+        .collect();
     let opts = BuildOptions {
         method: choice,
         two_sided: false,
@@ -224,7 +226,7 @@ fn zfail_volumes(s: &Scene, l: &Light, two_sided: bool) -> VolumeBuffer {
         viewport: None,
         ..Default::default()
     };
-    let casters = [ObjectId(0)];
+    let casters = [ObjectId::from_slot(0)];
     build_volumes(
         &mut buf,
         s,
@@ -262,7 +264,7 @@ fn check_outward(buf: &VolumeBuffer, interior: DVec3) {
 fn check_extrusion(s: &Scene, buf: &VolumeBuffer, l: &Light) {
     for r in &buf.ranges {
         let verts = r.first_vertex as usize..(r.first_vertex + r.vertex_count) as usize;
-        let mesh = s.object_mesh(ObjectId(r.object));
+        let mesh = s.object_mesh(ObjectId::from_bits(r.object));
         let mut infinite = Vec::new();
         for p in &buf.positions[verts] {
             if p[3] == 1.0 {
@@ -296,7 +298,7 @@ fn unit_box_under_a_point_light() {
     // Corner-on: three faces lit, a hexagonal silhouette.
     let l = point(DVec3::new(5.0, 6.0, 7.0));
     let mut sil = Silhouette::default();
-    silhouette(&s, ObjectId(0), &l, false, &mut sil);
+    silhouette(&s, ObjectId::from_slot(0), &l, false, &mut sil);
     let k = sil.edge_count();
     assert_eq!(k, 6);
     assert_eq!(sil.caps.len(), 6);
@@ -319,7 +321,7 @@ fn unit_box_under_a_point_light() {
     check_outward(&zfail, DVec3::splat(0.5));
     // Face-on: one face lit, four silhouette edges.
     let l = point(DVec3::new(0.5, 0.5, 9.0));
-    silhouette(&s, ObjectId(0), &l, false, &mut sil);
+    silhouette(&s, ObjectId::from_slot(0), &l, false, &mut sil);
     assert_eq!(sil.edge_count(), 4);
     assert_eq!(build(&s, &l, MethodChoice::ZPass).triangle_count(), 8);
 }
@@ -419,7 +421,7 @@ fn auto_chooses_zfail_when_the_camera_is_in_shadow() {
     let l = point(DVec3::new(0.0, 12.0, 20.0));
     let mut buf = VolumeBuffer::new();
     let mut cache = SilhouetteCache::new();
-    let ids = [ObjectId(0), ObjectId(1)];
+    let ids = [ObjectId::from_slot(0), ObjectId::from_slot(1)];
     let st = build_volumes(
         &mut buf,
         &s,
@@ -492,7 +494,7 @@ fn bad_lights_and_ids_are_errors() {
             &s,
             &camera(),
             &l,
-            &[ObjectId(0)],
+            &[ObjectId::from_slot(0)],
             BuildOptions::default(),
             &mut cache,
         );
@@ -503,7 +505,7 @@ fn bad_lights_and_ids_are_errors() {
         &s,
         &camera(),
         &point(DVec3::Y * 5.0),
-        &[ObjectId(3)],
+        &[ObjectId::from_slot(3)],
         BuildOptions::default(),
         &mut cache,
     );
@@ -529,7 +531,7 @@ fn light_inside_a_closed_object_casts_nothing_one_sided() {
         &s,
         &camera(),
         &l,
-        &[ObjectId(0)],
+        &[ObjectId::from_slot(0)],
         opts,
         &mut cache,
     )
@@ -601,7 +603,7 @@ proptest! {
         let mut buf = VolumeBuffer::new();
         let mut cache = SilhouetteCache::new();
         let opts = BuildOptions { method: MethodChoice::ZFail, two_sided, viewport: None, ..Default::default() };
-        build_volumes(&mut buf, &s, &camera(), &l, &[ObjectId(0)], opts, &mut cache).unwrap();
+        build_volumes(&mut buf, &s, &camera(), &l, &[ObjectId::from_slot(0)], opts, &mut cache).unwrap();
         let r = &buf.ranges[0];
         let mut count = 0;
         for t in r.indices().step_by(3) {
@@ -609,7 +611,7 @@ proptest! {
             let Some(c) = crossing(e.extend(1.0), q.extend(1.0), tri) else { return Ok(()); };
             count += c;
         }
-        let (Some(bq), Some(be)) = (blockers(&s, ObjectId(0), q, &l, two_sided), blockers(&s, ObjectId(0), e, &l, two_sided)) else {
+        let (Some(bq), Some(be)) = (blockers(&s, ObjectId::from_slot(0), q, &l, two_sided), blockers(&s, ObjectId::from_slot(0), e, &l, two_sided)) else {
             return Ok(());
         };
         prop_assert_eq!(count, bq - be);
@@ -637,7 +639,7 @@ proptest! {
         let Ok(cam) = Camera::look_at(eye, centre + DVec3::from(target), DVec3::Y, fov, 1.3, near) else {
             return Ok(());
         };
-        let bounds = s.object(ObjectId(0)).world_bounds;
+        let bounds = s.object(ObjectId::from_slot(0)).world_bounds;
         if !shadowgen::zpass_is_safe(&cam, &l, &bounds) {
             return Ok(());
         }
@@ -646,7 +648,7 @@ proptest! {
             for j in 0..=8 {
                 let (u, v) = (i as f64 / 8.0, j as f64 / 8.0);
                 let r = c[0] + (c[1] - c[0]) * u + (c[3] - c[0]) * v;
-                if let Some(n) = blockers(&s, ObjectId(0), r, &l, true) {
+                if let Some(n) = blockers(&s, ObjectId::from_slot(0), r, &l, true) {
                     prop_assert_eq!(n, 0, "near point {:?} is in shadow", r);
                 }
             }
@@ -703,7 +705,7 @@ proptest! {
             return Ok(());
         };
         let (wd, ht) = (80u32, 60u32);
-        let b = shadowgen::volume_bounds(&cam, (wd, ht), &l, &s.object(ObjectId(0)).world_bounds, &s.bounds());
+        let b = shadowgen::volume_bounds(&cam, (wd, ht), &l, &s.object(ObjectId::from_slot(0)).world_bounds, &s.bounds());
         prop_assert!(b.scissor[0] <= b.scissor[2] && b.scissor[1] <= b.scissor[3]);
         prop_assert!(b.depth_near >= b.depth_far);
         let sb = s.bounds();
@@ -719,7 +721,7 @@ proptest! {
             };
             if !sb.contains(q.as_vec3())
                 || !l.reaches(q)
-                || blockers(&s, ObjectId(0), q, &l, true).unwrap_or(0) == 0
+                || blockers(&s, ObjectId::from_slot(0), q, &l, true).unwrap_or(0) == 0
             {
                 continue;
             }
@@ -743,7 +745,9 @@ proptest! {
 fn build_opts(s: &Scene, l: &Light, opts: BuildOptions) -> (VolumeBuffer, shadowgen::VolumeStats) {
     let mut buf = VolumeBuffer::new();
     let mut cache = SilhouetteCache::new();
-    let ids: Vec<ObjectId> = (0..s.objects().len() as u32).map(ObjectId).collect();
+    let ids: Vec<ObjectId> = (0..s.objects().len() as u32)
+        .map(ObjectId::from_slot)
+        .collect();
     let st = build_volumes(&mut buf, s, &camera(), l, &ids, opts, &mut cache).unwrap();
     buf.check().unwrap();
     assert_eq!(st.volume_triangles, buf.triangle_count());
@@ -962,7 +966,7 @@ proptest! {
         frac in 0.0f64..1.0,
     ) {
         let s = scene_with(star_sphere(&radii, 4, 5), w);
-        let bounds = s.object(ObjectId(0)).world_bounds;
+        let bounds = s.object(ObjectId::from_slot(0)).world_bounds;
         let Some(axis) = shadowgen::SegmentAxis::new(&l, &bounds) else { return Ok(()) };
         // Intervals in units of the caster's depth extent beyond its far end.
         let [c0, c1] = axis.box_depths(&bounds);
@@ -973,18 +977,18 @@ proptest! {
             intervals.push([a, a + len * unit]);
         }
         let mut plan = shadowgen::ClampPlan::new();
-        plan.set(ObjectId(0), axis, &intervals);
+        plan.set(ObjectId::from_slot(0), axis, &intervals);
         let opts = BuildOptions { method: MethodChoice::ZFail, ..Default::default() };
         let (mut unclamped, mut clamped) = (VolumeBuffer::new(), VolumeBuffer::new());
         let mut cache = SilhouetteCache::new();
-        build_volumes(&mut unclamped, &s, &camera(), &l, &[ObjectId(0)], opts, &mut cache).unwrap();
+        build_volumes(&mut unclamped, &s, &camera(), &l, &[ObjectId::from_slot(0)], opts, &mut cache).unwrap();
         let cam = camera();
         let request = shadowgen::VolumeRequest {
-            scene: &s, camera: &cam, light: &l, casters: &[ObjectId(0)], options: opts,
+            scene: &s, camera: &cam, light: &l, casters: &[ObjectId::from_slot(0)], options: opts,
         };
         let st = shadowgen::build_clamped_volumes(&mut clamped, &request, &mut cache, &plan).unwrap();
         clamped.check().unwrap();
-        let widened = plan.get(ObjectId(0)).unwrap().1.to_vec();
+        let widened = plan.get(ObjectId::from_slot(0)).unwrap().1.to_vec();
         prop_assert_eq!(st.segments, widened.len());
         prop_assert_eq!(st.volume_triangles, clamped.triangle_count());
         for (k, r) in clamped.ranges.iter().enumerate() {
@@ -1060,7 +1064,7 @@ proptest! {
             }
         }
         let s = scene_with(star_sphere(&radii, 4, 5), w);
-        let bounds = s.object(ObjectId(0)).world_bounds;
+        let bounds = s.object(ObjectId::from_slot(0)).world_bounds;
         let cam = camera();
         let base = shadowgen::EyeSlices::new(&cam, (64, 48), &l, n).unwrap();
         let Some(axis) = shadowgen::SegmentAxis::new(&l, &bounds) else { return Ok(()) };
@@ -1072,20 +1076,20 @@ proptest! {
                 .collect(),
         );
         let input = shadowgen::ClampInput {
-            scene: &s, light: &l, casters: &[ObjectId(0)], receives: &[true], cost: None,
+            scene: &s, light: &l, casters: &[ObjectId::from_slot(0)], receives: &[true], cost: None,
         };
         let mut plan = shadowgen::ClampPlan::new();
         shadowgen::LightClamp::new().plan_sliced(&input, &base, &found, &mut plan);
-        let Some((slices, intervals)) = plan.get_sliced(ObjectId(0)) else { return Ok(()) };
+        let Some((slices, intervals)) = plan.get_sliced(ObjectId::from_slot(0)) else { return Ok(()) };
         let (slices, intervals) = (*slices, intervals.to_vec());
         prop_assert!(intervals.windows(2).all(|w| w[0][1] < w[1][0]));
         prop_assert!(intervals[..intervals.len() - 1].iter().all(|i| i[1].is_finite()));
         let opts = BuildOptions { method: MethodChoice::ZFail, ..Default::default() };
         let (mut unclamped, mut clamped) = (VolumeBuffer::new(), VolumeBuffer::new());
         let mut cache = SilhouetteCache::new();
-        build_volumes(&mut unclamped, &s, &cam, &l, &[ObjectId(0)], opts, &mut cache).unwrap();
+        build_volumes(&mut unclamped, &s, &cam, &l, &[ObjectId::from_slot(0)], opts, &mut cache).unwrap();
         let request = shadowgen::VolumeRequest {
-            scene: &s, camera: &cam, light: &l, casters: &[ObjectId(0)], options: opts,
+            scene: &s, camera: &cam, light: &l, casters: &[ObjectId::from_slot(0)], options: opts,
         };
         let st = shadowgen::build_clamped_volumes(&mut clamped, &request, &mut cache, &plan).unwrap();
         clamped.check().unwrap();
@@ -1154,7 +1158,7 @@ fn sliced_segments_extrude_to_infinity_past_the_rays_reach() {
     let input = shadowgen::ClampInput {
         scene: &s,
         light: &l,
-        casters: &[ObjectId(0)],
+        casters: &[ObjectId::from_slot(0)],
         receives: &[true],
         cost: None,
     };
@@ -1169,7 +1173,7 @@ fn sliced_segments_extrude_to_infinity_past_the_rays_reach() {
         &s,
         &cam,
         &l,
-        &[ObjectId(0)],
+        &[ObjectId::from_slot(0)],
         opts,
         &mut cache,
     )
@@ -1178,7 +1182,7 @@ fn sliced_segments_extrude_to_infinity_past_the_rays_reach() {
         scene: &s,
         camera: &cam,
         light: &l,
-        casters: &[ObjectId(0)],
+        casters: &[ObjectId::from_slot(0)],
         options: opts,
     };
     let (mut tails, mut checked) = (0, 0);
@@ -1187,7 +1191,7 @@ fn sliced_segments_extrude_to_infinity_past_the_rays_reach() {
         let found = Found(vec![[base.edge(i), base.edge(i + 1)]]);
         let mut plan = shadowgen::ClampPlan::new();
         shadowgen::LightClamp::new().plan_sliced(&input, &base, &found, &mut plan);
-        let Some((slices, intervals)) = plan.get_sliced(ObjectId(0)) else {
+        let Some((slices, intervals)) = plan.get_sliced(ObjectId::from_slot(0)) else {
             continue;
         };
         let (slices, intervals) = (*slices, intervals.to_vec());
@@ -1251,7 +1255,7 @@ fn clamp_plans_are_reused_until_something_moves() {
         Scene::new(g).unwrap()
     };
     let l = point(DVec3::new(0.0, 5.0, 0.0));
-    let casters = [ObjectId(0)];
+    let casters = [ObjectId::from_slot(0)];
     let receives = [true; 4];
     let mut clamp = shadowgen::LightClamp::new();
     let mut plan = shadowgen::ClampPlan::new();
@@ -1265,7 +1269,7 @@ fn clamp_plans_are_reused_until_something_moves() {
     };
     let first = clamp.plan(&input, &mut plan).unwrap();
     assert!(!first.cached && first.sap_pairs > 0);
-    let (axis, intervals) = plan.get(ObjectId(0)).unwrap();
+    let (axis, intervals) = plan.get(ObjectId::from_slot(0)).unwrap();
     let intervals = intervals.to_vec();
     // The caster itself and the two boxes below it: three intervals (the
     // side box is not in its shadow).
@@ -1284,7 +1288,7 @@ fn clamp_plans_are_reused_until_something_moves() {
         .any(|i| i[0] <= depth(-9.0) && depth(-9.0) <= i[1]));
     let again = clamp.plan(&input, &mut plan).unwrap();
     assert!(again.cached && again.sap_pairs == 0);
-    assert_eq!(plan.get(ObjectId(0)).unwrap().1, &intervals[..]);
+    assert_eq!(plan.get(ObjectId::from_slot(0)).unwrap().1, &intervals[..]);
     // The side box stops receiving: swept again, but the caster does not
     // pair with it and keeps its intervals; the lowest box stops: the
     // caster's intervals are recomputed without it.
@@ -1304,7 +1308,7 @@ fn clamp_plans_are_reused_until_something_moves() {
             !st.cached && st.cached_casters == kept,
             "box {dropped}: {st:?}"
         );
-        let now = plan.get(ObjectId(0)).unwrap().1;
+        let now = plan.get(ObjectId::from_slot(0)).unwrap().1;
         assert_eq!(now.len(), segments);
         assert!(
             kept == 0 || now == &intervals[..],
@@ -1312,7 +1316,7 @@ fn clamp_plans_are_reused_until_something_moves() {
         );
     }
     clamp.plan(&input, &mut plan).unwrap();
-    assert_eq!(plan.get(ObjectId(0)).unwrap().1, &intervals[..]);
+    assert_eq!(plan.get(ObjectId::from_slot(0)).unwrap().1, &intervals[..]);
     // A box moves: recomputed, and the interval follows it.
     let moved = build(1.0);
     let input = shadowgen::ClampInput {
@@ -1321,7 +1325,7 @@ fn clamp_plans_are_reused_until_something_moves() {
     };
     let after = clamp.plan(&input, &mut plan).unwrap();
     assert!(!after.cached);
-    let (axis, now) = plan.get(ObjectId(0)).unwrap();
+    let (axis, now) = plan.get(ObjectId::from_slot(0)).unwrap();
     let d = axis.depth(DVec3::new(0.0, -7.0, 0.0));
     assert!(now.iter().any(|i| i[0] <= d && d <= i[1]) && now != &intervals[..]);
     // Fewer receivers: recomputed; the caster alone keeps its own interval.
@@ -1336,7 +1340,7 @@ fn clamp_plans_are_reused_until_something_moves() {
         )
         .unwrap();
     assert!(!alone.cached);
-    assert_eq!(plan.get(ObjectId(0)).unwrap().1.len(), 1);
+    assert_eq!(plan.get(ObjectId::from_slot(0)).unwrap().1.len(), 1);
 }
 
 proptest! {
@@ -1374,7 +1378,7 @@ proptest! {
                 let f = if which { &mut receives } else { &mut casts };
                 f[i % n] = !f[i % n];
             }
-            let casters: Vec<ObjectId> = (0..n as u32).filter(|&i| casts[i as usize]).map(ObjectId).collect();
+            let casters: Vec<ObjectId> = (0..n as u32).filter(|&i| casts[i as usize]).map(ObjectId::from_slot).collect();
             let input = shadowgen::ClampInput {
                 scene: &s,
                 light: &l,
@@ -1387,7 +1391,7 @@ proptest! {
             prop_assert_eq!(plan.len(), fresh_plan.len());
             for c in &casters {
                 prop_assert_eq!(plan.get(*c).map(|p| p.1), fresh_plan.get(*c).map(|p| p.1),
-                    "step {} caster {}", k, c.0);
+                    "step {} caster {}", k, c.slot());
             }
         }
     }
@@ -1501,8 +1505,10 @@ fn huge_coordinate_soups_count_their_blockers() {
             assert!(boundary(&buf, r).is_empty(), "case {k}: an open volume");
         }
         let count = buffer_crossings(&buf, c.e, c.q).expect("decidable crossings");
-        let bq = blockers(&s, ObjectId(0), c.q, &l, c.two_sided).expect("decidable blockers");
-        let be = blockers(&s, ObjectId(0), c.e, &l, c.two_sided).expect("decidable blockers");
+        let bq =
+            blockers(&s, ObjectId::from_slot(0), c.q, &l, c.two_sided).expect("decidable blockers");
+        let be =
+            blockers(&s, ObjectId::from_slot(0), c.e, &l, c.two_sided).expect("decidable blockers");
         assert_eq!(count, bq - be, "case {k}: crossings against blockers");
     }
 }

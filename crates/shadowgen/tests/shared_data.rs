@@ -39,7 +39,9 @@ fn check_scene(name: &str, scene: &Scene, lights: &[Light]) {
         r * 1e-3,
     )
     .unwrap();
-    let ids: Vec<ObjectId> = (0..scene.objects().len() as u32).map(ObjectId).collect();
+    let ids: Vec<ObjectId> = (0..scene.objects().len() as u32)
+        .map(ObjectId::from_slot)
+        .collect();
     let mut cache = SilhouetteCache::new();
     let mut buf = VolumeBuffer::new();
     for (i, l) in lights.iter().enumerate() {

@@ -425,7 +425,7 @@ mod tests {
             e.meshes.rock,
             e.meshes.pillar,
         ] {
-            let mesh = &s.graph().meshes()[m.0 as usize];
+            let mesh = &s.graph().meshes()[m.index()];
             assert!(mesh.solid().is_some(), "{} is closed", mesh.name());
         }
         let (mut alive, mut seen) = (std::collections::BTreeSet::new(), 0);

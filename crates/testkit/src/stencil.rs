@@ -250,7 +250,9 @@ fn volumes(
     clamped: bool,
 ) -> Result<VolumeBuffer, String> {
     let mut buf = VolumeBuffer::new();
-    let casters: Vec<ObjectId> = (0..scene.objects().len() as u32).map(ObjectId).collect();
+    let casters: Vec<ObjectId> = (0..scene.objects().len() as u32)
+        .map(ObjectId::from_slot)
+        .collect();
     let mut cache = shadowgen::SilhouetteCache::default();
     let err = |e: shadowgen::Error| e.to_string();
     let request = shadowgen::VolumeRequest {

@@ -69,7 +69,7 @@ mod tests {
         });
         Object {
             node: NodeId(0),
-            mesh: MeshId(0),
+            mesh: MeshId::from_slot(0),
             world_from_local: m,
             mirrored: m.determinant() < 0.0,
             world_bounds: Aabb::from_points(corners),

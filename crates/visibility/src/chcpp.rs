@@ -145,7 +145,7 @@ impl ViewCuller {
                     run.render(&n)?;
                     // Assumed visible; queried (later) only when due.
                     self.pull_up(run.h, node);
-                    run.out.visible.push(ObjectId(n.object));
+                    run.out.visible.push(ObjectId::from_slot(n.object));
                     if o.revisit_due(n.object, frame) {
                         s.revisit.push_back(node);
                     }
@@ -238,7 +238,7 @@ impl ViewCuller {
                 // another descendant is).
                 self.state[node as usize].visible = false;
                 let obj = run.h.nodes[node as usize].object;
-                run.out.visible.retain(|o| o.0 != obj);
+                run.out.visible.retain(|o| o.slot() != obj);
             }
             return Ok(());
         }
@@ -248,7 +248,7 @@ impl ViewCuller {
                 self.pull_up(run.h, node);
                 let n = run.h.nodes[node as usize];
                 if n.is_leaf() {
-                    run.out.visible.push(ObjectId(n.object));
+                    run.out.visible.push(ObjectId::from_slot(n.object));
                 }
                 if !was_visible {
                     self.traverse(run, &mut s.distance, &n)?;

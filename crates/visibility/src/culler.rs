@@ -263,7 +263,7 @@ pub(crate) struct Run<'a, 'b> {
 
 impl Run<'_, '_> {
     pub fn render(&mut self, node: &Node) -> Result<()> {
-        let id = ObjectId(node.object);
+        let id = ObjectId::from_slot(node.object);
         let o = self.scene.object(id);
         if self.view.preloaded || !(self.view.occluder)(&o.flags) {
             self.out.rendered.push(id);
@@ -271,7 +271,7 @@ impl Run<'_, '_> {
             return Ok(());
         }
         let drawn = self.view.occluder_mesh(o);
-        let mesh = drawn.0 as usize;
+        let mesh = drawn.index();
         let inner = self.view.draw_coverage == raster::Coverage::Inner(raster::DepthPick::Farthest);
         let closed = || match self.scene.graph().meshes()[mesh].solid() {
             Some(_) => raster::Whole::Closed,

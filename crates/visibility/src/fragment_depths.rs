@@ -83,7 +83,7 @@ pub struct FragmentDepths {
 impl FragmentDepths {
     /// The fragment intervals of `caster`, `None` without an entry.
     pub fn get(&self, caster: ObjectId) -> Option<&[[f64; 2]]> {
-        let k = self.ids.binary_search(&caster.0).ok()?;
+        let k = self.ids.binary_search(&caster.slot()).ok()?;
         Some(&self.intervals[self.starts[k] as usize..self.starts[k + 1] as usize])
     }
 
@@ -232,7 +232,7 @@ impl ViewFragments<'_> {
             let m = (&view.clip_from_world, world_from_clip);
             out.pixels[1] += crate::slice_occupancy::read_caster(
                 r,
-                id.0,
+                id.slot(),
                 &bounds,
                 self.light,
                 self.diameter,
@@ -311,7 +311,7 @@ impl ViewFragments<'_> {
         for &r in ranges.iter() {
             match out[first..].last_mut() {
                 Some((_, last)) if r[0] <= last[1] => last[1] = last[1].max(r[1]),
-                _ => out.push((id.0, r)),
+                _ => out.push((id.slot(), r)),
             }
         }
         pixels
@@ -578,12 +578,12 @@ mod tests {
         f.gather([&a[..], &b[..]]);
         assert_eq!(f.len(), 3);
         assert_eq!(
-            f.get(ObjectId(3)),
+            f.get(ObjectId::from_slot(3)),
             Some(&[[1.0, 3.0], [5.0, 6.0], [7.0, 8.0]][..])
         );
-        assert_eq!(f.get(ObjectId(4)), Some(&[[2.0, 2.5]][..]));
-        assert_eq!(f.get(ObjectId(7)), Some(&[[0.0, 1.0]][..]));
-        assert_eq!(f.get(ObjectId(5)), None);
+        assert_eq!(f.get(ObjectId::from_slot(4)), Some(&[[2.0, 2.5]][..]));
+        assert_eq!(f.get(ObjectId::from_slot(7)), Some(&[[0.0, 1.0]][..]));
+        assert_eq!(f.get(ObjectId::from_slot(5)), None);
         f.gather(std::iter::empty());
         assert!(f.is_empty());
     }

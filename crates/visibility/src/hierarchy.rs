@@ -108,7 +108,7 @@ impl Hierarchy {
     /// When `id` is out of range.
     pub fn object(&self, id: BvhNodeId) -> Option<ObjectId> {
         let n = &self.nodes[id.0 as usize];
-        n.is_leaf().then_some(ObjectId(n.object))
+        n.is_leaf().then_some(ObjectId::from_slot(n.object))
     }
 }
 
@@ -131,7 +131,7 @@ mod tests {
         let mut seen = vec![0u32; scene.objects().len()];
         for (i, n) in h.nodes.iter().enumerate() {
             if let Some(o) = h.object(BvhNodeId(i as u32)) {
-                seen[o.0 as usize] += 1;
+                seen[o.index()] += 1;
                 let b = scene.object(o).world_bounds;
                 let mut p = i as u32;
                 while p != NONE {

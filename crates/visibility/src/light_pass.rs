@@ -52,7 +52,7 @@ use raster::{
 };
 #[cfg(feature = "parallel")]
 use rayon::prelude::*;
-use scene::{faces_light, Camera, Light, ObjectId, Plane, Scene};
+use scene::{faces_light, Camera, Light, LightId, ObjectId, Plane, Scene};
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex, OnceLock, PoisonError};
 
@@ -72,8 +72,8 @@ pub enum ViewRole {
     /// and queries outer-conservative at nearest depth; queries restricted to
     /// the receiver target set by [`OcclusionBackend::set_receivers`].
     LightView {
-        /// The caller's key of the light (the pipeline's light id).
-        light: u32,
+        /// The light (the pipeline's id of it).
+        light: LightId,
         /// The view's index among the light's views.
         view: u32,
         /// Side of the view in pixels.
@@ -339,7 +339,7 @@ fn facing_triangles<'a>(
     proxy: Option<&'a [[u32; 3]]>,
 ) -> impl Iterator<Item = [u32; 3]> + 'a {
     let o = scene.object(id);
-    let positions = scene.graph().meshes()[mesh.0 as usize].positions();
+    let positions = scene.graph().meshes()[mesh.index()].positions();
     let (m, mirrored) = (o.world_from_local, o.mirrored);
     // Counter-clockwise is front even for mirrored objects (as
     // `Scene::world_triangle`).
@@ -350,7 +350,7 @@ fn facing_triangles<'a>(
             false => [a, b, c],
         }
     };
-    let triangles = proxy.unwrap_or(scene.graph().meshes()[mesh.0 as usize].triangles());
+    let triangles = proxy.unwrap_or(scene.graph().meshes()[mesh.index()].triangles());
     triangles
         .iter()
         .filter(move |t| faces_light(&world(t), light))
@@ -399,9 +399,9 @@ impl CastingCache {
                 // when that is unshared and long enough (no allocation).
                 let mut c = e.take().expect("checked");
                 if !two_sided {
-                    let id = ObjectId(k as u32);
+                    let id = ObjectId::from_slot(k as u32);
                     let proxy = meshes.proxy_of(drawn).filter(|_| proxies);
-                    let all = proxy.map_or(meshes.triangles[drawn.0 as usize].len(), |p| p.len());
+                    let all = proxy.map_or(meshes.triangles[drawn.index()].len(), |p| p.len());
                     self.found.clear();
                     self.found.reserve(all);
                     self.found.extend(facing_triangles(
@@ -430,7 +430,7 @@ impl CastingCache {
         (two_sided, proxies): (bool, bool),
         id: ObjectId,
     ) -> Arc<[[u32; 3]]> {
-        self.entries[id.0 as usize]
+        self.entries[id.index()]
             .get_or_init(|| {
                 let o = scene.object(id);
                 let drawn = drawn_mesh(o, proxies);
@@ -554,7 +554,7 @@ impl LightPass {
         input: &PassInput<'_>,
         light: &Light,
         options: &LightPassOptions,
-        backends: Option<(&BackendFactory, u32)>,
+        backends: Option<(&BackendFactory, LightId)>,
     ) -> Result<LightPassResult> {
         let mut out = LightPassResult::default();
         self.run_into(input, light, options, backends, &mut out)?;
@@ -571,7 +571,7 @@ impl LightPass {
         input: &PassInput<'_>,
         light: &Light,
         options: &LightPassOptions,
-        backends: Option<(&BackendFactory, u32)>,
+        backends: Option<(&BackendFactory, LightId)>,
         out: &mut LightPassResult,
     ) -> Result<()> {
         let PassInput {
@@ -728,8 +728,8 @@ impl LightPass {
                 out.fragment_ms += slot.fragment_ms;
             }
             for id in &r.visible {
-                if !self.in_psc[id.0 as usize] {
-                    self.in_psc[id.0 as usize] = true;
+                if !self.in_psc[id.index()] {
+                    self.in_psc[id.index()] = true;
                     out.psc.push(*id);
                 }
             }

@@ -224,7 +224,7 @@ impl ViewCuller {
                     self.pull_up(run.h, node);
                     let n = &run.h.nodes[node as usize];
                     if n.is_leaf() {
-                        run.out.visible.push(ObjectId(n.object));
+                        run.out.visible.push(ObjectId::from_slot(n.object));
                     }
                     if !was_visible {
                         let n = run.h.nodes[node as usize];

@@ -52,14 +52,14 @@ impl MeshData {
 
     /// The triangles of mesh `mesh` (shared).
     pub(crate) fn triangles_of(&self, mesh: scene::MeshId) -> Arc<[[u32; 3]]> {
-        self.triangles[mesh.0 as usize].clone()
+        self.triangles[mesh.index()].clone()
     }
 
     /// The triangles of a convex solid inside mesh `mesh`, drawn whole
     /// ([`raster::DrawCommand::whole`]): its proxy, or its own when the
     /// mesh is convex; `None` for other meshes.
     pub(crate) fn hull_of(&self, mesh: scene::MeshId) -> Option<&Arc<[[u32; 3]]>> {
-        let i = mesh.0 as usize;
+        let i = mesh.index();
         self.proxy_of(mesh)
             .or_else(|| self.convex.get(i).copied()?.then(|| &self.triangles[i]))
     }
@@ -67,13 +67,13 @@ impl MeshData {
     /// Whether the occluder triangles a view draws of mesh `mesh` bound a
     /// convex solid: the mesh is convex, or (`proxies`) they are its proxy's.
     pub(crate) fn convex_draw(&self, mesh: scene::MeshId, proxies: bool) -> bool {
-        let i = mesh.0 as usize;
+        let i = mesh.index();
         self.convex.get(i).copied().unwrap_or(false) || (proxies && self.proxy_of(mesh).is_some())
     }
 
     /// The occluder proxy of mesh `mesh`, `None` when the mesh is its own.
     pub(crate) fn proxy_of(&self, mesh: scene::MeshId) -> Option<&Arc<[[u32; 3]]>> {
-        self.proxies.get(mesh.0 as usize)?.as_ref()
+        self.proxies.get(mesh.index())?.as_ref()
     }
 
     /// Triangles an occluder draw of every mesh with an object holds:
@@ -82,9 +82,9 @@ impl MeshData {
     pub fn occluder_triangles(&self, scene: &Scene) -> (u64, u64) {
         let (mut full, mut proxied) = (0u64, 0u64);
         for o in scene.objects() {
-            full += self.triangles[o.mesh.0 as usize].len() as u64;
+            full += self.triangles[o.mesh.index()].len() as u64;
             let m = drawn_mesh(o, true);
-            let n = self.triangles[m.0 as usize].len() as u64;
+            let n = self.triangles[m.index()].len() as u64;
             proxied += self.proxy_of(m).map_or(n, |p| p.len() as u64);
         }
         (full, proxied)
@@ -101,7 +101,7 @@ impl MeshData {
         self.convex.truncate(meshes.len());
         self.versions.truncate(meshes.len());
         for (i, m) in meshes.iter().enumerate() {
-            let version = scene.mesh_version(scene::MeshId(i as u32));
+            let version = scene.mesh_version(scene::MeshId::from_slot(i as u32));
             if self.versions.get(i) == Some(&version) {
                 continue;
             }

@@ -87,7 +87,7 @@ pub fn run(data: &[u8]) {
     ) else {
         return;
     };
-    let casters = [ObjectId(0)];
+    let casters = [ObjectId::from_slot(0)];
     let mut buf = shadowcull::raster::VolumeBuffer::new();
     let mut cache = SilhouetteCache::new();
     for method in [
@@ -136,8 +136,8 @@ pub fn run(data: &[u8]) {
             continue;
         };
         let (Some(bq), Some(be)) = (
-            blockers(&s, ObjectId(0), q, &light, two_sided),
-            blockers(&s, ObjectId(0), e, &light, two_sided),
+            blockers(&s, ObjectId::from_slot(0), q, &light, two_sided),
+            blockers(&s, ObjectId::from_slot(0), e, &light, two_sided),
         ) else {
             continue;
         };
@@ -154,7 +154,7 @@ pub fn run(data: &[u8]) {
         );
     }
     // Segments over arbitrary sorted depth intervals: each closed.
-    let bounds = s.object(ObjectId(0)).world_bounds;
+    let bounds = s.object(ObjectId::from_slot(0)).world_bounds;
     let Some(axis) = SegmentAxis::new(&light, &bounds) else {
         return;
     };
@@ -166,7 +166,7 @@ pub fn run(data: &[u8]) {
         intervals.push([a, a + (0.01 + b.unit()) * unit]);
     }
     let mut plan = ClampPlan::new();
-    plan.set(ObjectId(0), axis, &intervals);
+    plan.set(ObjectId::from_slot(0), axis, &intervals);
     let request = VolumeRequest {
         scene: &s,
         light: &light,

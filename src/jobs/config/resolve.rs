@@ -221,7 +221,7 @@ fn merged_graph(graph: SceneGraph) -> Result<SceneGraph> {
     let meshes = scene.graph().meshes();
     let (mut positions, mut triangles) = (Vec::new(), Vec::new());
     for o in scene.objects() {
-        let mesh = &meshes[o.mesh.0 as usize];
+        let mesh = &meshes[o.mesh.index()];
         let first = u32::try_from(positions.len())
             .ok()
             .filter(|f| f.checked_add(mesh.positions().len() as u32).is_some())

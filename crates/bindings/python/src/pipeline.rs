@@ -125,7 +125,7 @@ impl Pipeline {
     /// The arrays of one light's output.
     fn light_dict<'py>(py: Python<'py>, l: &LightOutput<'_>) -> PyResult<Bound<'py, PyDict>> {
         let d = PyDict::new(py);
-        d.set_item("id", l.id().0)?;
+        d.set_item("id", l.id().to_bits())?;
         d.set_item("psc", vec1(py, ids(l.psc())))?;
         let v = l.volumes();
         d.set_item(
@@ -153,8 +153,8 @@ impl Pipeline {
     }
 }
 
-fn ids(v: &[ObjectId]) -> Vec<u32> {
-    v.iter().map(|id| id.0).collect()
+fn ids(v: &[ObjectId]) -> Vec<u64> {
+    v.iter().map(|id| id.to_bits()).collect()
 }
 
 /// The ranges of a volume buffer, one column per field.
@@ -163,7 +163,7 @@ fn ranges<'py>(py: Python<'py>, v: &VolumeBuffer) -> PyResult<Bound<'py, PyDict>
     let n = r.len();
     let col = |f: fn(&shadowcull::raster::VolumeRange) -> u32| r.iter().map(f).collect::<Vec<_>>();
     let d = PyDict::new(py);
-    d.set_item("object", vec1(py, col(|r| r.object)))?;
+    d.set_item("object", vec1(py, r.iter().map(|r| r.object).collect()))?;
     d.set_item("segment", vec1(py, col(|r| r.segment)))?;
     let method = |m: VolumeMethod| match m {
         VolumeMethod::ZPass => 0u8,
@@ -247,103 +247,118 @@ impl Pipeline {
         positions: &Bound<'_, PyAny>,
         indices: &Bound<'_, PyAny>,
         name: &str,
-    ) -> PyResult<u32> {
+    ) -> PyResult<u64> {
         let p = arrays::positions(positions)?;
         let t = arrays::triangles(indices)?;
         let mesh = Mesh::new(name, &p, &t).map_err(scene_to_py)?;
-        Ok(self.inner.add_mesh(mesh).0)
+        Ok(self.inner.add_mesh(mesh).to_bits())
     }
 
     /// New positions for a mesh of the same topology.
     fn update_mesh_positions(
         &mut self,
-        mesh: u32,
+        mesh: u64,
         positions: &Bound<'_, PyAny>,
         indices: &Bound<'_, PyAny>,
     ) -> PyResult<()> {
         let p = arrays::positions(positions)?;
         let t = arrays::triangles(indices)?;
         self.inner
-            .update_mesh_positions(MeshId(mesh), &p, &t)
+            .update_mesh_positions(MeshId::from_bits(mesh), &p, &t)
             .map_err(to_py)
     }
 
-    fn remove_mesh(&mut self, mesh: u32) -> PyResult<()> {
-        self.inner.remove_mesh(MeshId(mesh)).map_err(to_py)
+    fn remove_mesh(&mut self, mesh: u64) -> PyResult<()> {
+        self.inner
+            .remove_mesh(MeshId::from_bits(mesh))
+            .map_err(to_py)
     }
 
     /// Adds an object drawing `mesh` with the 4×4 `transform` (numpy layout).
     fn add_object(
         &mut self,
-        mesh: u32,
+        mesh: u64,
         transform: PyReadonlyArray2<'_, f64>,
         casts: bool,
         receives: bool,
         occludes: bool,
         visible: bool,
-    ) -> PyResult<u32> {
+    ) -> PyResult<u64> {
         let m = matrix("transform", transform)?;
         let f = flags(casts, receives, occludes, visible);
-        let id = self.inner.add_object(MeshId(mesh), m, f).map_err(to_py)?;
-        self.grow_bounds(MeshId(mesh), &m);
-        Ok(id.0)
+        let id = self
+            .inner
+            .add_object(MeshId::from_bits(mesh), m, f)
+            .map_err(to_py)?;
+        self.grow_bounds(MeshId::from_bits(mesh), &m);
+        Ok(id.to_bits())
     }
 
-    fn set_transform(&mut self, object: u32, transform: PyReadonlyArray2<'_, f64>) -> PyResult<()> {
+    fn set_transform(&mut self, object: u64, transform: PyReadonlyArray2<'_, f64>) -> PyResult<()> {
         let m = matrix("transform", transform)?;
-        self.inner.set_transform(ObjectId(object), m).map_err(to_py)
+        self.inner
+            .set_transform(ObjectId::from_bits(object), m)
+            .map_err(to_py)
     }
 
     fn set_flags(
         &mut self,
-        object: u32,
+        object: u64,
         casts: bool,
         receives: bool,
         occludes: bool,
         visible: bool,
     ) -> PyResult<()> {
         let f = flags(casts, receives, occludes, visible);
-        self.inner.set_flags(ObjectId(object), f).map_err(to_py)
-    }
-
-    #[pyo3(signature = (object, mesh=None))]
-    fn set_occluder(&mut self, object: u32, mesh: Option<u32>) -> PyResult<()> {
         self.inner
-            .set_occluder(ObjectId(object), mesh.map(MeshId))
+            .set_flags(ObjectId::from_bits(object), f)
             .map_err(to_py)
     }
 
-    fn remove_object(&mut self, object: u32) -> PyResult<()> {
-        self.inner.remove_object(ObjectId(object)).map_err(to_py)
+    #[pyo3(signature = (object, mesh=None))]
+    fn set_occluder(&mut self, object: u64, mesh: Option<u64>) -> PyResult<()> {
+        self.inner
+            .set_occluder(ObjectId::from_bits(object), mesh.map(MeshId::from_bits))
+            .map_err(to_py)
+    }
+
+    fn remove_object(&mut self, object: u64) -> PyResult<()> {
+        self.inner
+            .remove_object(ObjectId::from_bits(object))
+            .map_err(to_py)
     }
 
     /// Adds a light from its JSON spec (the RON job's light variants).
-    fn add_light(&mut self, spec: &str) -> PyResult<u32> {
+    fn add_light(&mut self, spec: &str) -> PyResult<u64> {
         let light = self.light_of(spec)?;
-        Ok(self.inner.add_light(light).map_err(to_py)?.0)
+        Ok(self.inner.add_light(light).map_err(to_py)?.to_bits())
     }
 
-    fn set_light(&mut self, light: u32, spec: &str) -> PyResult<()> {
+    fn set_light(&mut self, light: u64, spec: &str) -> PyResult<()> {
         let l = self.light_of(spec)?;
-        self.inner.set_light(LightId(light), l).map_err(to_py)
+        self.inner
+            .set_light(LightId::from_bits(light), l)
+            .map_err(to_py)
     }
 
-    fn remove_light(&mut self, light: u32) -> PyResult<()> {
-        self.inner.remove_light(LightId(light)).map_err(to_py)
+    fn remove_light(&mut self, light: u64) -> PyResult<()> {
+        self.inner
+            .remove_light(LightId::from_bits(light))
+            .map_err(to_py)
     }
 
     /// A light as JSON (the library's `Light`).
-    fn light(&self, light: u32) -> PyResult<String> {
-        to_json(&self.inner.light(LightId(light)).map_err(to_py)?)
+    fn light(&self, light: u64) -> PyResult<String> {
+        to_json(&self.inner.light(LightId::from_bits(light)).map_err(to_py)?)
     }
 
-    fn light_ids(&self) -> Vec<u32> {
-        self.inner.light_ids().map(|l| l.0).collect()
+    fn light_ids(&self) -> Vec<u64> {
+        self.inner.light_ids().map(|l| l.to_bits()).collect()
     }
 
     /// Adds every object of a glTF, OBJ or box-city file; returns their ids
     /// and JSON of the file's named cameras, paths, lights and load warnings.
-    fn load(&mut self, py: Python<'_>, path: PathBuf) -> PyResult<(Vec<u32>, String)> {
+    fn load(&mut self, py: Python<'_>, path: PathBuf) -> PyResult<(Vec<u64>, String)> {
         let (loaded, scene) = py
             .detach(|| {
                 let mut loaded = scene::load::load_path(&path)?;
@@ -358,7 +373,7 @@ impl Pipeline {
     /// Adds the procedural city of `params` (JSON `CityParams`: the RON
     /// job's `City(...)` fields, each defaulted) with its cameras, paths and
     /// lights, as [`Pipeline::load`] adds a file's.
-    fn add_city(&mut self, py: Python<'_>, params: &str) -> PyResult<(Vec<u32>, String)> {
+    fn add_city(&mut self, py: Python<'_>, params: &str) -> PyResult<(Vec<u64>, String)> {
         let params: scene::procedural::city::CityParams = from_json("city", params)?;
         let (loaded, scene) = py
             .detach(|| {
@@ -470,10 +485,10 @@ impl Pipeline {
 
     /// The exact ray-cast mask of `light` for the last frame (the GIL
     /// released): `(mask, ambiguous)`, both `(height, width)`.
-    fn reference_mask<'py>(&mut self, py: Python<'py>, light: u32) -> PyResult<MaskPair<'py>> {
+    fn reference_mask<'py>(&mut self, py: Python<'py>, light: u64) -> PyResult<MaskPair<'py>> {
         let inner = &mut self.inner;
         let r = py
-            .detach(|| inner.reference_mask(LightId(light)))
+            .detach(|| inner.reference_mask(LightId::from_bits(light)))
             .map_err(to_py)?;
         let (w, h) = (r.mask.width as usize, r.mask.height as usize);
         Ok((
@@ -491,9 +506,11 @@ impl Pipeline {
 
     /// World matrix of an object (numpy layout), for checks and tools.
     /// An object's flags: (casts, receives, occludes, visible).
-    fn flags(&self, object: u32) -> PyResult<(bool, bool, bool, bool)> {
+    fn flags(&self, object: u64) -> PyResult<(bool, bool, bool, bool)> {
         let scene = self.inner.scene();
-        let slot = scene.live_slot(ObjectId(object)).map_err(scene_to_py)?;
+        let slot = scene
+            .live_slot(ObjectId::from_bits(object))
+            .map_err(scene_to_py)?;
         let f = scene.objects()[slot as usize].flags;
         Ok((f.casts, f.receives, f.occludes, f.visible))
     }
@@ -506,10 +523,12 @@ impl Pipeline {
     fn transform<'py>(
         &self,
         py: Python<'py>,
-        object: u32,
+        object: u64,
     ) -> PyResult<Bound<'py, numpy::PyArray2<f64>>> {
         let scene = self.inner.scene();
-        let slot = scene.live_slot(ObjectId(object)).map_err(scene_to_py)?;
+        let slot = scene
+            .live_slot(ObjectId::from_bits(object))
+            .map_err(scene_to_py)?;
         Ok(matrix_out(
             py,
             &scene.objects()[slot as usize].world_from_local,
@@ -526,18 +545,18 @@ impl Pipeline {
         loaded: Loaded,
         scene: Scene,
         what: &str,
-    ) -> PyResult<(Vec<u32>, String)> {
+    ) -> PyResult<(Vec<u64>, String)> {
         let mut names = Vec::with_capacity(scene.objects().len());
-        let mut meshes: HashMap<u32, MeshId> = HashMap::new();
+        let mut meshes: HashMap<MeshId, MeshId> = HashMap::new();
         let mut objects = Vec::with_capacity(scene.objects().len());
         for o in scene.objects().iter().filter(|o| o.alive) {
-            let mesh = match meshes.get(&o.mesh.0) {
+            let mesh = match meshes.get(&o.mesh) {
                 Some(&m) => m,
                 None => {
                     let m = self
                         .inner
-                        .add_mesh(scene.graph().meshes()[o.mesh.0 as usize].clone());
-                    meshes.insert(o.mesh.0, m);
+                        .add_mesh(scene.graph().meshes()[o.mesh.index()].clone());
+                    meshes.insert(o.mesh, m);
                     m
                 }
             };
@@ -545,7 +564,7 @@ impl Pipeline {
                 .inner
                 .add_object(mesh, o.world_from_local, o.flags)
                 .map_err(to_py)?;
-            objects.push(id.0);
+            objects.push(id.to_bits());
             names.push(scene.graph().nodes()[o.node.0 as usize].name.clone());
         }
         self.bounds = self.bounds.union(&scene.bounds());

@@ -42,7 +42,7 @@ def test_mask_equals_the_reference(stencil, culling):
             assert ref.mask.shape == mask.shape
             assert ref.mismatches(mask) == 0
         # A culled frame equals the unculled one: PSR holds every visible object.
-        assert set(f.psr.tolist()) <= {0, *cubes}
+        assert set(f.psr.tolist()) <= {0, *(c.bits for c in cubes)}
         p.set_transform(cubes[0], translation(0.2 * (frame + 1), 0.0, 0.0))
 
 
@@ -66,14 +66,14 @@ def test_volumes_are_drawable():
         assert v.indices.dtype == np.uint32 and len(v.indices) % 3 == 0
         assert v.ranges.dtype == sc.RANGE_DTYPE
         assert set(v.ranges["object"].tolist()) <= set(f.psc[light].tolist())
-        assert set(v.ranges["object"].tolist()) >= set(cubes)
+        assert set(v.ranges["object"].tolist()) >= {c.bits for c in cubes}
         for r in v.ranges:
             idx = v.indices[r["first_index"]: r["first_index"] + r["index_count"]]
             assert len(idx) == r["index_count"] > 0
             assert idx.min() >= r["first_vertex"]
             assert idx.max() < r["first_vertex"] + r["vertex_count"]
             assert r["method"] in (sc.ZPASS, sc.ZFAIL, sc.ZPPLUS)
-            np.testing.assert_array_equal(r["world_from_local"], p.transform(int(r["object"])))
+            np.testing.assert_array_equal(r["world_from_local"], p.transform(sc.ObjectId.from_bits(r["object"])))
         # The directional light has no dark caps; w = 0 marks vertices at infinity.
         if light == sun:
             assert (v.ranges["dark_cap"][:, 0] == v.ranges["dark_cap"][:, 1]).all()
@@ -142,8 +142,8 @@ def test_edits_between_frames():
     p.set_flags(cubes[2], casts=False)
     p.set_light(lamp, "spot", position=(0.0, 6.0, 0.0), direction=(0.0, -1.0, 0.0), apex_deg=60.0)
     f = p.frame(160, 120, camera=CAMERA)
-    assert cubes[1] not in f.psr.tolist()
-    assert cubes[2] not in f.psc[sun].tolist()
+    assert cubes[1].bits not in f.psr.tolist()
+    assert cubes[2].bits not in f.psc[sun].tolist()
     assert "Spot" in p.light(lamp)
     for light in (lamp, sun):
         assert p.reference_mask(light).mismatches(f.mask[light]) == 0
@@ -174,7 +174,7 @@ def test_a_host_depth_stands_in_for_the_eye_pass():
     p, cubes, lamp, sun = box_scene(stencil="bf", culling="chcpp")
     # Nothing drawn: nothing hidden, the masks exact.
     f = p.frame(320, 240, camera=CAMERA, host_depth=np.zeros((240, 320), np.float32))
-    assert set(cubes) <= set(f.psr.tolist())
+    assert {c.bits for c in cubes} <= set(f.psr.tolist())
     for light in (lamp, sun):
         assert p.reference_mask(light).mismatches(f.mask[light]) == 0
     # A wall at the near plane hides everything, once each object is queried again.
@@ -250,7 +250,6 @@ def _projective(call):
         (lambda: sc.Pipeline(threads=-1), r"options: `threads`: got -1, expected an integer from 0"),
         (lambda: sc.Pipeline(culling="sometimes"), r"`culling`: no such choice `sometimes`, expected one of `none`"),
         (lambda: sc.Pipeline().frame(64, 64, camera=sc.look_at((float("nan"), 1, 1), (0, 0, 0))), r"camera: eye\[0\] is NaN"),
-        (lambda: sc.Pipeline().remove_object(-1), r"obj: -1 is out of range"),
         (lambda: sc.Pipeline().frame(-64, 64, camera=CAMERA), r"width: -64 is out of range"),
         (lambda: sc.Pipeline(preset="gpu"), "gpu_host"),
         (lambda: sc.Pipeline(tile=5), "tile"),
@@ -260,13 +259,14 @@ def _projective(call):
         (lambda: sc.Pipeline().add_mesh(np.zeros((4, 3), np.float32), np.array([[0, 1, 9]])), "9"),
         (lambda: sc.Pipeline().add_mesh(np.zeros((4, 3), np.float32), np.array([[0, -1, 2]])), "-1"),
         (lambda: sc.Pipeline().add_mesh(np.full((3, 3), np.nan, np.float32), np.array([0, 1, 2])), "finite"),
-        (lambda: sc.Pipeline().add_object(7), "mesh"),
+        (lambda: sc.Pipeline().add_object(sc.MeshId.from_bits(7)), "mesh 7: out of range"),
+        (lambda: sc.ObjectId.from_bits(-1), r"ObjectId: -1 is out of range"),
         (lambda: _projective(lambda p, m, t: p.add_object(m, t)), r"being added.*projective"),
         (lambda: _projective(lambda p, m, t: p.set_transform(p.add_object(m), t)), r"object 0: transform is projective"),
         (lambda: sc.Pipeline().add_light("laser"), "unknown kind"),
         (lambda: sc.Pipeline().add_light("point", position=(0, 1, 0), rnage=3.0), "rnage"),
         (lambda: sc.Pipeline().add_light("directional", (0.0, 0.0, 0.0)), "direction"),
-        (lambda: sc.Pipeline().reference_mask(0), "no frame"),
+        (lambda: box_scene()[0].reference_mask(box_scene()[2]), "no frame"),
         (lambda: sc.Pipeline().frame(64, 64), "camera"),
         (lambda: sc.Pipeline().frame(0, 64, camera=CAMERA), "viewport"),
         (lambda: sc.run_job(None, out="/tmp/x", shard=(2, 2)), "shard"),
@@ -287,8 +287,10 @@ def test_bad_input_is_a_value_error(call, match):
     "call, match",
     [
         (lambda: sc.Pipeline().frame(64, 64, camera=np.eye(4)), r"camera: a pose from look_at\(\)"),
-        (lambda: sc.Pipeline().remove_object("3"), r"obj: an integer, got str"),
-        (lambda: sc.Pipeline().set_occluder(0, 1.5), r"mesh: an integer, got float"),
+        (lambda: sc.Pipeline().remove_object("3"), r"obj: an ObjectId, got str"),
+        (lambda: sc.Pipeline().remove_object(3), r"obj: an ObjectId, got int"),
+        (lambda: sc.Pipeline().set_occluder(sc.ObjectId.from_bits(0), 1.5), r"mesh: a MeshId, got float"),
+        (lambda: sc.ObjectId.from_bits("3"), r"ObjectId: an integer, got str"),
         (lambda: sc.Pipeline(chcpp=object()), r"options: object is not a number"),
     ],
 )
@@ -319,7 +321,7 @@ def test_a_second_thread_waits_for_the_frame():
     p.set_transform(cubes[0], translation(0.5, 0.0, 0.0))
     t.join()
     assert took, "the frame ran"
-    assert cubes[0] in p.frame(320, 240, camera=CAMERA).psr.tolist()
+    assert cubes[0].bits in p.frame(320, 240, camera=CAMERA).psr.tolist()
 
 
 def test_files_are_os_errors(tmp_path):
@@ -485,7 +487,7 @@ def test_python_habits(tmp_path):
         p.add_object(ground)
         c = p.add_object(cube, translation(0.0, 1.0, 0.0))
         lamp = p.add_light("point", position=(2.0, 8.0, 1.0))
-        assert repr(p) == f"Pipeline(objects=2, lights=[{lamp}], culling='chcpp', stencil='bf')"
+        assert repr(p) == "Pipeline(objects=2, lights=1, culling='chcpp', stencil='bf')"
         # Flags read back; setting one keeps the others.
         assert p.flags(c) == dict(casts=True, receives=True, occludes=True, visible=True)
         p.set_flags(c, receives=False)
@@ -505,7 +507,7 @@ def test_python_habits(tmp_path):
         rows = np.frombuffer(raw, np.uint8).reshape(120, 161)[:, 1:]
         np.testing.assert_array_equal(rows, img)
         with pytest.raises(ValueError, match="not in this frame"):
-            f.save_mask(lamp + 1, tmp_path / "x.png")
+            f.save_mask(sc.LightId.from_bits(lamp.bits + 1), tmp_path / "x.png")
     assert repr(p) == "Pipeline(closed)"
     with pytest.raises(ValueError, match="closed"):
         p.frame(160, 120, camera=CAMERA)
@@ -524,3 +526,40 @@ def test_the_procedural_city_from_python():
     assert p.reference_mask(sun).mismatches(f.mask[sun]) == 0
     with pytest.raises(ValueError, match="city: no such keyword `blokcs_x`"):
         p.add_city(blokcs_x=2)
+
+
+def test_handles_are_typed_and_stale_ones_stay_dead():
+    p, cubes, lamp, sun = box_scene(stencil="bf", culling="chcpp")
+    mesh = p.add_mesh(*cube_arrays())
+    # A mesh's id where an object's is expected is a TypeError, not another object.
+    with pytest.raises(TypeError, match="obj: an ObjectId, got MeshId"):
+        p.remove_object(mesh)  # type: ignore[arg-type]
+    with pytest.raises(TypeError, match="light: a LightId, got ObjectId"):
+        p.remove_light(cubes[0])  # type: ignore[arg-type]
+    assert repr(cubes[1]) == "ObjectId(slot=2, generation=0)"
+    assert cubes[1] == sc.ObjectId.from_bits(cubes[1].bits) and cubes[1] != mesh
+    assert len({cubes[1], sc.ObjectId.from_bits(cubes[1].bits)}) == 1
+    # A removed object's slot is reused at the next generation; the old
+    # handle stays stale.
+    p.remove_object(cubes[1])
+    again = p.add_object(mesh, translation(-3.0, 0.0, 1.0))
+    assert (again.slot, again.generation) == (cubes[1].slot, 1)
+    with pytest.raises(ValueError, match=r"object 2: removed \(a stale id"):
+        p.set_transform(cubes[1], np.eye(4))
+    # Meshes and lights too.
+    p.remove_light(sun)
+    lamp2 = p.add_light("sun", elevation_deg=30.0, azimuth_deg=10.0)
+    assert (lamp2.slot, lamp2.generation) == (sun.slot, 1)
+    with pytest.raises(ValueError, match="stale"):
+        p.light(sun)
+    spare = p.add_mesh(*cube_arrays())
+    p.remove_mesh(spare)
+    reused = p.add_mesh(*cube_arrays())
+    assert (reused.slot, reused.generation) == (spare.slot, spare.generation + 1)
+    with pytest.raises(ValueError, match="mesh"):
+        p.remove_mesh(spare)
+    f = p.frame(320, 240, camera=CAMERA)
+    assert again.bits in f.psr.tolist()
+    assert set(f.psc) == {lamp, lamp2}
+    for light in (lamp, lamp2):
+        assert p.reference_mask(light).mismatches(f.mask[light]) == 0

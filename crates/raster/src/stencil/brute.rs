@@ -489,7 +489,7 @@ mod tests {
                 VolumeMethod::ZPass,
             ] {
                 buf.ranges.push(VolumeRange {
-                    object: k as u32,
+                    object: k as u64,
                     segment: 0,
                     world_from_local: DMat4::IDENTITY,
                     method,

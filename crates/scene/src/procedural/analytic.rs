@@ -382,7 +382,7 @@ mod tests {
         let c = s.counts();
         assert_eq!((c.objects, c.triangles), (2, 14));
         assert_eq!(
-            s.object_mesh(crate::ObjectId(0)).bounds().min,
+            s.object_mesh(crate::ObjectId::from_slot(0)).bounds().min,
             Vec3::new(-0.5, 1.0, -0.5)
         );
         assert_eq!(s.bounds().max, Vec3::new(50.0, 2.0, 50.0));

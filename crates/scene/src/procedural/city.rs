@@ -760,9 +760,9 @@ mod tests {
                 "{c:?} vs {objects}, {triangles}"
             );
             for o in scene.objects() {
-                let name = scene.graph().meshes()[o.mesh.0 as usize].name().to_string();
+                let name = scene.graph().meshes()[o.mesh.index()].name().to_string();
                 if name.starts_with("building") {
-                    let t = scene.graph().meshes()[o.mesh.0 as usize].triangles().len() as u64;
+                    let t = scene.graph().meshes()[o.mesh.index()].triangles().len() as u64;
                     assert!(t <= BUILDING_TRIANGLES_MAX, "{name}: {t}");
                 }
             }

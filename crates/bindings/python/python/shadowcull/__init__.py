@@ -17,6 +17,13 @@ a CPU stencil backend, the exact four-class shadow mask::
     f = p.frame(640, 480, camera=sc.look_at(eye=(6, 5, 8), target=(0, 0, 0)))
     f.psr, f.psc[sun], f.volumes[sun].ranges, f.mask[sun], f.stats["frame_ms"]
 
+Meshes, objects and lights are named by typed handles (:class:`MeshId`,
+:class:`ObjectId`, :class:`LightId`) that cannot be mixed up: a mesh's id
+given where an object's is expected is a ``TypeError``. A removed thing's
+slot is reused at its next generation, so a kept old handle is a
+``ValueError`` (stale), never another thing. Output arrays (``psr``, ``psc``,
+``ranges["object"]``) hold ids as uint64 numbers, their :attr:`ObjectId.bits`.
+
 Batch jobs (the RON files of ``shadowcull run``) run with :func:`run_job`,
 split over machines with ``shard=(i, n)`` and put back together with
 :func:`merge`; ``python -m shadowcull.distributed`` fans a job out over a Ray
@@ -60,6 +67,9 @@ __version__: str = _native.__version__
 
 __all__ = [
     "Pipeline",
+    "MeshId",
+    "ObjectId",
+    "LightId",
     "Frame",
     "Volumes",
     "ReferenceMask",
@@ -97,7 +107,7 @@ ZPASS, ZFAIL, ZPPLUS = 0, 1, 2
 #: of segment 0, both planes of an unclamped volume).
 RANGE_DTYPE = np.dtype(
     [
-        ("object", np.uint32),
+        ("object", np.uint64),
         ("segment", np.uint32),
         ("method", np.uint8),
         ("first_vertex", np.uint32),
@@ -168,14 +178,85 @@ def _json(what: str, value: Any) -> str:
         raise TypeError(f"{what}: {e}") from None
 
 
-def _index(name: str, value: Any) -> int:
-    """``value`` as an id or size the library takes (0 to 2³² − 1): a
-    ``TypeError`` for a non-integer, a ``ValueError`` out of range."""
+class _Id:
+    """A generational handle: a slot and a generation in one number
+    (:attr:`bits`, slot in the low 32 bits). Made by the pipeline; equal
+    and hashable by kind and bits."""
+
+    __slots__ = ("_bits",)
+
+    def __init__(self, bits: int):
+        self._bits = int(bits)
+
+    @classmethod
+    def from_bits(cls: Any, bits: Any) -> Any:
+        """The handle whose :attr:`bits` are ``bits`` (an element of an output
+        array); what it names is checked where it is used."""
+        v = _index(cls.__name__, bits, 2**64)
+        return cls(v)
+
+    @property
+    def bits(self) -> int:
+        """The id as one number, as output arrays hold it."""
+        return self._bits
+
+    @property
+    def slot(self) -> int:
+        """The slot: the index the library keeps the thing at."""
+        return self._bits & 0xFFFFFFFF
+
+    @property
+    def generation(self) -> int:
+        """How many times the slot was reused before."""
+        return self._bits >> 32
+
+    def __eq__(self, other: object) -> bool:
+        return type(other) is type(self) and other._bits == self._bits  # type: ignore[attr-defined]
+
+    def __hash__(self) -> int:
+        return hash((type(self).__name__, self._bits))
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}(slot={self.slot}, generation={self.generation})"
+
+
+class MeshId(_Id):
+    """A mesh's handle (:meth:`Pipeline.add_mesh`)."""
+
+    __slots__ = ()
+
+
+class ObjectId(_Id):
+    """An object's handle (:meth:`Pipeline.add_object`, :meth:`Pipeline.load`)."""
+
+    __slots__ = ()
+
+
+class LightId(_Id):
+    """A light's handle (:meth:`Pipeline.add_light`); :class:`Frame`'s
+    per-light dictionaries are keyed by it."""
+
+    __slots__ = ()
+
+
+def _handle(kind: Any, name: str, value: Any) -> int:
+    """The bits of handle ``value``, which must be a ``kind``: a
+    ``TypeError`` naming ``name`` otherwise (an int, or another kind's id)."""
+    if type(value) is not kind:
+        article = "an" if kind.__name__[0] in "AEIOU" else "a"
+        raise TypeError(f"{name}: {article} {kind.__name__}, got {type(value).__name__}")
+    return int(value.bits)
+
+
+def _index(name: str, value: Any, end: int = 2**32) -> int:
+    """``value`` as a size or number the library takes (0 to ``end`` − 1,
+    2³² − 1 by default): a ``TypeError`` for a non-integer, a ``ValueError``
+    out of range."""
     if isinstance(value, bool) or not isinstance(value, numbers.Integral):
         raise TypeError(f"{name}: an integer, got {type(value).__name__}")
     v = int(value)
-    if not 0 <= v < 2**32:
-        raise ValueError(f"{name}: {v} is out of range (0 to 2**32 - 1)")
+    if not 0 <= v < end:
+        raise ValueError(f"{name}: {v} is out of range (0 to {end - 1})")
     return v
 
 
@@ -314,12 +395,12 @@ class ReferenceMask(NamedTuple):
 
 class Loaded(NamedTuple):
     """What :meth:`Pipeline.load` or :meth:`Pipeline.add_city` added: the
-    new objects' ids and, in the same order, their names in the file (the
+    new objects' handles (:class:`ObjectId`) and, in the same order, their names in the file (the
     node's, or the loader's for a nameless one; may be empty), and the
     file's named cameras (``LookAt`` dicts), camera paths and lights (use
     them with :meth:`Pipeline.path_camera` and ``add_light("named", name)``)."""
 
-    objects: np.ndarray
+    objects: List[ObjectId]
     cameras: Dict[str, Dict[str, Any]]
     paths: List[str]
     lights: List[str]
@@ -333,8 +414,10 @@ class Frame:
 
     Attributes:
         number: the frame's job number.
-        psr: uint32 ids of the potentially shadowed receivers, in slot order.
-        psc: per light, uint32 ids of the potential shadow casters.
+        psr: uint64 ids (:attr:`ObjectId.bits`) of the potentially shadowed
+            receivers, in slot order.
+        psc: per light (keyed by :class:`LightId`), uint64 ids of the
+            potential shadow casters.
         volumes: per light, the :class:`Volumes` to draw.
         mask: per light, the ``(h, w)`` uint8 shadow mask, or None without a
             CPU stencil (``stencil="none"``).
@@ -348,14 +431,14 @@ class Frame:
         self.psr: np.ndarray = raw["psr"]
         self.stats: Dict[str, Any] = json.loads(raw["stats"])
         self.number: int = self.stats["frame"]
-        self.psc: Dict[int, np.ndarray] = {}
-        self.volumes: Dict[int, Volumes] = {}
-        self.mask: Dict[int, Optional[np.ndarray]] = {}
-        self.light_stats: Dict[int, Dict[str, Any]] = {}
-        self.volume_stats: Dict[int, Dict[str, Any]] = {}
-        self.views: Dict[int, int] = {}
+        self.psc: Dict[LightId, np.ndarray] = {}
+        self.volumes: Dict[LightId, Volumes] = {}
+        self.mask: Dict[LightId, Optional[np.ndarray]] = {}
+        self.light_stats: Dict[LightId, Dict[str, Any]] = {}
+        self.volume_stats: Dict[LightId, Dict[str, Any]] = {}
+        self.views: Dict[LightId, int] = {}
         for light in raw["lights"]:
-            i = light["id"]
+            i = LightId(light["id"])
             self.psc[i] = light["psc"]
             cols = light["ranges"]
             ranges = np.zeros(len(cols["object"]), dtype=RANGE_DTYPE)
@@ -374,22 +457,23 @@ class Frame:
             f"frame_ms={self.stats['frame_ms']:.2f})"
         )
 
-    def save_mask(self, light: int, path: "os.PathLike[str] | str") -> None:
+    def save_mask(self, light: LightId, path: "os.PathLike[str] | str") -> None:
         """Writes light ``light``'s mask as a greyscale PNG
         (:func:`mask_to_image`); a ``ValueError`` without a CPU stencil
         (``stencil="none"``) or for a light the frame did not compute."""
+        _handle(LightId, "light", light)
         if light not in self.mask:
-            raise ValueError(f"light {light}: not in this frame (its lights: {sorted(self.mask)})")
+            raise ValueError(f"{light!r}: not in this frame (its lights: {list(self.mask)})")
         m = self.mask[light]
         if m is None:
-            raise ValueError(f"light {light}: no mask (stencil=\"none\" computes none)")
+            raise ValueError(f"{light!r}: no mask (stencil=\"none\" computes none)")
         save_png(path, mask_to_image(m))
 
 
 def _loaded(objects: Any, meta: str) -> Loaded:
     m = json.loads(meta)
     return Loaded(
-        np.asarray(objects, dtype=np.uint32),
+        [ObjectId(o) for o in objects],
         m["cameras"],
         m["paths"],
         m["lights"],
@@ -442,7 +526,7 @@ class Pipeline:
             return "Pipeline(closed)"
         o = self.options
         return (
-            f"Pipeline(objects={self._p.object_count()}, lights={self._p.light_ids()}, "
+            f"Pipeline(objects={self._p.object_count()}, lights={len(self._p.light_ids())}, "
             f"culling={o['culling']!r}, stencil={o['stencil']!r})"
         )
 
@@ -461,7 +545,7 @@ class Pipeline:
 
     # Scene -----------------------------------------------------------------
 
-    def add_mesh(self, positions: Any, indices: Any, name: str = "mesh") -> int:
+    def add_mesh(self, positions: Any, indices: Any, name: str = "mesh") -> MeshId:
         """Adds a mesh: ``positions`` an ``(n, 3)`` float32 or float64 array
         (any strides), ``indices`` an ``(m, 3)`` or ``(3m,)`` integer array.
         The library copies it once and welds its vertices. Returns its id.
@@ -470,43 +554,45 @@ class Pipeline:
             positions = np.asarray(positions, dtype=np.float64)
         if not isinstance(indices, np.ndarray):
             indices = np.asarray(indices, dtype=np.int64)
-        return self._p.add_mesh(positions, indices, name)
+        return MeshId(self._p.add_mesh(positions, indices, name))
 
-    def update_mesh_positions(self, mesh: int, positions: Any, indices: Any) -> None:
+    def update_mesh_positions(self, mesh: MeshId, positions: Any, indices: Any) -> None:
         """Deforms ``mesh``: new positions, the same triangles."""
-        self._p.update_mesh_positions(_index("mesh", mesh), positions, indices)
+        self._p.update_mesh_positions(_handle(MeshId, "mesh", mesh), positions, indices)
 
-    def remove_mesh(self, mesh: int) -> None:
+    def remove_mesh(self, mesh: MeshId) -> None:
         """Removes a mesh no object draws any more."""
-        self._p.remove_mesh(_index("mesh", mesh))
+        self._p.remove_mesh(_handle(MeshId, "mesh", mesh))
 
     def add_object(
         self,
-        mesh: int,
+        mesh: MeshId,
         transform: Any = None,
         *,
         casts: bool = True,
         receives: bool = True,
         occludes: bool = True,
         visible: bool = True,
-    ) -> int:
+    ) -> ObjectId:
         """Adds an object drawing ``mesh`` at ``transform`` (4×4, world from
         local; identity when None). The flags say what it takes part in.
         Returns its id, valid until :meth:`remove_object`."""
         m = np.eye(4) if transform is None else _matrix("transform", transform)
-        return self._p.add_object(_index("mesh", mesh), m, casts, receives, occludes, visible)
+        return ObjectId(
+            self._p.add_object(_handle(MeshId, "mesh", mesh), m, casts, receives, occludes, visible)
+        )
 
-    def set_transform(self, obj: int, transform: Any) -> None:
+    def set_transform(self, obj: ObjectId, transform: Any) -> None:
         """Moves an object from the next frame on."""
-        self._p.set_transform(_index("obj", obj), _matrix("transform", transform))
+        self._p.set_transform(_handle(ObjectId, "obj", obj), _matrix("transform", transform))
 
-    def transform(self, obj: int) -> np.ndarray:
+    def transform(self, obj: ObjectId) -> np.ndarray:
         """An object's world matrix (as of the last frame or edit)."""
-        return self._p.transform(_index("obj", obj))
+        return self._p.transform(_handle(ObjectId, "obj", obj))
 
     def set_flags(
         self,
-        obj: int,
+        obj: ObjectId,
         *,
         casts: Optional[bool] = None,
         receives: Optional[bool] = None,
@@ -518,15 +604,15 @@ class Pipeline:
         old = self.flags(obj)
         new = dict(casts=casts, receives=receives, occludes=occludes, visible=visible)
         f = {k: old[k] if v is None else bool(v) for k, v in new.items()}
-        self._p.set_flags(_index("obj", obj), f["casts"], f["receives"], f["occludes"], f["visible"])
+        self._p.set_flags(_handle(ObjectId, "obj", obj), f["casts"], f["receives"], f["occludes"], f["visible"])
 
-    def flags(self, obj: int) -> Dict[str, bool]:
+    def flags(self, obj: ObjectId) -> Dict[str, bool]:
         """An object's flags: ``casts``, ``receives``, ``occludes`` and
         ``visible``."""
-        casts, receives, occludes, visible = self._p.flags(_index("obj", obj))
+        casts, receives, occludes, visible = self._p.flags(_handle(ObjectId, "obj", obj))
         return dict(casts=casts, receives=receives, occludes=occludes, visible=visible)
 
-    def set_occluder(self, obj: int, mesh: "int | None" = None) -> None:
+    def set_occluder(self, obj: ObjectId, mesh: "MeshId | None" = None) -> None:
         """Gives an object the host's own occluder: ``mesh`` (from
         :meth:`add_mesh`, placed by the object's transform) is drawn in place
         of its mesh by the light views and a coarse eye pass under
@@ -534,11 +620,11 @@ class Pipeline:
         inside its solid); its bounds must lie within the object's mesh's
         (``ValueError`` otherwise). ``None`` goes back to the object's own
         mesh."""
-        self._p.set_occluder(_index("obj", obj), None if mesh is None else _index("mesh", mesh))
+        self._p.set_occluder(_handle(ObjectId, "obj", obj), None if mesh is None else _handle(MeshId, "mesh", mesh))
 
-    def remove_object(self, obj: int) -> None:
+    def remove_object(self, obj: ObjectId) -> None:
         """Removes an object; its id is stale afterwards."""
-        self._p.remove_object(_index("obj", obj))
+        self._p.remove_object(_handle(ObjectId, "obj", obj))
 
     def load(self, path: "os.PathLike[str] | str") -> Loaded:
         """Adds every object of a glTF (``.gltf``, ``.glb``), OBJ (``.obj``
@@ -585,7 +671,7 @@ class Pipeline:
             raise ValueError(f"light {kind!r}: takes keywords only")
         return _json("light", {variant: fields})
 
-    def add_light(self, kind: str, value: Any = None, **fields: Any) -> int:
+    def add_light(self, kind: str, value: Any = None, **fields: Any) -> LightId:
         """Adds a light, spelled as in a RON job and returns its id:
 
         - ``add_light("point", position=(x, y, z), range=None)``
@@ -595,24 +681,24 @@ class Pipeline:
         - ``add_light("above_scene", 1.5)`` (a point light above the scene bounds)
         - ``add_light("named", "light")`` (a light a loaded file names)
         """
-        return self._p.add_light(self._light_spec(kind, value, fields))
+        return LightId(self._p.add_light(self._light_spec(kind, value, fields)))
 
-    def set_light(self, light: int, kind: str, value: Any = None, **fields: Any) -> None:
+    def set_light(self, light: LightId, kind: str, value: Any = None, **fields: Any) -> None:
         """Replaces a light (same spelling as :meth:`add_light`)."""
-        self._p.set_light(_index("light", light), self._light_spec(kind, value, fields))
+        self._p.set_light(_handle(LightId, "light", light), self._light_spec(kind, value, fields))
 
-    def remove_light(self, light: int) -> None:
+    def remove_light(self, light: LightId) -> None:
         """Removes a light; its id is stale afterwards."""
-        self._p.remove_light(_index("light", light))
+        self._p.remove_light(_handle(LightId, "light", light))
 
-    def light(self, light: int) -> Dict[str, Any]:
+    def light(self, light: LightId) -> Dict[str, Any]:
         """A light as the library holds it (``{"Point": {...}}``, ...)."""
-        return json.loads(self._p.light(_index("light", light)))
+        return json.loads(self._p.light(_handle(LightId, "light", light)))
 
     @property
-    def lights(self) -> List[int]:
+    def lights(self) -> List[LightId]:
         """The live lights' ids."""
-        return list(self._p.light_ids())
+        return [LightId(b) for b in self._p.light_ids()]
 
     # Frames ----------------------------------------------------------------
 
@@ -657,10 +743,10 @@ class Pipeline:
         w, h = _index("width", width), _index("height", height)
         return Frame(self._p.frame(w, h, cam, v, p, clip_depth, d))
 
-    def reference_mask(self, light: int) -> ReferenceMask:
+    def reference_mask(self, light: LightId) -> ReferenceMask:
         """The exact ray-cast mask of ``light`` for the last frame: what every
         culling and stencil option is measured against."""
-        mask, ambiguous = self._p.reference_mask(_index("light", light))
+        mask, ambiguous = self._p.reference_mask(_handle(LightId, "light", light))
         return ReferenceMask(mask, ambiguous)
 
 
