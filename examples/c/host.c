@@ -179,18 +179,23 @@ static void write_bin(const char *dir, int f, const char *name, const void *head
 }
 
 /* Frame f's id lists and volume buffers as host_loop --write-masks writes
- * them: slot ids (handle - 1) as u32; per light the positions, the indices,
+ * them: object slots as u32; per light the positions, the indices,
  * then per range its object's slot, method, first index and index count. */
+/* An object's slot, as host_loop writes it. Only this comparison needs it: a
+ * host treats handles as opaque. (The library's layout: handle - 1 holds the
+ * slot in bits 0-27, the kind in 28-31 and the generation above.) */
+static uint32_t slot_of(sc_object h) { return (uint32_t)((h - 1) & 0x0fffffffu); }
+
 static void write_outputs(const char *dir, int f, const sc_frame_output *out) {
   uint32_t *ids = malloc((out->psr_count + 1) * sizeof *ids);
-  for (size_t i = 0; i < out->psr_count; i++) ids[i] = (uint32_t)(out->psr[i] - 1);
+  for (size_t i = 0; i < out->psr_count; i++) ids[i] = slot_of(out->psr[i]);
   write_bin(dir, f, "psr", NULL, 0, ids, out->psr_count);
   free(ids);
   for (size_t l = 0; l < out->light_count; l++) {
     const sc_light_output *lo = &out->lights[l];
     char name[64];
     ids = malloc((lo->psc_count + 1) * sizeof *ids);
-    for (size_t i = 0; i < lo->psc_count; i++) ids[i] = (uint32_t)(lo->psc[i] - 1);
+    for (size_t i = 0; i < lo->psc_count; i++) ids[i] = slot_of(lo->psc[i]);
     snprintf(name, sizeof name, "light_%zu_psc", l);
     write_bin(dir, f, name, NULL, 0, ids, lo->psc_count);
     free(ids);
@@ -200,7 +205,7 @@ static void write_outputs(const char *dir, int f, const sc_frame_output *out) {
     for (size_t r = 0; r < lo->range_count; r++) {
       const sc_volume_range *g = &lo->ranges[r];
       uint32_t *w = v + lo->index_count + 4 * r;
-      w[0] = (uint32_t)(g->object - 1), w[1] = g->method, w[2] = g->first_index;
+      w[0] = slot_of(g->object), w[1] = g->method, w[2] = g->first_index;
       w[3] = g->index_count;
     }
     snprintf(name, sizeof name, "light_%zu_volumes", l);

@@ -65,7 +65,8 @@ int main(void) {
   expect(sc_mesh_create(p, NULL, &mesh), SC_INVALID_ARGUMENT, "NULL desc", "mesh");
   expect(sc_mesh_create(p, &m, &mesh), SC_OK, "mesh", NULL);
 
-  /* Objects: NaN matrix, NULL matrix, stale handles, double destroy. */
+  /* Objects: NaN matrix, NULL matrix, handles of the wrong kind, stale
+   * handles, double destroy. */
   double id[16] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
   sc_object obj = 0;
   id[3] = NAN;
@@ -78,6 +79,10 @@ int main(void) {
          NULL);
   expect(sc_object_create(p, mesh, id, SC_FLAGS_ALL, &obj), SC_OK, "object", NULL);
   expect(sc_mesh_destroy(p, mesh), SC_INVALID_ARGUMENT, "mesh in use", NULL);
+  expect(sc_object_destroy(p, mesh), SC_INVALID_ARGUMENT, "a mesh's handle for an object",
+         "not an object's");
+  expect(sc_mesh_destroy(p, obj), SC_INVALID_ARGUMENT, "an object's handle for a mesh",
+         "not a mesh's");
   expect(sc_object_destroy(p, obj), SC_OK, "destroy object", NULL);
   expect(sc_object_destroy(p, obj), SC_INVALID_ARGUMENT, "double destroy", NULL);
   expect(sc_object_set_transform(p, obj, id), SC_INVALID_ARGUMENT, "stale object", NULL);

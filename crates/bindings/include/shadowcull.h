@@ -12,7 +12,10 @@
 // Handles (sc_pipeline, sc_mesh, sc_object, sc_light) are generation-checked
 // ids, never pointers; 0 is the null handle. A destroyed or stale handle
 // gives SC_INVALID_ARGUMENT (double destroy included), never undefined
-// behaviour; destroying the null handle is a no-op.
+// behaviour; destroying the null handle is a no-op. A destroyed mesh's,
+// object's or light's slot is reused under a new handle, so memory stays
+// bounded; the old handle stays stale. Handles of different kinds never
+// coincide: a mesh's handle given for an object is SC_INVALID_ARGUMENT.
 //
 // Errors: every function returns an sc_status; sc_last_error() gives this
 // thread's message for the last failure, naming the function and the

@@ -4,9 +4,10 @@
 //! the state of one view for one frame and `end_view` drops it.
 
 use crate::error::Failure;
-use crate::frame::{light_handle, sc_light};
+use crate::frame::sc_light;
 use crate::handles;
 use crate::handles::sc_pipeline;
+use crate::id_handles::light_handle;
 use crate::structs::{read, Versioned};
 use shadowcull::raster::{
     self, BackendStats, Coverage, CullMode, DepthPick, DrawCommand, OcclusionBackend, QueryCommand,

@@ -4,9 +4,10 @@
 //! own volume buffers. Everything stays valid until the next frame call or
 //! the pipeline's destroy; the host frees nothing.
 
+use crate::id_handles::{light_handle, object_handle};
 use shadowcull::mask::PixelClass;
 use shadowcull::raster::{VolumeMethod, VolumeRange};
-use shadowcull::scene::{LightId, MeshId, ObjectId};
+use shadowcull::scene::ObjectId;
 use shadowcull::FrameOutput;
 
 /// An object: 0 is the null handle.
@@ -214,25 +215,9 @@ pub(crate) struct Outputs {
 // documented lifetime; the entry moves between threads only behind its mutex.
 unsafe impl Send for Outputs {}
 
-/// The handle of object id `id`: its bits plus 1 (0 is the null handle;
-/// slots stay below 2²⁴, so it never wraps).
-pub(crate) fn object_handle(id: ObjectId) -> sc_object {
-    id.to_bits() + 1
-}
-
-/// The handle (`sc_mesh`) of mesh `id`, as [`object_handle`].
-pub(crate) fn mesh_handle(id: MeshId) -> u64 {
-    id.to_bits() + 1
-}
-
-/// The handle of light `id`, as [`object_handle`].
-pub(crate) fn light_handle(id: LightId) -> sc_light {
-    id.to_bits() + 1
-}
-
 fn range_of(r: &VolumeRange) -> sc_volume_range {
     sc_volume_range {
-        object: r.object + 1,
+        object: object_handle(ObjectId::from_bits(r.object)),
         segment: r.segment,
         method: match r.method {
             VolumeMethod::ZPass => SC_ZPASS,

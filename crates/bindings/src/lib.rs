@@ -25,6 +25,7 @@ mod backend;
 mod error;
 mod frame;
 mod handles;
+mod id_handles;
 mod structs;
 
 pub use backend::*;
@@ -37,10 +38,9 @@ pub use handles::sc_pipeline;
 pub use structs::*;
 
 use error::{guard, Failure, Result};
-use frame::{light_handle, mesh_handle, object_handle};
 use glam::{DMat4, Vec3};
-use shadowcull::scene::{Camera, Mesh, MeshId, ObjectId, Scene, SceneGraph};
-use shadowcull::LightId;
+use id_handles::{light_handle, light_of, mesh_handle, mesh_of, object_handle, object_of};
+use shadowcull::scene::{Camera, Mesh, Scene, SceneGraph};
 use shadowcull::{FrameInput, Pipeline};
 use std::ffi::{c_char, CStr};
 
@@ -65,14 +65,6 @@ fn put<T>(out: *mut T, name: &str, value: T) -> Result<()> {
     // SAFETY: non-NULL, and by the API's contract a writable `T`.
     unsafe { out.write(value) };
     Ok(())
-}
-
-/// The id inside a handle of kind `what` (`0` is the null handle).
-fn id_of(h: u64, what: &str) -> Result<u64> {
-    match h {
-        0 => Err(Failure::invalid(format!("{what}: the null handle"))),
-        h => Ok(h - 1),
-    }
 }
 
 /// A column-major 4×4 from 16 doubles at `m`.
@@ -307,7 +299,7 @@ pub extern "C" fn sc_mesh_update_positions(
     desc: *const sc_mesh_desc,
 ) -> sc_status {
     guard("sc_mesh_update_positions", || {
-        let id = MeshId::from_bits(id_of(mesh, "mesh")?);
+        let id = mesh_of(mesh, "mesh")?;
         let d = read(desc, "mesh")?;
         let (positions, triangles) = mesh_arrays(&d)?;
         handles::with(pipeline, |e| {
@@ -325,7 +317,7 @@ pub extern "C" fn sc_mesh_destroy(pipeline: sc_pipeline, mesh: sc_mesh) -> sc_st
         if mesh == 0 {
             return handles::get(pipeline).map(|_| ());
         }
-        let id = MeshId::from_bits(id_of(mesh, "mesh")?);
+        let id = mesh_of(mesh, "mesh")?;
         handles::with(pipeline, |e| Ok(e.pipeline.remove_mesh(id)?))
     })
 }
@@ -363,7 +355,7 @@ fn object_create(
     if out.is_null() {
         return Err(Failure::invalid("out: NULL"));
     }
-    let id = MeshId::from_bits(id_of(mesh, "mesh")?);
+    let id = mesh_of(mesh, "mesh")?;
     let m = world_from_local()?;
     let f = structs::flags(flags)?;
     let o = handles::with(pipeline, |e| Ok(e.pipeline.add_object(id, m, f)?))?;
@@ -393,7 +385,7 @@ pub extern "C" fn sc_object_set_transform(
     world_from_local: *const f64,
 ) -> sc_status {
     guard("sc_object_set_transform", || {
-        let id = ObjectId::from_bits(id_of(object, "object")?);
+        let id = object_of(object, "object")?;
         let m = matrix(world_from_local, "world_from_local")?;
         handles::with(pipeline, |e| Ok(e.pipeline.set_transform(id, m)?))
     })
@@ -407,7 +399,7 @@ pub extern "C" fn sc_object_set_transform_f32(
     world_from_local: *const f32,
 ) -> sc_status {
     guard("sc_object_set_transform_f32", || {
-        let id = ObjectId::from_bits(id_of(object, "object")?);
+        let id = object_of(object, "object")?;
         let m = matrix_f32(world_from_local, "world_from_local")?;
         handles::with(pipeline, |e| Ok(e.pipeline.set_transform(id, m)?))
     })
@@ -421,7 +413,7 @@ pub extern "C" fn sc_object_set_flags(
     flags: u32,
 ) -> sc_status {
     guard("sc_object_set_flags", || {
-        let id = ObjectId::from_bits(id_of(object, "object")?);
+        let id = object_of(object, "object")?;
         let f = structs::flags(flags)?;
         handles::with(pipeline, |e| Ok(e.pipeline.set_flags(id, f)?))
     })
@@ -440,10 +432,10 @@ pub extern "C" fn sc_object_set_occluder(
     occluder: sc_mesh,
 ) -> sc_status {
     guard("sc_object_set_occluder", || {
-        let id = ObjectId::from_bits(id_of(object, "object")?);
+        let id = object_of(object, "object")?;
         let mesh = match occluder {
             0 => None,
-            h => Some(MeshId::from_bits(id_of(h, "occluder")?)),
+            h => Some(mesh_of(h, "occluder")?),
         };
         handles::with(pipeline, |e| Ok(e.pipeline.set_occluder(id, mesh)?))
     })
@@ -457,7 +449,7 @@ pub extern "C" fn sc_object_destroy(pipeline: sc_pipeline, object: sc_object) ->
         if object == 0 {
             return handles::get(pipeline).map(|_| ());
         }
-        let id = ObjectId::from_bits(id_of(object, "object")?);
+        let id = object_of(object, "object")?;
         handles::with(pipeline, |e| Ok(e.pipeline.remove_object(id)?))
     })
 }
@@ -487,7 +479,7 @@ pub extern "C" fn sc_light_set(
     desc: *const sc_light_desc,
 ) -> sc_status {
     guard("sc_light_set", || {
-        let id = LightId::from_bits(id_of(light, "light")?);
+        let id = light_of(light, "light")?;
         let l = read(desc, "light")?.to_rust()?;
         handles::with(pipeline, |e| Ok(e.pipeline.set_light(id, l)?))
     })
@@ -500,7 +492,7 @@ pub extern "C" fn sc_light_destroy(pipeline: sc_pipeline, light: sc_light) -> sc
         if light == 0 {
             return handles::get(pipeline).map(|_| ());
         }
-        let id = LightId::from_bits(id_of(light, "light")?);
+        let id = light_of(light, "light")?;
         handles::with(pipeline, |e| Ok(e.pipeline.remove_light(id)?))
     })
 }

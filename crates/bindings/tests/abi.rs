@@ -219,6 +219,16 @@ fn empty_output() -> sc_frame_output {
 }
 
 /// A slice from a pointer and count of the library's output.
+/// The C handle of a thing of `kind` (1 object, 2 mesh, 3 light) at
+/// `slot` and `generation`: the layout `id_handles.rs` documents.
+fn handle(kind: u64, slot: u32, generation: u32) -> u64 {
+    (u64::from(slot) | kind << 28 | u64::from(generation) << 32) + 1
+}
+
+fn object_handle(id: shadowcull::scene::ObjectId) -> u64 {
+    handle(1, id.slot(), id.generation())
+}
+
 fn slice<'a, T>(p: *const T, n: usize) -> &'a [T] {
     if n == 0 {
         return &[];
@@ -269,14 +279,15 @@ fn output_equals_the_rust_pipeline() {
         let number = if f < 5 { f } else { f + 35 };
         assert_eq!((out.stats.frame, o.stats().frame), (number, number));
         assert_eq!(out.stats.eye_queries, o.stats().eye_queries, "frame {f}");
-        let psr: Vec<u64> = o.psr().iter().map(|id| id.to_bits() + 1).collect();
+        let psr: Vec<u64> = o.psr().iter().map(|&id| object_handle(id)).collect();
         assert_eq!(slice(out.psr, out.psr_count), &psr[..], "frame {f}: PSR");
         let lights = slice(out.lights, out.light_count);
         assert_eq!(lights.len(), o.light_count());
         for (c, l) in lights.iter().zip(o.lights()) {
-            assert_eq!(c.light, l.id().to_bits() + 1);
+            let id = l.id();
+            assert_eq!(c.light, handle(3, id.slot(), id.generation()));
             assert_eq!(c.stats.queries, l.stats().queries, "frame {f}: queries");
-            let psc: Vec<u64> = l.psc().iter().map(|id| id.to_bits() + 1).collect();
+            let psc: Vec<u64> = l.psc().iter().map(|&id| object_handle(id)).collect();
             assert_eq!(slice(c.psc, c.psc_count), &psc[..], "frame {f}: PSC");
             let v = l.volumes();
             assert_eq!(slice(c.positions, c.position_count), &v.positions[..]);
@@ -284,7 +295,8 @@ fn output_equals_the_rust_pipeline() {
             let ranges = slice(c.ranges, c.range_count);
             assert_eq!(ranges.len(), v.ranges.len());
             for (a, b) in ranges.iter().zip(&v.ranges) {
-                assert_eq!(a.object, b.object + 1);
+                let id = shadowcull::scene::ObjectId::from_bits(b.object);
+                assert_eq!(a.object, object_handle(id));
                 assert_eq!(
                     (a.first_index, a.index_count),
                     (b.first_index, b.index_count)
@@ -412,6 +424,8 @@ fn misuse_gives_statuses_and_messages() {
     assert!(last_error().contains("struct_size"), "{}", last_error());
 
     let (p, objects, lights) = c_pipeline();
+    // The cube mesh c_pipeline made first.
+    let cube_mesh = handle(2, 0, 0);
     let (pos, idx) = cube();
     let mut desc = sc_mesh_desc {
         position_stride: 0,
@@ -500,7 +514,7 @@ fn misuse_gives_statuses_and_messages() {
     let m = DMat4::IDENTITY.to_cols_array();
     ok(sc_object_create(
         p,
-        1,
+        cube_mesh,
         m.as_ptr(),
         SC_FLAGS_ALL,
         &mut object,
@@ -537,15 +551,15 @@ fn misuse_gives_statuses_and_messages() {
         ),
         (
             "sc_mesh_update_positions",
-            sc_mesh_update_positions(p, 1, std::ptr::null()),
+            sc_mesh_update_positions(p, cube_mesh, std::ptr::null()),
         ),
         (
             "sc_object_create out",
-            sc_object_create(p, 1, m.as_ptr(), SC_FLAGS_ALL, nul),
+            sc_object_create(p, cube_mesh, m.as_ptr(), SC_FLAGS_ALL, nul),
         ),
         (
             "sc_object_create_f32",
-            sc_object_create_f32(p, 1, std::ptr::null(), SC_FLAGS_ALL, &mut x),
+            sc_object_create_f32(p, cube_mesh, std::ptr::null(), SC_FLAGS_ALL, &mut x),
         ),
         (
             "sc_object_set_transform_f32",
@@ -573,8 +587,21 @@ fn misuse_gives_statuses_and_messages() {
         assert!(last_error().contains("NULL"), "{what}: {}", last_error());
     }
     // A mesh in use cannot go; an unknown one is stale.
-    assert_eq!(sc_mesh_destroy(p, 1), SC_INVALID_ARGUMENT);
+    assert_eq!(sc_mesh_destroy(p, cube_mesh), SC_INVALID_ARGUMENT);
+    assert!(last_error().contains("instanced"), "{}", last_error());
     assert_eq!(sc_mesh_destroy(p, 77), SC_INVALID_ARGUMENT);
+    // A handle of another kind names nothing: an object's handle given for
+    // a mesh, a mesh's for an object, a light's for an object.
+    assert_eq!(sc_mesh_destroy(p, objects[3]), SC_INVALID_ARGUMENT);
+    assert!(
+        last_error().contains("is an object's handle, not a mesh's"),
+        "{}",
+        last_error()
+    );
+    assert_eq!(sc_object_destroy(p, cube_mesh), SC_INVALID_ARGUMENT);
+    assert!(last_error().contains("a mesh's handle"), "{}", last_error());
+    assert_eq!(sc_object_destroy(p, lights[1]), SC_INVALID_ARGUMENT);
+    ok(sc_object_set_flags(p, objects[3], SC_FLAGS_ALL));
     ok(sc_pipeline_frame(p, &input(0), &mut out));
     ok(sc_pipeline_destroy(p));
     assert_eq!(sc_pipeline_destroy(p), SC_INVALID_ARGUMENT);
