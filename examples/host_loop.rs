@@ -12,12 +12,16 @@
 //! change a pixel).
 //!
 //! ```sh
-//! cargo run --release --example host_loop -- [--frames N] [--reference-every K] [--size WxH] [--there-and-back on|off] [--write-masks DIR | --gpu-host]
+//! cargo run --release --example host_loop -- [--frames N] [--reference-every K] [--size WxH] [--there-and-back on|off] [--write-masks DIR | --gpu-host] [--moving-light]
 //! ```
 //! prints one JSON line last: `frames`, `objects`, `psr_median`,
 //! `psc_median` (summed over lights), `frame_ms_median` (wall time of
 //! `Pipeline::frame`, all lights), `mismatch_pixels`,
-//! `mismatch_off_boundary`, `culled_vs_unculled_differing_pixels`, …
+//! `mismatch_off_boundary`, `culled_vs_unculled_differing_pixels`,
+//! `allocations_per_frame_max` (the worst frame of the way back, where only
+//! one object moves), `steady_frames` and `steady_allocations` (with
+//! `--moving-light`: the steps after the first 20 and their allocations,
+//! frames and `set_light` calls), …
 
 use glam::{DMat4, DQuat, DVec3, DVec4};
 use shadowcull::mask::compare;
@@ -434,6 +438,26 @@ struct Cli {
     /// pipeline's frames).
     #[arg(long = "gpu-host")]
     gpu_host: bool,
+    /// Orbit the point light (period 20 frames, `set_light` every frame)
+    /// and count the allocations of every step after the first 20 (frame
+    /// and edits): `steady_frames`, `steady_allocations`.
+    #[arg(long = "moving-light")]
+    moving_light: bool,
+}
+
+/// The moving light's period in frames, and the steps before counting.
+const LIGHT_PERIOD: u32 = 20;
+
+/// The point light at step `k` of its orbit (period [`LIGHT_PERIOD`]).
+fn orbiting(world: &HostWorld, k: u32) -> Light {
+    let a = std::f64::consts::TAU * f64::from(k % LIGHT_PERIOD) / f64::from(LIGHT_PERIOD);
+    match world.lights[0] {
+        Light::Point { position, range } => Light::Point {
+            position: position + DVec3::new(25.0 * a.cos(), 0.0, 25.0 * a.sin()),
+            range,
+        },
+        other => other,
+    }
 }
 
 fn main() -> anyhow::Result<()> {
@@ -444,6 +468,7 @@ fn main() -> anyhow::Result<()> {
         there_and_back,
         write_masks,
         gpu_host,
+        moving_light,
     } = <Cli as clap::Parser>::parse();
     let world = world();
     // The host's job system: frames run on its threads (rayon allocates a
@@ -456,6 +481,7 @@ fn main() -> anyhow::Result<()> {
         there_and_back,
         write_masks,
         gpu_host,
+        moving_light,
     };
     pool.clone().install(|| run(&world, &pool, &args))
 }
@@ -472,6 +498,8 @@ struct Args {
     write_masks: Option<std::path::PathBuf>,
     /// The `gpu_host` preset, checked by `Pipeline::check_gpu`.
     gpu_host: bool,
+    /// The point light orbits; steps after the first 20 are counted.
+    moving_light: bool,
 }
 
 /// Writes frame `k`'s id lists and volume buffers as little-endian binary
@@ -552,6 +580,12 @@ fn run(world: &HostWorld, pool: &Pool, args: &Args) -> anyhow::Result<()> {
     // Forward along the path (edits included), then back (the moving object only).
     let steps = if there_and_back { 2 * frames } else { frames };
     let (mut allocations_max, mut bytes_max, mut warmup_bytes) = (0u64, 0u64, 0i64);
+    let (mut steady_frames, mut steady_allocations) = (0u32, 0u64);
+    let point = culled
+        .pipeline
+        .light_ids()
+        .next()
+        .expect("the host adds two lights");
     for k in 0..steps {
         let backward = k >= frames;
         let f = if backward { 2 * frames - 1 - k } else { k };
@@ -563,9 +597,21 @@ fn run(world: &HostWorld, pool: &Pool, args: &Args) -> anyhow::Result<()> {
             edit(&mut unculled, &e)?;
         }
         let (view, projection) = host_matrices(f, frames, size);
-        let (d, [allocations, bytes, freed]) =
-            counted(|| host_frame(&mut culled.pipeline, size, [view, projection]));
+        let light = orbiting(world, k);
+        if args.moving_light {
+            unculled.pipeline.set_light(point, light)?;
+        }
+        let (d, [allocations, bytes, freed]) = counted(|| {
+            if args.moving_light {
+                culled.pipeline.set_light(point, light)?;
+            }
+            host_frame(&mut culled.pipeline, size, [view, projection])
+        });
         let d = d?;
+        if args.moving_light && k >= LIGHT_PERIOD {
+            steady_frames += 1;
+            steady_allocations += allocations;
+        }
         if backward {
             allocations_max = allocations_max.max(allocations);
             bytes_max = bytes_max.max(bytes);
@@ -638,6 +684,9 @@ fn run(world: &HostWorld, pool: &Pool, args: &Args) -> anyhow::Result<()> {
         "height": size.1,
         "lights": world.lights.len(),
         "gpu_host": args.gpu_host,
+        "moving_light": args.moving_light,
+        "steady_frames": steady_frames,
+        "steady_allocations": steady_allocations,
         "psr_median": median(&psr).unwrap_or(0.0),
         "psc_median": median(&psc).unwrap_or(0.0),
         "frame_ms_median": median(&ms).unwrap_or(0.0),

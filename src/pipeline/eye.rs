@@ -62,15 +62,45 @@ fn draw_objects(
     scene: &Scene,
     meshes: &MeshCache,
     camera: &Camera,
-    target: &mut DepthTarget,
+    (target, scratch): (&mut DepthTarget, &mut EyeScratch),
     ids: impl Iterator<Item = ObjectId>,
 ) -> Result<()> {
     target.set_threads(rayon::current_num_threads());
-    let items = eye_items(scene, meshes, camera, ids, visibility::eye_cull);
-    if !items.is_empty() {
-        target.draw_batch(&items, Coverage::Standard)?;
+    let items = eye_items(scene, meshes, camera, ids, visibility::eye_cull, scratch);
+    let r = match items.is_empty() {
+        true => Ok(()),
+        false => target.draw_batch(&items, Coverage::Standard),
+    };
+    scratch.keep(items);
+    Ok(r?)
+}
+
+/// The lists [`eye_items`] builds, kept from frame to frame so that the
+/// eye passes that draw objects by list (without culling, the coarse pass,
+/// the deferred non-occluders) allocate nothing once they have grown.
+#[derive(Debug, Default)]
+pub(crate) struct EyeScratch {
+    /// (distance², position in the input, slot).
+    order: Vec<(f64, usize, usize)>,
+    /// An empty list whose allocation the next frame's draws reuse.
+    items: Vec<DrawItem<'static>>,
+}
+
+impl EyeScratch {
+    /// Takes back `items`' allocation.
+    fn keep(&mut self, items: Vec<DrawItem<'_>>) {
+        self.items = recycle(items);
     }
-    Ok(())
+}
+
+/// `v` emptied, as a list of another lifetime: the same allocation (the
+/// standard library collects a mapped `into_iter` in place when the item
+/// layouts agree, and they do: only the lifetime differs).
+fn recycle<'b>(mut v: Vec<DrawItem<'_>>) -> Vec<DrawItem<'b>> {
+    v.clear();
+    v.into_iter()
+        .map(|_| -> DrawItem<'b> { unreachable!("the list is empty") })
+        .collect()
 }
 
 /// The draws of the visible objects among `ids`, each culling what `cull`
@@ -83,29 +113,38 @@ fn eye_items<'a>(
     camera: &Camera,
     ids: impl Iterator<Item = ObjectId>,
     cull: impl Fn(&Camera, &scene::Object, &scene::Mesh) -> raster::CullMode,
+    scratch: &mut EyeScratch,
 ) -> Vec<DrawItem<'a>> {
     let objects = scene.objects();
-    let mut order: Vec<(f64, usize)> = ids
-        .map(|id| id.slot() as usize)
-        .filter(|&i| objects[i].flags.visible)
-        .map(|i| {
-            let d = objects[i].world_bounds.center();
-            (d.distance_squared(camera.position), i)
-        })
-        .collect();
-    order.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let order = &mut scratch.order;
+    order.clear();
+    order.extend(
+        ids.map(|id| id.slot() as usize)
+            .filter(|&i| objects[i].flags.visible)
+            .enumerate()
+            .map(|(k, i)| {
+                let d = objects[i].world_bounds.center();
+                (d.distance_squared(camera.position), k, i)
+            }),
+    );
+    // A stable order, sorted in place (a stable sort's merge buffer would
+    // allocate): equal distances keep the input order.
+    order.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
     let mesh = |o: &scene::Object| &scene.graph().meshes()[o.mesh.index()];
-    order
-        .iter()
-        .map(|&(_, i)| (i, &objects[i]))
-        .map(|(i, o)| DrawItem {
-            clip_from_local: scene::transform::clip_from_local(camera, &o.world_from_local),
-            positions: &meshes.positions[o.mesh.index()],
-            triangles: mesh(o).triangles(),
-            object: i as u32,
-            cull: cull(camera, o, mesh(o)),
-        })
-        .collect()
+    let mut items = recycle(std::mem::take(&mut scratch.items));
+    items.extend(
+        order
+            .iter()
+            .map(|&(_, _, i)| (i, &objects[i]))
+            .map(|(i, o)| DrawItem {
+                clip_from_local: scene::transform::clip_from_local(camera, &o.world_from_local),
+                positions: &meshes.positions[o.mesh.index()],
+                triangles: mesh(o).triangles(),
+                object: i as u32,
+                cull: cull(camera, o, mesh(o)),
+            }),
+    );
+    items
 }
 
 /// The eye pass's result: depth with hierarchical z, and per pixel (row 0 at the
@@ -115,6 +154,8 @@ fn eye_items<'a>(
 pub struct EyePass {
     /// Depth and primitive-id target.
     pub target: DepthTarget,
+    /// The draw lists, kept for the next frame's pass.
+    pub(crate) scratch: EyeScratch,
 }
 
 impl EyePass {
@@ -145,6 +186,7 @@ impl EyePass {
             Some(p) if same(&p.target) => p,
             _ => EyePass {
                 target: DepthTarget::new(width, height, TileSize::T8, ids)?,
+                scratch: EyeScratch::default(),
             },
         };
         pass.target.set_instruction_set(isa);
@@ -222,25 +264,28 @@ pub(crate) fn eye_pass_of(
     previous: Option<EyePass>,
     subset: Option<&[ObjectId]>,
 ) -> Result<EyePass> {
-    let mut target = match previous {
-        Some(p) if (p.target.width(), p.target.height()) == (width, height) => {
-            let mut t = p.target;
-            t.clear();
-            t
+    let mut pass = match previous {
+        Some(mut p) if (p.target.width(), p.target.height()) == (width, height) => {
+            p.target.clear();
+            p
         }
-        _ => DepthTarget::new(width, height, TileSize::T8, true)?,
+        p => EyePass {
+            target: DepthTarget::new(width, height, TileSize::T8, true)?,
+            scratch: p.map(|p| p.scratch).unwrap_or_default(),
+        },
     };
+    let to = (&mut pass.target, &mut pass.scratch);
     match subset {
-        Some(ids) => draw_objects(scene, meshes, camera, &mut target, ids.iter().copied())?,
+        Some(ids) => draw_objects(scene, meshes, camera, to, ids.iter().copied())?,
         None => draw_objects(
             scene,
             meshes,
             camera,
-            &mut target,
+            to,
             (0..scene.objects().len() as u32).map(ObjectId::from_slot),
         )?,
     }
-    Ok(EyePass { target })
+    Ok(pass)
 }
 
 /// The coarse culling pass of the objects a host backend's coarse
@@ -260,11 +305,22 @@ pub(crate) fn coarse_pass_of(
         .iter()
         .copied()
         .filter(|id| visibility::ViewSetup::eye_occluder(&scene.object(*id).flags));
-    let items = eye_items(scene, meshes, camera, occluders, visibility::eye_cull);
-    if !items.is_empty() {
-        let coverage = occluder_coverage(true, sampling);
-        pass.target.draw_batch(&items, coverage)?;
-    }
+    let items = eye_items(
+        scene,
+        meshes,
+        camera,
+        occluders,
+        visibility::eye_cull,
+        &mut pass.scratch,
+    );
+    let r = match items.is_empty() {
+        true => Ok(()),
+        false => pass
+            .target
+            .draw_batch(&items, occluder_coverage(true, sampling)),
+    };
+    pass.scratch.keep(items);
+    r?;
     Ok(pass)
 }
 
@@ -699,9 +755,14 @@ pub(crate) fn eye_pass_culled_into(
         coarse,
         host_occluders,
     } = traversal;
-    let mut left = match previous {
-        Some(p) if (p.target.width(), p.target.height()) == (width, height) => p.target,
-        _ => DepthTarget::new(width, height, TileSize::T8, true)?,
+    let (mut left, mut scratch) = match previous {
+        Some(p) if (p.target.width(), p.target.height()) == (width, height) => {
+            (p.target, p.scratch)
+        }
+        p => (
+            DepthTarget::new(width, height, TileSize::T8, true)?,
+            p.map(|p| p.scratch).unwrap_or_default(),
+        ),
     };
     let ids = left.has_ids();
     let mut right = match state.right.target.take() {
@@ -765,7 +826,7 @@ pub(crate) fn eye_pass_culled_into(
     part.target = Some(right);
     join_results(result, &part.result);
     if coarse {
-        return Ok(EyePass { target });
+        return Ok(EyePass { target, scratch });
     }
     // Visible objects that may not occlude were left out of the traversal's
     // draws: they join the visible surface now, hiding nothing they did not.
@@ -773,8 +834,8 @@ pub(crate) fn eye_pass_culled_into(
         let f = scene.object(*id).flags;
         f.visible && !f.occludes
     });
-    draw_objects(scene, meshes, camera, &mut target, deferred)?;
-    Ok(EyePass { target })
+    draw_objects(scene, meshes, camera, (&mut target, &mut scratch), deferred)?;
+    Ok(EyePass { target, scratch })
 }
 
 /// Joins the right half's traversal result into the left's: the objects
@@ -822,6 +883,7 @@ pub(crate) fn cull_on_host_depth(
     view.preloaded = true;
     let objects = visibility::Objects::new(&state.hierarchy, scene, &state.meshes);
     let queries = std::mem::take(&mut state.queries);
+    let scratch = std::mem::take(&mut pass.scratch);
     let mut backend = raster::SyncBackend::reusing(pass.target, queries);
     state.halves = None;
     let r = state.culler.cull_into(
@@ -834,7 +896,7 @@ pub(crate) fn cull_on_host_depth(
     let (target, queries) = backend.into_parts();
     state.queries = queries;
     r?;
-    Ok(EyePass { target })
+    Ok(EyePass { target, scratch })
 }
 
 /// The culled eye traversal through a host's `backend`: the same view and
@@ -933,9 +995,9 @@ pub(crate) mod tests {
         // Every face of every object, in the same order.
         let mut all = DepthTarget::new(320, 240, TileSize::T8, true).unwrap();
         let ids = (0..scene.objects().len()).map(|i| ObjectId::from_slot(i as u32));
-        let items = eye_items(&scene, &meshes, &camera, ids, |_, _, _| {
-            raster::CullMode::None
-        });
+        let mut scratch = EyeScratch::default();
+        let none = |_: &Camera, _: &scene::Object, _: &scene::Mesh| raster::CullMode::None;
+        let items = eye_items(&scene, &meshes, &camera, ids, none, &mut scratch);
         all.draw_batch(&items, Coverage::Standard).unwrap();
         let (s, s_all) = (plain.target.take_stats(), all.take_stats());
         assert!(

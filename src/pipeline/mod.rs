@@ -359,6 +359,22 @@ impl Pipeline {
         Ok(FrameOutput { pipeline: self })
     }
 
+    /// Runs `f` with this pipeline on a thread of the pool its frames run in
+    /// (its own pool of `options.threads`, the host's from
+    /// [`Pipeline::set_thread_pool`], or rayon's global one) and returns what
+    /// `f` returns. Frames called inside run their parallel work without a
+    /// hand-off from outside the pool: rayon's injector, which allocates a
+    /// queue block now and then (about every 63 calls) when a frame is called
+    /// from another thread, is not used. A host whose own job system is not
+    /// this pool runs its steady frames this way to make no allocation at all
+    /// (`docs/host.md`, "Allocations").
+    pub fn install<R: Send>(&mut self, f: impl FnOnce(&mut Pipeline) -> R + Send) -> R {
+        match self.pool.clone() {
+            Some(pool) => pool.install(|| f(self)),
+            None => rayon::scope(|_| f(self)),
+        }
+    }
+
     fn run_frame(&mut self, input: &FrameInput) -> Result<()> {
         let (w, h) = (input.width, input.height);
         if !(1..=raster::MAX_TARGET_SIZE).contains(&w)
@@ -1081,7 +1097,6 @@ fn receiver_skips(slots: &mut [LightSlot], o: &PipelineOptions, lights: &mut Vec
     }
 }
 
-/// A pool of `threads` workers, `None` for 0 (rayon's global pool).
 /// Runs `f` in `pool`, or on the caller's pool (rayon's global one) without.
 pub(super) fn in_pool<R: Send>(
     pool: Option<&Arc<rayon::ThreadPool>>,
@@ -1093,6 +1108,7 @@ pub(super) fn in_pool<R: Send>(
     }
 }
 
+/// A pool of `threads` workers, `None` for 0 (rayon's global pool).
 fn own_pool(threads: u32) -> Result<Option<Arc<rayon::ThreadPool>>> {
     if threads == 0 {
         return Ok(None);

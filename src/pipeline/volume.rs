@@ -30,6 +30,8 @@ pub(crate) struct VolumeScratch {
     pub(crate) plan: ClampPlan,
     /// The ranges while they are split into bands.
     pub(crate) bands: Vec<raster::VolumeRange>,
+    /// Every object's receiver flag, when the frame gives none.
+    pub(crate) receives: Vec<bool>,
 }
 
 /// What this frame's light pass read of the fragment receivers
@@ -91,16 +93,17 @@ pub(crate) fn build_for(
     };
     let out = &mut scratch.buffer;
     let cache = &mut scratch.cache;
+    let all = &mut scratch.receives;
     let stats = match &options.clamping {
         None => build_volumes(out, scene, camera, light, casters, build, cache)?,
         Some(clamp) => {
             let t = Instant::now();
-            let all: Vec<bool>;
             let receives = match receives {
                 Some(r) => r,
                 None => {
-                    all = scene.objects().iter().map(|o| o.flags.receives).collect();
-                    &all
+                    all.clear();
+                    all.extend(scene.objects().iter().map(|o| o.flags.receives));
+                    &all[..]
                 }
             };
             let model = ScreenGaps {

@@ -356,7 +356,7 @@ impl OcclusionBackend for CallbackBackend {
             positions: cmd.positions.as_ptr().cast(),
             position_count: cmd.positions.len(),
             triangles: cmd.triangles.as_ptr(),
-            triangle_count: cmd.triangles.len(),
+            triangle_count: cmd.drawn_triangles().len(),
             object: cmd.object,
             coverage: cov,
             depth_pick: pick,

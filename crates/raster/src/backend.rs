@@ -60,7 +60,23 @@ pub enum Whole {
     Closed,
 }
 
+/// `triangles` less their trailing run of padding: triangles whose three
+/// indices are equal, which cover nothing. A list the library refills in
+/// place (a moving light's casting triangles) keeps its length and pads
+/// the tail this way; drawing it trimmed skips the padding's setup.
+pub fn trim_padding(triangles: &[[u32; 3]]) -> &[[u32; 3]] {
+    let pad = |t: &&[u32; 3]| t[0] == t[1] && t[1] == t[2];
+    let n = triangles.len() - triangles.iter().rev().take_while(pad).count();
+    &triangles[..n]
+}
+
 impl DrawCommand {
+    /// The triangles to draw: [`DrawCommand::triangles`] less any trailing
+    /// padding ([`trim_padding`]).
+    pub fn drawn_triangles(&self) -> &[[u32; 3]] {
+        trim_padding(&self.triangles)
+    }
+
     /// Draws this command whole on `target` when it asks to and can be
     /// ([`DrawCommand::whole`] at inner-conservative, farthest coverage);
     /// returns whether it did.
@@ -71,7 +87,7 @@ impl DrawCommand {
         let item = DrawItem {
             clip_from_local: self.clip_from_local,
             positions: &self.positions,
-            triangles: &self.triangles,
+            triangles: self.drawn_triangles(),
             object: self.object,
             cull: self.cull,
         };
@@ -269,7 +285,7 @@ fn execute(
             let item = DrawItem {
                 clip_from_local: d.clip_from_local,
                 positions: &d.positions,
-                triangles: &d.triangles,
+                triangles: d.drawn_triangles(),
                 object: d.object,
                 cull: d.cull,
             };
@@ -461,7 +477,7 @@ impl SimulatedBackend {
             items.extend(run.iter().map(|d| DrawItem {
                 clip_from_local: d.clip_from_local,
                 positions: &d.positions,
-                triangles: &d.triangles,
+                triangles: d.drawn_triangles(),
                 object: d.object,
                 cull: d.cull,
             }));

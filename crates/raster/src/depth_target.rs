@@ -148,7 +148,7 @@ impl DepthTarget {
             skip: Box::new(RowSkip::new()),
             verts: crate::setup::MeshVertices::with_room(),
             batch: Default::default(),
-            convex: Default::default(),
+            convex: crate::whole_draw::ConvexScratch::with_room(n_tiles),
             closed: Default::default(),
         };
         t.clear();

@@ -90,8 +90,8 @@ mod query;
 mod stencil;
 
 pub use backend::{
-    BackendStats, DrawCommand, Gate, Latency, OcclusionBackend, QueryBuffers, QueryCommand,
-    QueryId, ReadTarget, SimulatedBackend, SyncBackend, ThreadedBackend, Whole,
+    trim_padding, BackendStats, DrawCommand, Gate, Latency, OcclusionBackend, QueryBuffers,
+    QueryCommand, QueryId, ReadTarget, SimulatedBackend, SyncBackend, ThreadedBackend, Whole,
 };
 pub use band_extent::band_extent;
 pub use coverage::{Coverage, DepthPick};

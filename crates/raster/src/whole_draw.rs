@@ -36,7 +36,9 @@ pub(crate) fn to_f32_below(z: f64) -> f32 {
     }
 }
 
-/// Buffers of convex draws, kept between draws.
+/// Buffers of convex draws, kept between draws (made with room for what
+/// occluder proxies and boxes need, so that which target a light view gets
+/// does not decide when they grow).
 #[derive(Clone, Debug, Default)]
 pub(crate) struct ConvexScratch {
     /// Projected vertices: pixel coordinates and depth.
@@ -53,6 +55,23 @@ pub(crate) struct ConvexScratch {
     pub(crate) row: Vec<(f64, f64)>,
     /// The depths of one tile's part of a row.
     pub(crate) span: [f64; 16],
+}
+
+impl ConvexScratch {
+    /// Room for a convex solid of up to 64 triangles on a target of
+    /// `tiles` tiles (a proxy has at most 28; a box 12).
+    pub(crate) fn with_room(tiles: usize) -> Self {
+        const TRIANGLES: usize = 64;
+        ConvexScratch {
+            points: Vec::with_capacity(3 * TRIANGLES),
+            hull: Vec::with_capacity(3 * TRIANGLES),
+            sorted: Vec::with_capacity(3 * TRIANGLES),
+            planes: Vec::with_capacity(TRIANGLES),
+            tiles: Vec::with_capacity(tiles),
+            row: Vec::with_capacity(TRIANGLES),
+            span: [0.0; 16],
+        }
+    }
 }
 
 /// Buffers of closed draws, kept between draws.

@@ -65,37 +65,168 @@ fn orientation(a: DVec3, b: DVec3, c: DVec3, toward: Toward) -> i32 {
     exact::orientation(a, b, c, toward)
 }
 
-/// The fallback: the same determinant in big integers.
+/// The fallback: the same determinant in exact integer arithmetic. Every
+/// finite f64 is an integer multiple of a power of two, so the inputs,
+/// scaled by the smallest such power among them, are integers; their
+/// differences and the determinant's products are exact in a fixed
+/// 1,024-bit two's-complement integer on the stack ([`Wide`]) whenever the
+/// inputs span at most `MAX_SPREAD` (330) binary orders of magnitude, which
+/// allocates nothing (a steady frame calls this wherever a light is
+/// exactly in a face's plane: a sun along an axis and axis-aligned boxes).
+/// Wider spreads (a vertex 10⁹⁹ times farther out than another) take big
+/// integers, which allocate.
 mod exact {
     use super::Toward;
     use glam::DVec3;
-    use num_bigint::BigInt;
 
-    /// `x` as an integer multiple of 2⁻¹⁰⁷⁴ (every finite f64 is one).
-    fn scaled(x: f64) -> BigInt {
+    const LIMBS: usize = 16;
+    /// The widest exponent spread (from the smallest nonzero input's unit in
+    /// the last place to the largest one's top bit) that [`Wide`] holds:
+    /// scaled inputs then have at most spread + 1 bits, their differences
+    /// one more, and the determinant (six products of three, summed) at
+    /// most 3 · (spread + 2) + 3 ≤ 64 · LIMBS − 1 bits.
+    pub(super) const MAX_SPREAD: i32 = 330;
+
+    /// `x` as `mantissa · 2^exponent` (every finite f64 is one; 0 is (0, _)).
+    fn split(x: f64) -> (u64, i32) {
         let bits = x.to_bits();
-        let exponent = ((bits >> 52) & 0x7ff) as i64;
+        let field = ((bits >> 52) & 0x7ff) as i32;
         let fraction = bits & ((1 << 52) - 1);
         // Subnormals: fraction · 2⁻¹⁰⁷⁴; normals: (2⁵² + fraction) · 2^(e − 1075).
-        let (mantissa, shift) = if exponent == 0 {
-            (fraction, 0)
-        } else {
-            (fraction | (1 << 52), exponent - 1)
-        };
-        let m = BigInt::from(mantissa) << shift;
-        if x.is_sign_negative() {
-            -m
-        } else {
-            m
+        match field {
+            0 => (fraction, -1074),
+            _ => (fraction | (1 << 52), field - 1075),
         }
     }
 
-    fn vector(p: DVec3) -> [BigInt; 3] {
-        [scaled(p.x), scaled(p.y), scaled(p.z)]
+    /// A two's-complement integer of 64 · LIMBS bits, limbs little-endian.
+    #[derive(Clone, Copy)]
+    struct Wide([u64; LIMBS]);
+
+    impl Wide {
+        /// `±mantissa · 2^shift` (`shift` below 64 · (LIMBS − 1)).
+        fn new(x: f64, lowest: i32) -> Wide {
+            let (m, e) = split(x);
+            let mut w = Wide([0; LIMBS]);
+            if m != 0 {
+                let shift = (e - lowest) as u32;
+                let (limb, bit) = ((shift / 64) as usize, shift % 64);
+                w.0[limb] = m << bit;
+                if bit > 0 {
+                    w.0[limb + 1] = m >> (64 - bit);
+                }
+            }
+            if x.is_sign_negative() {
+                w.neg()
+            } else {
+                w
+            }
+        }
+
+        fn neg(self) -> Wide {
+            let mut r = [0; LIMBS];
+            let mut carry = true;
+            for (r, &x) in r.iter_mut().zip(&self.0) {
+                let (v, c) = (!x).overflowing_add(u64::from(carry));
+                *r = v;
+                carry = c;
+            }
+            Wide(r)
+        }
+
+        fn add(self, o: Wide) -> Wide {
+            let mut r = [0; LIMBS];
+            let mut carry = false;
+            for ((r, &x), &y) in r.iter_mut().zip(&self.0).zip(&o.0) {
+                let (v, c1) = x.overflowing_add(y);
+                let (v, c2) = v.overflowing_add(u64::from(carry));
+                *r = v;
+                carry = c1 || c2;
+            }
+            Wide(r)
+        }
+
+        fn sub(self, o: Wide) -> Wide {
+            self.add(o.neg())
+        }
+
+        fn negative(&self) -> bool {
+            self.0[LIMBS - 1] >> 63 == 1
+        }
+
+        fn abs(self) -> Wide {
+            if self.negative() {
+                self.neg()
+            } else {
+                self
+            }
+        }
+
+        /// The product (the caller's bound keeps it within 64 · LIMBS − 1 bits).
+        fn mul(self, o: Wide) -> Wide {
+            let negative = self.negative() != o.negative();
+            let (a, b) = (self.abs().0, o.abs().0);
+            let used = |x: &[u64; LIMBS]| LIMBS - x.iter().rev().take_while(|&&l| l == 0).count();
+            let (na, nb) = (used(&a), used(&b));
+            let mut r = [0u64; LIMBS];
+            for (i, &x) in a.iter().enumerate().take(na) {
+                let mut carry = 0u128;
+                for j in 0..nb.min(LIMBS - i) {
+                    let t = u128::from(r[i + j]) + u128::from(x) * u128::from(b[j]) + carry;
+                    r[i + j] = t as u64;
+                    carry = t >> 64;
+                }
+                if i + nb < LIMBS {
+                    r[i + nb] = carry as u64;
+                }
+            }
+            if negative {
+                Wide(r).neg()
+            } else {
+                Wide(r)
+            }
+        }
+
+        fn sign(&self) -> i32 {
+            if self.negative() {
+                -1
+            } else if self.0.iter().all(|&l| l == 0) {
+                0
+            } else {
+                1
+            }
+        }
     }
 
-    fn sub(p: &[BigInt; 3], q: &[BigInt; 3]) -> [BigInt; 3] {
-        [&p[0] - &q[0], &p[1] - &q[1], &p[2] - &q[2]]
+    /// The exponent range (lowest, highest) of the nonzero coordinates.
+    fn exponents(points: &[DVec3]) -> Option<(i32, i32)> {
+        let mut range: Option<(i32, i32)> = None;
+        for (m, e) in points.iter().flat_map(|p| p.to_array()).map(split) {
+            if m != 0 {
+                let top = e + 63 - m.leading_zeros() as i32;
+                range = Some(match range {
+                    Some((lo, hi)) => (lo.min(e), hi.max(top)),
+                    None => (e, top),
+                });
+            }
+        }
+        range
+    }
+
+    /// `det[x, y, v]` of exact integer vectors.
+    fn det<T: Copy>(
+        x: [T; 3],
+        y: [T; 3],
+        v: [T; 3],
+        mul: impl Fn(T, T) -> T,
+        add: impl Fn(T, T) -> T,
+        sub: impl Fn(T, T) -> T,
+    ) -> T {
+        let minor = |i: usize, j: usize| sub(mul(y[i], v[j]), mul(y[j], v[i]));
+        add(
+            add(mul(x[0], minor(1, 2)), mul(x[1], minor(2, 0))),
+            mul(x[2], minor(0, 1)),
+        )
     }
 
     pub(super) fn orientation(a: DVec3, b: DVec3, c: DVec3, toward: Toward) -> i32 {
@@ -105,21 +236,82 @@ mod exact {
         if ![a, b, c, light].iter().all(|p| p.is_finite()) {
             return 0;
         }
-        let [a, b, c] = [a, b, c].map(vector);
-        let (x, y) = (sub(&b, &a), sub(&c, &a));
-        let v = match toward {
-            Toward::Point(p) => sub(&vector(p), &a),
-            Toward::Direction(d) => vector(d),
+        // The points share one scale; a direction takes its own (the
+        // determinant is linear in it, so a positive scale keeps the sign).
+        let (shared, own): (&[DVec3], Option<DVec3>) = match toward {
+            Toward::Point(p) => (&[a, b, c, p], None),
+            Toward::Direction(d) => (&[a, b, c], Some(d)),
         };
-        let d = &x[0] * (&y[1] * &v[2] - &y[2] * &v[1])
-            + &x[1] * (&y[2] * &v[0] - &y[0] * &v[2])
-            + &x[2] * (&y[0] * &v[1] - &y[1] * &v[0]);
-        match d.sign() {
-            num_bigint::Sign::Plus => 1,
-            num_bigint::Sign::Minus => -1,
-            num_bigint::Sign::NoSign => 0,
+        let spread = |r: Option<(i32, i32)>| r.map_or(0, |(lo, hi)| hi - lo);
+        let (points, direction) = (exponents(shared), own.and_then(|d| exponents(&[d])));
+        if spread(points).max(spread(direction)) <= MAX_SPREAD {
+            let lowest = |r: Option<(i32, i32)>| r.map_or(0, |(lo, _)| lo);
+            let wide = |p: DVec3, lo: i32| [p.x, p.y, p.z].map(|x| Wide::new(x, lo));
+            let at = |p: DVec3| wide(p, lowest(points));
+            let diff = |p: [Wide; 3], q: [Wide; 3]| [0, 1, 2].map(|i| p[i].sub(q[i]));
+            let wa = at(a);
+            let v = match toward {
+                Toward::Point(p) => diff(at(p), wa),
+                Toward::Direction(d) => wide(d, lowest(direction)),
+            };
+            let d = det(
+                diff(at(b), wa),
+                diff(at(c), wa),
+                v,
+                Wide::mul,
+                Wide::add,
+                Wide::sub,
+            );
+            return d.sign();
+        }
+        big::orientation(a, b, c, toward)
+    }
+
+    /// Beyond [`MAX_SPREAD`]: big integers.
+    mod big {
+        use super::super::Toward;
+        use glam::DVec3;
+        use num_bigint::BigInt;
+
+        /// `x` as an integer multiple of 2⁻¹⁰⁷⁴.
+        fn scaled(x: f64) -> BigInt {
+            let (m, e) = super::split(x);
+            let m = BigInt::from(m) << (e + 1074);
+            if x.is_sign_negative() {
+                -m
+            } else {
+                m
+            }
+        }
+
+        fn vector(p: DVec3) -> [BigInt; 3] {
+            [scaled(p.x), scaled(p.y), scaled(p.z)]
+        }
+
+        fn sub(p: &[BigInt; 3], q: &[BigInt; 3]) -> [BigInt; 3] {
+            [&p[0] - &q[0], &p[1] - &q[1], &p[2] - &q[2]]
+        }
+
+        pub(in super::super) fn orientation(a: DVec3, b: DVec3, c: DVec3, toward: Toward) -> i32 {
+            let [a, b, c] = [a, b, c].map(vector);
+            let (x, y) = (sub(&b, &a), sub(&c, &a));
+            let v = match toward {
+                Toward::Point(p) => sub(&vector(p), &a),
+                Toward::Direction(d) => vector(d),
+            };
+            let d = &x[0] * (&y[1] * &v[2] - &y[2] * &v[1])
+                + &x[1] * (&y[2] * &v[0] - &y[0] * &v[2])
+                + &x[2] * (&y[0] * &v[1] - &y[1] * &v[0]);
+            match d.sign() {
+                num_bigint::Sign::Plus => 1,
+                num_bigint::Sign::Minus => -1,
+                num_bigint::Sign::NoSign => 0,
+            }
         }
     }
+
+    #[cfg(test)]
+    pub(super) use big::orientation as big_orientation;
 }
 
 #[cfg(test)]
@@ -274,6 +466,33 @@ mod tests {
             proptest::prop_assert_eq!(
                 orientation(a, b, c, toward),
                 exact::orientation(a, b, c, toward)
+            );
+        }
+
+        /// The fixed-width exact sign equals the big-integer one, for
+        /// lights within rounding of the plane, exactly in it (integer
+        /// grids, axis-aligned suns), and spreads up to the fixed width's.
+        #[test]
+        fn the_fixed_width_sign_equals_the_big_integer_sign(
+            v in proptest::array::uniform3(proptest::array::uniform3(-1.0f64..1.0)),
+            e in proptest::array::uniform3(-30i32..30),
+            st in proptest::array::uniform2(-2.0f64..2.0),
+            off in -330i32..2,
+            grid in proptest::bool::ANY,
+            sun in proptest::bool::ANY,
+        ) {
+            let snap = |p: DVec3| if grid { (p * 8.0).round() } else { p };
+            let [a, b, c] = [0, 1, 2].map(|k| snap(DVec3::from(v[k]) * 10f64.powi(e[k])));
+            let n = (b - a).cross(c - a);
+            let off = if grid { 0.0 } else { 2f64.powi(off) };
+            let toward = if sun {
+                Toward::Direction(snap((b - a) * st[0] + (c - a) * st[1]) + n * off)
+            } else {
+                Toward::Point(snap(a + (b - a) * st[0] + (c - a) * st[1]) + n * off)
+            };
+            proptest::prop_assert_eq!(
+                exact::orientation(a, b, c, toward),
+                exact::big_orientation(a, b, c, toward)
             );
         }
     }

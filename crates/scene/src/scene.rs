@@ -847,20 +847,22 @@ fn flattening(bounds: &Aabb, world_from_local: &DMat4) -> Option<String> {
     }
     let e = (bounds.max - bounds.min).as_dvec3();
     let centre = bounds.center();
-    let local: Vec<glam::DVec3> = [
+    // The axes the mesh extends in (on the stack: an edit allocates nothing).
+    let mut local = [glam::DVec3::ZERO; 3];
+    let mut n = 0;
+    for v in [
         glam::DVec3::X * e.x,
         glam::DVec3::Y * e.y,
         glam::DVec3::Z * e.z,
-    ]
-    .into_iter()
-    .filter(|v| v.length() > 0.0)
-    .collect();
-    let world: Vec<glam::DVec3> = local
-        .iter()
-        .map(|&v| world_from_local.transform_vector3(v))
-        .collect();
-    let placed = relative_thinness(&world, world_from_local.transform_point3(centre))?;
-    let own = relative_thinness(&local, centre)?;
+    ] {
+        if v.length() > 0.0 {
+            local[n] = v;
+            n += 1;
+        }
+    }
+    let world = local.map(|v| world_from_local.transform_vector3(v));
+    let placed = relative_thinness(&world[..n], world_from_local.transform_point3(centre))?;
+    let own = relative_thinness(&local[..n], centre)?;
     (placed < FLAT_RELATIVE && placed * FLATTENED_BY < own).then(|| {
         format!(
             "flattens its mesh: its thinnest extent becomes {placed:e} of its coordinates' \

@@ -61,9 +61,16 @@ pub struct LightClamp {
     intervals: Vec<[f64; 2]>,
     /// What the sweeps last saw, to skip them while nothing moved.
     key: Option<CacheKey>,
-    /// Per caster: its axis and raw occupied intervals (no gap merged: the
-    /// cost model's areas depend on the view), valid while `key` holds.
-    raw: std::collections::HashMap<u32, (SegmentAxis, Vec<[f64; 2]>)>,
+    /// Per caster slot: its axis and raw occupied intervals (no gap merged:
+    /// the cost model's areas depend on the view), valid while `key` holds
+    /// (`None`: not found yet). Forgotten entries keep their lists'
+    /// allocations.
+    raw: Vec<(Option<SegmentAxis>, Vec<[f64; 2]>)>,
+    /// This frame's casters that are not receivers, sorted (swapped into
+    /// the key when it changes).
+    other_casters: Vec<ObjectId>,
+    /// Per object: a caster of this frame (the sweeps' scratch).
+    is_caster: Vec<bool>,
 }
 
 /// What the sweeps and the raw intervals depend on: the light, the receiver
@@ -135,8 +142,9 @@ impl LightClamp {
         } = *input;
         let objects = scene.objects();
         let receiving = |c: &ObjectId| receives.get(c.index()).copied().unwrap_or(false);
-        let mut other_casters: Vec<ObjectId> =
-            casters.iter().copied().filter(|c| !receiving(c)).collect();
+        let mut other_casters = std::mem::take(&mut self.other_casters);
+        other_casters.clear();
+        other_casters.extend(casters.iter().copied().filter(|c| !receiving(c)));
         other_casters.sort_unstable();
         let same_geometry = self.key.as_ref().is_some_and(|k| {
             k.light == *light
@@ -171,29 +179,43 @@ impl LightClamp {
             if same_geometry {
                 self.forget_pairs_of(&changed);
             } else {
-                self.raw.clear();
+                self.raw.iter_mut().for_each(|r| r.0 = None);
             }
-            self.key = Some(CacheKey {
+            // The key, updated in place (its lists keep their allocations).
+            let key = self.key.get_or_insert_with(|| CacheKey {
                 light: *light,
-                receives: receives.to_vec(),
-                other_casters,
-                bounds: objects.iter().map(|o| o.world_bounds).collect(),
+                receives: Vec::new(),
+                other_casters: Vec::new(),
+                bounds: Vec::new(),
             });
+            key.light = *light;
+            key.receives.clear();
+            key.receives.extend_from_slice(receives);
+            std::mem::swap(&mut key.other_casters, &mut other_casters);
+            key.bounds.clear();
+            key.bounds.extend(objects.iter().map(|o| o.world_bounds));
+        }
+        self.other_casters = other_casters;
+        if self.raw.len() < objects.len() {
+            self.raw.resize_with(objects.len(), Default::default);
         }
         for &c in casters {
             let Some(bounds) = objects.get(c.index()).map(|o| o.world_bounds) else {
                 continue;
             };
-            if self.raw.contains_key(&c.slot()) {
+            if self.raw[c.index()].0.is_some() {
                 stats.cached_casters += 1;
             } else {
                 let Some(axis) = SegmentAxis::new(light, &bounds) else {
                     continue;
                 };
-                let raw = self.raw_intervals(input, c, &axis, &bounds);
-                self.raw.insert(c.slot(), (axis, raw));
+                let mut raw = std::mem::take(&mut self.raw[c.index()].1);
+                self.raw_intervals(input, c, &axis, &bounds, &mut raw);
+                self.raw[c.index()] = (Some(axis), raw);
             }
-            let (axis, raw) = &self.raw[&c.slot()];
+            let (Some(axis), raw) = &self.raw[c.index()] else {
+                continue;
+            };
             let [first, rest @ ..] = raw.as_slice() else {
                 continue;
             };
@@ -321,11 +343,17 @@ impl LightClamp {
     /// Drops the raw intervals of `objects` and of every box the sweeps
     /// pair them with.
     fn forget_pairs_of(&mut self, objects: &[u32]) {
+        let raw = &mut self.raw;
+        let mut forget = |k: u32| {
+            if let Some(r) = raw.get_mut(k as usize) {
+                r.0 = None;
+            }
+        };
         for &d in objects {
-            self.raw.remove(&d);
+            forget(d);
             for sap in &self.planes {
-                for c in sap.neighbours(d) {
-                    self.raw.remove(c);
+                for &c in sap.neighbours(d) {
+                    forget(c);
                 }
             }
         }
@@ -339,7 +367,8 @@ impl LightClamp {
         c: ObjectId,
         axis: &SegmentAxis,
         bounds: &Aabb,
-    ) -> Vec<[f64; 2]> {
+        raw: &mut Vec<[f64; 2]>,
+    ) {
         let objects = input.scene.objects();
         self.seen.resize(objects.len(), 0);
         self.stamp = self.stamp.wrapping_add(1);
@@ -359,14 +388,12 @@ impl LightClamp {
                 }
             }
         }
-        let mut raw = Vec::new();
         occupied_intervals(
             axis.box_depths(bounds),
             self.depths.iter().copied(),
             None,
-            &mut raw,
+            raw,
         );
-        raw
     }
 
     /// The sweeps on every image plane.
@@ -394,7 +421,9 @@ impl LightClamp {
         let faces = if light.position().is_some() { 6 } else { 1 };
         self.planes.resize_with(faces, SweepPrune::new);
         let objects = scene.objects();
-        let mut is_caster = vec![false; n];
+        let is_caster = &mut self.is_caster;
+        is_caster.clear();
+        is_caster.resize(n, false);
         for c in casters {
             if let Some(f) = is_caster.get_mut(c.index()) {
                 *f = true;

@@ -167,7 +167,12 @@ impl SegmentAxis {
 /// stage, read by [`crate::build_clamped_volumes`].
 #[derive(Clone, Debug, Default)]
 pub struct ClampPlan {
-    entries: std::collections::HashMap<u32, (Frame, Vec<[f64; 2]>)>,
+    /// Per caster slot: how it is cut (`None`: unclamped) and its
+    /// intervals. Cleared entries keep their lists' allocations, so a
+    /// steady frame's plan allocates nothing.
+    entries: Vec<(Option<Frame>, Vec<[f64; 2]>)>,
+    /// The slots with an entry.
+    set: Vec<u32>,
     widened: Vec<[f64; 2]>,
 }
 
@@ -210,7 +215,40 @@ impl ClampPlan {
 
     /// Forgets every entry.
     pub fn clear(&mut self) {
-        self.entries.clear();
+        for &slot in &self.set {
+            self.entries[slot as usize].0 = None;
+        }
+        self.set.clear();
+    }
+
+    /// `caster`'s entry, made when missing, to be filled as `frame`.
+    fn entry(&mut self, caster: ObjectId, frame: Frame) -> &mut Vec<[f64; 2]> {
+        let slot = caster.index();
+        if self.entries.len() <= slot {
+            self.entries.resize_with(slot + 1, Default::default);
+        }
+        let e = &mut self.entries[slot];
+        if e.0.is_none() {
+            self.set.push(caster.slot());
+        }
+        e.0 = Some(frame);
+        &mut e.1
+    }
+
+    /// Removes `caster`'s entry.
+    fn unset(&mut self, caster: ObjectId) {
+        if let Some(e) = self.entries.get_mut(caster.index()) {
+            if e.0.take().is_some() {
+                self.set.retain(|&s| s != caster.slot());
+            }
+        }
+    }
+
+    fn entry_of(&self, caster: ObjectId) -> Option<(&Frame, &[[f64; 2]])> {
+        match self.entries.get(caster.index())? {
+            (Some(f), i) => Some((f, i.as_slice())),
+            (None, _) => None,
+        }
     }
 
     /// Clamps `caster` along `axis` to `intervals` (sorted and disjoint, the
@@ -219,13 +257,13 @@ impl ClampPlan {
     /// removes the entry.
     pub fn set(&mut self, caster: ObjectId, axis: SegmentAxis, intervals: &[[f64; 2]]) {
         if intervals.is_empty() {
-            self.entries.remove(&caster.slot());
+            self.unset(caster);
             return;
         }
-        axis.widened(intervals, &mut self.widened);
-        let e = (self.entries.entry(caster.slot())).or_insert((Frame::Axis(axis), Vec::new()));
-        e.0 = Frame::Axis(axis);
-        e.1.clone_from(&self.widened);
+        let mut widened = std::mem::take(&mut self.widened);
+        axis.widened(intervals, &mut widened);
+        self.entry(caster, Frame::Axis(axis)).clone_from(&widened);
+        self.widened = widened;
     }
 
     /// Clamps `caster` to `intervals` of `slices`' `g` (oriented for the
@@ -236,20 +274,19 @@ impl ClampPlan {
     /// edge-on for the eye. An empty list removes the entry.
     pub fn set_sliced(&mut self, caster: ObjectId, slices: EyeSlices, intervals: &[[f64; 2]]) {
         if intervals.is_empty() {
-            self.entries.remove(&caster.slot());
+            self.unset(caster);
             return;
         }
-        let e = (self.entries.entry(caster.slot())).or_insert((Frame::Eye(slices), Vec::new()));
-        e.0 = Frame::Eye(slices);
-        e.1.clear();
-        e.1.extend_from_slice(intervals);
+        let e = self.entry(caster, Frame::Eye(slices));
+        e.clear();
+        e.extend_from_slice(intervals);
     }
 
     /// The axis and widened intervals of `caster`, if continuous clamping
     /// clamps it.
     pub fn get(&self, caster: ObjectId) -> Option<(&SegmentAxis, &[[f64; 2]])> {
-        match self.entries.get(&caster.slot()) {
-            Some((Frame::Axis(a), i)) => Some((a, i.as_slice())),
+        match self.entry_of(caster)? {
+            (Frame::Axis(a), i) => Some((a, i)),
             _ => None,
         }
     }
@@ -257,30 +294,30 @@ impl ClampPlan {
     /// The oriented slices and intervals of `caster`, if discrete clamping
     /// clamps it.
     pub fn get_sliced(&self, caster: ObjectId) -> Option<(&EyeSlices, &[[f64; 2]])> {
-        match self.entries.get(&caster.slot()) {
-            Some((Frame::Eye(e), i)) => Some((e, i.as_slice())),
+        match self.entry_of(caster)? {
+            (Frame::Eye(e), i) => Some((e, i)),
             _ => None,
         }
     }
 
     /// How `caster` is cut and where, if it is clamped.
     pub(crate) fn frame(&self, caster: ObjectId) -> Option<(SegmentFrame<'_>, &[[f64; 2]])> {
-        let (f, i) = self.entries.get(&caster.slot())?;
+        let (f, i) = self.entry_of(caster)?;
         let f = match f {
             Frame::Axis(a) => SegmentFrame::Axis(a),
             Frame::Eye(e) => SegmentFrame::Eye(e),
         };
-        Some((f, i.as_slice()))
+        Some((f, i))
     }
 
     /// Number of clamped casters.
     pub fn len(&self) -> usize {
-        self.entries.len()
+        self.set.len()
     }
 
     /// True when no caster is clamped.
     pub fn is_empty(&self) -> bool {
-        self.entries.is_empty()
+        self.set.is_empty()
     }
 }
 

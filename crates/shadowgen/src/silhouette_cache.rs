@@ -17,8 +17,18 @@ fn light_key(light: &Light) -> [u64; 4] {
 struct Entry {
     world_from_local: DMat4,
     two_sided: bool,
+    /// Computed for its table's current light (false after the table was
+    /// handed to another light position).
+    valid: bool,
     silhouette: Silhouette,
 }
+
+/// Light positions kept at once per cache (one cache per pipeline light):
+/// a light moving between a few positions keeps all of theirs; a light
+/// moving on hands its least recently used table, entries and buffers
+/// included, to the new position, so memory stays bounded and the
+/// recomputation allocates nothing.
+const LIGHT_TABLES: usize = 4;
 
 /// The entries of one light, indexed by object id (boxed: most objects of a
 /// large scene never cast for a given view, and an empty slot then costs 8
@@ -26,6 +36,8 @@ struct Entry {
 struct LightEntries {
     key: [u64; 4],
     last_used: u64,
+    /// [`SilhouetteCache::update`]'s count when it last used the table.
+    used: u64,
     objects: Vec<Option<Box<Entry>>>,
 }
 
@@ -34,13 +46,15 @@ struct LightEntries {
 /// option differs from the one the entry was computed with (exact comparison).
 ///
 /// Per light (identified by the bits of its homogeneous position or direction)
-/// a dense table indexed by object id. Tables of lights that moved are left
-/// behind; [`SilhouetteCache::next_frame`] and [`SilhouetteCache::evict_unused`]
-/// drop them.
+/// a dense table indexed by object id, at most four of them: a new position
+/// takes over the least recently used table (its entries recomputed in
+/// place). [`SilhouetteCache::evict_unused`] drops tables not used lately.
 #[derive(Default)]
 pub struct SilhouetteCache {
     lights: Vec<LightEntries>,
     frame: u64,
+    /// Updates so far (the tables' recency).
+    uses: u64,
     hits: usize,
     misses: usize,
     stale: Vec<(ObjectId, Silhouette)>,
@@ -72,7 +86,7 @@ impl SilhouetteCache {
     pub fn len(&self) -> usize {
         self.lights
             .iter()
-            .map(|l| l.objects.iter().flatten().count())
+            .map(|l| l.objects.iter().flatten().filter(|e| e.valid).count())
             .sum()
     }
 
@@ -120,12 +134,25 @@ impl SilhouetteCache {
     /// If an id is not an object of `scene`.
     pub fn update(&mut self, scene: &Scene, light: &Light, two_sided: bool, ids: &[ObjectId]) {
         let key = light_key(light);
+        self.uses += 1;
         let slot = match self.lights.iter().position(|l| l.key == key) {
             Some(i) => i,
+            None if self.lights.len() >= LIGHT_TABLES => {
+                let (i, _) = (self.lights.iter().enumerate())
+                    .min_by_key(|(_, l)| l.used)
+                    .expect("LIGHT_TABLES > 0");
+                let table = &mut self.lights[i];
+                table.key = key;
+                for e in table.objects.iter_mut().flatten() {
+                    e.valid = false;
+                }
+                i
+            }
             None => {
                 self.lights.push(LightEntries {
                     key,
                     last_used: self.frame,
+                    used: self.uses,
                     objects: Vec::new(),
                 });
                 self.lights.len() - 1
@@ -133,6 +160,7 @@ impl SilhouetteCache {
         };
         let table = &mut self.lights[slot];
         table.last_used = self.frame;
+        table.used = self.uses;
         if table.objects.len() < scene.objects().len() {
             table.objects.resize_with(scene.objects().len(), || None);
         }
@@ -142,9 +170,9 @@ impl SilhouetteCache {
         for &id in ids {
             let w = &scene.object(id).world_from_local;
             let e = &mut table.objects[id.index()];
-            let current = e
-                .as_ref()
-                .is_some_and(|e| e.two_sided == two_sided && same_bits(&e.world_from_local, w));
+            let current = e.as_ref().is_some_and(|e| {
+                e.valid && e.two_sided == two_sided && same_bits(&e.world_from_local, w)
+            });
             if current {
                 self.hits += 1;
                 continue;
@@ -156,12 +184,14 @@ impl SilhouetteCache {
                 Some(e) => {
                     e.world_from_local = *w;
                     e.two_sided = two_sided;
+                    e.valid = true;
                     std::mem::take(&mut e.silhouette)
                 }
                 None => {
                     *e = Some(Box::new(Entry {
                         world_from_local: *w,
                         two_sided,
+                        valid: true,
                         silhouette: Silhouette::default(),
                     }));
                     Silhouette::default()
@@ -206,6 +236,7 @@ impl SilhouetteCache {
             .objects
             .get(id.index())?
             .as_ref()
+            .filter(|e| e.valid)
             .map(|e| &e.silhouette)
     }
 }
@@ -265,5 +296,45 @@ mod tests {
         c.evict_unused(0);
         assert_eq!(c.len(), 1);
         assert!(c.get(ObjectId::from_slot(0), &l).is_none());
+    }
+
+    /// A light moving on keeps at most [`LIGHT_TABLES`] tables: each new
+    /// position takes over the least recently used one, whose entries are
+    /// recomputed (never read as another position's), and positions seen
+    /// lately stay cached.
+    #[test]
+    fn a_moving_light_keeps_a_bounded_cache() {
+        let p = [Vec3::ZERO, Vec3::X, Vec3::Y];
+        let m = Mesh::new("tri", &p, &[[0, 1, 2]]).unwrap();
+        let s = scene_of(m, Transform::default());
+        let id = ObjectId::from_slot(0);
+        // In front of the triangle (it casts: 3 edges) or behind (it does not).
+        let at = |k: u32| {
+            point(DVec3::new(
+                0.2,
+                0.2,
+                if k.is_multiple_of(2) { 2.0 } else { -2.0 } + f64::from(k) * 1e-3,
+            ))
+        };
+        let mut c = SilhouetteCache::new();
+        for k in 0..40 {
+            c.update(&s, &at(k), false, &[id]);
+            let want = if k.is_multiple_of(2) { 3 } else { 0 };
+            assert_eq!(
+                c.get(id, &at(k)).unwrap().edge_count(),
+                want,
+                "position {k}"
+            );
+            assert!(c.lights.len() <= LIGHT_TABLES);
+        }
+        assert_eq!(c.len(), LIGHT_TABLES);
+        assert!(
+            c.get(id, &at(0)).is_none(),
+            "a position handed over is gone"
+        );
+        let misses = c.hits_misses().1;
+        c.update(&s, &at(39), false, &[id]);
+        c.update(&s, &at(36), false, &[id]);
+        assert_eq!(c.hits_misses().1, misses, "recent positions stay cached");
     }
 }

@@ -155,6 +155,19 @@ pub struct SweepPrune {
     last_rebuilt: Option<u32>,
     /// Consecutive updates that rebuilt.
     rebuilds: u32,
+    /// [`SweepPrune::merge`]'s and [`SweepPrune::rebuild`]'s lists, kept so
+    /// that boxes appearing again (a periodic motion) allocate nothing.
+    scratch: MergeScratch,
+}
+
+/// The lists of one merge or rebuild.
+#[derive(Clone, Debug, Default)]
+struct MergeScratch {
+    new: Vec<u64>,
+    merged: Vec<u64>,
+    open_old: Vec<u32>,
+    open_new: Vec<u32>,
+    found: Vec<(u32, u32)>,
 }
 
 impl Default for SweepPrune {
@@ -169,6 +182,7 @@ impl Default for SweepPrune {
             inserted: Vec::new(),
             last_rebuilt: None,
             rebuilds: 0,
+            scratch: MergeScratch::default(),
         }
     }
 }
@@ -358,26 +372,32 @@ impl SweepPrune {
         if ids.is_empty() {
             return;
         }
+        let mut s = std::mem::take(&mut self.scratch);
         for (axis, list) in self.axes.iter_mut().enumerate() {
-            let mut new: Vec<u64> = ids
-                .iter()
-                .flat_map(|&id| {
-                    let r = self.rects[id as usize].expect("appeared boxes are present");
-                    [key(r, axis, false, id), key(r, axis, true, id)]
-                })
-                .collect();
-            new.sort_unstable();
-            *list = merge_sorted(list, &new);
+            s.new.clear();
+            s.new.extend(ids.iter().flat_map(|&id| {
+                let r = self.rects[id as usize].expect("appeared boxes are present");
+                [key(r, axis, false, id), key(r, axis, true, id)]
+            }));
+            s.new.sort_unstable();
+            merge_sorted(list, &s.new, &mut s.merged);
+            std::mem::swap(list, &mut s.merged);
         }
         // Sweep x: a pair with an appeared box is found where the later
         // minimum meets the earlier box still open.
         let is_new = |id: u32| ids.binary_search(&id).is_ok();
-        let (mut open_old, mut open_new) = (Vec::new(), Vec::new());
-        let mut found = Vec::new();
+        let (open_old, open_new, found) = (&mut s.open_old, &mut s.open_new, &mut s.found);
+        open_old.clear();
+        open_new.clear();
+        found.clear();
         for &k in &self.axes[0] {
             let id = k as u32 & ID_MASK;
             let fresh = is_new(id);
-            let open = if fresh { &mut open_new } else { &mut open_old };
+            let open = if fresh {
+                &mut *open_new
+            } else {
+                &mut *open_old
+            };
             if k & MAX_BIT != 0 {
                 let at = open.iter().position(|&o| o == id).expect("opened before");
                 open.swap_remove(at);
@@ -399,9 +419,10 @@ impl SweepPrune {
                 open_old.push(id);
             }
         }
-        for (a, b) in found {
+        for &(a, b) in found.iter() {
             self.add_pair(a, b);
         }
+        self.scratch = s;
     }
 
     /// Sorts every axis from scratch and sweeps all pairs once.
@@ -418,11 +439,13 @@ impl SweepPrune {
             }
             list.sort_unstable();
         }
-        let mut found = Vec::new();
-        sweep_x(&self.axes[0], &self.rects, |a, b| found.push((a, b)));
-        for (a, b) in found {
+        let mut s = std::mem::take(&mut self.scratch);
+        s.found.clear();
+        sweep_x(&self.axes[0], &self.rects, |a, b| s.found.push((a, b)));
+        for &(a, b) in &s.found {
             self.add_pair(a, b);
         }
+        self.scratch = s;
     }
 
     fn add_pair(&mut self, a: u32, b: u32) {
@@ -522,9 +545,10 @@ fn pair_key(a: u32, b: u32) -> u64 {
     (u64::from(a.min(b)) << 32) | u64::from(a.max(b))
 }
 
-/// The union of two sorted lists, sorted.
-fn merge_sorted(a: &[u64], b: &[u64]) -> Vec<u64> {
-    let mut out = Vec::with_capacity(a.len() + b.len());
+/// The union of two sorted lists, sorted, into `out` (cleared first).
+fn merge_sorted(a: &[u64], b: &[u64], out: &mut Vec<u64>) {
+    out.clear();
+    out.reserve(a.len() + b.len());
     let (mut i, mut j) = (0, 0);
     while i < a.len() && j < b.len() {
         if a[i] <= b[j] {
@@ -537,7 +561,6 @@ fn merge_sorted(a: &[u64], b: &[u64]) -> Vec<u64> {
     }
     out.extend_from_slice(&a[i..]);
     out.extend_from_slice(&b[j..]);
-    out
 }
 
 #[cfg(test)]

@@ -290,7 +290,7 @@ impl Run<'_, '_> {
             },
             (None, _) => (self.meshes.triangles[mesh].clone(), raster::Whole::No),
         };
-        self.out.stats.triangles_rendered += triangles.len() as u64;
+        self.out.stats.triangles_rendered += raster::trim_padding(&triangles).len() as u64;
         self.backend.draw(DrawCommand {
             clip_from_local: (self.view.clip_from_local)(&o.world_from_local),
             positions: self.meshes.positions[mesh].clone(),

@@ -293,17 +293,65 @@ pub struct LightPass {
 /// Per object, the triangles it casts with (light-facing, or all when
 /// two-sided), found on first use and kept while the object (transform,
 /// mesh and its version) and the light stay as they were: a static scene
-/// finds them once, not every frame.
+/// finds them once, not every frame. When the light moves, each entry's
+/// allocation is kept as its slot's spare and refilled in place on the
+/// object's next use: a moving light allocates nothing either.
 #[derive(Debug, Default)]
 struct CastingCache {
     /// The light's homogeneous position bits, the two-sided rule and
     /// whether proxies stand in for meshes.
     key: Option<([u64; 4], bool, bool)>,
-    /// Per object (boxed: an empty slot costs 16 bytes, not 180).
-    entries: Vec<OnceLock<Box<Casting>>>,
+    /// Per object.
+    entries: Vec<CastingEntry>,
     /// A moved object's casting triangles, found by the update to compare
     /// with its old list: an unchanged set keeps its list (no allocation).
     found: Vec<[u32; 3]>,
+}
+
+/// One object's slot of the cache (boxed: an empty slot costs 24 bytes, not
+/// 180).
+#[derive(Debug, Default)]
+struct CastingEntry {
+    /// The current casting triangles, found on first use.
+    current: OnceLock<Box<Casting>>,
+    /// An outdated entry whose allocations the next finding reuses.
+    spare: Mutex<Option<Box<Casting>>>,
+}
+
+impl CastingEntry {
+    /// Moves the current entry (if any) to the spare.
+    fn retire(&mut self) {
+        if let Some(c) = self.current.take() {
+            *self.spare.get_mut().unwrap_or_else(PoisonError::into_inner) = Some(c);
+        }
+    }
+}
+
+/// The items of `found` as a casting list, written into `list` in place when
+/// it is unshared and at least `all` long (the most `found` can yield), else
+/// into a new list; padded as [`refill`] pads.
+fn fill(list: &mut Arc<[[u32; 3]]>, found: impl Iterator<Item = [u32; 3]>, all: usize) {
+    match Arc::get_mut(list).filter(|l| l.len() >= all) {
+        Some(l) => {
+            let mut n = 0;
+            for (slot, t) in l.iter_mut().zip(found) {
+                *slot = t;
+                n += 1;
+            }
+            let pad = [l.first().filter(|_| n > 0).map_or(0, |t| t[0]); 3];
+            l[n..].fill(pad);
+        }
+        None => {
+            let found: Vec<[u32; 3]> = found.collect();
+            let pad = [found.first().map_or(0, |t| t[0]); 3];
+            *list = found
+                .iter()
+                .copied()
+                .chain(std::iter::repeat(pad))
+                .take(all.max(found.len()))
+                .collect();
+        }
+    }
 }
 
 /// `found` as a casting list: written into `list` when it is unshared and at
@@ -381,22 +429,25 @@ impl CastingCache {
             proxies,
         );
         if self.key != Some(key) {
-            self.entries.clear();
+            self.entries.iter_mut().for_each(CastingEntry::retire);
             self.key = Some(key);
         }
         let n = scene.objects().len();
         self.entries.truncate(n);
-        self.entries.resize_with(n, OnceLock::new);
-        for (k, (e, o)) in self.entries.iter_mut().zip(scene.objects()).enumerate() {
-            let Some(c) = e.get() else { continue };
+        self.entries.resize_with(n, CastingEntry::default);
+        for (k, (entry, o)) in self.entries.iter_mut().zip(scene.objects()).enumerate() {
+            let Some(c) = entry.current.get() else {
+                continue;
+            };
             let drawn = drawn_mesh(o, proxies);
             if c.mesh != drawn || c.version != scene.mesh_version(drawn) {
-                e.take();
+                entry.retire();
             } else if c.world_from_local.to_cols_array().map(f64::to_bits)
                 != o.world_from_local.to_cols_array().map(f64::to_bits)
             {
                 // Moved: its casting set is found again, into its old list
                 // when that is unshared and long enough (no allocation).
+                let e = &mut entry.current;
                 let mut c = e.take().expect("checked");
                 if !two_sided {
                     let id = ObjectId::from_slot(k as u32);
@@ -430,24 +481,39 @@ impl CastingCache {
         (two_sided, proxies): (bool, bool),
         id: ObjectId,
     ) -> Arc<[[u32; 3]]> {
-        self.entries[id.index()]
+        let entry = &self.entries[id.index()];
+        entry
+            .current
             .get_or_init(|| {
                 let o = scene.object(id);
                 let drawn = drawn_mesh(o, proxies);
                 let proxy = meshes.proxy_of(drawn).filter(|_| proxies);
-                let triangles = match (two_sided, proxy) {
-                    (true, Some(p)) => p.clone(),
-                    (true, None) => meshes.triangles_of(drawn),
+                let spare = entry
+                    .spare
+                    .lock()
+                    .unwrap_or_else(PoisonError::into_inner)
+                    .take();
+                let mut c = spare.unwrap_or_else(|| {
+                    Box::new(Casting {
+                        world_from_local: o.world_from_local,
+                        mesh: drawn,
+                        version: 0,
+                        triangles: Arc::new([]),
+                    })
+                });
+                match (two_sided, proxy) {
+                    (true, Some(p)) => c.triangles = p.clone(),
+                    (true, None) => c.triangles = meshes.triangles_of(drawn),
                     (false, p) => {
-                        facing_triangles(scene, light, id, drawn, p.map(|p| &p[..])).collect()
+                        let all = p.map_or(meshes.triangles[drawn.index()].len(), |p| p.len());
+                        let found = facing_triangles(scene, light, id, drawn, p.map(|p| &p[..]));
+                        fill(&mut c.triangles, found, all);
                     }
-                };
-                Box::new(Casting {
-                    world_from_local: o.world_from_local,
-                    mesh: drawn,
-                    version: scene.mesh_version(drawn),
-                    triangles,
-                })
+                }
+                c.world_from_local = o.world_from_local;
+                c.mesh = drawn;
+                c.version = scene.mesh_version(drawn);
+                c
             })
             .triangles
             .clone()
