@@ -276,11 +276,10 @@ fn world() -> HostWorld {
     }
 }
 
-/// Frame `f`'s edits: object 1 circles its lot; a third of the way along the
-/// path the object beside the street is removed, half way an invisible tower
-/// (a shadow proxy) appears.
-fn edits(f: u32, world: &HostWorld) -> Vec<HostEdit> {
-    let a = f64::from(f) * 0.2;
+/// Frame `f`'s edits: object 1 circles its lot (at angle `a`); early on the
+/// object beside the street is removed and an invisible tower (a shadow
+/// proxy) appears.
+fn edits(f: u32, a: f64, world: &HostWorld) -> Vec<HostEdit> {
     let base = world.objects[1].world;
     let mut e = vec![HostEdit::Move(
         1,
@@ -438,9 +437,11 @@ struct Cli {
     /// pipeline's frames).
     #[arg(long = "gpu-host")]
     gpu_host: bool,
-    /// Orbit the point light (period 20 frames, `set_light` every frame)
-    /// and count the allocations of every step after the first 20 (frame
-    /// and edits): `steady_frames`, `steady_allocations`.
+    /// Orbit the point light (period 20 frames, `set_light` every frame),
+    /// with the camera swinging along the path's first frames and object 1
+    /// circling in the same period, and count the allocations of every
+    /// step after the first 20 (frame and edit calls): `steady_frames`,
+    /// `steady_allocations`.
     #[arg(long = "moving-light")]
     moving_light: bool,
 }
@@ -589,28 +590,46 @@ fn run(world: &HostWorld, pool: &Pool, args: &Args) -> anyhow::Result<()> {
     for k in 0..steps {
         let backward = k >= frames;
         let f = if backward { 2 * frames - 1 - k } else { k };
-        for e in edits(f, world) {
-            if backward && !matches!(e, HostEdit::Move(..)) {
-                continue;
+        // With the moving light, everything moves with its period: the
+        // camera swings along the path's first frames and back, object 1
+        // circles once; so every step after the first period repeats one.
+        let (at, angle) = match args.moving_light {
+            true => {
+                let phase = k % LIGHT_PERIOD;
+                let a = std::f64::consts::TAU * f64::from(phase) / f64::from(LIGHT_PERIOD);
+                (phase.min(LIGHT_PERIOD - phase), a)
             }
-            edit(&mut culled, &e)?;
-            edit(&mut unculled, &e)?;
-        }
-        let (view, projection) = host_matrices(f, frames, size);
+            false => (f, f64::from(f) * 0.2),
+        };
+        let edits: Vec<HostEdit> = edits(f, angle, world)
+            .into_iter()
+            .filter(|e| !backward || matches!(e, HostEdit::Move(..)))
+            .collect();
         let light = orbiting(world, k);
+        for e in &edits {
+            edit(&mut unculled, e)?;
+        }
         if args.moving_light {
             unculled.pipeline.set_light(point, light)?;
         }
-        let (d, [allocations, bytes, freed]) = counted(|| {
+        // The culled pipeline's edit calls and frame, counted apart.
+        let (r, [edit_allocations, ..]) = counted(|| -> shadowcull::Result<()> {
+            for e in &edits {
+                edit(&mut culled, e)?;
+            }
             if args.moving_light {
                 culled.pipeline.set_light(point, light)?;
             }
-            host_frame(&mut culled.pipeline, size, [view, projection])
+            Ok(())
         });
+        r?;
+        let (view, projection) = host_matrices(at, frames, size);
+        let (d, [allocations, bytes, freed]) =
+            counted(|| host_frame(&mut culled.pipeline, size, [view, projection]));
         let d = d?;
         if args.moving_light && k >= LIGHT_PERIOD {
             steady_frames += 1;
-            steady_allocations += allocations;
+            steady_allocations += edit_allocations + allocations;
         }
         if backward {
             allocations_max = allocations_max.max(allocations);
