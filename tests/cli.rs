@@ -922,6 +922,37 @@ fn a_scene_without_geometry_is_named() {
     }
 }
 
+/// The loaders' warnings (here a dropped polyline) reach stderr, not only
+/// `summary.json`.
+#[test]
+fn run_prints_the_loaders_warnings() {
+    let out = tmp_dir("load_warnings");
+    let obj = out.join("tent.obj");
+    std::fs::write(
+        &obj,
+        "v -2 0 -2\nv -2 0 2\nv 2 0 2\nv 2 0 -2\nv 0 1 0\nf 1 2 3 4\nf 1 2 5\nf 2 3 5\nl 1 5\n",
+    )
+    .unwrap();
+    let job = out.join("job.ron");
+    std::fs::write(
+        &job,
+        format!("(scene: Obj({obj:?}), frames: 1, resolution: (32, 24))"),
+    )
+    .unwrap();
+    let o = bin()
+        .args([OsStr::new("run"), job.as_os_str(), OsStr::new("--out")])
+        .arg(out.join("o"))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(
+        err.lines()
+            .any(|l| l.starts_with("shadowcull: warning: ") && l.contains("dropped 1 `l`")),
+        "{err}"
+    );
+}
+
 /// Jobs that cannot fit are refused before anything big is allocated, naming
 /// the fields that drive the estimate: a 16384² viewport with the reference
 /// (it once aborted at 13.6 GB), a billion frames, a city bounded by its

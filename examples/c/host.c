@@ -291,6 +291,7 @@ int main(int argc, char **argv) {
      inside it, and their difference: what the C path adds. */
   double wall[FRAMES], inner[FRAMES], extra[FRAMES];
   sc_frame_input in = {sizeof in, WIDTH, HEIGHT, SC_CLIP_DEPTH_NEGATIVE_ONE_TO_ONE};
+  in.near = 0.1; /* the projection's near plane: a wrong clip-depth convention is refused */
   sc_frame_output out = {sizeof out};
   for (int f = 0; f < FRAMES; f++) {
     /* Object 1 circles its lot; early on the object beside the street goes

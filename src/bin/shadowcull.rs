@@ -383,6 +383,11 @@ fn run(
     if let Some(b) = &bar {
         b.finish_and_clear();
     }
+    // The loaders' warnings (dropped faces, polygons not triangulated,
+    // ignored extensions), also in summary.json.
+    for w in &summary.warnings {
+        eprintln!("shadowcull: warning: {w}");
+    }
     if log_format == LogFormat::Text {
         eprintln!(
             "shadowcull: {} objects, {} triangles; {} frames × {} lights; mean pipeline {:.1} ms, mean reference {:.1} ms; {} mismatched pixels ({} off a shadow boundary); wrote {}",

@@ -418,6 +418,11 @@ typedef struct sc_frame_input {
   uint32_t host_depth_width;
   // Height of `host_depth`.
   uint32_t host_depth_height;
+  // The near plane the host built `projection` with, or 0: when given,
+  // a projection whose near plane under `clip_depth` differs from it by
+  // more than 1e-6 relative is `SC_INVALID_ARGUMENT` (a wrong clip-depth
+  // convention, which the matrix alone cannot show).
+  double near;
 } sc_frame_input;
 
 // One caster's shadow volume in the light's volume buffer.

@@ -549,7 +549,10 @@ pub extern "C" fn sc_pipeline_frame(
         }
         let view = matrix(i.view.as_ptr(), "input.view")?;
         let projection = matrix(i.projection.as_ptr(), "input.projection")?;
-        let camera = Camera::from_view_projection(view, projection, i.depth()?)?;
+        let camera = match i.near {
+            0.0 => Camera::from_view_projection(view, projection, i.depth()?)?,
+            n => Camera::from_view_projection_near(view, projection, i.depth()?, n)?,
+        };
         handles::with(pipeline, |e| {
             let mut input = FrameInput::new(i.width, i.height, camera);
             if !i.host_depth.is_null() {

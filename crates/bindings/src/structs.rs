@@ -267,6 +267,11 @@ pub struct sc_frame_input {
     pub host_depth_width: u32,
     /// Height of `host_depth`.
     pub host_depth_height: u32,
+    /// The near plane the host built `projection` with, or 0: when given,
+    /// a projection whose near plane under `clip_depth` differs from it by
+    /// more than 1e-6 relative is `SC_INVALID_ARGUMENT` (a wrong clip-depth
+    /// convention, which the matrix alone cannot show).
+    pub near: f64,
 }
 
 /// Structs read by [`read`]: a default for the fields an older host leaves out.
@@ -399,6 +404,7 @@ impl Versioned for sc_frame_input {
             host_depth: std::ptr::null(),
             host_depth_width: 0,
             host_depth_height: 0,
+            near: 0.0,
         }
     }
 }

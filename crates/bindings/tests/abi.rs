@@ -208,6 +208,7 @@ fn input(f: u32) -> sc_frame_input {
         host_depth: std::ptr::null(),
         host_depth_width: 0,
         host_depth_height: 0,
+        near: 0.0,
     }
 }
 
@@ -483,6 +484,18 @@ fn misuse_gives_statuses_and_messages() {
     (i.width, i.height) = (0, 0);
     assert_eq!(sc_pipeline_frame(p, &i, &mut out), SC_INVALID_ARGUMENT);
     assert!(last_error().contains("viewport"), "{}", last_error());
+    // The host's near plane: right under OpenGL depth, refused under
+    // zero-to-one (the matrix is OpenGL's).
+    let mut i = input(0);
+    i.near = 0.1;
+    ok(sc_pipeline_frame(p, &i, &mut out));
+    i.clip_depth = SC_CLIP_DEPTH_ZERO_TO_ONE;
+    assert_eq!(sc_pipeline_frame(p, &i, &mut out), SC_INVALID_ARGUMENT);
+    assert!(
+        last_error().contains("is NegativeOneToOne, not ZeroToOne"),
+        "{}",
+        last_error()
+    );
     // An output without its size.
     let mut small = empty_output();
     small.struct_size = 8;

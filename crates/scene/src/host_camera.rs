@@ -180,6 +180,53 @@ impl Camera {
         Ok(cam)
     }
 
+    /// [`Camera::from_view_projection`], checked against the near plane the
+    /// host built `projection` with: a wrong [`ClipDepth`] cannot be seen in
+    /// the matrix alone (an OpenGL matrix read as zero-to-one is a valid
+    /// projection whose near plane is about half the host's; a Direct3D one
+    /// read as OpenGL, about twice), so the near plane it implies under
+    /// `depth` must equal `near` within 10⁻⁶ relative.
+    ///
+    /// # Errors
+    /// As [`Camera::from_view_projection`]; [`Error::InvalidCamera`] naming
+    /// `near` when it is not positive and finite, or when the projection's
+    /// near plane under `depth` differs from it (naming both and the likely
+    /// convention mix-up).
+    pub fn from_view_projection_near(
+        view: DMat4,
+        projection: DMat4,
+        depth: ClipDepth,
+        near: f64,
+    ) -> Result<Camera> {
+        if !(near > 0.0 && near.is_finite()) {
+            return Err(err(
+                "near",
+                format!("must be positive and finite, got {near}"),
+            ));
+        }
+        let cam = Camera::from_view_projection(view, projection, depth)?;
+        if ((cam.near - near) / near).abs() > 1e-6 {
+            let other = match depth {
+                ClipDepth::NegativeOneToOne => ClipDepth::ZeroToOne,
+                ClipDepth::ZeroToOne => ClipDepth::NegativeOneToOne,
+            };
+            let hint = match Camera::from_view_projection(view, projection, other) {
+                Ok(c) if ((c.near - near) / near).abs() <= 1e-6 => {
+                    format!(": the projection is {other:?}, not {depth:?}")
+                }
+                _ => String::new(),
+            };
+            return Err(err(
+                "near",
+                format!(
+                    "the projection's near plane under {depth:?} is {}, not the host's {near}{hint}",
+                    cam.near
+                ),
+            ));
+        }
+        Ok(cam)
+    }
+
     /// [`Camera::from_view_projection`] for `f32` matrices.
     ///
     /// # Errors
@@ -252,6 +299,43 @@ mod tests {
 
     fn d3d_lh(fov: f64, aspect: f64, n: f64, f: f64) -> DMat4 {
         perspective(fov, aspect, (f / (f - n), -n * f / (f - n)), 1.0)
+    }
+
+    /// A wrong clip-depth convention is caught when the host states its
+    /// near plane; the right one passes.
+    #[test]
+    fn the_hosts_near_plane_catches_a_wrong_clip_depth() {
+        let view = host_view();
+        let (n, f) = (0.25, 300.0);
+        let gl = gl(1.0, 1.5, n, f);
+        let d3d = d3d(1.0, 1.5, n, f);
+        let ok = |p, d| Camera::from_view_projection_near(view, p, d, n);
+        assert!((ok(gl, ClipDepth::NegativeOneToOne).unwrap().near - n).abs() < 1e-12);
+        assert!(ok(d3d, ClipDepth::ZeroToOne).is_ok());
+        // Read the other way, each is a valid camera with another near plane.
+        assert!(Camera::from_view_projection(view, gl, ClipDepth::ZeroToOne).is_ok());
+        let e = ok(gl, ClipDepth::ZeroToOne).unwrap_err().to_string();
+        assert!(
+            e.contains("`near`") && e.contains("is NegativeOneToOne, not ZeroToOne"),
+            "{e}"
+        );
+        let e = ok(d3d, ClipDepth::NegativeOneToOne)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("is ZeroToOne, not NegativeOneToOne"), "{e}");
+        // A near plane that is simply not the matrix's.
+        let e = Camera::from_view_projection_near(view, gl, ClipDepth::NegativeOneToOne, 0.3)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("not the host's 0.3") && !e.contains("not ZeroToOne"),
+            "{e}"
+        );
+        for bad in [0.0, -1.0, f64::NAN] {
+            assert!(
+                Camera::from_view_projection_near(view, gl, ClipDepth::ZeroToOne, bad).is_err()
+            );
+        }
     }
 
     fn host_view() -> DMat4 {

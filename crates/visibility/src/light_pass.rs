@@ -328,10 +328,10 @@ impl CastingEntry {
 }
 
 /// The items of `found` as a casting list, written into `list` in place when
-/// it is unshared and at least `all` long (the most `found` can yield), else
-/// into a new list; padded as [`refill`] pads.
+/// it is unshared and `all` long (the most `found` can yield: a list of the
+/// same mesh), else into a new list; padded as [`refill`] pads.
 fn fill(list: &mut Arc<[[u32; 3]]>, found: impl Iterator<Item = [u32; 3]>, all: usize) {
-    match Arc::get_mut(list).filter(|l| l.len() >= all) {
+    match Arc::get_mut(list).filter(|l| l.len() == all) {
         Some(l) => {
             let mut n = 0;
             for (slot, t) in l.iter_mut().zip(found) {

@@ -408,7 +408,7 @@ impl Pipeline {
 
     /// Runs one frame (the GIL released) and returns its outputs as a dict
     /// of arrays: `psr`, `stats` (JSON), `lights` (one dict per light).
-    #[pyo3(signature = (width, height, camera=None, view=None, projection=None, clip_depth="negative_one_to_one", host_depth=None))]
+    #[pyo3(signature = (width, height, camera=None, view=None, projection=None, clip_depth="negative_one_to_one", host_depth=None, near=None))]
     // Each parameter is a Python keyword argument of `frame`: a struct would change the Python API.
     #[allow(clippy::too_many_arguments)]
     fn frame<'py>(
@@ -421,6 +421,7 @@ impl Pipeline {
         projection: Option<PyReadonlyArray2<'_, f64>>,
         clip_depth: &str,
         host_depth: Option<PyReadonlyArray2<'_, f32>>,
+        near: Option<f64>,
     ) -> PyResult<Bound<'py, PyDict>> {
         let depth = match clip_depth {
             "negative_one_to_one" => ClipDepth::NegativeOneToOne,
@@ -443,8 +444,12 @@ impl Pipeline {
                 pose.camera(aspect).map_err(scene_to_py)?
             }
             (None, Some(v), Some(p)) => {
-                Camera::from_view_projection(matrix("view", v)?, matrix("projection", p)?, depth)
-                    .map_err(scene_to_py)?
+                let (v, p) = (matrix("view", v)?, matrix("projection", p)?);
+                match near {
+                    Some(n) => Camera::from_view_projection_near(v, p, depth, n),
+                    None => Camera::from_view_projection(v, p, depth),
+                }
+                .map_err(scene_to_py)?
             }
             _ => {
                 return Err(bad(

@@ -133,6 +133,10 @@ def test_view_projection_matrices_equal_look_at():
     assert a.reference_mask(lamp).mismatches(fa.mask[lamp]) == 0
     # The same mask up to pixels on the rounding edge of a shadow.
     assert np.count_nonzero(fa.mask[lamp] != fb.mask[lamp]) < 20
+    # The host's near plane catches a projection read with the wrong depth convention.
+    a.frame(320, 240, view=view, projection=proj, near=near)
+    with pytest.raises(ValueError, match="near.*is NegativeOneToOne, not ZeroToOne"):
+        a.frame(320, 240, view=view, projection=proj, clip_depth="zero_to_one", near=near)
 
 
 def test_edits_between_frames():

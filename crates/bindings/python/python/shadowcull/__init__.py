@@ -721,6 +721,7 @@ class Pipeline:
         projection: Any = None,
         clip_depth: str = "negative_one_to_one",
         host_depth: Any = None,
+        near: Optional[float] = None,
     ) -> Frame:
         """Computes one ``width × height`` frame seen by ``camera`` (a
         :func:`look_at` pose) or by the host's ``view`` and perspective
@@ -731,7 +732,12 @@ class Pipeline:
         ``host_depth``: the host's own depth of this frame, an ``(h, w)``
         array at the culling size (reversed Z, ``near / view distance``, 0
         where nothing was drawn; per pixel the farthest over the output
-        pixels whose centres it holds). The eye pass then only queries it."""
+        pixels whose centres it holds). The eye pass then only queries it.
+
+        ``near``: the near plane the host built ``projection`` with. When
+        given, a projection whose near plane under ``clip_depth`` differs
+        (a wrong convention, which the matrix alone cannot show) is a
+        ``ValueError``."""
         cam = None if camera is None else _camera(camera)
         v = None if view is None else _matrix("view", view)
         p = None if projection is None else _matrix("projection", projection)
@@ -741,7 +747,8 @@ class Pipeline:
             if d.ndim != 2:
                 raise ValueError(f"host_depth: an (h, w) array, got shape {d.shape}")
         w, h = _index("width", width), _index("height", height)
-        return Frame(self._p.frame(w, h, cam, v, p, clip_depth, d))
+        n = None if near is None else float(near)
+        return Frame(self._p.frame(w, h, cam, v, p, clip_depth, d, n))
 
     def reference_mask(self, light: LightId) -> ReferenceMask:
         """The exact ray-cast mask of ``light`` for the last frame: what every
