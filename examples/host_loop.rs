@@ -107,29 +107,28 @@ impl Drawn {
 }
 
 // glue:begin
-use shadowcull::scene::{ClipDepth, Mesh, MeshId, ObjectFlags, ObjectId, Scene, SceneGraph};
+use shadowcull::scene::{ClipDepth, Indices, Mesh, MeshId, ObjectFlags, ObjectId};
+use shadowcull::scene::{Scene, SceneGraph, StridedPositions as Strided};
 use shadowcull::{FrameInput, Pipeline, PipelineOptions};
 
 /// A pipeline on the host's thread pool holding its meshes, objects and lights, with their ids.
 /// A GPU host's options: `PipelineOptions::gpu_host()` (here, to check the masks: a CPU stencil).
-fn upload(
-    world: &HostWorld,
-    options: PipelineOptions,
-    pool: &Pool,
-) -> shadowcull::Result<Uploaded> {
+fn upload(w: &HostWorld, options: PipelineOptions, pool: &Pool) -> shadowcull::Result<Uploaded> {
     let mut u = Uploaded::new(Pipeline::new(Scene::new(SceneGraph::new())?, options)?);
     u.pipeline.set_thread_pool(Some(pool.clone()))?;
-    for m in &world.meshes {
-        let positions: Vec<glam::Vec3> = m.positions.iter().map(|&q| q.into()).collect();
-        let tris: Vec<[u32; 3]> = m.indices.chunks(3).map(|t| [t[0], t[1], t[2]]).collect();
-        u.meshes
-            .push(u.pipeline.add_mesh(Mesh::new("mesh", &positions, &tris)?));
+    // Room for the proxy added later: it takes a reserved slot, no hierarchy rebuild.
+    u.pipeline.reserve(w.objects.len() + 1, w.lights.len())?;
+    for m in &w.meshes {
+        // The host's buffers as they are: f32 × 3 positions 12 bytes apart, u32 indices.
+        let at = Strided::f32(bytemuck::cast_slice(&m.positions), 0, 12, m.positions.len());
+        let mesh = Mesh::from_strided("mesh", at, Indices::U32(&m.indices))?;
+        u.meshes.push(u.pipeline.add_mesh(mesh));
     }
-    for o in &world.objects {
-        u.objects
-            .push(u.pipeline.add_object(u.meshes[o.mesh], o.world, o.flags)?);
+    for o in &w.objects {
+        let id = u.pipeline.add_object(u.meshes[o.mesh], o.world, o.flags)?;
+        u.objects.push(id);
     }
-    for l in &world.lights {
+    for l in &w.lights {
         u.pipeline.add_light(*l)?;
     }
     Ok(u)
@@ -151,7 +150,7 @@ fn host_frame(
     size: (u32, u32),
     [view, proj]: [DMat4; 2],
 ) -> shadowcull::Result<Drawn> {
-    let camera = Camera::from_view_projection(view, proj, ClipDepth::NegativeOneToOne)?;
+    let camera = Camera::from_view_projection_near(view, proj, ClipDepth::NegativeOneToOne, NEAR)?;
     let out = p.frame(&FrameInput::new(size.0, size.1, camera))?;
     let mut d = Drawn::new(out.psr().len(), out.stats().frame_ms);
     for light in out.lights() {
@@ -306,6 +305,9 @@ fn edits(f: u32, a: f64, world: &HostWorld) -> Vec<HostEdit> {
     e
 }
 
+/// The host's near plane distance.
+const NEAR: f64 = 0.1;
+
 /// The host's view and projection of frame `f` of `n`: down a street,
 /// rising at the end; OpenGL-style, with a far plane and a TAA jitter.
 fn host_matrices(f: u32, n: u32, (w, h): (u32, u32)) -> (DMat4, DMat4) {
@@ -320,7 +322,7 @@ fn host_matrices(f: u32, n: u32, (w, h): (u32, u32)) -> (DMat4, DMat4) {
         DVec4::new(side.z, up.z, -dir.z, 0.0),
         DVec4::new(-side.dot(eye), -up.dot(eye), dir.dot(eye), 1.0),
     );
-    let (near, far, fy) = (0.1, 2000.0, 1.0 / 30f64.to_radians().tan());
+    let (near, far, fy) = (NEAR, 2000.0, 1.0 / 30f64.to_radians().tan());
     // Halton (2, 3) jitter in pixels, as a TAA renderer shifts its projection.
     let halton = |mut i: u32, b: u32| {
         let (mut r, mut f) = (0.0, 1.0);

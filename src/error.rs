@@ -2,7 +2,30 @@
 
 use std::path::PathBuf;
 
-/// Errors of jobs, runs and outputs.
+/// Errors of jobs, runs, pipelines and outputs.
+///
+/// The scene's constructors re-exported here (`Mesh::new`, `Scene::new`,
+/// `Camera::from_view_projection*`, `Camera::look_at`) return
+/// [`scene::Result`]; a scene error converts into [`Error::Scene`], so one
+/// `?` takes both in a function returning [`crate::Result`]:
+///
+/// ```
+/// use shadowcull::glam::{DMat4, Vec3};
+/// use shadowcull::scene::{Mesh, ObjectFlags, ObjectId, Scene, SceneGraph};
+/// use shadowcull::{Pipeline, PipelineOptions};
+///
+/// fn upload(p: &mut Pipeline, pos: &[Vec3], tris: &[[u32; 3]]) -> shadowcull::Result<ObjectId> {
+///     let mesh = p.add_mesh(Mesh::new("crate", pos, tris)?); // scene::Error → Error::Scene
+///     p.add_object(mesh, DMat4::IDENTITY, ObjectFlags::ALL) // shadowcull::Error
+/// }
+///
+/// let mut p = Pipeline::new(Scene::new(SceneGraph::new())?, PipelineOptions::default())?;
+/// let tri = [Vec3::ZERO, Vec3::X, Vec3::Y];
+/// upload(&mut p, &tri, &[[0, 1, 2]])?;
+/// let bad = upload(&mut p, &tri, &[[0, 1, 7]]).unwrap_err();
+/// assert!(matches!(bad, shadowcull::Error::Scene(_)), "{bad}");
+/// # Ok::<(), shadowcull::Error>(())
+/// ```
 #[derive(Debug, thiserror::Error)]
 pub enum Error {
     /// Loading or building the scene failed (names the file and element).

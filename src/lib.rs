@@ -78,7 +78,7 @@ pub use pipeline::memory;
 pub use pipeline::{
     AutoSpec, ClampReceiversSpec, ClampingSpec, CoverageSpec, CullingSpec, FrameInput, FrameOutput,
     HostDepth, LightId, LightOutput, OccludersSpec, Pipeline, PipelineOptions, Preset,
-    StencilBackend, StencilCosts,
+    StencilBackend, StencilCosts, MAX_ASPECT_MISMATCH,
 };
 pub use raster;
 pub use rayon;

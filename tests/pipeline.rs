@@ -986,6 +986,12 @@ fn lights_by_id_keep_results_exact() -> Result<()> {
     // The sun goes; the others keep their state (cached silhouettes hit).
     p.remove_light(ids[1])?;
     unculled.remove_light(plain_ids[1])?;
+    // The last output described a light that is gone: none until a frame.
+    assert!(p.last_output().is_none(), "no output after an edit");
+    assert!(
+        p.reference_mask(ids[0]).is_err(),
+        "no reference after an edit"
+    );
     let a = masks(&mut p, &ids, 1)?;
     assert!(a[1].is_none());
     assert_eq!(a, masks(&mut unculled, &plain_ids, 1)?);
@@ -1018,14 +1024,25 @@ fn lights_by_id_keep_results_exact() -> Result<()> {
     let moved = Light::Directional {
         direction: DVec3::new(-0.3, -1.0, 0.5),
     };
+    assert!(p.last_output().is_some());
     p.set_light(sun, moved)?;
     unculled.set_light(plain_sun, moved)?;
+    assert!(
+        p.last_output().is_none(),
+        "a moved light's last output is stale"
+    );
     let c = masks(&mut p, &[ids[0], sun, ids[2]], 3)?;
     assert_eq!(
         c,
         masks(&mut unculled, &[plain_ids[0], plain_sun, plain_ids[2]], 3)?
     );
     assert_ne!(c[1], b[1], "the moved sun's shadows moved");
+    // A failed edit changes nothing, and leaves the output readable.
+    assert!(p.set_light(LightId::from_bits(u64::MAX), moved).is_err());
+    assert!(p
+        .remove_object(scene::ObjectId::from_bits(u64::MAX))
+        .is_err());
+    assert!(p.last_output().is_some(), "a failed edit keeps the output");
     Ok(())
 }
 
@@ -1083,12 +1100,12 @@ fn slab_scene() -> Result<Slab> {
 fn scene_edits_keep_masks_exact() -> Result<()> {
     let Slab {
         path,
+        lights,
         mut culled,
         ids,
         mut plain,
         mesh,
         ahead,
-        ..
     } = slab_scene()?;
     let scene = culled.scene().clone();
     let at = |dx: f64| glam::DMat4::from_translation(DVec3::new(ahead.x + dx, 0.0, ahead.z));
@@ -1140,6 +1157,51 @@ fn scene_edits_keep_masks_exact() -> Result<()> {
             assert_eq!(v.cache_hits, n, "static casters cached: {v:?}");
         }
     }
+    // A LOD change: a thinner, lower slab in its place keeps its id; its
+    // shadow changes, only it is recomputed, and a pipeline that added the
+    // thin slab directly gives the same masks.
+    let thin = scene::procedural::analytic::box_mesh(
+        "thin slab",
+        glam::Vec3::new(-0.2, 0.0, -2.0),
+        glam::Vec3::new(0.2, 5.0, 2.0),
+    )
+    .unwrap();
+    let lod = culled.add_mesh(thin.clone());
+    assert_eq!(plain.add_mesh(thin.clone()), lod);
+    culled.set_mesh(id, lod)?;
+    plain.set_mesh(id, lod)?;
+    let swapped = check(&mut culled, &mut plain, "slab LOD")?;
+    assert_ne!(swapped, moved, "the thinner slab casts another shadow");
+    {
+        let out = plain.last_output().unwrap();
+        assert!(out.psr().contains(&id), "the id stays");
+        for l in out.lights() {
+            let v = l.volume_stats();
+            assert_eq!(
+                v.cache_misses, 1,
+                "only the swapped object recomputed: {v:?}"
+            );
+        }
+    }
+    let (mut direct, _) = pipeline(
+        &Arc::new(scene.clone()),
+        options(CullingSpec::None, StencilBackend::H),
+        &lights,
+    )?;
+    let m = direct.add_mesh(thin);
+    direct.add_object(m, at(3.0), ObjectFlags::ALL)?;
+    let d: Vec<_> = direct
+        .frame(&input(&path, 0))?
+        .lights()
+        .map(|l| l.mask().unwrap().clone())
+        .collect();
+    assert_eq!(d, swapped, "set_mesh = adding the object with that mesh");
+    assert!(culled
+        .set_mesh(id, scene::MeshId::from_bits(u64::MAX))
+        .is_err());
+    culled.set_mesh(id, mesh)?;
+    plain.set_mesh(id, mesh)?;
+    assert_eq!(check(&mut culled, &mut plain, "slab back")?, moved);
     // Remove it: the masks are those without it, its id is stale.
     culled.remove_object(id)?;
     plain.remove_object(id)?;
@@ -1284,8 +1346,10 @@ fn host_matrices_give_exact_masks() -> Result<()> {
         .into_iter()
         .enumerate()
     {
-        // Off-centre frustum l, r, b, t at the near plane n, far plane 400.
-        let (l, r, b, t, n, far) = (-0.09, 0.12, -0.06, 0.1, 0.1, 400.0);
+        // Off-centre frustum l, r, b, t at the near plane n, far plane 400,
+        // of the viewport's aspect.
+        let (b, t, n, far) = (-0.06, 0.1, 0.1, 400.0);
+        let (l, r) = (-0.09, -0.09 + (t - b) * f64::from(W) / f64::from(H));
         let projection = DMat4::from_cols(
             DVec4::new(2.0 * n / (r - l), 0.0, 0.0, 0.0),
             DVec4::new(0.0, 2.0 * n / (t - b), 0.0, 0.0),

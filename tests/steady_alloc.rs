@@ -24,6 +24,11 @@
 //! injector allocates a queue block now and then: the last case counts
 //! those apart and prints them without failing.
 //!
+//! `Pipeline::reserve`: after `reserve(objects + 16, lights + 2)` and one
+//! frame, adding 16 objects and two lights allocates nothing in the calls,
+//! and the frame after them refits the object hierarchy instead of
+//! rebuilding it (the scene's BVH version stays).
+//!
 //! Then churn: a host streaming meshes, objects and lights in and out of a
 //! level keeps a bounded heap. Each of 400,000 cycles removes the oldest of
 //! a few streamed meshes (with its object) and light and adds new ones, with
@@ -128,7 +133,7 @@ const W: u32 = 320;
 const H: u32 = 240;
 
 fn main() {
-    if let Err(e) = steady().and_then(|()| churn()) {
+    if let Err(e) = steady().and_then(|()| churn()).and_then(|()| reserved()) {
         eprintln!("steady_alloc: FAILED: {e}");
         std::process::exit(1);
     }
@@ -348,8 +353,9 @@ const CHURN_FRAME_EVERY: u32 = 1_000;
 /// Streamed meshes (each with one object) and lights alive at a time.
 const STREAMED: usize = 4;
 
-fn churn() -> Result<(), String> {
-    let e = |e: shadowcull::Error| e.to_string();
+/// A small city (2 × 2 blocks) on one thread with a sun, its centre, and a
+/// 64 × 48 view of it from above.
+fn small_city() -> Result<(Pipeline, DVec3, FrameInput), String> {
     let loaded = city(&CityParams {
         blocks_x: 2,
         blocks_z: 2,
@@ -364,15 +370,20 @@ fn churn() -> Result<(), String> {
         light_resolution: 128,
         ..Default::default()
     };
-    let mut p = Pipeline::new(scene, options).map_err(e)?;
+    let mut p = Pipeline::new(scene, options).map_err(|e| e.to_string())?;
     p.add_light(Light::Directional {
         direction: DVec3::new(0.4, -0.8, 0.3),
     })
-    .map_err(e)?;
+    .map_err(|e| e.to_string())?;
     let eye = centre + DVec3::new(0.0, 30.0, 60.0);
     let camera = scene::Camera::look_at(eye, centre, DVec3::Y, 60f64.to_radians(), 4.0 / 3.0, 0.5)
         .map_err(|e| e.to_string())?;
-    let input = FrameInput::new(64, 48, camera);
+    Ok((p, centre, FrameInput::new(64, 48, camera)))
+}
+
+fn churn() -> Result<(), String> {
+    let e = |e: shadowcull::Error| e.to_string();
+    let (mut p, centre, input) = small_city()?;
     let mut streamed = std::collections::VecDeque::new();
     let mut lights = std::collections::VecDeque::new();
     let mut stale = None;
@@ -439,6 +450,54 @@ fn churn() -> Result<(), String> {
         return Err(format!(
             "churn grew the live heap by {grown} bytes (more than 1 MiB) over {CHURN_CYCLES} cycles"
         ));
+    }
+    Ok(())
+}
+
+/// Objects and lights added into room made by `Pipeline::reserve`.
+fn reserved() -> Result<(), String> {
+    const ADDED: usize = 16;
+    let e = |e: shadowcull::Error| e.to_string();
+    let (mut p, centre, input) = small_city()?;
+    let objects = p.scene().counts().objects;
+    p.reserve(objects + ADDED, 3).map_err(e)?;
+    let cube = scene::procedural::analytic::box_mesh("added", Vec3::ZERO, Vec3::splat(0.7))
+        .map_err(|e| e.to_string())?;
+    let mesh = p.add_mesh(cube);
+    p.frame(&input).map_err(e)?;
+    let version = p.scene().bvh_version();
+    let (r, [allocations, bytes]) = counted(|| -> shadowcull::Result<()> {
+        for k in 0..ADDED {
+            let at = centre + DVec3::new(2.0 * k as f64 - 16.0, 0.0, 4.0);
+            p.add_object(mesh, DMat4::from_translation(at), ObjectFlags::ALL)?;
+        }
+        for k in 0..2 {
+            p.add_light(Light::Point {
+                position: centre + DVec3::new(5.0 * f64::from(k), 8.0, 0.0),
+                range: None,
+            })?;
+        }
+        Ok(())
+    });
+    r.map_err(e)?;
+    p.frame(&input).map_err(e)?;
+    let out = p.last_output().ok_or("a frame ran")?;
+    println!(
+        "steady_alloc: reserve: {ADDED} objects and 2 lights added: {allocations} allocations \
+         ({bytes} bytes); {} objects, {} lights framed",
+        out.stats().objects,
+        out.light_count()
+    );
+    if allocations > 0 {
+        return Err(format!(
+            "adding into reserved room allocated {allocations} times ({bytes} bytes)"
+        ));
+    }
+    if out.stats().objects != (objects + ADDED) as u64 || out.light_count() != 3 {
+        return Err("the added objects or lights are missing".into());
+    }
+    if p.scene().bvh_version() != version {
+        return Err("objects added into reserved slots rebuilt the hierarchy".into());
     }
     Ok(())
 }

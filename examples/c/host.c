@@ -261,6 +261,9 @@ int main(int argc, char **argv) {
   options.stencil = SC_STENCIL_H; /* a GPU host keeps SC_STENCIL_NONE */
   sc_pipeline p = 0;
   CHECK(sc_pipeline_create(&options, &p));
+  /* Room for every object and the proxy added later, and two lights: adding
+     into it allocates nothing and refits the culling hierarchy. */
+  CHECK(sc_pipeline_reserve(p, OBJECTS + 1, 2));
   sc_mesh meshes[3] = {upload(p, ground, 4, ground_idx, 6), upload(p, cube, 8, box_idx, 36),
                        upload(p, tower, 8, box_idx, 36)};
 

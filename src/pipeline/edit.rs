@@ -18,6 +18,41 @@ impl Pipeline {
         Arc::make_mut(&mut self.scene)
     }
 
+    /// Makes room for `objects` objects and `lights` lights in all, so that
+    /// adding up to that many later allocates nothing in
+    /// [`Pipeline::add_object`] and [`Pipeline::add_light`], and an object
+    /// added into a reserved slot refits the object hierarchy instead of
+    /// rebuilding it (an object added past every slot rebuilds it, and
+    /// remaps every view's culling history). `reserve` itself allocates,
+    /// and the next frame rebuilds the hierarchy once over the new slots;
+    /// the frames after objects or lights are added allocate for their new
+    /// work as any first frames do (`docs/host.md`, "Allocations"). Counts
+    /// at or below what is there already change nothing.
+    ///
+    /// # Errors
+    /// [`Error::Scene`] past [`scene::MAX_OBJECTS`] objects; [`Error::Options`]
+    /// past 2^32 − 1 lights.
+    pub fn reserve(&mut self, objects: usize, lights: usize) -> Result<()> {
+        if lights > u32::MAX as usize {
+            return Err(Error::Options {
+                field: "reserve".into(),
+                message: format!("{lights} lights, more than {}", u32::MAX),
+            });
+        }
+        if objects > self.scene.objects().len() {
+            self.scene_mut().reserve_objects(objects)?;
+            self.edited = true;
+        }
+        for list in [&mut self.all_visible, &mut self.all_casters, &mut self.psr] {
+            list.reserve(objects.saturating_sub(list.len()));
+        }
+        self.lights
+            .reserve(lights.saturating_sub(self.lights.len()));
+        self.retired
+            .reserve(lights.saturating_sub(self.retired.len()));
+        Ok(())
+    }
+
     /// Adds a mesh that objects can then instance ([`Pipeline::add_object`]).
     pub fn add_mesh(&mut self, mesh: Mesh) -> MeshId {
         self.edited = true;
@@ -50,8 +85,18 @@ impl Pipeline {
         triangles: &[[u32; 3]],
     ) -> Result<()> {
         let name = self.scene.live_mesh(mesh)?.name().to_string();
-        let new = Mesh::new(name, positions, triangles)?;
-        let slots = self.scene_mut().stage_replace_mesh(mesh, new)?;
+        self.update_mesh(mesh, Mesh::new(name, positions, triangles)?)
+    }
+
+    /// Deforms `mesh` to `shape`, a mesh of the same topology (built with
+    /// [`Mesh::new`] or, from the host's own vertex buffer,
+    /// [`Mesh::from_strided`]), as [`Pipeline::update_mesh_positions`] does.
+    ///
+    /// # Errors
+    /// [`Error::Scene`] for an unknown or removed mesh or a change of
+    /// topology (naming the mesh).
+    pub fn update_mesh(&mut self, mesh: MeshId, shape: Mesh) -> Result<()> {
+        let slots = self.scene_mut().stage_replace_mesh(mesh, shape)?;
         for slot in slots {
             self.invalidate_silhouettes(ObjectId::from_slot(slot));
         }
@@ -125,6 +170,21 @@ impl Pipeline {
         Ok(())
     }
 
+    /// Gives object `id` the mesh `mesh` from the next frame on (a LOD
+    /// change): its id, flags, transform and occluder stay. The hierarchy is
+    /// refit; only this object's cached silhouettes and casting lists are
+    /// dropped.
+    ///
+    /// # Errors
+    /// [`Error::Scene`] for an unknown, removed or stale object or mesh id, a
+    /// transform that flattens the new mesh, or an occluder reaching outside
+    /// the new mesh's bounds (naming the object).
+    pub fn set_mesh(&mut self, id: ObjectId, mesh: MeshId) -> Result<()> {
+        self.scene_mut().stage_set_mesh(id, mesh)?;
+        self.invalidate_silhouettes(id);
+        Ok(())
+    }
+
     /// Removes object `id` from the next frame on; the id is stale afterwards
     /// (an error everywhere, never another object).
     ///
@@ -158,6 +218,7 @@ impl Pipeline {
         };
         let id = LightId::new(slot as u32, self.lights[slot].generation);
         self.lights[slot].state = Some(LightState::new(light, id));
+        self.output_current = false;
         Ok(id)
     }
 
@@ -169,6 +230,7 @@ impl Pipeline {
     pub fn set_light(&mut self, id: LightId, light: Light) -> Result<()> {
         check_light(&light)?;
         self.light_state_mut(id)?.light = light;
+        self.output_current = false;
         Ok(())
     }
 
@@ -178,7 +240,9 @@ impl Pipeline {
     /// [`Error::Options`] for an unknown or stale id.
     pub fn remove_light(&mut self, id: LightId) -> Result<()> {
         self.light_state_mut(id)?;
-        self.lights[id.index()].state = None;
+        // Kept until the next frame: the last output's buffers stay valid.
+        self.retired.extend(self.lights[id.index()].state.take());
+        self.output_current = false;
         Ok(())
     }
 

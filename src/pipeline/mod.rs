@@ -85,7 +85,19 @@ pub struct FrameInput {
     /// `docs/host.md` for the latency it costs). `None`: the pipeline
     /// rasterizes its own eye pass.
     pub host_depth: Option<HostDepth>,
+    /// The viewport's pixels are not square: its aspect (`width / height`)
+    /// may differ from the camera's. Otherwise a frame whose viewport aspect
+    /// differs from [`Camera::aspect`] by more than
+    /// [`MAX_ASPECT_MISMATCH`] is refused: a projection made for another
+    /// viewport (a window resized, a render target of another size) would
+    /// give masks and scissors that are stretched, and no check could see it.
+    pub anamorphic: bool,
 }
+
+/// The relative difference allowed between a viewport's aspect and its
+/// camera's (1 %), unless [`FrameInput::anamorphic`] says the pixels are not
+/// square: rounding a viewport to whole pixels stays well within it.
+pub const MAX_ASPECT_MISMATCH: f64 = 0.01;
 
 impl FrameInput {
     /// The input for a `width × height` viewport seen by `camera`.
@@ -95,6 +107,15 @@ impl FrameInput {
             height,
             camera,
             host_depth: None,
+            anamorphic: false,
+        }
+    }
+
+    /// This input for a viewport of non-square pixels ([`FrameInput::anamorphic`]).
+    pub fn anamorphic(self) -> Self {
+        FrameInput {
+            anamorphic: true,
+            ..self
         }
     }
 
@@ -179,6 +200,13 @@ pub struct Pipeline {
     /// The last PSR as public ids, ascending.
     psr: Vec<ObjectId>,
     lights: Vec<LightSlot>,
+    /// Light states removed or replaced since the last frame, kept until the
+    /// next one starts: the last frame's outputs (the C ABI's pointers into
+    /// their volume buffers) stay valid across edits.
+    retired: Vec<LightState>,
+    /// No edit since the last successful frame: [`Pipeline::last_output`]
+    /// still describes the scene and lights.
+    output_current: bool,
     stats: FrameStats,
     /// Edits the scene does not stage (meshes added or removed, flags set)
     /// since the last frame: with its staged edits, what makes the next frame
@@ -239,6 +267,8 @@ impl Pipeline {
             all_casters: live_slots_of(&scene, |f| f.casts),
             psr: Vec::new(),
             lights: Vec::new(),
+            retired: Vec::new(),
+            output_current: false,
             stats: FrameStats::default(),
             edited: false,
             bvh: None,
@@ -303,10 +333,12 @@ impl Pipeline {
             }
             self.auto_eye.reset();
             for s in self.lights.iter_mut().filter_map(|s| s.state.as_mut()) {
-                *s = LightState::new(s.light, s.id);
+                let fresh = LightState::new(s.light, s.id);
+                self.retired.push(std::mem::replace(s, fresh));
             }
             self.eye = None;
             self.camera = None;
+            self.output_current = false;
         }
         Ok(())
     }
@@ -388,7 +420,23 @@ impl Pipeline {
                 ),
             });
         }
+        let viewport = f64::from(w) / f64::from(h);
+        let camera_aspect = input.camera.aspect;
+        // False for a NaN aspect too.
+        let within = (viewport / camera_aspect - 1.0).abs() <= MAX_ASPECT_MISMATCH;
+        if !input.anamorphic && !within {
+            return Err(Error::Options {
+                field: "viewport".into(),
+                message: format!(
+                    "{w}×{h} has aspect {viewport:.4}, the camera's projection {camera_aspect:.4} \
+                     (more than 1% apart): a projection made for another viewport size? \
+                     Set FrameInput::anamorphic for non-square pixels"
+                ),
+            });
+        }
         let start = Instant::now();
+        self.output_current = false;
+        self.retired.clear();
         self.apply_edits();
         // Refuse a frame that cannot fit before its targets are allocated. A
         // frame computes no reference ([`Pipeline::reference_mask`] checks
@@ -409,7 +457,7 @@ impl Pipeline {
         let auto = o.culling == CullingSpec::Auto;
         let may_cull = match o.culling {
             CullingSpec::None => false,
-            CullingSpec::Auto => scene.objects().len() >= o.auto.min_objects as usize,
+            CullingSpec::Auto => self.counts.objects >= o.auto.min_objects as usize,
             _ => true,
         };
         let mut lights_culled = false;
@@ -796,6 +844,7 @@ impl Pipeline {
         (eye_queries, eye_waits): (u64, u64),
     ) {
         self.camera = Some(camera);
+        self.output_current = true;
         self.viewport = viewport;
         self.stats = FrameStats {
             frame,
@@ -811,10 +860,26 @@ impl Pipeline {
         };
     }
 
-    /// The output of the last [`Pipeline::frame`] call, again (`None` before
-    /// the first).
+    /// The output of the last [`Pipeline::frame`] call, again: `None` before
+    /// the first, after a failed one, and after any edit since (of the
+    /// scene, a light or the options), which would make it describe a scene
+    /// that no longer is. A [`FrameOutput`] borrows the pipeline, so none can
+    /// be held across an edit; a host that reads a frame's results after
+    /// editing for the next (a renderer drawing frame N while it prepares
+    /// N + 1) copies what it keeps first. The C ABI's output pointers stay
+    /// valid until the next frame call (removed lights' volume buffers are
+    /// kept until then), and the Python frame dictionary is a copy.
     pub fn last_output(&self) -> Option<FrameOutput<'_>> {
-        self.camera.as_ref().map(|_| FrameOutput { pipeline: self })
+        self.camera
+            .as_ref()
+            .filter(|_| self.output_is_current())
+            .map(|_| FrameOutput { pipeline: self })
+    }
+
+    /// No edit (of the scene, a light or the options) since the last
+    /// successful frame.
+    fn output_is_current(&self) -> bool {
+        self.output_current && !self.edited && !self.scene.has_staged_edits()
     }
 
     /// The exact ray-cast shadow mask [`crate::reference`] of light `light`
@@ -834,10 +899,10 @@ impl Pipeline {
         };
         let (w, h) = self.viewport;
         self.check_memory(w, h, true)?;
-        if self.edited || self.scene.has_staged_edits() {
+        if !self.output_is_current() {
             return Err(Error::Options {
                 field: "reference_mask".into(),
-                message: "the scene was edited after the last frame: run a frame first".into(),
+                message: "the scene, a light or the options were edited after the last frame: run a frame first".into(),
             });
         }
         self.exact_eye()?;

@@ -423,6 +423,10 @@ typedef struct sc_frame_input {
   // more than 1e-6 relative is `SC_INVALID_ARGUMENT` (a wrong clip-depth
   // convention, which the matrix alone cannot show).
   double near;
+  // 1 when the viewport's pixels are not square; else 0, and a
+  // `width / height` more than 1 % from the projection's aspect is
+  // `SC_INVALID_ARGUMENT` (a projection made for another viewport size).
+  uint32_t anamorphic;
 } sc_frame_input;
 
 // One caster's shadow volume in the light's volume buffer.
@@ -798,6 +802,11 @@ enum sc_status sc_object_set_flags(sc_pipeline pipeline, sc_object object, uint3
 // object's own mesh or automatic proxy.
 enum sc_status sc_object_set_occluder(sc_pipeline pipeline, sc_object object, sc_mesh occluder);
 
+// Gives an object another mesh (a level-of-detail change); its handle,
+// flags, transform and occluder stay, and only its cached silhouettes are
+// recomputed.
+enum sc_status sc_object_set_mesh(sc_pipeline pipeline, sc_object object, sc_mesh mesh);
+
 // Removes an object. The null handle is a no-op; a removed or stale one
 // (double destroy) is `SC_INVALID_ARGUMENT`.
 enum sc_status sc_object_destroy(sc_pipeline pipeline, sc_object object);
@@ -809,6 +818,12 @@ enum sc_status sc_light_create(sc_pipeline pipeline,
 
 // Changes a light (its state, such as silhouettes, follows it).
 enum sc_status sc_light_set(sc_pipeline pipeline, sc_light light, const struct sc_light_desc *desc);
+
+// Makes room for `objects` objects and `lights` lights in all, so that
+// creating up to that many allocates nothing, and objects created into the
+// room refit the culling hierarchy instead of rebuilding it. This call
+// allocates, and the next frame rebuilds the hierarchy once.
+enum sc_status sc_pipeline_reserve(sc_pipeline pipeline, size_t objects, size_t lights);
 
 // Removes a light. The null handle is a no-op.
 enum sc_status sc_light_destroy(sc_pipeline pipeline, sc_light light);
@@ -826,7 +841,8 @@ enum sc_status sc_pipeline_reset_history(sc_pipeline pipeline);
 // Runs one frame: the edits since the last frame, the eye pass (PSR), per
 // light the light pass (PSC), the shadow volumes and, with a CPU stencil,
 // the mask. `out` (its `struct_size` set) receives pointers that stay valid
-// until the next frame call or destroy of this pipeline.
+// until the next frame call or destroy of this pipeline, across edits
+// (a destroyed light's volumes are kept until then).
 enum sc_status sc_pipeline_frame(sc_pipeline pipeline,
                                  const struct sc_frame_input *input,
                                  struct sc_frame_output *out);

@@ -38,9 +38,11 @@ pub use handles::sc_pipeline;
 pub use structs::*;
 
 use error::{guard, Failure, Result};
-use glam::{DMat4, Vec3};
+use glam::DMat4;
 use id_handles::{light_handle, light_of, mesh_handle, mesh_of, object_handle, object_of};
-use shadowcull::scene::{Camera, Mesh, Scene, SceneGraph};
+use shadowcull::scene::{
+    Camera, Indices, Mesh, PositionFormat, Scene, SceneGraph, StridedPositions,
+};
 use shadowcull::{FrameInput, Pipeline};
 use std::ffi::{c_char, CStr};
 
@@ -95,81 +97,67 @@ fn matrix_f32(m: *const f32, name: &str) -> Result<DMat4> {
     finite(glam::Mat4::from_cols_slice(a).as_dmat4(), name)
 }
 
-/// The positions and triangles a mesh description points to.
-fn mesh_arrays(d: &sc_mesh_desc) -> Result<(Vec<Vec3>, Vec<[u32; 3]>)> {
-    let elem = match d.position_type {
-        SC_F32 => 4,
-        SC_F64 => 8,
+/// The mesh a description points to ([`Mesh::from_strided`] over the
+/// host's buffers, read in place).
+fn mesh_of_desc(d: &sc_mesh_desc) -> Result<Mesh> {
+    let format = match d.position_type {
+        SC_F32 => PositionFormat::F32x3,
+        SC_F64 => PositionFormat::F64x3,
         t => {
             return Err(Failure::invalid(format!(
                 "mesh.position_type: {t} is neither SC_F32 nor SC_F64"
             )))
         }
     };
-    let stride = d.position_stride as usize;
-    if stride < 3 * elem {
+    let (n, stride) = (d.vertex_count as usize, d.position_stride as usize);
+    if stride < format.size() {
         return Err(Failure::invalid(format!(
             "mesh.position_stride: {stride} bytes is less than one position ({} bytes)",
-            3 * elem
+            format.size()
         )));
     }
-    let n = d.vertex_count as usize;
     if n > 0 && d.positions.is_null() {
         return Err(Failure::invalid("mesh.positions: NULL"));
     }
-    let base = d.positions as *const u8;
-    let positions = (0..n)
-        .map(|i| {
-            // SAFETY: the host declared `vertex_count` positions `stride`
-            // bytes apart at `positions`; unaligned reads.
-            unsafe {
-                let p = base.add(i * stride);
-                if elem == 4 {
-                    let p = p as *const f32;
-                    Vec3::new(
-                        p.read_unaligned(),
-                        p.add(1).read_unaligned(),
-                        p.add(2).read_unaligned(),
-                    )
-                } else {
-                    let p = p as *const f64;
-                    Vec3::new(
-                        p.read_unaligned() as f32,
-                        p.add(1).read_unaligned() as f32,
-                        p.add(2).read_unaligned() as f32,
-                    )
-                }
-            }
-        })
-        .collect();
+    // The bytes the positions span.
+    let span = match n {
+        0 => 0,
+        n => (n - 1) * stride + format.size(),
+    };
+    let bytes: &[u8] = match span {
+        0 => &[],
+        // SAFETY: non-NULL, and by the API's contract `vertex_count`
+        // positions `position_stride` bytes apart are readable there.
+        _ => unsafe { std::slice::from_raw_parts(d.positions as *const u8, span) },
+    };
     let count = d.index_count as usize;
-    if !count.is_multiple_of(3) {
-        return Err(Failure::invalid(format!(
-            "mesh.index_count: {count} is not a multiple of 3"
-        )));
-    }
     if count > 0 && d.indices.is_null() {
         return Err(Failure::invalid("mesh.indices: NULL"));
     }
-    let indices: Vec<u32> = match d.index_type {
-        // SAFETY: the host declared `index_count` indices of this type.
-        SC_U16 => unsafe { std::slice::from_raw_parts(d.indices as *const u16, count) }
-            .iter()
-            .map(|&i| u32::from(i))
-            .collect(),
+    let indices = match (d.index_type, count) {
+        (SC_U16 | SC_U32, 0) => Indices::U32(&[]),
+        // SAFETY: non-NULL; the host declared `index_count` indices of this type.
+        (SC_U16, _) => {
+            Indices::U16(unsafe { std::slice::from_raw_parts(d.indices as *const u16, count) })
+        }
         // SAFETY: as above.
-        SC_U32 => unsafe { std::slice::from_raw_parts(d.indices as *const u32, count) }.to_vec(),
-        t => {
+        (SC_U32, _) => {
+            Indices::U32(unsafe { std::slice::from_raw_parts(d.indices as *const u32, count) })
+        }
+        (t, _) => {
             return Err(Failure::invalid(format!(
                 "mesh.index_type: {t} is neither SC_U16 nor SC_U32"
             )))
         }
     };
-    let triangles = indices
-        .chunks_exact(3)
-        .map(|t| [t[0], t[1], t[2]])
-        .collect();
-    Ok((positions, triangles))
+    let positions = StridedPositions {
+        bytes,
+        offset: 0,
+        stride,
+        count: n,
+        format,
+    };
+    Ok(Mesh::from_strided("mesh", positions, indices)?)
 }
 
 /// Fills `options` with the defaults (its `struct_size` included): CHC++
@@ -282,9 +270,7 @@ pub extern "C" fn sc_mesh_create(
         if out.is_null() {
             return Err(Failure::invalid("out: NULL"));
         }
-        let d = read(desc, "mesh")?;
-        let (positions, triangles) = mesh_arrays(&d)?;
-        let mesh = Mesh::new("mesh", &positions, &triangles)?;
+        let mesh = mesh_of_desc(&read(desc, "mesh")?)?;
         let id = handles::with(pipeline, |e| Ok(e.pipeline.add_mesh(mesh)))?;
         put(out, "out", mesh_handle(id))
     })
@@ -300,12 +286,8 @@ pub extern "C" fn sc_mesh_update_positions(
 ) -> sc_status {
     guard("sc_mesh_update_positions", || {
         let id = mesh_of(mesh, "mesh")?;
-        let d = read(desc, "mesh")?;
-        let (positions, triangles) = mesh_arrays(&d)?;
-        handles::with(pipeline, |e| {
-            Ok(e.pipeline
-                .update_mesh_positions(id, &positions, &triangles)?)
-        })
+        let shape = mesh_of_desc(&read(desc, "mesh")?)?;
+        handles::with(pipeline, |e| Ok(e.pipeline.update_mesh(id, shape)?))
     })
 }
 
@@ -441,6 +423,22 @@ pub extern "C" fn sc_object_set_occluder(
     })
 }
 
+/// Gives an object another mesh (a level-of-detail change); its handle,
+/// flags, transform and occluder stay, and only its cached silhouettes are
+/// recomputed.
+#[no_mangle]
+pub extern "C" fn sc_object_set_mesh(
+    pipeline: sc_pipeline,
+    object: sc_object,
+    mesh: sc_mesh,
+) -> sc_status {
+    guard("sc_object_set_mesh", || {
+        let id = object_of(object, "object")?;
+        let mesh = mesh_of(mesh, "mesh")?;
+        handles::with(pipeline, |e| Ok(e.pipeline.set_mesh(id, mesh)?))
+    })
+}
+
 /// Removes an object. The null handle is a no-op; a removed or stale one
 /// (double destroy) is `SC_INVALID_ARGUMENT`.
 #[no_mangle]
@@ -485,6 +483,21 @@ pub extern "C" fn sc_light_set(
     })
 }
 
+/// Makes room for `objects` objects and `lights` lights in all, so that
+/// creating up to that many allocates nothing, and objects created into the
+/// room refit the culling hierarchy instead of rebuilding it. This call
+/// allocates, and the next frame rebuilds the hierarchy once.
+#[no_mangle]
+pub extern "C" fn sc_pipeline_reserve(
+    pipeline: sc_pipeline,
+    objects: usize,
+    lights: usize,
+) -> sc_status {
+    guard("sc_pipeline_reserve", || {
+        handles::with(pipeline, |e| Ok(e.pipeline.reserve(objects, lights)?))
+    })
+}
+
 /// Removes a light. The null handle is a no-op.
 #[no_mangle]
 pub extern "C" fn sc_light_destroy(pipeline: sc_pipeline, light: sc_light) -> sc_status {
@@ -526,7 +539,8 @@ pub extern "C" fn sc_pipeline_reset_history(pipeline: sc_pipeline) -> sc_status 
 /// Runs one frame: the edits since the last frame, the eye pass (PSR), per
 /// light the light pass (PSC), the shadow volumes and, with a CPU stencil,
 /// the mask. `out` (its `struct_size` set) receives pointers that stay valid
-/// until the next frame call or destroy of this pipeline.
+/// until the next frame call or destroy of this pipeline, across edits
+/// (a destroyed light's volumes are kept until then).
 #[no_mangle]
 pub extern "C" fn sc_pipeline_frame(
     pipeline: sc_pipeline,
@@ -553,8 +567,18 @@ pub extern "C" fn sc_pipeline_frame(
             0.0 => Camera::from_view_projection(view, projection, i.depth()?)?,
             n => Camera::from_view_projection_near(view, projection, i.depth()?, n)?,
         };
+        let anamorphic = match i.anamorphic {
+            0 => false,
+            1 => true,
+            v => {
+                return Err(Failure::invalid(format!(
+                    "input.anamorphic: {v}, not 0 or 1"
+                )))
+            }
+        };
         handles::with(pipeline, |e| {
             let mut input = FrameInput::new(i.width, i.height, camera);
+            input.anamorphic = anamorphic;
             if !i.host_depth.is_null() {
                 let (w, h) = (i.host_depth_width, i.host_depth_height);
                 let n = w as usize * h as usize;

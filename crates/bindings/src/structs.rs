@@ -272,6 +272,10 @@ pub struct sc_frame_input {
     /// more than 1e-6 relative is `SC_INVALID_ARGUMENT` (a wrong clip-depth
     /// convention, which the matrix alone cannot show).
     pub near: f64,
+    /// 1 when the viewport's pixels are not square; else 0, and a
+    /// `width / height` more than 1 % from the projection's aspect is
+    /// `SC_INVALID_ARGUMENT` (a projection made for another viewport size).
+    pub anamorphic: u32,
 }
 
 /// Structs read by [`read`]: a default for the fields an older host leaves out.
@@ -405,6 +409,7 @@ impl Versioned for sc_frame_input {
             host_depth_width: 0,
             host_depth_height: 0,
             near: 0.0,
+            anamorphic: 0,
         }
     }
 }

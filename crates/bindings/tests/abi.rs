@@ -209,6 +209,7 @@ fn input(f: u32) -> sc_frame_input {
         host_depth_width: 0,
         host_depth_height: 0,
         near: 0.0,
+        anamorphic: 0,
     }
 }
 
@@ -317,6 +318,49 @@ fn output_equals_the_rust_pipeline() {
         }
     }
     assert!(masks_with_shadow > 0, "the scene casts shadows");
+    ok(sc_pipeline_destroy(p));
+}
+
+/// A frame's output stays valid until the next frame call, edits between
+/// included: a renderer draws frame N's volumes while it edits for N + 1.
+/// Destroying the lights and an object and making another light keep the
+/// output's pointers on what the frame wrote.
+#[test]
+fn the_output_outlives_edits_until_the_next_frame() {
+    let (p, objects, handles) = c_pipeline();
+    let mut out = empty_output();
+    ok(sc_pipeline_frame(p, &input(0), &mut out));
+    type Copied = (Vec<[f32; 4]>, Vec<u32>, Vec<u8>);
+    let copy = |out: &sc_frame_output| -> Vec<Copied> {
+        slice(out.lights, out.light_count)
+            .iter()
+            .map(|c| {
+                (
+                    slice(c.positions, c.position_count).to_vec(),
+                    slice(c.indices, c.index_count).to_vec(),
+                    slice(c.mask, (W * H) as usize).to_vec(),
+                )
+            })
+            .collect()
+    };
+    let before = copy(&out);
+    assert!(
+        before.iter().any(|(_, i, _)| !i.is_empty()),
+        "volumes drawn"
+    );
+    for &l in &handles {
+        ok(sc_light_destroy(p, l));
+    }
+    ok(sc_object_destroy(p, objects[2]));
+    let mut again = 0;
+    ok(sc_light_create(p, &light_desc(&lights()[0]), &mut again));
+    assert_eq!(
+        copy(&out),
+        before,
+        "the output changed before the next frame"
+    );
+    ok(sc_pipeline_frame(p, &input(1), &mut out));
+    assert_eq!(out.light_count, 1);
     ok(sc_pipeline_destroy(p));
 }
 
@@ -484,6 +528,21 @@ fn misuse_gives_statuses_and_messages() {
     (i.width, i.height) = (0, 0);
     assert_eq!(sc_pipeline_frame(p, &i, &mut out), SC_INVALID_ARGUMENT);
     assert!(last_error().contains("viewport"), "{}", last_error());
+    // A viewport of another aspect than the projection's: refused unless
+    // its pixels are declared not square.
+    let mut i = input(0);
+    i.width += W / 10;
+    assert_eq!(sc_pipeline_frame(p, &i, &mut out), SC_INVALID_ARGUMENT);
+    assert!(last_error().contains("aspect"), "{}", last_error());
+    i.anamorphic = 1;
+    ok(sc_pipeline_frame(p, &i, &mut out));
+    i.anamorphic = 2;
+    assert_eq!(sc_pipeline_frame(p, &i, &mut out), SC_INVALID_ARGUMENT);
+    assert!(
+        last_error().contains("input.anamorphic"),
+        "{}",
+        last_error()
+    );
     // The host's near plane: right under OpenGL depth, refused under
     // zero-to-one (the matrix is OpenGL's).
     let mut i = input(0);
@@ -534,6 +593,14 @@ fn misuse_gives_statuses_and_messages() {
     ));
     ok(sc_light_create(p, &light_desc(&lights_0()), &mut light));
     assert!(object != objects[2] && light != lights[0]);
+    // A LOD change takes a mesh's handle, and refuses any other kind.
+    ok(sc_object_set_mesh(p, object, cube_mesh));
+    assert_eq!(sc_object_set_mesh(p, object, light), SC_INVALID_ARGUMENT);
+    assert!(last_error().contains("not a mesh's"), "{}", last_error());
+    assert_eq!(
+        sc_object_set_mesh(p, objects[2], cube_mesh),
+        SC_INVALID_ARGUMENT
+    );
     assert_eq!(
         object & 0xffff_ffff,
         objects[2] & 0xffff_ffff,

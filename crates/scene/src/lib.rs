@@ -40,6 +40,7 @@ mod plane;
 pub mod procedural;
 mod scene;
 mod splitmix;
+mod strided;
 pub mod transform;
 
 pub use aabb::Aabb;
@@ -57,5 +58,6 @@ pub use occluder_proxy::{is_convex_solid, occluder_proxy, PROXY_VERTICES};
 pub use plane::Plane;
 pub use scene::{Committed, Object, ObjectFlags, Scene, SceneCounts, MAX_NODE_DEPTH, MAX_OBJECTS};
 pub use splitmix::splitmix64;
+pub use strided::{Indices, PositionFormat, StridedPositions};
 
 mod light;

@@ -582,6 +582,66 @@ impl Scene {
         Ok(self.id_of(slot))
     }
 
+    /// Makes room for `objects` objects in all: slots past the current ones
+    /// are made free (empty, as removed objects' are), so that
+    /// [`Scene::stage_add_object`] takes them up to that count without
+    /// growing the object list or rebuilding the BVH (a refit does). The
+    /// rebuild for the new slots happens once, at the next
+    /// [`Scene::commit_edits`]. Fewer objects than there are slots is a
+    /// no-op.
+    ///
+    /// # Errors
+    /// [`Error::Graph`] past [`MAX_OBJECTS`].
+    pub fn reserve_objects(&mut self, objects: usize) -> Result<()> {
+        if objects > MAX_OBJECTS {
+            return Err(Error::Graph {
+                node: u32::MAX,
+                message: format!("reserve: {objects} objects, more than {MAX_OBJECTS}"),
+            });
+        }
+        let from = self.objects.len();
+        if objects <= from {
+            return Ok(());
+        }
+        let empty = self.empty_mesh()?;
+        self.objects.reserve_exact(objects - from);
+        self.objects.extend((from..objects).map(|_| Object {
+            node: NodeId(u32::MAX),
+            mesh: empty,
+            world_from_local: DMat4::IDENTITY,
+            mirrored: false,
+            world_bounds: Aabb::EMPTY,
+            alive: false,
+            flags: ObjectFlags {
+                casts: false,
+                receives: false,
+                occludes: false,
+                visible: false,
+            },
+            occluder: None,
+        }));
+        self.generations.resize(objects, 0);
+        // Lowest last, below the slots freed before (all lower).
+        let freed = std::mem::take(&mut self.free_slots);
+        self.free_slots.reserve_exact(objects);
+        self.free_slots.extend((from as u32..objects as u32).rev());
+        self.free_slots.extend(freed);
+        self.pending.rebuild = true;
+        Ok(())
+    }
+
+    /// The empty mesh removed objects and reserved slots draw, made on first use.
+    fn empty_mesh(&mut self) -> Result<MeshId> {
+        Ok(match self.empty_mesh {
+            Some(m) => m,
+            None => {
+                let m = self.add_mesh(Mesh::new("<removed>", &[], &[])?);
+                self.empty_mesh = Some(m);
+                m
+            }
+        })
+    }
+
     /// Moves object `id` to `world_from_local`. Takes effect at [`Scene::commit_edits`].
     ///
     /// # Errors
@@ -652,6 +712,41 @@ impl Scene {
         Ok(())
     }
 
+    /// Gives object `id` another mesh (a level-of-detail change), keeping its
+    /// id, flags, transform and occluder. Takes effect at
+    /// [`Scene::commit_edits`] (a refit).
+    ///
+    /// # Errors
+    /// As [`Scene::live_slot`] and [`Scene::live_mesh`]; [`Error::Transform`]
+    /// when the object's transform flattens the new mesh; [`Error::UnknownMesh`]
+    /// when the object's occluder reaches outside the new mesh's bounds
+    /// (clear it first with [`Scene::set_occluder`]).
+    pub fn stage_set_mesh(&mut self, id: ObjectId, mesh: MeshId) -> Result<()> {
+        let slot = self.live_slot(id)? as usize;
+        let bounds = self.live_mesh(mesh)?.bounds();
+        let o = &self.objects[slot];
+        check_flattening(|| format!("object {}", id), &bounds, &o.world_from_local)?;
+        let world = world_bounds(&bounds, &o.world_from_local, o.node)?;
+        if let Some(occluder) = o.occluder {
+            let b = self.graph.meshes()[occluder.index()].bounds();
+            let slack = 1e-6 * (bounds.max - bounds.min).length();
+            if b.min.cmplt(bounds.min - slack).any() || b.max.cmpgt(bounds.max + slack).any() {
+                return Err(Error::UnknownMesh {
+                    mesh,
+                    message: format!(
+                        "the new mesh of object {id}: its occluder (mesh {occluder}) reaches \
+                         outside its bounds; clear the occluder first"
+                    ),
+                });
+            }
+        }
+        let o = &mut self.objects[slot];
+        o.mesh = mesh;
+        o.world_bounds = world;
+        self.pending.refit = true;
+        Ok(())
+    }
+
     /// Removes object `id`: it draws the empty mesh and has empty bounds; its
     /// slot is freed for reuse with the next generation (or retired when the
     /// generation would wrap). Takes effect at [`Scene::commit_edits`].
@@ -660,14 +755,7 @@ impl Scene {
     /// As [`Scene::live_slot`].
     pub fn stage_remove_object(&mut self, id: ObjectId) -> Result<()> {
         let slot = self.live_slot(id)?;
-        let empty = match self.empty_mesh {
-            Some(m) => m,
-            None => {
-                let m = self.add_mesh(Mesh::new("<removed>", &[], &[])?);
-                self.empty_mesh = Some(m);
-                m
-            }
-        };
+        let empty = self.empty_mesh()?;
         let o = &mut self.objects[slot as usize];
         o.alive = false;
         o.mesh = empty;

@@ -166,6 +166,7 @@ pub fn run(data: &[u8]) {
                     host_depth_width: 0,
                     host_depth_height: 0,
                     near: 0.0,
+                    anamorphic: b.u32() % 3,
                 };
                 for v in i.view.iter_mut().chain(i.projection.iter_mut()) {
                     *v = b.f64();

@@ -322,6 +322,12 @@ impl Pipeline {
             .map_err(to_py)
     }
 
+    fn set_mesh(&mut self, object: u64, mesh: u64) -> PyResult<()> {
+        self.inner
+            .set_mesh(ObjectId::from_bits(object), MeshId::from_bits(mesh))
+            .map_err(to_py)
+    }
+
     fn remove_object(&mut self, object: u64) -> PyResult<()> {
         self.inner
             .remove_object(ObjectId::from_bits(object))
@@ -339,6 +345,10 @@ impl Pipeline {
         self.inner
             .set_light(LightId::from_bits(light), l)
             .map_err(to_py)
+    }
+
+    fn reserve(&mut self, objects: usize, lights: usize) -> PyResult<()> {
+        self.inner.reserve(objects, lights).map_err(to_py)
     }
 
     fn remove_light(&mut self, light: u64) -> PyResult<()> {
@@ -408,7 +418,7 @@ impl Pipeline {
 
     /// Runs one frame (the GIL released) and returns its outputs as a dict
     /// of arrays: `psr`, `stats` (JSON), `lights` (one dict per light).
-    #[pyo3(signature = (width, height, camera=None, view=None, projection=None, clip_depth="negative_one_to_one", host_depth=None, near=None))]
+    #[pyo3(signature = (width, height, camera=None, view=None, projection=None, clip_depth="negative_one_to_one", host_depth=None, near=None, anamorphic=false))]
     // Each parameter is a Python keyword argument of `frame`: a struct would change the Python API.
     #[allow(clippy::too_many_arguments)]
     fn frame<'py>(
@@ -422,6 +432,7 @@ impl Pipeline {
         clip_depth: &str,
         host_depth: Option<PyReadonlyArray2<'_, f32>>,
         near: Option<f64>,
+        anamorphic: bool,
     ) -> PyResult<Bound<'py, PyDict>> {
         let depth = match clip_depth {
             "negative_one_to_one" => ClipDepth::NegativeOneToOne,
@@ -458,6 +469,7 @@ impl Pipeline {
             }
         };
         let mut input = FrameInput::new(width, height, camera);
+        input.anamorphic = anamorphic;
         if let Some(d) = host_depth {
             let a = d.as_array();
             let (h, w) = a.dim();

@@ -137,6 +137,10 @@ def test_view_projection_matrices_equal_look_at():
     a.frame(320, 240, view=view, projection=proj, near=near)
     with pytest.raises(ValueError, match="near.*is NegativeOneToOne, not ZeroToOne"):
         a.frame(320, 240, view=view, projection=proj, clip_depth="zero_to_one", near=near)
+    # A projection made for another viewport's aspect, unless the pixels are not square.
+    with pytest.raises(ValueError, match="viewport.*aspect"):
+        a.frame(400, 240, view=view, projection=proj)
+    a.frame(400, 240, view=view, projection=proj, anamorphic=True)
 
 
 def test_edits_between_frames():
@@ -153,8 +157,40 @@ def test_edits_between_frames():
         assert p.reference_mask(light).mismatches(f.mask[light]) == 0
     p.remove_light(sun)
     assert p.lights == [lamp]
+    with pytest.raises(ValueError, match="edited after the last frame"):
+        p.reference_mask(lamp)  # the last frame no longer describes the lights
     with pytest.raises(ValueError, match="object"):
         p.set_transform(cubes[1], np.eye(4))  # a removed object's id is stale
+
+
+def test_a_lod_change_keeps_the_id_and_the_mask_exact():
+    p, cubes, lamp, sun = box_scene(stencil="h", culling="chcpp")
+    before = p.frame(160, 120, camera=CAMERA)
+    pos, idx = cube_arrays()
+    tall = p.add_mesh(np.asarray(pos) * [1.0, 3.0, 1.0], idx, name="tall")
+    p.set_mesh(cubes[0], tall)
+    f = p.frame(160, 120, camera=CAMERA)
+    assert cubes[0].bits in f.psr.tolist()
+    assert not np.array_equal(f.mask[lamp], before.mask[lamp]), "the taller cube casts farther"
+    for light in (lamp, sun):
+        assert p.reference_mask(light).mismatches(f.mask[light]) == 0
+    with pytest.raises(TypeError, match="mesh"):
+        p.set_mesh(cubes[0], cubes[1])  # type: ignore[arg-type]
+
+
+def test_objects_and_lights_added_into_reserved_room():
+    p, cubes, lamp, sun = box_scene(stencil="h", culling="chcpp")
+    p.reserve(16, 4)
+    p.frame(160, 120, camera=CAMERA)
+    cube = p.add_mesh(*cube_arrays())
+    more = [p.add_object(cube, translation(-1.5 * k, 0.0, 3.0)) for k in range(4)]
+    spot = p.add_light("spot", position=(0.0, 6.0, 2.0), direction=(0.0, -1.0, 0.0), apex_deg=70.0)
+    f = p.frame(160, 120, camera=CAMERA)
+    assert {c.bits for c in more} & set(f.psr.tolist()), "the added cubes are seen"
+    for light in (lamp, sun, spot):
+        assert p.reference_mask(light).mismatches(f.mask[light]) == 0
+    with pytest.raises(ValueError, match="objects"):
+        p.reserve(-1, 0)
 
 
 def test_a_host_occluder_inside_its_object_keeps_the_mask_exact():

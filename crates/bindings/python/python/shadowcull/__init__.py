@@ -622,6 +622,11 @@ class Pipeline:
         mesh."""
         self._p.set_occluder(_handle(ObjectId, "obj", obj), None if mesh is None else _handle(MeshId, "mesh", mesh))
 
+    def set_mesh(self, obj: ObjectId, mesh: MeshId) -> None:
+        """Gives an object another mesh (a level-of-detail change); its id,
+        flags, transform and occluder stay."""
+        self._p.set_mesh(_handle(ObjectId, "obj", obj), _handle(MeshId, "mesh", mesh))
+
     def remove_object(self, obj: ObjectId) -> None:
         """Removes an object; its id is stale afterwards."""
         self._p.remove_object(_handle(ObjectId, "obj", obj))
@@ -707,6 +712,12 @@ class Pipeline:
         numbers, not calls: a jump starts a new history)."""
         self._p.set_frame_number(_index("frame", frame))
 
+    def reserve(self, objects: int, lights: int) -> None:
+        """Makes room for ``objects`` objects and ``lights`` lights in all:
+        adding up to that many allocates nothing, and objects added into the
+        room refit the culling hierarchy instead of rebuilding it."""
+        self._p.reserve(_index("objects", objects), _index("lights", lights))
+
     def reset_history(self) -> None:
         """Forgets the culling histories and caches (a camera cut)."""
         self._p.reset_history()
@@ -722,6 +733,7 @@ class Pipeline:
         clip_depth: str = "negative_one_to_one",
         host_depth: Any = None,
         near: Optional[float] = None,
+        anamorphic: bool = False,
     ) -> Frame:
         """Computes one ``width × height`` frame seen by ``camera`` (a
         :func:`look_at` pose) or by the host's ``view`` and perspective
@@ -737,7 +749,12 @@ class Pipeline:
         ``near``: the near plane the host built ``projection`` with. When
         given, a projection whose near plane under ``clip_depth`` differs
         (a wrong convention, which the matrix alone cannot show) is a
-        ``ValueError``."""
+        ``ValueError``.
+
+        ``anamorphic``: the viewport's pixels are not square. Otherwise a
+        ``width / height`` more than 1 % from the projection's aspect is a
+        ``ValueError`` naming ``viewport`` (a projection made for another
+        viewport size)."""
         cam = None if camera is None else _camera(camera)
         v = None if view is None else _matrix("view", view)
         p = None if projection is None else _matrix("projection", projection)
@@ -748,7 +765,7 @@ class Pipeline:
                 raise ValueError(f"host_depth: an (h, w) array, got shape {d.shape}")
         w, h = _index("width", width), _index("height", height)
         n = None if near is None else float(near)
-        return Frame(self._p.frame(w, h, cam, v, p, clip_depth, d, n))
+        return Frame(self._p.frame(w, h, cam, v, p, clip_depth, d, n, bool(anamorphic)))
 
     def reference_mask(self, light: LightId) -> ReferenceMask:
         """The exact ray-cast mask of ``light`` for the last frame: what every
