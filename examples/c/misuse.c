@@ -34,7 +34,8 @@ int main(void) {
 
   /* A frame before any object exists, and a 0x0 viewport. */
   sc_frame_input in = {sizeof in, 64, 48, SC_CLIP_DEPTH_NEGATIVE_ONE_TO_ONE};
-  double proj[16] = {1.0, 0, 0, 0, 0, 1.0, 0, 0, 0, 0, -1.002, -1.0, 0, 0, -0.2002, 0};
+  /* A 90-degree OpenGL perspective for the viewport's 4:3 aspect. */
+  double proj[16] = {0.75, 0, 0, 0, 0, 1.0, 0, 0, 0, 0, -1.002, -1.0, 0, 0, -0.2002, 0};
   double view[16] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, -1, -10, 1};
   memcpy(in.view, view, sizeof view);
   memcpy(in.projection, proj, sizeof proj);
@@ -42,6 +43,12 @@ int main(void) {
   expect(sc_pipeline_frame(p, &in, &out), SC_OK, "frame before any object", NULL);
   in.width = in.height = 0;
   expect(sc_pipeline_frame(p, &in, &out), SC_INVALID_ARGUMENT, "0x0 viewport", "viewport");
+  /* A square viewport for the 4:3 projection: refused, unless its pixels are not square. */
+  in.width = in.height = 64;
+  expect(sc_pipeline_frame(p, &in, &out), SC_INVALID_ARGUMENT, "aspect 1 for 4:3", "aspect");
+  in.anamorphic = 1;
+  expect(sc_pipeline_frame(p, &in, &out), SC_OK, "anamorphic viewport", NULL);
+  in.anamorphic = 0;
   in.width = 64, in.height = 48;
   expect(sc_pipeline_frame(p, NULL, &out), SC_INVALID_ARGUMENT, "frame(NULL input)", "input");
   expect(sc_pipeline_frame(p, &in, NULL), SC_INVALID_ARGUMENT, "frame(NULL out)", "out");
