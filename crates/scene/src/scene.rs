@@ -690,14 +690,13 @@ impl Scene {
             let occluder = self.live_mesh(m)?;
             let own = self.graph.meshes()[self.objects[slot].mesh.index()].bounds();
             let b = occluder.bounds();
-            let slack = 1e-6 * (own.max - own.min).length();
             if occluder.triangles().is_empty() {
                 return Err(Error::UnknownMesh {
                     mesh: m,
                     message: format!("occluder of object {}: has no triangles", id),
                 });
             }
-            if b.min.cmplt(own.min - slack).any() || b.max.cmpgt(own.max + slack).any() {
+            if !occluder_fits(&own, &b) {
                 return Err(Error::UnknownMesh {
                     mesh: m,
                     message: format!(
@@ -729,8 +728,7 @@ impl Scene {
         let world = world_bounds(&bounds, &o.world_from_local, o.node)?;
         if let Some(occluder) = o.occluder {
             let b = self.graph.meshes()[occluder.index()].bounds();
-            let slack = 1e-6 * (bounds.max - bounds.min).length();
-            if b.min.cmplt(bounds.min - slack).any() || b.max.cmpgt(bounds.max + slack).any() {
+            if !occluder_fits(&bounds, &b) {
                 return Err(Error::UnknownMesh {
                     mesh,
                     message: format!(
@@ -832,6 +830,15 @@ impl Scene {
         }
         self.refit_order.reverse();
     }
+}
+
+/// Whether an occluder mesh's bounds `occluder` lie inside its object's
+/// mesh's bounds `own`, up to 10⁻⁶ of their diagonal (the rounding of
+/// meshes that share a surface): an occluder reaching further could hide
+/// what its object does not.
+fn occluder_fits(own: &Aabb, occluder: &Aabb) -> bool {
+    let slack = 1e-6 * (own.max - own.min).length();
+    !(occluder.min.cmplt(own.min - slack).any() || occluder.max.cmpgt(own.max + slack).any())
 }
 
 /// `bounds` (a mesh's) in world space by `world_from_local`; an error naming
