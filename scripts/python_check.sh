@@ -22,6 +22,26 @@ if [ "${1:-}" != --no-lint ]; then
   CARGO_TARGET_DIR="$PWD/target" cargo clippy --manifest-path crates/bindings/python/Cargo.toml \
     --all-targets -- -D warnings
 fi
+# The package's lock file pins every crate it shares with the main
+# workspace at a version the main lock file has: then (with the same
+# release profile) maturin reuses the main release build's dependencies.
+"$python" - <<'PY'
+import sys, tomllib
+def versions(path):
+    out = {}
+    with open(path, "rb") as f:
+        for p in tomllib.load(f)["package"]:
+            out.setdefault(p["name"], set()).add(p["version"])
+    return out
+main = versions("Cargo.lock")
+package = versions("crates/bindings/python/Cargo.lock")
+drift = sorted(f"{n} {v} (main: {', '.join(sorted(main[n]))})"
+               for n, vs in package.items() if n in main for v in vs if v not in main[n])
+if drift:
+    sys.exit("python_check: crates/bindings/python/Cargo.lock differs from Cargo.lock: "
+             + "; ".join(drift)
+             + " (cargo update --manifest-path crates/bindings/python/Cargo.toml -p NAME --precise VERSION)")
+PY
 "$python" -m venv "$work/build"
 "$work/build/bin/pip" install --quiet --disable-pip-version-check "maturin>=1.9,<2"
 # The workspace's target directory: the release build of the library's
