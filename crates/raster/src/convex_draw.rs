@@ -107,6 +107,10 @@ impl DepthTarget {
             .min(h - 1.0)
             .min(f64::from(ty1) * s_px - 1.0);
         s.tiles.clear();
+        // A row of `tiles_x` bits (no more than the room: `tiles_x ≤ tiles`).
+        s.seen.clear();
+        s.seen.resize((l.tiles_x as usize).div_ceil(64), 0);
+        let mut seen_row = u32::MAX;
         let mut written = 0u64;
         let id = u64::from(item.object) << 32;
         let tile_px = 1u32 << l.shift;
@@ -115,6 +119,10 @@ impl DepthTarget {
                 let Some((x0, x1)) = inner_span(&s.hull, f64::from(r), w) else {
                     continue;
                 };
+                if r >> l.shift != seen_row {
+                    seen_row = r >> l.shift;
+                    s.seen.fill(0);
+                }
                 // Per plane, its least over each square of the row is
                 // affine in x: a·x + base.
                 let yf = f64::from(r);
@@ -159,7 +167,9 @@ impl DepthTarget {
                             written += 1;
                         }
                     }
-                    if wrote && s.tiles.last() != Some(&(t as u32)) {
+                    let (word, bit) = ((x >> l.shift) as usize / 64, (x >> l.shift) % 64);
+                    if wrote && s.seen[word] & 1 << bit == 0 {
+                        s.seen[word] |= 1 << bit;
                         s.tiles.push(t as u32);
                     }
                     x = end + 1;
@@ -372,6 +382,32 @@ mod tests {
                 });
                 assert_eq!(convex.tile_bounds(tx, ty), want, "tile ({tx}, {ty})");
             }
+        }
+    }
+
+    /// A solid covering the whole target lists each tile it writes once, so
+    /// the room a target is made with holds it (a steady frame's convex
+    /// draws allocate nothing whichever target a light view gets), and
+    /// every tile's bounds are refreshed.
+    #[test]
+    fn a_solid_over_the_whole_target_stays_within_the_room() {
+        let (p, t) = cube();
+        let item = DrawItem {
+            clip_from_local: perspective()
+                * Mat4::from_translation(glam::Vec3::new(0.0, 0.0, -1.5)),
+            positions: &p,
+            triangles: &t,
+            object: 1,
+            cull: CullMode::None,
+        };
+        let mut d = DepthTarget::new(64, 64, TileSize::T8, false).unwrap();
+        let room = d.convex.tiles.capacity();
+        assert_eq!(room, 64);
+        assert!(d.draw_convex(&item));
+        assert_eq!(d.convex.tiles.capacity(), room);
+        assert_eq!(d.convex.tiles.len(), 64, "every tile once");
+        for (tx, ty) in (0..8).flat_map(|tx| (0..8).map(move |ty| (tx, ty))) {
+            assert!(d.tile_bounds(tx, ty).is_some(), "tile ({tx}, {ty})");
         }
     }
 

@@ -49,8 +49,12 @@ pub(crate) struct ConvexScratch {
     pub(crate) sorted: Vec<DVec2>,
     /// Upper faces' depth planes.
     pub(crate) planes: Vec<DepthPlane>,
-    /// Tiles written, to refresh.
+    /// Tiles written, to refresh: each once per draw (a tile's every pixel
+    /// row writes to it, so without [`ConvexScratch::seen`] a large solid
+    /// listed it up to eight times and outgrew the room).
     pub(crate) tiles: Vec<u32>,
+    /// Per tile of the tile row being drawn, whether it is in `tiles` (bits).
+    pub(crate) seen: Vec<u64>,
     /// Per upper face, `(a, base)` of the row being drawn.
     pub(crate) row: Vec<(f64, f64)>,
     /// The depths of one tile's part of a row.
@@ -68,6 +72,7 @@ impl ConvexScratch {
             sorted: Vec::with_capacity(3 * TRIANGLES),
             planes: Vec::with_capacity(TRIANGLES),
             tiles: Vec::with_capacity(tiles),
+            seen: Vec::with_capacity(tiles.div_ceil(64)),
             row: Vec::with_capacity(TRIANGLES),
             span: [0.0; 16],
         }
