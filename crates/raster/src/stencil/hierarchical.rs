@@ -492,7 +492,7 @@ impl HierarchicalStencil {
             }
             #[cfg(not(feature = "parallel"))]
             setups.iter_mut().enumerate().for_each(setup);
-            share_capacity(setups);
+            keep_headroom(setups);
             // One index space over the chunks' pieces and open edges.
             vols.clear();
             let mut pieces: Vec<(&Piece, &Shape)> = recycle(std::mem::take(piece_list));
@@ -809,31 +809,21 @@ struct SetUp {
     edges: Vec<EdgeRec>,
 }
 
-/// Keeps headroom in every chunk's lists ([`headroom`]), then gives them all
-/// the largest capacity any chunk's has: a chunk then grows only past the
-/// longest list any chunk has held (chunks take turns being the longest from
-/// frame to frame). Nothing is allocated unless a chunk came near its capacity.
-fn share_capacity(setups: &mut [SetUp]) {
+/// Keeps headroom in every chunk's lists ([`headroom`]). Each chunk's lists
+/// grow only past the longest it has held: a motion that repeats (a light
+/// orbiting, a camera path run back and forth) allocates nothing once each
+/// chunk has seen its part of it, and a chunk's list holds at most twice the
+/// longest it has held. (Giving every chunk the capacity of the
+/// longest, as before, made a scene of one large volume, which one chunk
+/// sets up, hold 16 copies of its pieces' room: 975 MB against brute force's
+/// 103 MB on a 125k-triangle open mesh.)
+fn keep_headroom(setups: &mut [SetUp]) {
     for p in setups.iter_mut() {
         headroom(&mut p.pieces);
         headroom(&mut p.shapes);
         headroom(&mut p.open);
         headroom(&mut p.vols);
-    }
-    let most = setups.iter().fold([0; 4], |m, p| {
-        [
-            m[0].max(p.pieces.capacity()),
-            m[1].max(p.open.capacity()),
-            m[2].max(p.vols.capacity()),
-            m[3].max(p.edges.capacity()),
-        ]
-    });
-    for p in setups {
-        p.pieces.reserve(most[0] - p.pieces.len());
-        p.shapes.reserve(most[0] - p.shapes.len());
-        p.open.reserve(most[1] - p.open.len());
-        p.vols.reserve(most[2] - p.vols.len());
-        p.edges.reserve(most[3] - p.edges.len());
+        headroom(&mut p.edges);
     }
 }
 
