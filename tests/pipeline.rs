@@ -1224,7 +1224,24 @@ fn scene_edits_keep_masks_exact() -> Result<()> {
         glam::Vec3::new(0.5, 16.0, 2.0),
     );
     let tris = scene::procedural::analytic::box_triangles();
-    culled.update_mesh_positions(mesh, &tall, &tris)?;
+    // The culled pipeline takes it as a host's vertex buffer (f64, strided,
+    // u16 indices), the plain one as positions.
+    let bytes: Vec<u8> = (tall.iter())
+        .flat_map(|p| p.to_array().map(f64::from))
+        .flat_map(f64::to_ne_bytes)
+        .collect();
+    let indices: Vec<u16> = tris.iter().flatten().map(|&i| i as u16).collect();
+    culled.update_mesh_strided(
+        mesh,
+        scene::StridedPositions {
+            bytes: &bytes,
+            offset: 0,
+            stride: 24,
+            count: tall.len(),
+            format: scene::PositionFormat::F64x3,
+        },
+        scene::Indices::U16(&indices),
+    )?;
     plain.update_mesh_positions(mesh, &tall, &tris)?;
     let deformed = check(&mut culled, &mut plain, "slab deformed")?;
     assert_ne!(deformed, back, "the taller slab casts a longer shadow");

@@ -84,8 +84,28 @@ impl Pipeline {
         positions: &[glam::Vec3],
         triangles: &[[u32; 3]],
     ) -> Result<()> {
-        let name = self.scene.live_mesh(mesh)?.name().to_string();
-        self.update_mesh(mesh, Mesh::new(name, positions, triangles)?)
+        let shape = self.scene.live_mesh(mesh)?.deformed(positions, triangles)?;
+        self.update_mesh(mesh, shape)
+    }
+
+    /// Deforms `mesh` to the host's own vertex buffer, read as
+    /// [`Mesh::from_strided`] reads it (`indices` the index buffer it was
+    /// built from), as [`Pipeline::update_mesh_positions`] does.
+    ///
+    /// # Errors
+    /// As [`Pipeline::update_mesh_positions`], and [`Mesh::from_strided`]'s
+    /// errors for the buffers.
+    pub fn update_mesh_strided(
+        &mut self,
+        mesh: MeshId,
+        positions: scene::StridedPositions<'_>,
+        indices: scene::Indices<'_>,
+    ) -> Result<()> {
+        let shape = self
+            .scene
+            .live_mesh(mesh)?
+            .deformed_strided(positions, indices)?;
+        self.update_mesh(mesh, shape)
     }
 
     /// Deforms `mesh` to `shape`, a mesh of the same topology (built with

@@ -100,6 +100,12 @@ fn matrix_f32(m: *const f32, name: &str) -> Result<DMat4> {
 /// The mesh a description points to ([`Mesh::from_strided`] over the
 /// host's buffers, read in place).
 fn mesh_of_desc(d: &sc_mesh_desc) -> Result<Mesh> {
+    let (positions, indices) = strided_of_desc(d)?;
+    Ok(Mesh::from_strided("mesh", positions, indices)?)
+}
+
+/// The host's vertex and index buffers a mesh description points at.
+fn strided_of_desc(d: &sc_mesh_desc) -> Result<(StridedPositions<'_>, Indices<'_>)> {
     let format = match d.position_type {
         SC_F32 => PositionFormat::F32x3,
         SC_F64 => PositionFormat::F64x3,
@@ -157,7 +163,7 @@ fn mesh_of_desc(d: &sc_mesh_desc) -> Result<Mesh> {
         count: n,
         format,
     };
-    Ok(Mesh::from_strided("mesh", positions, indices)?)
+    Ok((positions, indices))
 }
 
 /// Fills `options` with the defaults (its `struct_size` included): CHC++
@@ -286,8 +292,11 @@ pub extern "C" fn sc_mesh_update_positions(
 ) -> sc_status {
     guard("sc_mesh_update_positions", || {
         let id = mesh_of(mesh, "mesh")?;
-        let shape = mesh_of_desc(&read(desc, "mesh")?)?;
-        handles::with(pipeline, |e| Ok(e.pipeline.update_mesh(id, shape)?))
+        let desc = read(desc, "mesh")?;
+        let (positions, indices) = strided_of_desc(&desc)?;
+        handles::with(pipeline, |e| {
+            Ok(e.pipeline.update_mesh_strided(id, positions, indices)?)
+        })
     })
 }
 

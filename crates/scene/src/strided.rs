@@ -172,6 +172,22 @@ impl Mesh {
         let t = indices.triangles(&name)?;
         Mesh::new(name, &p, &t)
     }
+
+    /// This mesh deformed to the host's strided vertices: exactly
+    /// `Mesh::from_strided(self.name(), positions, indices)`, built as
+    /// [`Mesh::deformed`] builds (the edge table kept when the topology is).
+    ///
+    /// # Errors
+    /// As [`Mesh::from_strided`].
+    pub fn deformed_strided(
+        &self,
+        positions: StridedPositions<'_>,
+        indices: Indices<'_>,
+    ) -> Result<Mesh> {
+        let p = positions.read(self.name())?;
+        let t = indices.triangles(self.name())?;
+        self.deformed(&p, &t)
+    }
 }
 
 #[cfg(test)]
