@@ -7,13 +7,11 @@
 //! [`DepthTarget::draw_batch`]: crate::DepthTarget::draw_batch
 
 use crate::hiz::Projected;
-use crate::setup::MeshVertices;
 use crate::stats::RasterStats;
 
 /// One band's output: its traversal counters, and per item set up there
-/// its setup counters `(item, clipped, culled)`; then the band's vertex
-/// stage of larger meshes (scratch).
-pub(crate) type BandOut = (RasterStats, Vec<(u32, u32, u32)>, MeshVertices);
+/// its setup counters `(item, clipped, culled)`.
+pub(crate) type BandOut = (RasterStats, Vec<(u32, u32, u32)>);
 
 /// Buffers of a parallel batch.
 #[derive(Clone, Debug, Default)]

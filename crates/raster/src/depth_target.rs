@@ -84,8 +84,6 @@ pub struct DepthTarget {
     pub(crate) isa: InstructionSet,
     /// Scratch of [`DepthTarget::draw`]'s hidden-row test (kept, not rebuilt per mesh).
     pub(crate) skip: Box<RowSkip>,
-    /// Scratch of [`DepthTarget::draw`]'s per-vertex stage of larger meshes.
-    pub(crate) verts: crate::setup::MeshVertices,
     /// Buffers of [`DepthTarget::draw_batch`] (kept: no allocation per batch).
     #[cfg_attr(not(feature = "parallel"), allow(dead_code))]
     pub(crate) batch: crate::batch_scratch::BatchScratch,
@@ -140,13 +138,13 @@ impl DepthTarget {
             stats: RasterStats::default(),
             threads: 0,
             draw_rows: None,
-            // Room for every tile and for a mesh's vertex stage from the
-            // start: a target made ahead of its first view (a light pass's
-            // group that has not drawn yet) allocates nothing when it does.
+            // Room for every tile from the start: a target made ahead of
+            // its first view (a light pass's group that has not drawn yet)
+            // allocates nothing when it does. (The vertex stage of larger
+            // meshes is the drawing thread's, `dispatch.rs`.)
             hidden: Vec::with_capacity(n_tiles),
             isa: InstructionSet::detected(),
             skip: Box::new(RowSkip::new()),
-            verts: crate::setup::MeshVertices::with_room(),
             batch: Default::default(),
             convex: crate::whole_draw::ConvexScratch::with_room(n_tiles),
             closed: Default::default(),
@@ -913,10 +911,9 @@ pub(crate) mod tests {
         assert!(full.take_part_from(&mut other, 0..tx, 0..1).is_err());
     }
 
-    /// A new target hides every tile, and holds a mesh's vertex stage, in
-    /// the storage it was made with: a target made ahead of its first view
-    /// allocates nothing when it draws (the `steady_alloc` test's light-pass
-    /// groups).
+    /// A new target hides every tile in the storage it was made with: a
+    /// target made ahead of its first view allocates nothing when it draws
+    /// (the `steady_alloc` test's light-pass groups).
     #[test]
     fn a_new_target_has_room_for_its_draw_scratch() {
         let mut t = DepthTarget::new(100, 60, TileSize::T8, false).unwrap();
@@ -924,7 +921,6 @@ pub(crate) mod tests {
         t.hide_tiles(0..t.tiles.len() as u32);
         assert_eq!(t.hidden.len(), t.tiles.len());
         assert_eq!(t.hidden.as_ptr(), at);
-        assert!(t.verts.room() >= 1024);
     }
 
     /// Row walks give `depth_at`/`id_at` pixel by pixel, with and without ids,

@@ -93,9 +93,18 @@ pub(crate) struct BandTarget<'a, 'b> {
     pub skip: &'a mut RowSkip,
     /// Traversal counters (tiles and pixels) of the band.
     pub st: &'a mut RasterStats,
+}
+
+thread_local! {
     /// The vertex stage of a mesh larger than a box (scratch, recomputed per
-    /// mesh).
-    pub verts: &'a mut MeshVertices,
+    /// mesh), one per thread: a draw holds it only inside [`draw_mesh`],
+    /// which calls into no thread pool, so it is never held twice. Kept
+    /// per target and band, every light view, quadrant and band kept room
+    /// for the largest mesh it ever drew (42 bytes a vertex: 190 MB for a
+    /// 75k-vertex scan drawn into three lights' views); per thread, the
+    /// pool's threads hold it once each.
+    static MESH_VERTICES: std::cell::RefCell<MeshVertices> =
+        std::cell::RefCell::new(MeshVertices::with_room());
 }
 
 multiversioned! {
@@ -116,7 +125,6 @@ multiversioned! {
             rows: band,
             skip,
             st,
-            verts,
         } = target;
         // The cache is filled in place (moving it costs a copy per mesh).
         let small = item.positions.len() <= CACHE_VERTICES;
@@ -139,33 +147,34 @@ multiversioned! {
             }
             Projected::Unknown => skip.reset(),
         }
-        let vertices = if small {
-            if !transformed {
-                cache.transform_into(&item.clip_from_local, item.positions);
-            }
-            cache.snap(vp);
-            Vertices::Small(&cache)
-        } else if MeshVertices::pays(item.positions.len(), item.triangles.len()) {
-            verts.fill(&item.clip_from_local, item.positions, vp);
-            Vertices::Mesh(verts)
-        } else {
-            Vertices::PerTriangle
-        };
         let mut sink = Draw {
             band,
             cov,
             skip,
             st,
         };
-        setup_item(
-            vp,
-            item,
-            cov,
-            item.cull,
-            vertices,
-            st_setup,
-            &mut sink,
-        )?;
+        let mut set_up = |vertices: Vertices<'_>| {
+            setup_item(vp, item, cov, item.cull, vertices, st_setup, &mut sink)
+        };
+        if small {
+            if !transformed {
+                cache.transform_into(&item.clip_from_local, item.positions);
+            }
+            cache.snap(vp);
+            set_up(Vertices::Small(&cache))?;
+        } else if MeshVertices::pays(item.positions.len(), item.triangles.len()) {
+            MESH_VERTICES.with(|v| match v.try_borrow_mut() {
+                Ok(mut verts) => {
+                    verts.fill(&item.clip_from_local, item.positions, vp);
+                    set_up(Vertices::Mesh(&verts))
+                }
+                // (Held by a draw further up this thread's stack, which
+                // none is: the same values per triangle.)
+                Err(_) => set_up(Vertices::PerTriangle),
+            })?;
+        } else {
+            set_up(Vertices::PerTriangle)?;
+        }
         Ok(true)
     }
 
@@ -506,7 +515,6 @@ mod tests {
                     rows: &mut band(&mut t),
                     skip: &mut RowSkip::new(),
                     st: &mut st,
-                    verts: &mut MeshVertices::default(),
                 };
                 let d = draw_mesh(level, &vp, target, it, cov, None, &mut st_setup);
                 out.push((d.unwrap(), t.depth, t.ids, st, st_setup));
@@ -576,14 +584,12 @@ mod tests {
                     rows: &mut band(&mut a),
                     skip: &mut ra,
                     st: &mut ta,
-                    verts: &mut MeshVertices::default(),
                 };
                 let da = draw_mesh(level, &vp, target_a, it, cov, None, &mut sa).unwrap();
                 let target_b = BandTarget {
                     rows: &mut band(&mut b),
                     skip: &mut rb,
                     st: &mut tb,
-                    verts: &mut MeshVertices::default(),
                 };
                 let db = draw_mesh(Portable, &vp, target_b, it, cov, None, &mut sb).unwrap();
                 assert_eq!(da, db);

@@ -143,7 +143,6 @@ impl DepthTarget {
                 rows: &mut band,
                 skip: &mut self.skip,
                 st: &mut st2,
-                verts: &mut self.verts,
             };
             match draw_mesh(self.isa, &vp, target, item, cov, None, &mut st) {
                 Ok(d) => drawn = d,
@@ -287,7 +286,7 @@ impl DepthTarget {
             );
             let band = |mut band: TileRows<'_>, out: &mut BandOut| {
                 let (ty0, ty1) = (band.ty0, band.ty1);
-                let (st, setups, verts) = out;
+                let (st, setups) = out;
                 *st = RasterStats::default();
                 setups.clear();
                 // Room for every item: which band draws how many changes
@@ -310,7 +309,6 @@ impl DepthTarget {
                         rows: &mut band,
                         skip: &mut skip,
                         st,
-                        verts,
                     };
                     // Indices were checked above.
                     let drawn = draw_mesh(isa, &vp, target, it, cov, Some(p), &mut sst);
@@ -330,7 +328,7 @@ impl DepthTarget {
         let seen = &mut scratch.seen;
         seen.clear();
         seen.resize(items.len(), false);
-        for (st, setups, _) in &scratch.bands[..bands] {
+        for (st, setups) in &scratch.bands[..bands] {
             self.stats.add(st);
             for &(k, clipped, culled) in setups {
                 if !std::mem::replace(&mut seen[k as usize], true) {

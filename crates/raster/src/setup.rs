@@ -454,9 +454,9 @@ impl MeshVertices {
         let n = positions.len().div_ceil(CACHE_VERTICES);
         if self.chunks.len() < n {
             // Room for any mesh up to `MESH_VERTICES_MIN` vertices from the
-            // first fill on: which band (and which view's buffers) draws the
-            // largest mesh changes from frame to frame, and a steady frame
-            // allocates nothing. (Never shortened.)
+            // first fill on: which thread draws the largest mesh changes
+            // from frame to frame, and a steady frame allocates nothing.
+            // (Never shortened.)
             let room = n.max(MESH_VERTICES_MIN / CACHE_VERTICES);
             self.chunks.resize_with(room, VertexCache::empty);
         }
