@@ -204,10 +204,12 @@ fn run_writes_stats_summary_and_images() {
         summary["frame_ms_mean"].as_f64().unwrap(),
     );
     assert!(median > 0.0 && mean > 0.0, "{summary}");
-    // On Linux, the peak resident set: at least the job's output buffers.
+    // On Linux, the peak resident set: at least the job's output buffers,
+    // and no more than the estimate the run was admitted with.
+    let estimate = summary["memory_estimate_bytes"].as_u64().unwrap();
     if cfg!(target_os = "linux") {
         let rss = summary["peak_rss_bytes"].as_u64().unwrap();
-        assert!(rss > 1 << 20, "{summary}");
+        assert!(rss > 1 << 20 && rss <= estimate, "{summary}");
     }
     for f in [
         "0_0_mask.png",

@@ -22,7 +22,8 @@
 //!   computes them ([`RowSummary::of`]);
 //! - `load_ms`, `bvh_ms`: the maximum over shards (each shard loads the scene
 //!   and builds the reference's BVH once; the slowest one bounds the job);
-//! - `peak_rss_bytes`: the maximum over shards (each is its own process);
+//! - `peak_rss_bytes`, `memory_estimate_bytes`: the maximum over shards
+//!   (each is its own process, admitted with its own block's rows);
 //! - `shards` (only in a merged summary): each shard's directory and
 //!   `shard.json`, with its load, warm-up and wall times.
 
@@ -198,6 +199,10 @@ pub fn merge_shards(out: &Path, dirs: &[PathBuf]) -> Result<MergeReport> {
         };
         summary.insert("load_ms".into(), max("load_ms").into());
         summary.insert("bvh_ms".into(), max("bvh_ms").into());
+        summary.insert(
+            "memory_estimate_bytes".into(),
+            (max("memory_estimate_bytes") as u64).into(),
+        );
         if shards
             .iter()
             .any(|s| s.summary.get("peak_rss_bytes").is_some())

@@ -74,6 +74,10 @@ pub struct RunSummary {
     /// left out elsewhere): the scene, every buffer, the reference when on.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub peak_rss_bytes: Option<u64>,
+    /// The memory estimate the run was admitted with ([`crate::memory`],
+    /// from the loaded scene's counts and the resolved lights), in bytes:
+    /// set beside `peak_rss_bytes`, it shows how far the guard was off.
+    pub memory_estimate_bytes: u64,
     /// Everything derived from the rows (`frames`, means, medians, totals).
     #[serde(flatten)]
     pub rows: RowSummary,
@@ -206,7 +210,8 @@ pub fn run_job(
     let load_ms = ms(t0);
     let bounds = scene.bounds();
     let lights = resolve_lights(job, &loaded, &bounds, file)?;
-    check_job_memory(job, rows, 1, lights.len() as u32, Some(&scene.counts()))?;
+    let memory_estimate_bytes =
+        check_job_memory(job, rows, 1, lights.len() as u32, Some(&scene.counts()))?;
     let warmup = options.warmup.unwrap_or(job.pipeline.chcpp.revisit);
     let warm = warmup_start(block.start, warmup, keyframe)..block.start;
     let (w, h) = job.resolution;
@@ -275,6 +280,7 @@ pub fn run_job(
         load_ms,
         bvh_ms: runner.bvh_ms,
         peak_rss_bytes: crate::memory::peak_rss_bytes(),
+        memory_estimate_bytes,
         rows: RowSummary::of(written, &rows),
     };
     write_json(&out.join("summary.json"), &summary)?;
@@ -373,14 +379,14 @@ fn ms(t: Instant) -> f64 {
 /// capped by the input limit), and after, with the loaded counts and the
 /// resolved lights. `frames × lights × variants` rows are kept for the
 /// summary. The per-frame estimate leaves out the reference when the job
-/// never computes one.
+/// never computes one. Returns the estimate, in bytes.
 pub(crate) fn check_job_memory(
     job: &Job,
     frames: u32,
     variants: u32,
     lights: u32,
     counts: Option<&scene::SceneCounts>,
-) -> Result<()> {
+) -> Result<u64> {
     fn cities(spec: &SceneSpec) -> Result<(u64, u64)> {
         Ok(match spec {
             SceneSpec::City(p) => p.bounds()?,
@@ -405,7 +411,9 @@ pub(crate) fn check_job_memory(
         objects,
         rows: u64::from(frames) * u64::from(lights) * u64::from(variants),
     };
-    crate::memory::estimate(&job.pipeline, &workload).check(crate::memory::limit(&job.pipeline))
+    let estimate = crate::memory::estimate(&job.pipeline, &workload);
+    estimate.check(crate::memory::limit(&job.pipeline))?;
+    Ok(estimate.total)
 }
 
 /// A frame cap of 0 is refused, as a job's `frames: 0` is: a run that
